@@ -1,0 +1,24 @@
+"""navsim: a testbed for UAV integrated navigation.
+
+JSBSim flies a fixed-wing through a scripted track under a closed-loop autopilot
+(:mod:`navsim.flight`); the recorded truth feeds sensor emulators and estimators.
+
+Notation (after pyins)
+----------------------
+Frames: ``i`` inertial (ECI), ``e`` Earth-fixed (ECEF), ``n`` local level North-East-Down,
+``b`` body (x forward, y right, z down).
+
+* ``vec_a``      a vector resolved in frame ``a``: ``vel_n`` (NED velocity), ``f_b`` (specific force),
+  ``omega_ib_b`` (angular rate of ``b`` relative to ``i``, resolved in ``b``).
+* ``C_ab``       a direction-cosine matrix taking vectors from ``b`` to ``a``: ``vec_a = C_ab @ vec_b``.
+* ``quat_ab``    the same rotation as a unit quaternion, scalar first ``(w, x, y, z)``.
+* Euler angles are roll, pitch, yaw (z-y-x sequence) of ``b`` relative to ``n``.
+
+Units are SI everywhere inside the package (m, s, rad, kg, Pa, K). Datasheet or imperial units
+appear only at the edges, with the unit in the name (``alt_ft``, ``gyro_bias_dph``), and are
+converted in one place: JSBSim's imperial properties in :mod:`navsim.flight.properties`.
+
+Arrays are batch-first: quantities of several Monte Carlo runs carry a leading run axis ``B``.
+"""
+
+__version__ = "0.1.0"

@@ -1,0 +1,5 @@
+import sys
+
+from navsim.cli import main
+
+sys.exit(main())

@@ -1,0 +1,155 @@
+"""The ``navsim`` command line.
+
+``navsim fly SCENARIO``   fly the scenario's track, write PNGs, the truth and a summary.
+``navsim validate FILE``  check a scenario without running it.
+``navsim list``           aircraft and tracks shipped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from navsim.errors import FlightError, NavsimError
+
+
+def _table(headers: list[str], rows: list[list[str]]) -> str:
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h)
+              for i, h in enumerate(headers)]
+    line = "  ".join(h.ljust(w) for h, w in zip(headers, widths))
+    out = [line, "  ".join("-" * w for w in widths)]
+    out += ["  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths)))
+            for r in rows]
+    return "\n".join(out)
+
+
+def flight_summary(truth) -> str:
+    rows = []
+    for _, label, a, b in truth.segment_spans():
+        m = (truth.t_s >= a) & (truth.t_s <= b)
+        rows.append([label, f"{a:.1f}", f"{b:.1f}", f"{truth.h_m[m].min():.1f}",
+                     f"{truth.h_m[m].max():.1f}", f"{truth.tas_mps[m].mean():.2f}",
+                     f"{np.degrees(np.abs(truth.euler_rad[m, 0])).max():.1f}"])
+    return _table(["segment", "t0 s", "t1 s", "h min m", "h max m", "TAS m/s", "|bank| max°"], rows)
+
+
+def _progress(desc: str):
+    from tqdm import tqdm
+    bar = tqdm(total=100, desc=desc, unit="%", disable=None, leave=False,
+               bar_format="{l_bar}{bar}| {elapsed}<{remaining}")
+
+    def update(t_s, nominal_s):
+        target = min(int(100 * t_s / max(nominal_s, 1.0)), 99)
+        if target > bar.n:
+            bar.update(target - bar.n)
+    return bar, update
+
+
+def cmd_fly(args) -> int:
+    from navsim.flight.plots import plot_flight
+    from navsim.flight.simulator import fly
+    from navsim.provenance import provenance
+    from navsim.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    if args.rate_hz:
+        scenario.flight.rate_hz = args.rate_hz
+    out = Path(args.out) if args.out else Path("reports") / scenario.name / "flight"
+    out.mkdir(parents=True, exist_ok=True)
+    bar, update = _progress(f"flying {scenario.flight.track.name}")
+    t0 = time.perf_counter()
+    failure = None
+    try:
+        truth = fly(scenario.flight, progress=update)
+    except FlightError as exc:
+        failure, truth = exc, getattr(exc, "truth", None)
+    finally:
+        bar.close()
+    wall = time.perf_counter() - t0
+    shutil.copyfile(args.scenario, out / "scenario.yaml")
+    record = {"scenario": str(args.scenario), "name": scenario.name, **provenance(),
+              "wall_s": wall, "failure": str(failure) if failure else None}
+    if truth is not None:
+        truth.save(out / "truth.npz")
+        files = plot_flight(truth, out)
+        record.update(duration_s=truth.duration_s, samples=truth.n,
+                      real_time_factor=truth.duration_s / wall)
+        print(flight_summary(truth))
+        print(f"\nflew {truth.duration_s:.1f} s in {wall:.2f} s wall "
+              f"({truth.duration_s / wall:.0f}x real time); wrote {out}/ "
+              f"({', '.join(f.name for f in files)}, truth.npz)")
+    (out / "run.json").write_text(json.dumps(record, indent=2))
+    if failure:
+        print(f"error: {failure}", file=sys.stderr)
+        return failure.exit_code
+    return 0
+
+
+def cmd_validate(args) -> int:
+    from navsim.scenario import load_scenario
+    for path in args.files:
+        s = load_scenario(path)
+        print(f"{path}: ok ({s.name}: track {s.flight.track.name}, "
+              f"{len(s.flight.track.segments)} segments)")
+    return 0
+
+
+def cmd_list(args) -> int:
+    from navsim.flight.track import available_tracks, load_track, nominal_duration_s
+    from navsim.scenario import available_aircraft
+    print("aircraft: " + ", ".join(available_aircraft()))
+    print("tracks:")
+    for name in available_tracks():
+        tr = load_track(name)
+        print(f"  {name:8s} ~{nominal_duration_s(tr):5.0f} s  {tr.description.strip()[:90]}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="navsim", description="UAV integrated-navigation testbed: JSBSim flights, sensor "
+        "emulators, estimators, Monte Carlo reports.")
+    from navsim import __version__
+    parser.add_argument("--version", action="version", version=f"navsim {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    p = sub.add_parser("fly", help="fly a scenario's track and plot it",
+                       description="Fly the scenario's track in JSBSim under the autopilot; write "
+                       "the truth (truth.npz), PNG plots, run.json and print a summary.")
+    p.add_argument("scenario", help="scenario YAML file")
+    p.add_argument("--out", help="output folder (default reports/<name>/flight)")
+    p.add_argument("--rate-hz", type=float, help="simulation and truth rate (default: scenario's, 100)")
+    p.set_defaults(func=cmd_fly)
+    p = sub.add_parser("validate", help="check scenario files without running them",
+                       description="Check scenario files; exit 2 on the first malformed one.")
+    p.add_argument("files", nargs="+", help="scenario YAML files")
+    p.set_defaults(func=cmd_validate)
+    p = sub.add_parser("list", help="list the shipped aircraft and tracks",
+                       description="List the shipped aircraft and tracks.")
+    p.set_defaults(func=cmd_list)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return args.func(args)
+    except NavsimError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,55 @@
+"""Errors that reach the user with a clear message instead of a traceback."""
+
+from __future__ import annotations
+
+
+class NavsimError(Exception):
+    """Base class of the errors the command line reports without a traceback."""
+
+    exit_code = 1
+
+
+class ScenarioError(NavsimError):
+    """A malformed scenario or track: names the file, the key path, what was expected, a hint."""
+
+    exit_code = 2
+
+    def __init__(self, message: str, *, file: str | None = None, key: str | None = None,
+                 expected: str | None = None, hint: str | None = None):
+        self.file, self.key, self.expected, self.hint = file, key, expected, hint
+        self.detail = message
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        where = self.file or "<scenario>"
+        if self.key:
+            where += f": {self.key}"
+        text = f"{where}: {self.detail}"
+        if self.expected:
+            text += f" (expected {self.expected})"
+        if self.hint:
+            text += f"\n  hint: {self.hint}"
+        return text
+
+    def with_file(self, file: str) -> "ScenarioError":
+        """The same error, naming ``file``."""
+        return ScenarioError(self.detail, file=file, key=self.key, expected=self.expected,
+                             hint=self.hint)
+
+
+class FlightError(NavsimError):
+    """The aircraft could not fly the track: stall, impact, an unflyable segment, NaN."""
+
+    exit_code = 3
+
+    def __init__(self, reason: str, *, segment: int | None = None,
+                 segment_label: str | None = None, time_s: float | None = None):
+        self.reason, self.segment, self.segment_label, self.time_s = (
+            reason, segment, segment_label, time_s)
+        where = []
+        if segment is not None:
+            where.append(f"segment {segment} ({segment_label})")
+        if time_s is not None:
+            where.append(f"t = {time_s:.2f} s")
+        prefix = "flight failed" + (" in " + ", ".join(where) if where else "")
+        super().__init__(f"{prefix}: {reason}")

@@ -1,0 +1,94 @@
+"""Pictures of a flight: 3-D track, ground track, altitude / airspeed / bank versus time."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from navsim.earth import local_ne
+from navsim.flight.truth import Truth
+
+
+def _segments(truth: Truth, ax, label: bool = True) -> None:
+    """Shade alternate segments and name them along the top of ``ax``."""
+    for j, (_, name, a, b) in enumerate(truth.segment_spans()):
+        if j % 2:
+            ax.axvspan(a, b, color="0.92", zorder=0)
+        if label:
+            ax.text(0.5 * (a + b), 1.0, name, transform=ax.get_xaxis_transform(), rotation=90,
+                    fontsize=6, ha="center", va="bottom", clip_on=False)
+
+
+def plot_flight(truth: Truth, out_dir: str | Path, prefix: str = "flight") -> list[Path]:
+    """Write ``<prefix>_3d.png``, ``<prefix>_ground.png`` and ``<prefix>_time.png``."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    north, east = local_ne(truth.lat_rad, truth.lon_rad, truth.lat_rad[0], truth.lon_rad[0])
+    h = truth.h_m
+    spans = truth.segment_spans()
+    colors = plt.cm.tab20(np.linspace(0, 1, max(len(spans), 2)))
+    files = []
+
+    fig = plt.figure(figsize=(8, 6.5))
+    ax = fig.add_subplot(projection="3d")
+    for j, (_, name, a, b) in enumerate(spans):
+        m = (truth.t_s >= a) & (truth.t_s <= b)
+        ax.plot(east[m], north[m], h[m], color=colors[j], lw=1.5, label=name)
+    ax.set_xlabel("east, m")
+    ax.set_ylabel("north, m")
+    ax.set_zlabel("height, m")
+    ax.set_title(f"{truth.meta.get('track', '')}: 3-D track")
+    ax.legend(fontsize=6, loc="upper left", ncol=2)
+    files.append(out / f"{prefix}_3d.png")
+    fig.savefig(files[-1], dpi=120, bbox_inches="tight")
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(7.5, 7))
+    for j, (_, name, a, b) in enumerate(spans):
+        m = (truth.t_s >= a) & (truth.t_s <= b)
+        ax.plot(east[m], north[m], color=colors[j], lw=1.5, label=name)
+    ax.plot(east[0], north[0], "k^", ms=8, label="start")
+    ax.plot(east[-1], north[-1], "ks", ms=7, label="end")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("east, m")
+    ax.set_ylabel("north, m")
+    ax.grid(alpha=0.3)
+    ax.set_title(f"{truth.meta.get('track', '')}: ground track "
+                 f"(origin {np.degrees(truth.lat_rad[0]):.4f}°N, {np.degrees(truth.lon_rad[0]):.4f}°E)")
+    ax.legend(fontsize=7, loc="best", ncol=2)
+    files.append(out / f"{prefix}_ground.png")
+    fig.savefig(files[-1], dpi=120, bbox_inches="tight")
+    plt.close(fig)
+
+    fig, axs = plt.subplots(4, 1, figsize=(10, 10), sharex=True)
+    t = truth.t_s
+    axs[0].plot(t, h, label="height (ellipsoid)")
+    axs[0].plot(t, truth.h_agl_m, "--", lw=0.8, label="above surface")
+    axs[0].set_ylabel("height, m")
+    axs[0].legend(fontsize=7, loc="best")
+    axs[1].plot(t, truth.tas_mps, label="true airspeed")
+    axs[1].plot(t, np.hypot(truth.vel_n_mps[:, 0], truth.vel_n_mps[:, 1]), lw=0.8,
+                label="ground speed")
+    axs[1].set_ylabel("speed, m/s")
+    axs[1].legend(fontsize=7, loc="best")
+    axs[2].plot(t, np.degrees(truth.euler_rad[:, 0]), label="roll (bank)")
+    axs[2].plot(t, np.degrees(truth.euler_rad[:, 1]), label="pitch")
+    axs[2].set_ylabel("angle, deg")
+    axs[2].legend(fontsize=7, loc="best")
+    axs[3].plot(t, np.degrees(np.unwrap(truth.euler_rad[:, 2])), label="heading")
+    axs[3].set_ylabel("heading, deg")
+    axs[3].set_xlabel("time, s")
+    for j, ax in enumerate(axs):
+        _segments(truth, ax, label=(j == 0))
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"{truth.meta.get('track', '')}: flight versus time", y=1.0)
+    fig.tight_layout()
+    files.append(out / f"{prefix}_time.png")
+    fig.savefig(files[-1], dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return files

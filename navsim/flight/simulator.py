@@ -1,0 +1,272 @@
+"""Fly a track in JSBSim under the autopilot and record the truth.
+
+:func:`fly` is the entry point: it starts the aircraft (trimmed in the air, or on a launcher),
+runs the segments one after the other, checks every step for stall, impact, loss of control and
+NaN, and returns a :class:`~navsim.flight.truth.Truth`. A failure raises
+:class:`~navsim.errors.FlightError` naming the segment and the time; the partial truth rides on
+the exception as ``truth``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from navsim.errors import FlightError
+from navsim.flight import properties as P
+from navsim.flight.autopilot import Autopilot, Gains
+from navsim.flight.environment import Environment
+from navsim.flight.segments import Limits, SegmentRunner, State
+from navsim.flight.track import Track, nominal_duration_s
+from navsim.flight.truth import Truth, truth_from_rows
+from navsim.earth import radii
+
+SETTLE_S = 30.0          #: air start: seconds flown before the track to settle the trim
+SPINUP_S = 2.0           #: seconds the motor runs up with the airframe held
+STALL_PERSIST_S = 1.0    #: alpha above stall for this long is a stall
+MAX_ROLL_RAD = math.radians(75.0)
+MAX_PITCH_RAD = math.radians(50.0)
+
+
+@dataclass
+class FlightConfig:
+    """Everything that determines a flight (and so the key of its cache)."""
+
+    track: Track
+    environment: Environment = field(default_factory=Environment)
+    aircraft: str = "survey10"
+    rate_hz: float = 100.0
+    gains: Gains = field(default_factory=Gains)
+    aircraft_dir: str | None = None
+
+
+def load_limits(aircraft: str, aircraft_dir: str | Path | None = None) -> Limits:
+    """The aircraft's envelope from ``aircraft/<name>/navsim.yaml`` (defaults if absent)."""
+    adir = Path(aircraft_dir) if aircraft_dir else P.AIRCRAFT_DIR
+    path = adir / aircraft / "navsim.yaml"
+    if not path.is_file():
+        return Limits()
+    data = yaml.safe_load(path.read_text()) or {}
+    return Limits(**{k: float(v) for k, v in data.items()})
+
+
+class _Recorder:
+    """Rows of SI values in preallocated chunks."""
+
+    def __init__(self, ncols: int, chunk: int):
+        self.chunk, self.ncols = chunk, ncols
+        self.blocks: list[np.ndarray] = []
+        self.seg: list[np.ndarray] = []
+        self.i = chunk
+
+    def add(self, row, segment: int) -> None:
+        if self.i == self.chunk:
+            self.blocks.append(np.empty((self.chunk, self.ncols)))
+            self.seg.append(np.empty(self.chunk, np.int16))
+            self.i = 0
+        self.blocks[-1][self.i] = row
+        self.seg[-1][self.i] = segment
+        self.i += 1
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        if not self.blocks:
+            return np.empty((0, self.ncols)), np.empty(0, np.int16)
+        n_last = self.i
+        rows = np.concatenate(self.blocks[:-1] + [self.blocks[-1][:n_last]])
+        seg = np.concatenate(self.seg[:-1] + [self.seg[-1][:n_last]])
+        return rows, seg
+
+
+def fly(config: FlightConfig | Track, progress=None) -> Truth:
+    """Fly ``config`` and return its truth, sampled at ``config.rate_hz``.
+
+    ``progress``, if given, is called as ``progress(t_s, nominal_duration_s)`` about once per
+    simulated second.
+    """
+    if isinstance(config, Track):
+        config = FlightConfig(track=config)
+    track, env = config.track, config.environment
+    dt = 1.0 / config.rate_hz
+    io = P.JSBSimIO(config.aircraft, dt, config.aircraft_dir)
+    limits = load_limits(config.aircraft, config.aircraft_dir)
+    ap = Autopilot(config.gains)
+    start = track.start
+
+    lat0, lon0 = math.radians(start.lat_deg), math.radians(start.lon_deg)
+    r_m, r_n = radii(lat0)
+    k_north, k_east = float(r_m), float(r_n) * math.cos(lat0)
+
+    def local_of_latlon(lat, lon):
+        return (lat - lat0) * k_north, (lon - lon0) * k_east
+
+    io.set_terrain(env.surface_m)
+    io.set_wind_ned(env.wind_n_mps)
+    if env.turbulence != "none":
+        io.set_turbulence(env.turbulence, env.turbulence_wind20_mps, env.turbulence_severity,
+                          env.turbulence_seed)
+    heading = math.radians(start.heading_deg)
+    ap.course_cmd = heading
+    ap.speed_cmd = start.speed_mps
+    if start.type == "air":
+        _air_start(io, ap, limits, start, lat0, lon0, heading, env, dt)
+        launch_steps = 0
+    else:
+        launch_steps = _launch_prepare(io, ap, start, lat0, lon0, heading, env, dt)
+
+    runner = SegmentRunner(track.segments, ap, limits, local_of_latlon)
+    runner.course_ref = heading
+    runner.speed_target = start.speed_mps
+    state = State()
+    rec = _Recorder(len(P.RAW_PROPERTIES), 1 << 14)
+    nominal = nominal_duration_s(track)
+    stall_alpha = math.radians(limits.stall_alpha_deg + 1.0)
+    stall_steps = int(round(STALL_PERSIST_S / dt))
+    over_alpha = 0
+    launching = start.type == "launch"
+    booster_steps = int(round(start.booster_time_s / dt)) if launching else 0
+    k = 0
+    next_progress = 0.0
+    read_row, set_controls, run, step_ap = io.read_row, io.set_controls, io.run, ap.step
+    isfinite = math.isfinite
+    try:
+        while True:
+            t = k * dt
+            row = read_row()
+            state.t = t
+            state.north = (row[P.COL_LAT] - lat0) * k_north
+            state.east = (row[P.COL_LON] - lon0) * k_east
+            state.h = h = row[P.COL_H]
+            vn, ve = row[P.COL_VN], row[P.COL_VE]
+            state.ground_speed = math.hypot(vn, ve)
+            state.course = course = math.atan2(ve, vn)
+            state.tas = tas = row[P.COL_TAS]
+            # --- failure checks -----------------------------------------------------------
+            if not (isfinite(h) and isfinite(tas) and isfinite(row[P.COL_ROLL])):
+                raise runner.fail("the state became NaN (numerical failure)", state)
+            if row[P.COL_HAGL] < 0.5 and not (launching and t < 5.0):
+                raise runner.fail(f"ground or sea impact (height above surface "
+                                  f"{row[P.COL_HAGL]:.1f} m)", state)
+            if row[P.COL_ALPHA] > stall_alpha and not (launching and k <= booster_steps):
+                over_alpha += 1
+                if over_alpha >= stall_steps:
+                    raise runner.fail(f"stall (angle of attack {math.degrees(row[P.COL_ALPHA]):.1f} deg "
+                                      f"at {tas:.1f} m/s for {STALL_PERSIST_S:g} s)", state)
+            else:
+                over_alpha = 0
+            if abs(row[P.COL_ROLL]) > MAX_ROLL_RAD or abs(row[P.COL_PITCH]) > MAX_PITCH_RAD:
+                raise runner.fail(f"loss of control (roll {math.degrees(row[P.COL_ROLL]):.0f} deg, "
+                                  f"pitch {math.degrees(row[P.COL_PITCH]):.0f} deg)", state)
+            # --- segments -----------------------------------------------------------------
+            if launching:
+                ap.course_cmd = course if state.ground_speed > 1.0 else ap.course_cmd  # wings level
+                if k == booster_steps:
+                    io.set_booster_n(0.0)
+                if k >= booster_steps and tas >= 0.9 * start.speed_mps and row[P.COL_HAGL] > 10.0:
+                    launching = False
+                    ap.pitch_hold = None
+                    ap.throttle_hold = None
+                    ap.i_climb = row[P.COL_PITCH] - math.asin(min(max(-row[P.COL_VD] / tas, -0.5), 0.5))
+                    ap.i_speed = 0.6
+                    ap.alt_cmd, ap.climb_rate = h, 0.0
+                    runner.next(state)
+                elif t > 30.0:
+                    raise runner.fail("the launch did not reach flying speed within 30 s", state)
+            else:
+                if runner.index < 0:
+                    runner.next(state)
+                if runner.finished:
+                    rec.add(row, runner.index - 1)
+                    break
+                runner.update(state, dt)
+                if runner.finished:
+                    rec.add(row, runner.index - 1)
+                    break
+            rec.add(row, runner.index)
+            if progress is not None and t >= next_progress:
+                progress(t, nominal)
+                next_progress += 1.0
+            # --- control ------------------------------------------------------------------
+            elev, ail, rud, thr = step_ap(dt, tas, h, -row[P.COL_VD], row[P.COL_ROLL],
+                                          row[P.COL_PITCH], row[P.COL_P], row[P.COL_Q],
+                                          row[P.COL_BETA], course)
+            set_controls(elev, ail, rud, thr)
+            run()
+            k += 1
+    except FlightError as exc:
+        rows, seg = rec.arrays()
+        exc.truth = _make_truth(rows, seg, dt, track, config, launch_steps) if len(rows) > 1 else None
+        raise
+    rows, seg = rec.arrays()
+    return _make_truth(rows, seg, dt, track, config, launch_steps)
+
+
+def _make_truth(rows, seg, dt, track, config, launch_steps) -> Truth:
+    t = np.arange(len(rows)) * dt
+    meta = {"aircraft": config.aircraft, "rate_hz": config.rate_hz, "track": track.name,
+            "start": track.start.type, "environment": {
+                "wind_n_mps": list(config.environment.wind_n_mps),
+                "turbulence": config.environment.turbulence,
+                "surface_m": config.environment.surface_m}}
+    return truth_from_rows(rows, t, seg, [s.label for s in track.segments], meta)
+
+
+def _air_start(io, ap, limits, start, lat0, lon0, heading, env, dt) -> None:
+    """Trimmed level flight: spin the motor up held, fly ``SETTLE_S`` under the autopilot to
+    settle the trim, then re-initialise at the start point keeping motor, servos and loops."""
+    alpha = math.radians(limits.trim_alpha_deg)
+    h = start.alt_m
+
+    def init(pitch):
+        io.set_initial(lat_rad=lat0, lon_rad=lon0, h_m=h, tas_mps=start.speed_mps, yaw_rad=heading,
+                       pitch_rad=pitch, terrain_m=env.surface_m)
+
+    init(alpha)
+    io.set_hold_down(True)
+    for _ in range(int(SPINUP_S / dt)):
+        io.set_controls(0.0, 0.0, 0.0, limits.trim_throttle)
+        io.run()
+    io.set_hold_down(False)
+    init(alpha)
+    ap.alt_cmd, ap.climb_rate = h, 0.0
+    ap.i_speed = limits.trim_throttle
+    ap.i_climb = alpha
+    for _ in range(int(SETTLE_S / dt)):
+        r = io.read_row()
+        ap.course_cmd = heading
+        course = math.atan2(r[P.COL_VE], r[P.COL_VN])
+        io.set_controls(*ap.step(dt, r[P.COL_TAS], r[P.COL_H], -r[P.COL_VD], r[P.COL_ROLL],
+                                 r[P.COL_PITCH], r[P.COL_P], r[P.COL_Q], r[P.COL_BETA], course))
+        io.run()
+    r = io.read_row()
+    if not math.isfinite(r[P.COL_ALPHA]) or abs(r[P.COL_H] - h) > 20.0:
+        raise FlightError(f"could not trim at {h:g} m and {start.speed_mps:g} m/s", time_s=0.0)
+    # start on the wanted course: keep the crab angle the settled flight needed in the wind
+    crab = r[P.COL_YAW] - math.atan2(r[P.COL_VE], r[P.COL_VN])
+    heading = heading + (crab + math.pi) % (2.0 * math.pi) - math.pi
+    io.set_initial(lat_rad=lat0, lon_rad=lon0, h_m=h, tas_mps=start.speed_mps, yaw_rad=heading,
+                   pitch_rad=r[P.COL_PITCH], gamma_rad=r[P.COL_PITCH] - r[P.COL_ALPHA],
+                   terrain_m=env.surface_m)
+
+
+def _launch_prepare(io, ap, start, lat0, lon0, heading, env, dt) -> int:
+    """On the launcher: motor at full power while held, then booster fired at t = 0."""
+    pitch = math.radians(start.pitch_deg)
+    io.set_initial(lat_rad=lat0, lon_rad=lon0, h_m=start.alt_m + start.launcher_height_m,
+                   tas_mps=1.0, yaw_rad=heading, pitch_rad=pitch, gamma_rad=pitch,
+                   terrain_m=env.surface_m)
+    io.set_hold_down(True)
+    for _ in range(int(SPINUP_S / dt)):
+        io.set_controls(0.0, 0.0, 0.0, 1.0)
+        io.run()
+    io.set_hold_down(False)
+    io.run_ic()
+    io.set_booster_n(start.booster_thrust_n)
+    ap.pitch_hold = pitch
+    ap.throttle_hold = 1.0
+    ap.alt_cmd = start.alt_m + start.launcher_height_m
+    ap.course_cmd = heading
+    return int(round(start.booster_time_s / dt))

@@ -1,0 +1,227 @@
+"""Tracks as data: a start condition and a list of segments, read from YAML.
+
+A track is a mapping::
+
+    start: {type: air, lat_deg: 37.38, lon_deg: 117.97, alt_m: 300, speed_mps: 13.9,
+            heading_deg: 90}
+    segments:
+      - {type: straight, time_s: 60}          # or distance_m, or until_s (track time)
+      - {type: speed, to_mps: 18, accel_mps2: 0.5}
+      - {type: turn, by_deg: 90, bank_deg: 20}          # + right, - left
+      - {type: circle, radius_m: 150, laps: 2, direction: left}
+      - {type: climb, to_m: 450, rate_mps: 2}
+      - {type: descend, to_m: 300, rate_mps: 1.5}
+      - {type: goto, north_m: 500, east_m: 1200}
+
+``start.type: launch`` starts on a launcher instead (P2's rocket-assisted launch at 14 deg
+pitch). Every segment may carry a ``label`` (shown on plots) and ``speed_mps`` (a new airspeed
+target, reached at 0.5 m/s^2). Heights are geodetic (above the WGS-84 ellipsoid, which is also
+JSBSim's sea level). Shipped tracks are referred to by name: ``p0``, ``p3``, ``p2_sea``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from navsim.config import Node, load_yaml
+from navsim.errors import ScenarioError
+
+TRACKS_DIR = Path(__file__).resolve().parents[1] / "tracks"
+
+
+@dataclass(frozen=True)
+class Start:
+    """How the flight starts.
+
+    ``type: air``: trimmed level flight at ``alt_m``, ``speed_mps``, ``heading_deg``.
+    ``type: launch``: on a launcher ``launcher_height_m`` above the surface at ``alt_m``
+    (surface height), pitched ``pitch_deg``; a booster gives ``booster_thrust_n`` for
+    ``booster_time_s`` while the motor is at full power, then the autopilot takes
+    ``speed_mps``.
+    """
+
+    type: str
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+    speed_mps: float
+    heading_deg: float
+    pitch_deg: float = 14.0
+    launcher_height_m: float = 2.0
+    booster_thrust_n: float = 120.0
+    booster_time_s: float = 1.2
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One segment: ``type`` and its parameters (SI units and degrees as named)."""
+
+    type: str
+    label: str
+    params: dict = field(default_factory=dict)
+    speed_mps: float | None = None
+
+    def __getitem__(self, key):
+        return self.params[key]
+
+    def get(self, key, default=None):
+        return self.params.get(key, default)
+
+
+@dataclass(frozen=True)
+class Track:
+    name: str
+    start: Start
+    segments: tuple[Segment, ...]
+    description: str = ""
+
+
+# type -> {key: (kind, default or REQUIRED, constraint)}; one of the "one_of" groups is required
+_REQ = object()
+_POS = dict(exclusive_minimum=0.0)
+SEGMENT_KEYS: dict[str, dict] = {
+    "straight": {"time_s": (float, None, _POS), "distance_m": (float, None, _POS),
+                 "until_s": (float, None, _POS)},
+    "speed": {"to_mps": (float, _REQ, _POS), "accel_mps2": (float, 0.5, _POS)},
+    "climb": {"to_m": (float, _REQ, {}), "rate_mps": (float, 2.0, _POS)},
+    "descend": {"to_m": (float, _REQ, {}), "rate_mps": (float, 2.0, _POS)},
+    "turn": {"by_deg": (float, _REQ, {}), "bank_deg": (float, None, dict(exclusive_minimum=0.0,
+                                                                         maximum=45.0)),
+             "rate_dps": (float, None, _POS)},
+    "circle": {"radius_m": (float, _REQ, _POS), "laps": (float, None, _POS),
+               "time_s": (float, None, _POS),
+               "direction": (str, "right", dict(choices=("right", "left")))},
+    "goto": {"north_m": (float, None, {}), "east_m": (float, None, {}),
+             "lat_deg": (float, None, dict(minimum=-90.0, maximum=90.0)),
+             "lon_deg": (float, None, dict(minimum=-180.0, maximum=180.0)),
+             "alt_m": (float, None, {}), "acceptance_m": (float, 30.0, _POS)},
+}
+_ONE_OF = {"straight": [("time_s",), ("distance_m",), ("until_s",)], "circle": [("laps",), ("time_s",)],
+           "turn": [("bank_deg",), ("rate_dps",)],
+           "goto": [("north_m", "east_m"), ("lat_deg", "lon_deg")]}
+_DEFAULT_ONE = {"turn": {"bank_deg": 20.0}}
+
+
+def parse_track(data, path: str = "track", file: str | None = None) -> Track:
+    """A :class:`Track` from a YAML mapping, or the name of a shipped track."""
+    if isinstance(data, str):
+        return load_track(data)
+    node = Node(data, path, file)
+    name = node.get("name", str, "custom")
+    description = node.get("description", str, "")
+    start = _parse_start(node.child("start"))
+    seg_key = node.key("segments")
+    node._seen.add("segments")
+    raw = node.data.get("segments")
+    if not isinstance(raw, list) or not raw:
+        raise ScenarioError("is missing or empty", file=file, key=seg_key,
+                            expected="a list of segments",
+                            hint="e.g. segments: [{type: straight, time_s: 60}]")
+    segments = tuple(_parse_segment(item, f"{seg_key}[{i}]", file, i) for i, item in enumerate(raw))
+    node.done()
+    return Track(name=name, start=start, segments=segments, description=description)
+
+
+def _parse_start(node: Node) -> Start:
+    kind = node.get("type", str, "air", choices=("air", "launch"))
+    values = dict(
+        type=kind,
+        lat_deg=node.get("lat_deg", float, minimum=-89.0, maximum=89.0),
+        lon_deg=node.get("lon_deg", float, minimum=-180.0, maximum=180.0),
+        alt_m=node.get("alt_m", float, minimum=-400.0, maximum=10000.0),
+        speed_mps=node.get("speed_mps", float, exclusive_minimum=0.0),
+        heading_deg=node.get("heading_deg", float, 0.0),
+    )
+    if kind == "launch":
+        values.update(
+            pitch_deg=node.get("pitch_deg", float, 14.0, minimum=0.0, maximum=45.0),
+            launcher_height_m=node.get("launcher_height_m", float, 2.0, exclusive_minimum=0.5),
+            booster_thrust_n=node.get("booster_thrust_n", float, 120.0, minimum=0.0),
+            booster_time_s=node.get("booster_time_s", float, 1.2, minimum=0.0))
+    node.done()
+    return Start(**values)
+
+
+def _parse_segment(item, path: str, file: str | None, index: int) -> Segment:
+    node = Node(item, path, file)
+    kind = node.get("type", str, choices=tuple(SEGMENT_KEYS))
+    label = node.get("label", str, f"{index}:{kind}")
+    speed = node.get("speed_mps", float, None, exclusive_minimum=0.0)
+    params = {}
+    for key, (typ, default, cons) in SEGMENT_KEYS[kind].items():
+        value = node.get(key, typ, None if default is _REQ else default, **cons)
+        if value is None and default is _REQ:
+            raise node.error("is missing", key, expected=f"{_TYPE(typ)} for a '{kind}' segment")
+        if value is not None:
+            params[key] = value
+    node.done()
+    groups = _ONE_OF.get(kind)
+    if groups:
+        given = [g for g in groups if all(k in params for k in g)]
+        if not given:
+            fallback = _DEFAULT_ONE.get(kind)
+            if fallback is None:
+                options = " or ".join("+".join(g) for g in groups)
+                raise node.error(f"a '{kind}' segment needs {options}", expected=options)
+            params.update(fallback)
+        elif len(given) > 1:
+            raise node.error(f"a '{kind}' segment takes only one of "
+                             + " or ".join("+".join(g) for g in groups))
+    if kind == "turn" and params["by_deg"] == 0.0:
+        raise node.error("is 0", "by_deg", expected="a non-zero angle (+ right, - left)")
+    return Segment(type=kind, label=label, params=params, speed_mps=speed)
+
+
+def _TYPE(typ) -> str:
+    return {float: "a number", str: "a string", int: "an integer"}.get(typ, str(typ))
+
+
+def available_tracks() -> list[str]:
+    """Names of the shipped tracks."""
+    return sorted(p.stem for p in TRACKS_DIR.glob("*.yaml"))
+
+
+def load_track(name_or_path: str | Path) -> Track:
+    """A shipped track by name (``p0``) or a track YAML file by path."""
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = TRACKS_DIR / f"{name_or_path}.yaml"
+        if not path.is_file():
+            from navsim.config import close_match
+            raise ScenarioError(f"'{name_or_path}' is not a shipped track", key="track",
+                                expected="a track name or a mapping with start and segments",
+                                hint=close_match(str(name_or_path), available_tracks()))
+    data = load_yaml(path)
+    return parse_track(data, "", str(path))
+
+
+def nominal_duration_s(track: Track) -> float:
+    """A rough duration of the track at its speeds (for time-outs and progress bars)."""
+    speed = track.start.speed_mps
+    alt = track.start.alt_m
+    total = 0.0
+    for seg in track.segments:
+        speed = seg.speed_mps or speed
+        p = seg.params
+        if seg.type == "straight":
+            if "until_s" in p:
+                total = max(total, p["until_s"])
+            else:
+                total += p.get("time_s") or p["distance_m"] / speed
+        elif seg.type == "speed":
+            total += abs(p["to_mps"] - speed) / p["accel_mps2"] + 5.0
+            speed = p["to_mps"]
+        elif seg.type in ("climb", "descend"):
+            total += abs(p["to_m"] - alt) / p["rate_mps"] + 5.0
+            alt = p["to_m"]
+        elif seg.type == "turn":
+            bank = math.radians(p.get("bank_deg", 20.0))
+            rate = math.radians(p["rate_dps"]) if "rate_dps" in p else 9.81 * math.tan(bank) / speed
+            total += abs(math.radians(p["by_deg"])) / rate
+        elif seg.type == "circle":
+            total += p.get("time_s") or p["laps"] * 2 * math.pi * p["radius_m"] / speed
+        else:
+            total += 60.0
+    return total

@@ -1,0 +1,159 @@
+"""The truth record of a flight: one container, SI units, named frames, at the IMU rate.
+
+Layout (``N`` samples, sample ``k`` at ``t_s[k]``; frames as in :mod:`navsim`):
+
+=================  ===========  ==============================================================
+field              shape        meaning
+=================  ===========  ==============================================================
+t_s                (N,)         time since the start of the track, s
+lat_rad, lon_rad   (N,)         geodetic latitude, longitude (WGS-84), rad
+h_m                (N,)         geodetic height above the WGS-84 ellipsoid (= JSBSim sea level), m
+vel_n_mps          (N, 3)       velocity relative to the Earth, NED, m/s
+quat_nb            (N, 4)       attitude, body -> NED, scalar first
+euler_rad          (N, 3)       roll, pitch, yaw (true heading), rad
+omega_ib_b_rps     (N, 3)       inertial angular rate of the body, body axes, rad/s
+f_b_mps2           (N, 3)       specific force at the centre of gravity, body axes, m/s^2
+tas_mps, cas_mps   (N,)         true and calibrated airspeed, m/s
+p_static_pa        (N,)         static pressure, Pa
+p_total_pa         (N,)         total (pitot) pressure, Pa
+temp_k             (N,)         static air temperature, K
+h_agl_m            (N,)         height above the terrain or sea surface, m
+terrain_m          (N,)         terrain / sea-surface height above the ellipsoid, m
+wind_n_mps         (N, 3)       air-mass velocity (steady wind plus turbulence), NED, m/s
+alpha_rad, beta_rad (N,)        angle of attack and sideslip, rad
+throttle           (N,)         throttle position, 0..1
+segment            (N,)         index of the active track segment (-1 during the launch)
+=================  ===========  ==============================================================
+
+``segment_labels`` names the segments; ``meta`` holds the aircraft, the rate and the track.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from navsim.flight import properties as P
+from navsim.transform import quat_from_euler
+
+ARRAY_FIELDS = ("t_s", "lat_rad", "lon_rad", "h_m", "vel_n_mps", "quat_nb", "euler_rad",
+                "omega_ib_b_rps", "f_b_mps2", "tas_mps", "cas_mps", "p_static_pa", "p_total_pa",
+                "temp_k", "h_agl_m", "terrain_m", "wind_n_mps", "alpha_rad", "beta_rad",
+                "throttle", "segment")
+
+
+@dataclass
+class Truth:
+    """Truth of one flight (see the module docstring for the layout)."""
+
+    t_s: np.ndarray
+    lat_rad: np.ndarray
+    lon_rad: np.ndarray
+    h_m: np.ndarray
+    vel_n_mps: np.ndarray
+    quat_nb: np.ndarray
+    euler_rad: np.ndarray
+    omega_ib_b_rps: np.ndarray
+    f_b_mps2: np.ndarray
+    tas_mps: np.ndarray
+    cas_mps: np.ndarray
+    p_static_pa: np.ndarray
+    p_total_pa: np.ndarray
+    temp_k: np.ndarray
+    h_agl_m: np.ndarray
+    terrain_m: np.ndarray
+    wind_n_mps: np.ndarray
+    alpha_rad: np.ndarray
+    beta_rad: np.ndarray
+    throttle: np.ndarray
+    segment: np.ndarray
+    segment_labels: list[str] = field(default_factory=list)
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return len(self.t_s)
+
+    @property
+    def dt_s(self) -> float:
+        return float(self.t_s[1] - self.t_s[0])
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_s[-1] - self.t_s[0])
+
+    def segment_spans(self) -> list[tuple[int, str, float, float]]:
+        """``(index, label, t_start, t_end)`` for each segment flown, in order."""
+        spans = []
+        seg = self.segment
+        change = np.flatnonzero(np.diff(seg)) + 1
+        starts = np.concatenate([[0], change])
+        ends = np.concatenate([change, [len(seg)]])
+        for a, b in zip(starts, ends):
+            i = int(seg[a])
+            label = "launch" if i < 0 else self.segment_labels[i]
+            spans.append((i, label, float(self.t_s[a]), float(self.t_s[b - 1])))
+        return spans
+
+    def slice(self, start: int, stop: int) -> "Truth":
+        """Samples ``start:stop``."""
+        kw = {name: getattr(self, name)[start:stop] for name in ARRAY_FIELDS}
+        return Truth(**kw, segment_labels=list(self.segment_labels), meta=dict(self.meta))
+
+    def save(self, path: str | Path) -> None:
+        """Write to a compressed ``.npz``."""
+        arrays = {name: getattr(self, name) for name in ARRAY_FIELDS}
+        np.savez_compressed(path, **arrays, segment_labels=np.array(self.segment_labels),
+                            meta=np.array(json.dumps(self.meta)))
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Truth":
+        with np.load(path, allow_pickle=False) as data:
+            kw = {name: data[name] for name in ARRAY_FIELDS}
+            labels = [str(s) for s in data["segment_labels"]]
+            meta = json.loads(str(data["meta"]))
+        return cls(**kw, segment_labels=labels, meta=meta)
+
+    def __eq__(self, other) -> bool:  # arrays compare element-wise
+        if not isinstance(other, Truth):
+            return NotImplemented
+        return all(np.array_equal(getattr(self, f.name), getattr(other, f.name))
+                   if f.name in ARRAY_FIELDS else getattr(self, f.name) == getattr(other, f.name)
+                   for f in fields(self))
+
+
+def truth_from_rows(rows: np.ndarray, t_s: np.ndarray, segment: np.ndarray,
+                    segment_labels: list[str], meta: dict) -> Truth:
+    """Build the container from raw rows of :func:`JSBSimIO.read_row` (already SI)."""
+    r = rows
+    euler = r[:, [P.COL_ROLL, P.COL_PITCH, P.COL_YAW]].copy()
+    euler[:, 2] = (euler[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    mass = r[:, P.COL_MASS:P.COL_MASS + 1]
+    return Truth(
+        t_s=t_s,
+        lat_rad=r[:, P.COL_LAT].copy(),
+        lon_rad=r[:, P.COL_LON].copy(),
+        h_m=r[:, P.COL_H].copy(),
+        vel_n_mps=r[:, P.COL_VN:P.COL_VD + 1].copy(),
+        quat_nb=quat_from_euler(euler[:, 0], euler[:, 1], euler[:, 2]),
+        euler_rad=euler,
+        omega_ib_b_rps=r[:, P.COL_PI:P.COL_RI + 1].copy(),
+        f_b_mps2=r[:, P.COL_FX:P.COL_FZ + 1] / mass,
+        tas_mps=r[:, P.COL_TAS].copy(),
+        cas_mps=r[:, P.COL_CAS].copy(),
+        p_static_pa=r[:, P.COL_PS].copy(),
+        p_total_pa=r[:, P.COL_PT].copy(),
+        temp_k=r[:, P.COL_TEMP].copy(),
+        h_agl_m=r[:, P.COL_HAGL].copy(),
+        terrain_m=r[:, P.COL_TERRAIN].copy(),
+        wind_n_mps=r[:, P.COL_WN:P.COL_WD + 1].copy(),
+        alpha_rad=r[:, P.COL_ALPHA].copy(),
+        beta_rad=r[:, P.COL_BETA].copy(),
+        throttle=r[:, P.COL_THROTTLE].copy(),
+        segment=segment.astype(np.int16),
+        segment_labels=list(segment_labels),
+        meta=meta,
+    )

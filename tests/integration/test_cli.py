@@ -1,0 +1,76 @@
+import json
+import subprocess
+import sys
+
+import pytest
+
+from navsim.cli import main
+
+
+def test_fly_writes_plots_truth_and_summary(tmp_path, capsys):
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text("""
+name: short
+track:
+  start: {lat_deg: 37.0, lon_deg: 118.0, alt_m: 250, speed_mps: 14, heading_deg: 45}
+  segments:
+    - {type: straight, time_s: 20, label: leg}
+    - {type: turn, by_deg: -90, label: left turn}
+    - {type: straight, time_s: 10}
+environment: {wind: {speed_mps: 3, from_deg: 200}}
+""")
+    out = tmp_path / "out"
+    assert main(["fly", str(scenario), "--out", str(out)]) == 0
+    for name in ("flight_3d.png", "flight_ground.png", "flight_time.png", "truth.npz",
+                 "run.json", "scenario.yaml"):
+        assert (out / name).stat().st_size > 0, name
+    record = json.loads((out / "run.json").read_text())
+    assert record["failure"] is None and record["samples"] > 3000
+    assert "numpy" in record["versions"] and "git_revision" in record
+    text = capsys.readouterr().out
+    assert "left turn" in text and "real time" in text
+
+
+def test_failed_flight_exits_3_and_keeps_what_was_flown(tmp_path, capsys):
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text("""
+track:
+  start: {lat_deg: 37.0, lon_deg: 118.0, alt_m: 60, speed_mps: 14}
+  segments:
+    - {type: straight, time_s: 5}
+    - {type: descend, to_m: -20, rate_mps: 4, label: into the sea}
+""")
+    out = tmp_path / "out"
+    assert main(["fly", str(scenario), "--out", str(out)]) == 3
+    err = capsys.readouterr().err
+    assert "segment 1 (into the sea)" in err and "impact" in err
+    assert (out / "truth.npz").exists() and (out / "flight_time.png").exists()
+
+
+@pytest.mark.parametrize("text, words", [
+    ("track: p0\nenvironment: {wind: {speed_mps: -3}}\n", "environment.wind.speed_mps: is -3.0"),
+    ("track: p0\nflght: {rate_hz: 100}\n", "did you mean 'flight'"),
+    ("track: [1, 2\n", "not valid YAML"),
+    ("name: x\n", "track: is missing"),
+])
+def test_malformed_scenario_exit_2_without_traceback(tmp_path, text, words):
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    proc = subprocess.run([sys.executable, "-m", "navsim", "validate", str(path)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert str(path) in proc.stderr and words in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_help_on_every_command():
+    for argv in (["--help"], ["fly", "--help"], ["validate", "--help"], ["list", "--help"]):
+        proc = subprocess.run([sys.executable, "-m", "navsim", *argv], capture_output=True,
+                              text=True)
+        assert proc.returncode == 0 and "usage: navsim" in proc.stdout
+
+
+def test_list(capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    assert "survey10" in out and "p2_sea" in out
