@@ -178,6 +178,14 @@ class JSBSimIO:
         fdm[IC_PHI_DEG] = np.degrees(roll_rad)
         fdm[IC_PSI_DEG] = np.degrees(yaw_rad)
         self.run_ic()
+        # JSBSim's initial altitude is above its sea-level radius; correct it to the geodetic
+        # height asked for (they differ by millimetres)
+        for _ in range(3):
+            err_ft = h_m / FT_TO_M - fdm["position/geod-alt-ft"]
+            if abs(err_ft) < 1e-7:
+                break
+            fdm[IC_H_SL_FT] = fdm[IC_H_SL_FT] + err_ft
+            self.run_ic()
         got = fdm["attitude/psi-rad"]
         if abs((got - yaw_rad + np.pi) % (2 * np.pi) - np.pi) > 1e-6:
             raise RuntimeError(f"JSBSim initialised heading {np.degrees(got):.3f} deg, "

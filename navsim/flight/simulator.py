@@ -105,9 +105,15 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
 
     io.set_terrain(env.surface_m)
     io.set_wind_ned(env.wind_n_mps)
-    if env.turbulence != "none":
+    turbulence_pending = env.turbulence != "none"
+
+    def start_turbulence():
         io.set_turbulence(env.turbulence, env.turbulence_wind20_mps, env.turbulence_severity,
                           env.turbulence_seed)
+
+    if turbulence_pending and start.type == "air":
+        start_turbulence()        # JSBSim's turbulence models need airspeed: launch turns it on later
+        turbulence_pending = False
     heading = math.radians(start.heading_deg)
     ap.course_cmd = heading
     ap.speed_cmd = start.speed_mps
@@ -165,6 +171,9 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
                 ap.course_cmd = course if state.ground_speed > 1.0 else ap.course_cmd  # wings level
                 if k == booster_steps:
                     io.set_booster_n(0.0)
+                if turbulence_pending and tas > 8.0:
+                    start_turbulence()
+                    turbulence_pending = False
                 if k >= booster_steps and tas >= 0.9 * start.speed_mps and row[P.COL_HAGL] > 10.0:
                     launching = False
                     ap.pitch_hold = None

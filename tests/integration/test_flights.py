@@ -207,3 +207,52 @@ def test_unflyable_tracks_fail_naming_segment_and_time(segments, words):
     assert words in str(err)
     assert err.segment == len(segments) - 1 and err.time_s is not None
     assert f"segment {err.segment} (" in str(err) and "t = " in str(err)
+
+
+@pytest.mark.parametrize("turbulence", ["none", "milspec"])
+def test_p0_in_force_3_wind(turbulence):
+    env = Environment(wind_n_mps=(0.0, 4.4, 0.0), turbulence=turbulence,
+                      turbulence_wind20_mps=4.5, turbulence_severity=2, turbulence_seed=7)
+    track = load_track("p0")
+    truth = fly(FlightConfig(track=track, environment=env))
+    assert truth.duration_s == pytest.approx(500.0, abs=0.02)
+    dh, dv = [], []
+    for i, alt, speed in expected_commands(track):
+        m = truth.segment == i
+        m &= truth.t_s >= truth.t_s[m][0] + SETTLE_S
+        dh.append(truth.h_m[m] - alt)
+        dv.append(truth.tas_mps[m] - speed)
+    dh, dv = np.concatenate(dh), np.concatenate(dv)
+    if turbulence == "none":
+        assert np.abs(dh).max() <= 5.0 and np.abs(dv).max() <= 1.0
+    else:
+        # gusts move the airspeed faster than any throttle loop: judge RMS, bound the peaks
+        assert np.std(truth.wind_n_mps[:, 2]) > 0.05                 # the gusts are there
+        assert np.sqrt(np.mean(dh ** 2)) < 2.0 and np.abs(dh).max() <= 5.0
+        assert np.sqrt(np.mean(dv ** 2)) < 0.5 and np.abs(dv).max() <= 2.0
+
+
+@pytest.mark.parametrize("alt_m, speed_mps", [(50.0, 12.0), (1000.0, 14.0), (1500.0, 22.0)])
+def test_trimmed_air_start_at_any_altitude_and_speed(alt_m, speed_mps):
+    track = parse_track({"start": {"lat_deg": 37.0, "lon_deg": 118.0, "alt_m": alt_m,
+                                   "speed_mps": speed_mps, "heading_deg": 300},
+                         "segments": [{"type": "straight", "time_s": 10}]})
+    truth = fly(track)
+    # trimmed: no transient at release
+    assert truth.h_m[0] == pytest.approx(alt_m, abs=1e-6)
+    assert np.abs(truth.h_m - alt_m).max() < 0.2
+    assert np.abs(truth.tas_mps - speed_mps).max() < 0.1
+    assert np.abs(np.degrees(truth.euler_rad[:, 0])).max() < 0.5
+    assert np.abs(np.degrees(truth.euler_rad[:, 2]) - (300 - 360)).max() < 0.5
+    assert np.abs(truth.f_b_mps2[:, 2] + 9.8).max() < 0.1               # 1 g lift
+
+
+def test_climbs_above_1000_m():
+    track = parse_track({"start": {"lat_deg": 37.0, "lon_deg": 118.0, "alt_m": 300,
+                                   "speed_mps": 14.0},
+                         "segments": [{"type": "climb", "to_m": 1100, "rate_mps": 4.0},
+                                      {"type": "straight", "time_s": 30}]})
+    truth = fly(track)
+    m = truth.segment == 1
+    assert np.abs(truth.h_m[m] - 1100).max() < 2.0
+    assert truth.throttle[truth.segment == 0].max() < 0.9                # with throttle to spare
