@@ -39,6 +39,11 @@ def plot_flight(truth: Truth, out_dir: str | Path, prefix: str = "flight") -> li
     for j, (_, name, a, b) in enumerate(spans):
         m = (truth.t_s >= a) & (truth.t_s <= b)
         ax.plot(east[m], north[m], h[m], color=colors[j], lw=1.5, label=name)
+    # same scale on both horizontal axes, so turns look like turns
+    half = 0.5 * max(np.ptp(east), np.ptp(north), 1.0)
+    ce, cn = 0.5 * (east.max() + east.min()), 0.5 * (north.max() + north.min())
+    ax.set_xlim(ce - half, ce + half)
+    ax.set_ylim(cn - half, cn + half)
     ax.set_xlabel("east, m")
     ax.set_ylabel("north, m")
     ax.set_zlabel("height, m")
