@@ -117,6 +117,35 @@ class Truth:
             meta = json.loads(str(data["meta"]))
         return cls(**kw, segment_labels=labels, meta=meta)
 
+    @classmethod
+    def static(cls, duration_s: float, rate_hz: float = 100.0, lat_deg: float = 37.38,
+               lon_deg: float = 117.97, h_m: float = 0.0, yaw_deg: float = 0.0,
+               h_agl_m=None) -> "Truth":
+        """A vehicle at rest on the rotating Earth, level, heading ``yaw_deg``: the specific
+        force is minus gravity, the inertial rate the Earth rate. ``h_agl_m`` (array or scalar)
+        overrides the height above the surface (for altimeter tests)."""
+        from navsim import atmosphere, earth
+        n = int(round(duration_s * rate_hz)) + 1
+        lat, lon, yaw = np.radians(lat_deg), np.radians(lon_deg), np.radians(yaw_deg)
+        ones = np.ones(n)
+        euler = np.column_stack([0 * ones, 0 * ones, yaw * ones])
+        quat = quat_from_euler(euler[:, 0], euler[:, 1], euler[:, 2])
+        from navsim.transform import dcm_from_quat
+        C_bn = dcm_from_quat(quat[0]).T
+        g_n = earth.gravity_n(lat, h_m)
+        w_n = earth.OMEGA_IE_RPS * np.array([np.cos(lat), 0.0, -np.sin(lat)])
+        p = float(atmosphere.pressure(h_m))
+        hagl = np.broadcast_to(np.asarray(h_agl_m if h_agl_m is not None else h_m, float), (n,)).copy()
+        return cls(
+            t_s=np.arange(n) / rate_hz, lat_rad=lat * ones, lon_rad=lon * ones, h_m=h_m * ones,
+            vel_n_mps=np.zeros((n, 3)), quat_nb=quat, euler_rad=euler,
+            omega_ib_b_rps=np.tile(C_bn @ w_n, (n, 1)), f_b_mps2=np.tile(-(C_bn @ g_n), (n, 1)),
+            tas_mps=0 * ones, cas_mps=0 * ones, p_static_pa=p * ones, p_total_pa=p * ones,
+            temp_k=float(atmosphere.temperature(h_m)) * ones, h_agl_m=hagl,
+            terrain_m=h_m - hagl, wind_n_mps=np.zeros((n, 3)), alpha_rad=0 * ones,
+            beta_rad=0 * ones, throttle=0 * ones, segment=np.zeros(n, np.int16),
+            segment_labels=["static"], meta={"rate_hz": rate_hz, "track": "static"})
+
     def __eq__(self, other) -> bool:  # arrays compare element-wise
         if not isinstance(other, Truth):
             return NotImplemented

@@ -1,0 +1,85 @@
+"""Sensor emulators and the sensor catalog.
+
+Every sensor reads the truth record and emits timestamped measurements at its own rate for a
+batch of Monte Carlo runs, each run from its own random stream
+(:func:`navsim.sensors.base.run_generators`), so the same seed gives the same data whatever the
+batch size. Specs (truth models) come from the catalog ``sensors/*.yaml``
+(:mod:`navsim.sensors.catalog`); :func:`emulate` dispatches on the spec's kind.
+
+In a scenario::
+
+    sensors:
+      imu:  {model: p0_imu}
+      gnss: {model: p0_bd2, faults: [{type: outage, start_s: 200, end_s: 260}]}
+      baro: {model: p0_baro, override: {noise: 0.5 m}, off: [offset_sigma]}
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from navsim.config import Node
+from navsim.sensors import specs
+from navsim.sensors.airdata import emulate_ads, emulate_baro
+from navsim.sensors.base import Fault, SensorData, check_faults, parse_faults
+from navsim.sensors.camera import emulate_camera
+from navsim.sensors.catalog import load_spec
+from navsim.sensors.gnss import emulate_gnss
+from navsim.sensors.imu import emulate_imu
+from navsim.sensors.magnetometer import emulate_magnetometer
+from navsim.sensors.radar import emulate_radar_altimeter
+
+EMULATORS = {"imu": emulate_imu, "gnss": emulate_gnss, "baro": emulate_baro, "ads": emulate_ads,
+             "radar_altimeter": emulate_radar_altimeter, "magnetometer": emulate_magnetometer,
+             "camera": emulate_camera}
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """One sensor of a scenario: its name, truth-model spec and fault windows."""
+
+    name: str
+    model: str
+    spec: object
+    faults: tuple[Fault, ...] = ()
+
+    @property
+    def kind(self) -> str:
+        return specs.kind_of(self.spec)
+
+
+def emulate(truth, config: SensorConfig, seed: int, runs) -> SensorData:
+    """Emulate ``config`` on ``truth`` for the run indices ``runs``."""
+    fn = EMULATORS[config.kind]
+    if config.kind == "imu":
+        return fn(truth, config.spec, seed, runs, name=config.name)
+    check_faults(config.faults, config.kind, truth.duration_s, config.name)
+    return fn(truth, config.spec, seed, runs, faults=config.faults, name=config.name)
+
+
+def parse_sensors(data, file: str | None = None, path: str = "sensors") -> tuple[SensorConfig, ...]:
+    """Read the ``sensors`` mapping of a scenario (see the module docstring)."""
+    if data is None:
+        return ()
+    node = Node(data, path, file)
+    out = []
+    for name in list(node.data):
+        item = node.child(str(name))
+        model = item.get("model", str)
+        override = item.child("override", None)
+        off = item.data.get("off", [])
+        item._seen.add("off")
+        if off != "all" and not (isinstance(off, list) and all(isinstance(x, str) for x in off)):
+            raise item.error("is malformed", "off", expected="a list of error sources, or 'all'")
+        spec = load_spec(model, override.data if override else None, off, file, item.path)
+        kind = specs.kind_of(spec)
+        item._seen.add("faults")
+        faults = parse_faults(item.data.get("faults"), item.key("faults"), file, vector=(kind == "gnss"))
+        item.done()
+        out.append(SensorConfig(name=str(name), model=model, spec=spec, faults=faults))
+    node.done()
+    return tuple(out)
+
+
+__all__ = ["EMULATORS", "Fault", "SensorConfig", "SensorData", "emulate", "load_spec",
+           "parse_sensors"]

@@ -1,0 +1,84 @@
+"""Barometric altimeter and air data system (P0's ADS) emulators.
+
+Barometer values ``(B, M)``: ``h_baro_m`` (altitude), ``p_static_pa`` (the ISA pressure of that
+altitude). The altitude error is ``offset + offset_sigma N + Markov(sigma, tau) + white`` (P0's
+first-order Markov model); ``errors['h_error_m']`` is it.
+
+ADS values ``(B, M)``: ``p_static_pa``, ``p_total_pa``, ``temp_k`` (sensors with noise and a
+per-run bias), and what the ADS computes from them: ``h_pressure_m`` (pressure altitude),
+``cas_mps``, ``tas_mps``, and ``vel_n_mps`` ``(B, M, 3)``, the ground velocity P0 feeds its filter:
+the true airspeed along the body x axis rotated to NED with the attitude, plus a wind estimate
+(zero, as in P0, unless ``wind_estimate_n_mps`` is given). ``formula: p0`` uses P0's printed
+formulas (``H_p = 145442 (1 - (Ps/29.9213)^0.19026)`` ft and ``V = sqrt(2 q / rho)``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from navsim import atmosphere as atm
+from navsim.sensors.base import (SensorData, apply_outages, gauss_markov, normals,
+                                 sampling)
+from navsim.sensors.specs import AdsSpec, BaroSpec
+from navsim.transform import dcm_from_quat
+
+
+def emulate_baro(truth, spec: BaroSpec, seed: int, runs, faults=(), name: str = "baro") -> SensorData:
+    smp = sampling(truth, spec.rate_hz, seed, runs, name)
+    runs, B, step, t, M, gens = smp.runs, smp.B, smp.step, smp.t, smp.M, smp.gens
+    err = np.full((B, M), spec.offset)
+    if spec.offset_sigma:
+        err += normals(gens, (1,)) * spec.offset_sigma
+    if spec.markov_sigma:
+        err += gauss_markov(gens, M, step * truth.dt_s, [spec.markov_sigma], spec.markov_tau_s)[..., 0]
+    factor = np.ones(M)
+    for f in faults:
+        if f.type == "degraded":
+            factor[f.active(t)] *= f.factor
+        elif f.type == "bias":
+            err[:, f.active(t)] += f.value
+    if spec.noise:
+        err += normals(gens, (M,)) * spec.noise * factor
+    h = truth.h_m[::step][None] + err
+    valid = np.ones((B, M), bool)
+    apply_outages(valid, t, faults)
+    return SensorData(name=name, kind="baro", t_s=t,
+                      values={"h_baro_m": h, "p_static_pa": atm.pressure(h)}, valid=valid,
+                      errors={"h_error_m": err}, meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed})
+
+
+def emulate_ads(truth, spec: AdsSpec, seed: int, runs, faults=(), name: str = "ads",
+                wind_estimate_n_mps=(0.0, 0.0, 0.0)) -> SensorData:
+    smp = sampling(truth, spec.rate_hz, seed, runs, name)
+    runs, B, step, t, M, gens = smp.runs, smp.B, smp.step, smp.t, smp.M, smp.gens
+
+    def sensor(x, noise, bias_sigma):
+        out = np.broadcast_to(x, (B, M)).copy()
+        if bias_sigma:
+            out += normals(gens, (1,)) * bias_sigma
+        if noise:
+            out += normals(gens, (M,)) * noise
+        return out
+
+    ps = sensor(truth.p_static_pa[::step], spec.static_noise, spec.static_bias_sigma)
+    pt = sensor(truth.p_total_pa[::step], spec.total_noise, spec.total_bias_sigma)
+    temp = sensor(truth.temp_k[::step], spec.temperature_noise, 0.0)
+    pt = np.maximum(pt, ps)          # a pitot never reads below static
+    if spec.formula == "p0":
+        h_p = atm.pressure_altitude_p0_ft(ps) * 0.3048
+        tas = atm.tas_incompressible(pt, ps, temp)
+    else:
+        h_p = atm.pressure_altitude(ps)
+        tas = atm.tas_from_air_data(pt, ps, temp)
+    cas = atm.cas_from_qc(pt - ps)
+    x_n = dcm_from_quat(truth.quat_nb[::step])[:, :, 0]          # body x axis in NED
+    vel = tas[..., None] * x_n[None] + np.asarray(wind_estimate_n_mps, float)
+    valid = np.ones((B, M), bool)
+    apply_outages(valid, t, faults)
+    return SensorData(name=name, kind="ads", t_s=t,
+                      values={"p_static_pa": ps, "p_total_pa": pt, "temp_k": temp,
+                              "h_pressure_m": h_p, "cas_mps": cas, "tas_mps": tas, "vel_n_mps": vel},
+                      valid=valid,
+                      errors={"h_error_m": h_p - truth.h_m[::step], "tas_error_mps": tas - truth.tas_mps[::step],
+                              "vel_error_n_mps": vel - truth.vel_n_mps[::step]},
+                      meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed, "formula": spec.formula})

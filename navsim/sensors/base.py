@@ -1,0 +1,209 @@
+"""What every sensor shares: the data container, per-run random streams, Gauss-Markov
+processes, fault windows and sampling on the truth grid."""
+
+from __future__ import annotations
+
+import math
+import zlib
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import lfilter
+
+from navsim.config import Node
+from navsim.errors import ScenarioError
+
+
+@dataclass
+class SensorData:
+    """Measurements of one sensor for ``B`` runs at ``M`` sample times.
+
+    ``values[name]`` are ``(B, M, ...)`` arrays in SI (see each emulator for its keys);
+    ``valid`` is ``(B, M)``: False where the sensor gave no output (outage, out of range).
+    ``errors`` holds the true error components (for scoring estimators), broadcastable to
+    ``(B, M, ...)``.
+    """
+
+    name: str
+    kind: str
+    t_s: np.ndarray
+    values: dict
+    valid: np.ndarray
+    errors: dict = field(default_factory=dict)
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def runs(self) -> int:
+        return self.valid.shape[0]
+
+    def run(self, i: int) -> "SensorData":
+        """Run ``i`` as a batch of one."""
+        pick = lambda a: a[i:i + 1] if np.ndim(a) and np.shape(a)[0] == self.runs else a
+        return SensorData(self.name, self.kind, self.t_s, {k: pick(v) for k, v in self.values.items()},
+                          self.valid[i:i + 1], {k: pick(v) for k, v in self.errors.items()},
+                          dict(self.meta))
+
+
+def stream_id(name: str) -> int:
+    """A stable number for a sensor's random stream (independent of Python's hash seed)."""
+    return zlib.crc32(name.encode())
+
+
+def run_generators(seed: int, runs, name: str) -> list[np.random.Generator]:
+    """One Generator per run for sensor ``name``: child ``stream_id(name)`` of run ``i``'s
+    ``SeedSequence(seed).spawn(...)[i]``. The same run gets the same numbers whatever the batch
+    it is emulated in."""
+    sid = stream_id(name)
+    return [np.random.Generator(np.random.SFC64(np.random.SeedSequence(seed, spawn_key=(int(i), sid))))
+            for i in runs]
+
+
+def normals(gens, shape, dtype=np.float64) -> np.ndarray:
+    """Standard normal draws ``(B, *shape)``, one Generator per run. ``float32`` draws are
+    twice as fast; white noise of long series uses them (7 significant digits of a noise
+    sample are plenty)."""
+    shape = tuple(np.atleast_1d(shape))
+    out = np.empty((len(gens), *shape), dtype)
+    for g, o in zip(gens, out):
+        g.standard_normal(out=o, dtype=dtype)
+    return out
+
+
+def gauss_markov(gens, n: int, dt: float, sigma, tau: float) -> np.ndarray:
+    """First-order Gauss-Markov processes ``(B, n, k)`` (``k = len(sigma)``), stationary with
+    std ``sigma`` and correlation time ``tau``: ``x[j] = a x[j-1] + w[j]``, ``a = exp(-dt/tau)``,
+    ``x[0] ~ N(0, sigma^2)``."""
+    sigma = np.atleast_1d(np.asarray(sigma, float))
+    a = math.exp(-dt / tau)
+    w = normals(gens, (n, sigma.size))
+    w[:, 0, :] *= sigma
+    w[:, 1:, :] *= sigma * math.sqrt(1.0 - a * a)
+    return lfilter([1.0], [1.0, -a], w, axis=1)
+
+
+def random_walk(gens, n: int, dt: float, density) -> np.ndarray:
+    """Random walks ``(B, n, k)`` starting at 0 with ``density`` per sqrt(s)."""
+    density = np.atleast_1d(np.asarray(density, float))
+    w = normals(gens, (n, density.size)) * (density * math.sqrt(dt))
+    w[:, 0, :] = 0.0
+    return np.cumsum(w, axis=1)
+
+
+def decimation(truth_rate_hz: float, rate_hz: float, name: str) -> int:
+    """Truth samples per sensor sample; the sensor rate must divide the truth rate."""
+    step = truth_rate_hz / rate_hz
+    if abs(step - round(step)) > 1e-9 or round(step) < 1:
+        raise ScenarioError(f"rate {rate_hz:g} Hz does not divide the truth rate {truth_rate_hz:g} Hz",
+                            key=f"sensors.{name}.rate_hz",
+                            expected=f"{truth_rate_hz:g} Hz divided by a whole number")
+    return int(round(step))
+
+
+@dataclass
+class Sampling:
+    """Where a sensor samples the truth: run indices, truth step, times, random streams."""
+
+    runs: list
+    B: int
+    step: int
+    t: np.ndarray
+    M: int
+    dt: float
+    gens: list
+
+
+def sampling(truth, rate_hz: float, seed: int, runs, name: str) -> Sampling:
+    """The common set-up of every emulator."""
+    runs = list(runs)
+    step = decimation(truth.meta.get("rate_hz", 1.0 / truth.dt_s), rate_hz, name)
+    t = truth.t_s[::step]
+    return Sampling(runs, len(runs), step, t, len(t), step * truth.dt_s,
+                    run_generators(seed, runs, name))
+
+
+# --- fault windows -------------------------------------------------------------------------------
+
+FAULT_TYPES = ("outage", "bias", "degraded", "interference")
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A fault in ``[start_s, end_s)``.
+
+    ``outage``: no output. ``bias``: ``value`` (m, or a NED vector in m for GNSS position) added
+    exactly. ``degraded``: white noise times ``factor``. ``interference`` (GNSS, P1's power line):
+    near ``source`` (list of ``[lat_deg, lon_deg, h_m]`` points, a polyline) the noise grows as
+    ``1 + (radius_m / d)^2`` and lock is lost within ``lost_m``.
+    """
+
+    type: str
+    start_s: float = 0.0
+    end_s: float = math.inf
+    value: np.ndarray | float = 0.0
+    factor: float = 1.0
+    source: tuple = ()
+    radius_m: float = 100.0
+    lost_m: float = 30.0
+
+    def active(self, t_s: np.ndarray) -> np.ndarray:
+        return (t_s >= self.start_s) & (t_s < self.end_s)
+
+
+def parse_faults(data, path: str, file: str | None = None, vector: bool = False) -> tuple[Fault, ...]:
+    """Read a list of fault windows (see :class:`Fault`)."""
+    if data is None:
+        return ()
+    if not isinstance(data, list):
+        raise ScenarioError("is not a list", file=file, key=path, expected="a list of fault windows")
+    out = []
+    for i, item in enumerate(data):
+        node = Node(item, f"{path}[{i}]", file)
+        kind = node.get("type", str, choices=FAULT_TYPES)
+        kw = dict(type=kind, start_s=node.get("start_s", float, 0.0, minimum=0.0),
+                  end_s=node.get("end_s", float, math.inf))
+        if kw["end_s"] <= kw["start_s"]:
+            raise node.error(f"is {kw['end_s']:g}", "end_s", expected=f"a time after start_s ({kw['start_s']:g})")
+        if kind == "bias":
+            if vector:
+                node._seen.add("value_m")
+                raw = node.data.get("value_m")
+                if isinstance(raw, (int, float)) and not isinstance(raw, bool):
+                    raw = [0.0, 0.0, float(raw)]
+                if not (isinstance(raw, list) and len(raw) == 3):
+                    raise node.error("is missing or not [north, east, down]", "value_m",
+                                     expected="a NED vector in metres, e.g. [0, 0, -80]")
+                kw["value"] = np.array(raw, float)
+            else:
+                kw["value"] = node.get("value_m", float)
+        elif kind == "degraded":
+            kw["factor"] = node.get("factor", float, minimum=1.0)
+        elif kind == "interference":
+            node._seen.add("source")
+            src = node.data.get("source")
+            if not (isinstance(src, list) and src and all(isinstance(p, list) and len(p) == 3 for p in src)):
+                raise node.error("is missing or malformed", "source",
+                                 expected="a list of [lat_deg, lon_deg, h_m] points (a power line)")
+            kw["source"] = tuple(tuple(float(x) for x in p) for p in src)
+            kw["radius_m"] = node.get("radius_m", float, 100.0, exclusive_minimum=0.0)
+            kw["lost_m"] = node.get("lost_m", float, 30.0, minimum=0.0)
+        node.done()
+        out.append(Fault(**kw))
+    return tuple(out)
+
+
+def check_faults(faults, kind: str, duration_s: float, name: str) -> None:
+    allowed = {"gnss": FAULT_TYPES, "radar_altimeter": ("outage", "bias", "degraded"),
+               "baro": ("outage", "bias", "degraded")}.get(kind, ("outage",))
+    for i, f in enumerate(faults):
+        if f.type not in allowed:
+            raise ScenarioError(f"a {kind} cannot have a '{f.type}' fault", key=f"sensors.{name}.faults[{i}]",
+                                expected="one of " + ", ".join(allowed))
+        if f.start_s > duration_s:
+            raise ScenarioError(f"starts at {f.start_s:g} s, after the flight ends ({duration_s:.0f} s)",
+                                key=f"sensors.{name}.faults[{i}].start_s")
+
+
+def apply_outages(valid: np.ndarray, t_s: np.ndarray, faults) -> None:
+    for f in faults:
+        if f.type == "outage":
+            valid[:, f.active(t_s)] = False

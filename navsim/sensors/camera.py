@@ -1,0 +1,49 @@
+"""Landmark camera emulator (P1, GNSS-denied flight).
+
+A downward-looking camera (boresight along body z) sees anchor points of known position; when
+one is inside the field of view (``half_fov`` from the boresight) and within ``max_range``, the
+camera yields a position fix of the aircraft with noise of std ``noise + noise_ratio * range``
+per NED axis (the nearest visible landmark is used). Values: ``lat_rad``, ``lon_rad``, ``h_m``
+``(B, M)``, ``landmark`` ``(B, M)`` (index, -1 when none); ``valid`` where a landmark was seen.
+``errors['pos_error_n_m']`` is the fix error (NED, m).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from navsim import earth
+from navsim.sensors.base import SensorData, apply_outages, normals, sampling
+from navsim.sensors.specs import CameraSpec
+from navsim.transform import dcm_from_quat
+
+
+def emulate_camera(truth, spec: CameraSpec, seed: int, runs, faults=(), name: str = "camera") -> SensorData:
+    smp = sampling(truth, spec.rate_hz, seed, runs, name)
+    runs, B, step, t, M, gens = smp.runs, smp.B, smp.step, smp.t, smp.M, smp.gens
+    lat, lon, h = truth.lat_rad[::step], truth.lon_rad[::step], truth.h_m[::step]
+    lat0, lon0 = truth.lat_rad[0], truth.lon_rad[0]
+    north, east = earth.local_ne(lat, lon, lat0, lon0)
+    C_bn = np.swapaxes(dcm_from_quat(truth.quat_nb[::step]), -1, -2)
+    landmark = np.full(M, -1)
+    best_range = np.full(M, np.inf)
+    for i, (la, lo, hl) in enumerate(spec.landmarks):
+        ln, le = earth.local_ne(np.radians(la), np.radians(lo), lat0, lon0)
+        los_n = np.stack([ln - north, le - east, h - hl], axis=-1)      # aircraft -> landmark, NED
+        rng = np.linalg.norm(los_n, axis=-1)
+        los_b = np.einsum("nij,nj->ni", C_bn, los_n)
+        cos_off = los_b[:, 2] / np.maximum(rng, 1e-9)
+        seen = (cos_off >= np.cos(spec.half_fov)) & (rng <= spec.max_range) & (rng < best_range)
+        landmark[seen] = i
+        best_range[seen] = rng[seen]
+    valid = np.broadcast_to(landmark >= 0, (B, M)).copy()
+    apply_outages(valid, t, faults)
+    sigma = np.where(landmark >= 0, spec.noise + spec.noise_ratio * np.where(np.isfinite(best_range), best_range, 0.0), 0.0)
+    err = normals(gens, (M, 3)) * sigma[None, :, None] if np.any(sigma) else np.zeros((B, M, 3))
+    r_m, r_n = earth.radii(lat)
+    return SensorData(name=name, kind="camera", t_s=t,
+                      values={"lat_rad": lat + err[..., 0] / (r_m + h),
+                              "lon_rad": lon + err[..., 1] / ((r_n + h) * np.cos(lat)),
+                              "h_m": h - err[..., 2], "landmark": np.broadcast_to(landmark, (B, M)).copy()},
+                      valid=valid, errors={"pos_error_n_m": err},
+                      meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed})

@@ -1,0 +1,114 @@
+"""BeiDou / GNSS receiver emulator (position and velocity fixes).
+
+Values, ``(B, M)`` unless noted: ``lat_rad``, ``lon_rad``, ``h_m``, ``vel_n_mps`` ``(B, M, 3)``;
+quality as a receiver reports it: ``fix_type`` (3: 3-D fix, 0: none), ``h_acc_m``, ``v_acc_m``,
+``s_acc_mps`` (the receiver's own 1-sigma accuracy estimates, which grow with interference and
+degradation). ``errors``: ``pos_error_n_m`` ``(B, M, 3)``, the NED error of the reported position
+against the true centre of gravity (noise, Markov error, faults, lever arm and latency effects),
+and ``vel_error_n_mps``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from navsim import earth
+from navsim.sensors.base import (SensorData, apply_outages, gauss_markov, normals,
+                                 sampling)
+from navsim.sensors.specs import GnssSpec
+
+
+def _interp(t_query, t, x):
+    """Linear interpolation of ``x`` ``(N, ...)`` at ``t_query``."""
+    if x.ndim == 1:
+        return np.interp(t_query, t, x)
+    return np.stack([np.interp(t_query, t, x[:, j]) for j in range(x.shape[1])], axis=-1)
+
+
+def _distance_to_polyline(north, east, down, pts):
+    """Distance (m) of points ``(M,)`` to a polyline of local NED points ``(K, 3)``."""
+    p = np.stack([north, east, down], axis=-1)
+    if len(pts) == 1:
+        return np.linalg.norm(p - pts[0], axis=-1)
+    best = np.full(len(p), np.inf)
+    for a, b in zip(pts[:-1], pts[1:]):
+        ab = b - a
+        s = np.clip(((p - a) @ ab) / max(ab @ ab, 1e-12), 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(p - (a + s[:, None] * ab), axis=-1))
+    return best
+
+
+def emulate_gnss(truth, spec: GnssSpec, seed: int, runs, faults=(), name: str = "gnss") -> SensorData:
+    smp = sampling(truth, spec.rate_hz, seed, runs, name)
+    runs, B, step, t, M, gens = smp.runs, smp.B, smp.step, smp.t, smp.M, smp.gens
+    lat0, lon0 = truth.lat_rad[0], truth.lon_rad[0]
+    r_m, r_n = earth.radii(truth.lat_rad[::step])
+    k_n, k_e = r_m + truth.h_m[::step], (r_n + truth.h_m[::step]) * np.cos(truth.lat_rad[::step])
+
+    # antenna truth at the (latency-delayed) time of validity
+    t_valid = np.maximum(t - spec.latency_s, truth.t_s[0])
+    if spec.latency_s:
+        lat = _interp(t_valid, truth.t_s, truth.lat_rad)
+        lon = _interp(t_valid, truth.t_s, truth.lon_rad)
+        h = _interp(t_valid, truth.t_s, truth.h_m)
+        vel = _interp(t_valid, truth.t_s, truth.vel_n_mps)
+    else:
+        lat, lon, h, vel = (truth.lat_rad[::step], truth.lon_rad[::step], truth.h_m[::step],
+                            truth.vel_n_mps[::step])
+    offset_n = (np.stack([(lat - truth.lat_rad[::step]) * k_n, (lon - truth.lon_rad[::step]) * k_e,
+                          -(h - truth.h_m[::step])], axis=-1))
+    vel_off = vel - truth.vel_n_mps[::step]
+    if np.any(spec.lever_arm_b):
+        from navsim.transform import dcm_from_quat
+        C_nb = dcm_from_quat(truth.quat_nb[::step])
+        offset_n = offset_n + C_nb @ spec.lever_arm_b
+        vel_off = vel_off + np.einsum("nij,nj->ni", C_nb,
+                                      np.cross(truth.omega_ib_b_rps[::step], spec.lever_arm_b))
+
+    # noise scaling from degradation and interference, and lock loss
+    factor = np.ones(M)
+    valid = np.ones((B, M), bool)
+    pos_bias = np.zeros((M, 3))
+    north, east = earth.local_ne(truth.lat_rad[::step], truth.lon_rad[::step], lat0, lon0)
+    for f in faults:
+        act = f.active(t)
+        if f.type == "degraded":
+            factor[act] *= f.factor
+        elif f.type == "bias":
+            pos_bias[act] += f.value
+        elif f.type == "interference":
+            pts = np.array([[*earth.local_ne(np.radians(p[0]), np.radians(p[1]), lat0, lon0), -p[2]]
+                            for p in f.source])
+            d = _distance_to_polyline(north, east, -truth.h_m[::step], pts)
+            grow = 1.0 + (f.radius_m / np.maximum(d, 1e-3)) ** 2
+            factor[act] *= grow[act]
+            valid[:, act & (d < f.lost_m)] = False
+    apply_outages(valid, t, faults)
+
+    pos_err = offset_n[None] + pos_bias[None]
+    if np.any(spec.position_sigma):
+        pos_err = pos_err + normals(gens, (M, 3)) * spec.position_sigma * factor[None, :, None]
+    if np.any(spec.markov_sigma):
+        pos_err = pos_err + gauss_markov(gens, M, step * truth.dt_s, spec.markov_sigma, spec.markov_tau_s)
+    vel_err = np.broadcast_to(vel_off, (B, M, 3)).copy()
+    if np.any(spec.velocity_sigma):
+        vel_err = vel_err + normals(gens, (M, 3)) * spec.velocity_sigma * factor[None, :, None]
+    pos_err = np.broadcast_to(pos_err, (B, M, 3))
+
+    lat_t, lon_t, h_t = truth.lat_rad[::step], truth.lon_rad[::step], truth.h_m[::step]
+    h_acc = np.hypot(spec.position_sigma[0], spec.position_sigma[1]) * factor
+    v_acc = spec.position_sigma[2] * factor
+    s_acc = np.linalg.norm(spec.velocity_sigma) * factor
+    data = SensorData(
+        name=name, kind="gnss", t_s=t,
+        values={"lat_rad": lat_t + pos_err[..., 0] / k_n, "lon_rad": lon_t + pos_err[..., 1] / k_e,
+                "h_m": h_t - pos_err[..., 2],
+                "fix_type": np.where(valid, 3, 0).astype(np.int8),
+                "h_acc_m": np.broadcast_to(h_acc, (B, M)).copy(),
+                "v_acc_m": np.broadcast_to(v_acc, (B, M)).copy(),
+                "s_acc_mps": np.broadcast_to(s_acc, (B, M)).copy()},
+        valid=valid, errors={"pos_error_n_m": np.array(pos_err), "vel_error_n_mps": vel_err},
+        meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed})
+    if spec.velocity_output:
+        data.values["vel_n_mps"] = truth.vel_n_mps[::step] + vel_err
+    return data
