@@ -1,6 +1,7 @@
 """The ``navsim`` command line.
 
 ``navsim fly SCENARIO``   fly the scenario's track, write PNGs, the truth and a summary.
+``navsim sensors SCENARIO``  emulate the scenario's sensors, plot them against the truth.
 ``navsim validate FILE``  check a scenario without running it.
 ``navsim list``           aircraft and tracks shipped.
 """
@@ -19,12 +20,20 @@ import numpy as np
 from navsim.errors import FlightError, NavsimError
 
 
+def _numeric(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
 def _table(headers: list[str], rows: list[list[str]]) -> str:
     widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h)
               for i, h in enumerate(headers)]
     line = "  ".join(h.ljust(w) for h, w in zip(headers, widths))
     out = [line, "  ".join("-" * w for w in widths)]
-    out += ["  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths)))
+    out += ["  ".join(c.rjust(w) if _numeric(c) else c.ljust(w) for c, w in zip(r, widths))
             for r in rows]
     return "\n".join(out)
 
@@ -91,6 +100,41 @@ def cmd_fly(args) -> int:
     return 0
 
 
+def cmd_sensors(args) -> int:
+    from navsim.flight.simulator import fly
+    from navsim.sensors import emulate
+    from navsim.sensors.plots import channels, plot_sensor
+    from navsim.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    if not scenario.sensors:
+        print(f"error: {args.scenario} has no 'sensors'", file=sys.stderr)
+        return 2
+    runs = args.runs or scenario.runs
+    seed = scenario.seed if args.seed is None else args.seed
+    out = Path(args.out) if args.out else Path("reports") / scenario.name / "sensors"
+    out.mkdir(parents=True, exist_ok=True)
+    bar, update = _progress(f"flying {scenario.flight.track.name}")
+    try:
+        truth = fly(scenario.flight, progress=update)
+    finally:
+        bar.close()
+    rows = []
+    for cfg in scenario.sensors:
+        data = emulate(truth, cfg, seed, range(runs))
+        plot_sensor(data, truth, out / f"sensor_{cfg.name}.png", run=0)
+        for label, unit, _, _, _ in channels(data, truth, 0):
+            errs = np.concatenate([np.where(data.valid[r], c[3] - c[4], np.nan)
+                                   for r in range(runs) for c in channels(data, truth, r) if c[0] == label])
+            errs = errs[np.isfinite(errs)]
+            rows.append([cfg.name, cfg.model, label, unit, f"{errs.mean():.4g}", f"{errs.std():.4g}",
+                         f"{np.percentile(np.abs(errs), 95):.4g}", f"{data.valid.mean() * 100:.1f}"])
+    print(_table(["sensor", "model", "channel", "unit", "error mean", "error std", "|error| 95%",
+                  "output %"], rows))
+    print(f"\n{runs} run(s), seed {seed}; wrote {out}/ (sensor_<name>.png, run 0)")
+    return 0
+
+
 def cmd_validate(args) -> int:
     from navsim.scenario import load_scenario
     for path in args.files:
@@ -103,7 +147,11 @@ def cmd_validate(args) -> int:
 def cmd_list(args) -> int:
     from navsim.flight.track import available_tracks, load_track, nominal_duration_s
     from navsim.scenario import available_aircraft
+    from navsim.sensors.catalog import available
     print("aircraft: " + ", ".join(available_aircraft()))
+    print("sensors:")
+    for name, kind in available().items():
+        print(f"  {name:20s} {kind}")
     print("tracks:")
     for name in available_tracks():
         tr = load_track(name)
@@ -125,12 +173,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="output folder (default reports/<name>/flight)")
     p.add_argument("--rate-hz", type=float, help="simulation and truth rate (default: scenario's, 100)")
     p.set_defaults(func=cmd_fly)
+    p = sub.add_parser("sensors", help="emulate a scenario's sensors and plot them against the truth",
+                       description="Fly the scenario's track, emulate its sensors for the Monte "
+                       "Carlo runs, write one PNG per sensor (output against truth, error) and print "
+                       "error statistics over all runs.")
+    p.add_argument("scenario", help="scenario YAML file")
+    p.add_argument("--runs", type=int, help="number of runs (default: the scenario's montecarlo.runs)")
+    p.add_argument("--seed", type=int, help="seed (default: the scenario's montecarlo.seed)")
+    p.add_argument("--out", help="output folder (default reports/<name>/sensors)")
+    p.set_defaults(func=cmd_sensors)
     p = sub.add_parser("validate", help="check scenario files without running them",
                        description="Check scenario files; exit 2 on the first malformed one.")
     p.add_argument("files", nargs="+", help="scenario YAML files")
     p.set_defaults(func=cmd_validate)
-    p = sub.add_parser("list", help="list the shipped aircraft and tracks",
-                       description="List the shipped aircraft and tracks.")
+    p = sub.add_parser("list", help="list the shipped aircraft, sensors and tracks",
+                       description="List the shipped aircraft, sensor catalog entries and tracks.")
     p.set_defaults(func=cmd_list)
     return parser
 

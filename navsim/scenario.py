@@ -8,6 +8,10 @@ So far a scenario describes the flight::
     track: p0                   # a shipped track, or a mapping with start and segments
     environment: {wind: {force: 3, from_deg: 270}}
     flight: {rate_hz: 100}
+    sensors:                    # name -> catalog entry, overrides, error sources off, faults
+      imu: {model: p0_imu}
+      gnss: {model: p0_bd2, faults: [{type: outage, start_s: 200, end_s: 260}]}
+    montecarlo: {runs: 100, seed: 1}
 
 Every key is checked before anything runs; a mistake raises :class:`ScenarioError` naming the
 file, the key path, what was expected and a hint.
@@ -33,6 +37,9 @@ class Scenario:
     flight: FlightConfig
     path: Path | None
     raw: dict
+    sensors: tuple = ()
+    runs: int = 1
+    seed: int = 0
 
 
 def available_aircraft() -> list[str]:
@@ -58,6 +65,15 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
         raise (exc if exc.file else exc.with_file(file or "<scenario>")) from None
     node._seen.add("environment")
     environment = parse_environment(node.data.get("environment"), "environment", file)
+    from navsim.sensors import parse_sensors
+    node._seen.add("sensors")
+    sensors = parse_sensors(node.data.get("sensors"), file)
+    mc = node.child("montecarlo", None)
+    runs, seed = 1, 0
+    if mc is not None:
+        runs = mc.get("runs", int, 1, minimum=1)
+        seed = mc.get("seed", int, 0, minimum=0)
+        mc.done()
     flight_node = node.child("flight", None)
     rate_hz = 100.0
     if flight_node is not None:
@@ -66,7 +82,7 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     node.done()
     config = FlightConfig(track=track, environment=environment, aircraft=aircraft, rate_hz=rate_hz)
     return Scenario(name=name, description=description, flight=config,
-                    path=Path(file) if file else None, raw=data)
+                    path=Path(file) if file else None, raw=data, sensors=sensors, runs=runs, seed=seed)
 
 
 def load_scenario(path: str | Path) -> Scenario:

@@ -63,22 +63,25 @@ def _triad(gens, truth_x, incr_x, dt, e: AxisErrors, n: int):
         bias = bias + gauss_markov(gens, n, dt, e.markov_sigma, e.markov_tau_s)
     if np.any(e.random_walk):
         bias = bias + random_walk(gens, n, dt, e.random_walk)
+    # white noise drawn straight into the output, then the signal added in place:
+    # rate = (I + M) x + b + n;  incr = rate dt + (I + M) (incr_x - x dt)
     rate = np.empty((B, n, 3))
-    incr = np.empty((B, n, 3))
-    if np.array_equal(matrix, np.broadcast_to(np.eye(3), matrix.shape)):
-        np.add(truth_x, bias, out=rate)
-        np.add(incr_x, bias * dt, out=incr)
-    else:
-        np.einsum("bij,nj->bni", matrix, truth_x, out=rate)
-        rate += bias
-        np.einsum("bij,nj->bni", matrix, incr_x, out=incr)
-        incr += bias * dt
     if np.any(e.noise_density):
-        white = normals(gens, (n, 3))
-        white *= e.noise_density / math.sqrt(dt)
-        rate += white
-        white *= dt
-        incr += white
+        for g, r in zip(gens, rate):
+            g.standard_normal(out=r)
+        rate *= e.noise_density / math.sqrt(dt)
+    else:
+        rate[...] = 0.0
+    identity = np.array_equal(matrix, np.broadcast_to(np.eye(3), matrix.shape))
+    if identity:
+        rate += truth_x
+        corr = incr_x - truth_x * dt
+    else:
+        rate += np.einsum("bij,nj->bni", matrix, truth_x)
+        corr = np.einsum("bij,nj->bni", matrix, incr_x - truth_x * dt)
+    rate += bias
+    incr = np.multiply(rate, dt)
+    incr += corr
     return rate, incr, bias, matrix
 
 

@@ -74,3 +74,36 @@ def test_list(capsys):
     assert main(["list"]) == 0
     out = capsys.readouterr().out
     assert "survey10" in out and "p2_sea" in out
+
+
+def test_sensors_command_plots_each_sensor(tmp_path, capsys):
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text("""
+name: short_sensors
+track:
+  start: {lat_deg: 30.0, lon_deg: 122.5, alt_m: 120, speed_mps: 15}
+  segments: [{type: straight, time_s: 30}]
+sensors:
+  imu: {model: p2_imu}
+  gps: {model: p2_gps, faults: [{type: outage, start_s: 10, end_s: 15}]}
+  radar: {model: p2_radar, faults: [{type: bias, start_s: 5, end_s: 8, value_m: 10}]}
+  mag: {model: lsm303d}
+montecarlo: {runs: 3, seed: 4}
+""")
+    out = tmp_path / "out"
+    assert main(["sensors", str(scenario), "--out", str(out)]) == 0
+    for name in ("imu", "gps", "radar", "mag"):
+        assert (out / f"sensor_{name}.png").stat().st_size > 10000
+    text = capsys.readouterr().out
+    assert "p2_radar" in text and "3 run(s), seed 4" in text
+    # GPS: 5 of 31 fixes lost to the outage
+    assert "83.9" in text
+
+
+def test_malformed_sensor_section_exit_2(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("track: p0\nsensors:\n  imu: {model: p0_imu, override: {gyro: {bias_sigma: 3 m}}}\n")
+    proc = subprocess.run([sys.executable, "-m", "navsim", "validate", str(path)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "sensors.imu.override.gyro.bias_sigma" in proc.stderr and "deg/h" in proc.stderr
