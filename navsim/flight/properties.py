@@ -91,6 +91,15 @@ IC_PHI_DEG = "ic/phi-deg"
 
 TURBULENCE_TYPES = {"none": 0, "milspec": 3, "tustin": 4}
 
+#: JSBSim integrators, all Adams-Bashforth 3 (JSBSim's code 4): the recorded trajectory then
+#: approximates the continuous-time solution to third order, so that an IMU integrating the
+#: recorded rates and specific forces (trapezoid, coning and sculling) reproduces it. JSBSim's
+#: defaults (rectangular Euler for the attitude) lag the attitude by half a step.
+INTEGRATORS = {"simulation/integrator/rate/rotational": 4,
+               "simulation/integrator/rate/translational": 4,
+               "simulation/integrator/position/rotational": 4,
+               "simulation/integrator/position/translational": 4}
+
 #: The aircraft shipped with navsim live here (the repository's ``aircraft/`` folder).
 AIRCRAFT_DIR = Path(__file__).resolve().parents[2] / "aircraft"
 
@@ -129,6 +138,8 @@ class JSBSimIO:
         if not fdm.load_model(aircraft):
             raise RuntimeError(f"JSBSim could not load aircraft '{aircraft}' from {adir}")
         fdm.set_dt(dt_s)
+        for name, code in INTEGRATORS.items():
+            fdm[name] = code
         self.dt_s = dt_s
         pm = fdm.get_property_manager()
         self._read_nodes = [pm.get_node(name, False) for name in RAW_NAMES]

@@ -1,0 +1,180 @@
+"""Closed-loop error-state Kalman filter for SINS aided by any set of measurement models
+(P3's 15 states, P0's 16, P2's 18, or any :class:`Layout`).
+
+The strapdown mechanization runs at the IMU rate on bias-compensated increments; every
+``period_s`` the filter predicts with ``F`` built from the navigation state averaged over the
+period (``C_nb`` and the specific force in NED), discretised by the third-order series (P3) or
+Van Loan, then applies each available measurement with the Joseph form, and feeds the
+estimated errors back: attitude, velocity and position into the mechanization, biases into the
+IMU compensation. The ``baro`` state (a sensor error) stays in the filter.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from navsim.estimators import kalman
+from navsim.estimators.base import Innovation, Solution, register
+from navsim.estimators.error_model import (Layout, ProcessNoise, add_markov_decay, process_noise,
+                                           system_matrix)
+from navsim.strapdown import NavState, Strapdown, rotation
+
+FEEDBACK = ("att", "vel", "pos", "gyro_bias", "accel_bias", "gyro_markov", "accel_markov")
+
+
+@register("eskf")
+class ErrorStateKF:
+    """Parameters
+    ----------
+    layout : Layout
+        The error-state blocks.
+    noise : ProcessNoise
+        The filter's own noise model.
+    measurements : list
+        Measurement models (see :mod:`navsim.estimators.measurements`).
+    period_s : float
+        Filter period (P0, P3: 1 s).
+    discretization : {"series", "van_loan"}
+    """
+
+    def __init__(self, layout: Layout, noise: ProcessNoise, measurements, period_s: float = 1.0,
+                 discretization: str = "series", initial_sigma: dict | None = None):
+        if discretization not in ("series", "van_loan"):
+            raise ValueError(f"discretization '{discretization}': expected series or van_loan")
+        self.layout, self.noise, self.measurements = layout, noise, list(measurements)
+        self.period_s, self.discretization = period_s, discretization
+        self.initial_sigma = dict(initial_sigma or {})
+        self.Qc = process_noise(layout, noise)
+
+    @classmethod
+    def from_imu_spec(cls, layout: Layout, imu_spec, measurements, baro_sigma_m: float = 0.0,
+                      baro_tau_s: float = 300.0, **kw) -> "ErrorStateKF":
+        """A filter whose noise model and initial bias uncertainty come from an IMU spec (a
+        catalog entry of its own: it need not be the spec that corrupted the data)."""
+        g, a = imu_spec.gyro, imu_spec.accel
+        noise = ProcessNoise(
+            gyro_white=g.noise_density, accel_white=a.noise_density,
+            gyro_bias_walk=g.random_walk, accel_bias_walk=a.random_walk,
+            gyro_markov_sigma=np.maximum(g.markov_sigma, 1e-12), gyro_markov_tau_s=g.markov_tau_s,
+            accel_markov_sigma=np.maximum(a.markov_sigma, 1e-12), accel_markov_tau_s=a.markov_tau_s,
+            baro_sigma=baro_sigma_m, baro_tau_s=baro_tau_s)
+        sigma = {"gyro_bias": np.hypot(g.bias_sigma, g.bias), "accel_bias": np.hypot(a.bias_sigma, a.bias),
+                 "gyro_markov": g.markov_sigma, "accel_markov": a.markov_sigma,
+                 "baro": np.array([baro_sigma_m])}
+        return cls(layout, noise, measurements, initial_sigma=sigma, **kw)
+
+    def noise_sigma0(self) -> dict:
+        """Initial 1-sigma of the sensor-error blocks (the runner adds the navigation blocks)."""
+        return self.initial_sigma
+
+    # --- contract -----------------------------------------------------------------------------
+    def initialize(self, nav0: NavState, sigma0: dict) -> None:
+        """``sigma0``: 1-sigma per block (arrays of the block's size), e.g. ``{"att": ...}``."""
+        B = nav0.lat_rad.shape[0]
+        self.sd = Strapdown(nav0.copy())
+        n = self.layout.n
+        self.x = np.zeros((B, n))
+        var = np.zeros(n)
+        for block in self.layout.blocks:
+            if block in sigma0:
+                var[self.layout.slice(block)] = np.asarray(sigma0[block], float) ** 2
+        self.P = np.broadcast_to(np.diag(var), (B, n, n)).copy()
+        self.b_gyro = np.zeros((B, 3))
+        self.b_accel = np.zeros((B, 3))
+        self.m_gyro = np.zeros((B, 3))      # Markov parts, decaying
+        self.m_accel = np.zeros((B, 3))
+        self._reset_accumulators()
+        self.diverged = np.zeros(B, bool)
+
+    def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
+        gyro = self.b_gyro + self.m_gyro
+        accel = self.b_accel + self.m_accel
+        s = self.sd.step(dtheta_b - gyro * dt, dv_b - accel * dt, dt)
+        self._sum_C += s.C_nb
+        self._sum_f += (s.C_nb @ (dv_b - accel * dt)[:, :, None])[:, :, 0] / dt
+        self._count += 1
+        self._elapsed += dt
+
+    def epoch(self, t: float, sensors: dict) -> list[Innovation]:
+        self.predict()
+        out = []
+        for m in self.measurements:
+            data = sensors.get(m.sensor)
+            if data is None:
+                continue
+            j = _sample_index(data.t_s, t)
+            if j is None:
+                continue
+            out.append(self.correct(m, data, j, t))
+        self.feedback()
+        return out
+
+    def solution(self) -> Solution:
+        idx = np.r_[self.layout.slice("att"), self.layout.slice("vel"), self.layout.slice("pos")]
+        return Solution(nav=self.sd.state, P_nav=self.P[:, idx][:, :, idx],
+                        gyro_bias=self.b_gyro + self.m_gyro, accel_bias=self.b_accel + self.m_accel,
+                        extra={"P": self.P, "diverged": self.diverged})
+
+    # --- filter steps -------------------------------------------------------------------------
+    def predict(self) -> None:
+        if self._count == 0:
+            return
+        s = self.sd.state
+        C_mean = self._sum_C / self._count
+        f_mean = self._sum_f / self._count
+        F = system_matrix(self.layout, s.lat_rad, s.h_m, s.vel_n_mps, C_mean, f_mean)
+        F = add_markov_decay(F, self.layout, self.noise)
+        T = self._elapsed
+        if self.discretization == "series":
+            Phi, Qd = kalman.discretize_series(F, self.Qc, T, order=3)
+        else:
+            Phi, Qd = kalman.discretize_van_loan(F, self.Qc, T)
+        self.x, self.P = kalman.predict(self.x, self.P, Phi, Qd)
+        # the fed-back Markov bias estimates decay like the process
+        if self.layout.has("gyro_markov"):
+            self.m_gyro *= np.exp(-T / self.noise.gyro_markov_tau_s)
+        if self.layout.has("accel_markov"):
+            self.m_accel *= np.exp(-T / self.noise.accel_markov_tau_s)
+        self._reset_accumulators()
+
+    def correct(self, model, data, j: int, t: float) -> Innovation:
+        z, H, R, valid = model.model(self.sd.state, self.layout, data, j)
+        self.x, self.P, y, S, nis = kalman.update(self.x, self.P, z, H, R, valid)
+        bad = ~np.all(np.isfinite(self.P), axis=(1, 2)) | (np.diagonal(self.P, axis1=1, axis2=2) < 0).any(-1)
+        self.diverged |= bad
+        return Innovation(model.name, model.sensor, t, y, S, nis)
+
+    def feedback(self) -> None:
+        """Inject the estimated errors into the mechanization and the IMU compensation."""
+        L, x = self.layout, self.x
+        s = self.sd.state
+        phi = x[:, L.slice("att")]
+        s.C_nb = rotation(phi) @ s.C_nb
+        s.vel_n_mps = s.vel_n_mps - x[:, L.slice("vel")]
+        p = x[:, L.slice("pos")]
+        s.lat_rad, s.lon_rad, s.h_m = s.lat_rad - p[:, 0], s.lon_rad - p[:, 1], s.h_m - p[:, 2]
+        if L.has("gyro_bias"):
+            self.b_gyro = self.b_gyro + x[:, L.slice("gyro_bias")]
+        if L.has("accel_bias"):
+            self.b_accel = self.b_accel + x[:, L.slice("accel_bias")]
+        if L.has("gyro_markov"):
+            self.m_gyro = self.m_gyro + x[:, L.slice("gyro_markov")]
+        if L.has("accel_markov"):
+            self.m_accel = self.m_accel + x[:, L.slice("accel_markov")]
+        for block in FEEDBACK:
+            if L.has(block):
+                x[:, L.slice(block)] = 0.0
+
+    def _reset_accumulators(self) -> None:
+        B = self.sd.state.lat_rad.shape[0]
+        self._sum_C = np.zeros((B, 3, 3))
+        self._sum_f = np.zeros((B, 3))
+        self._count = 0
+        self._elapsed = 0.0
+
+
+def _sample_index(t_s: np.ndarray, t: float, tol: float = 1e-6):
+    j = int(np.searchsorted(t_s, t - tol))
+    if j < len(t_s) and abs(t_s[j] - t) <= tol:
+        return j
+    return None

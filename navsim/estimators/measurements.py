@@ -1,0 +1,88 @@
+"""Measurement models: each returns the batched linearised model ``z, H, R, valid`` of one
+sensor sample for the error-state filter.
+
+``z`` is the measured error, *INS minus sensor*, so that ``z = H dx + v`` with ``dx`` the error
+state (estimate minus truth) and ``v ~ N(0, R)``. Each model knows which sensor it reads
+(``sensor``) and the noise it assumes (its own numbers, not the sensor's truth spec).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from navsim import earth
+from navsim.estimators.error_model import Layout
+from navsim.strapdown import NavState
+
+
+def _diag(sig2: np.ndarray, B: int) -> np.ndarray:
+    return np.broadcast_to(np.diag(sig2), (B, sig2.size, sig2.size)).copy()
+
+
+@dataclass
+class GnssPosition:
+    """INS minus GNSS position, NED metres: ``[dL (R_M+h), dlambda (R_N+h) cos L, -dh]``."""
+
+    sensor: str
+    sigma_m: np.ndarray                  #: (3,) NED
+    name: str = "gnss_position"
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        B = nav.lat_rad.shape[0]
+        v = data.values
+        r_m, r_n = earth.radii(nav.lat_rad)
+        k_n, k_e = r_m + nav.h_m, (r_n + nav.h_m) * np.cos(nav.lat_rad)
+        z = np.stack([(nav.lat_rad - v["lat_rad"][:, j]) * k_n,
+                      (nav.lon_rad - v["lon_rad"][:, j]) * k_e,
+                      -(nav.h_m - v["h_m"][:, j])], -1)
+        H = np.zeros((B, 3, layout.n))
+        p = layout.slice("pos").start
+        H[:, 0, p], H[:, 1, p + 1], H[:, 2, p + 2] = k_n, k_e, -1.0
+        return z, H, _diag(np.asarray(self.sigma_m, float) ** 2, B), data.valid[:, j]
+
+
+@dataclass
+class Velocity:
+    """INS minus a NED velocity (GNSS, or P0's ADS ground velocity), m/s."""
+
+    sensor: str
+    sigma_mps: np.ndarray                #: (3,)
+    field: str = "vel_n_mps"
+    name: str = "velocity"
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        B = nav.lat_rad.shape[0]
+        z = nav.vel_n_mps - data.values[self.field][:, j]
+        H = np.zeros((B, 3, layout.n))
+        s = layout.slice("vel").start
+        H[:, [0, 1, 2], [s, s + 1, s + 2]] = 1.0
+        return z, H, _diag(np.asarray(self.sigma_mps, float) ** 2, B), data.valid[:, j]
+
+
+@dataclass
+class Height:
+    """INS height minus a measured height (barometer, ADS pressure altitude, a fused height),
+    m. With a ``baro`` state in the filter, the sensor's Markov error is modelled:
+    ``z = dh - dh_b``. ``offset_m`` is added to the sensor value (e.g. the surface height under
+    a radar altimeter)."""
+
+    sensor: str
+    sigma_m: float
+    field: str = "h_m"
+    use_baro_state: bool = False
+    offset_m: float = 0.0
+    name: str = "height"
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        B = nav.lat_rad.shape[0]
+        z = (nav.h_m - (data.values[self.field][:, j] + self.offset_m))[:, None]
+        H = np.zeros((B, 1, layout.n))
+        H[:, 0, layout.slice("pos").start + 2] = 1.0
+        if self.use_baro_state and layout.has("baro"):
+            H[:, 0, layout.slice("baro").start] = -1.0
+        return z, H, np.full((B, 1, 1), float(self.sigma_m) ** 2), data.valid[:, j]
+
+
+MODELS = {"gnss_position": GnssPosition, "velocity": Velocity, "height": Height}
