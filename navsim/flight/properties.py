@@ -138,8 +138,6 @@ class JSBSimIO:
         if not fdm.load_model(aircraft):
             raise RuntimeError(f"JSBSim could not load aircraft '{aircraft}' from {adir}")
         fdm.set_dt(dt_s)
-        for name, code in INTEGRATORS.items():
-            fdm[name] = code
         self.dt_s = dt_s
         pm = fdm.get_property_manager()
         self._read_nodes = [pm.get_node(name, False) for name in RAW_NAMES]
@@ -201,6 +199,12 @@ class JSBSimIO:
         if abs((got - yaw_rad + np.pi) % (2 * np.pi) - np.pi) > 1e-6:
             raise RuntimeError(f"JSBSim initialised heading {np.degrees(got):.3f} deg, "
                                f"asked {np.degrees(yaw_rad):.3f} deg")
+
+    def use_accurate_integrators(self) -> None:
+        """Switch JSBSim to :data:`INTEGRATORS` (done once the aircraft is free: JSBSim's
+        hold-down does not work with them)."""
+        for name, code in INTEGRATORS.items():
+            self.fdm[name] = code
 
     def set_terrain(self, terrain_m: float) -> None:
         self.fdm[TERRAIN_FT] = terrain_m / FT_TO_M

@@ -256,6 +256,7 @@ def _air_start(io, ap, limits, start, lat0, lon0, heading, env, dt) -> None:
     # start on the wanted course: keep the crab angle the settled flight needed in the wind
     crab = r[P.COL_YAW] - math.atan2(r[P.COL_VE], r[P.COL_VN])
     heading = heading + (crab + math.pi) % (2.0 * math.pi) - math.pi
+    io.use_accurate_integrators()
     io.set_initial(lat_rad=lat0, lon_rad=lon0, h_m=h, tas_mps=start.speed_mps, yaw_rad=heading,
                    pitch_rad=r[P.COL_PITCH], gamma_rad=r[P.COL_PITCH] - r[P.COL_ALPHA],
                    terrain_m=env.surface_m)
@@ -272,6 +273,7 @@ def _launch_prepare(io, ap, start, lat0, lon0, heading, env, dt) -> int:
         io.set_controls(0.0, 0.0, 0.0, 1.0)
         io.run()
     io.set_hold_down(False)
+    io.use_accurate_integrators()
     io.run_ic()
     io.set_booster_n(start.booster_thrust_n)
     ap.pitch_hold = pitch
