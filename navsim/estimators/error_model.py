@@ -126,8 +126,10 @@ def system_matrix(layout: Layout, lat, h, vel_n, C_nb, f_n) -> np.ndarray:
     F[:, V, A] = skew(f_n)
     F[:, V, V] = -skew(2.0 * w_ie + w_en) + Vx @ Mv
     F[:, V, Pp] = Vx @ (2.0 * dwie_dp + dwen_dp)
-    g = 9.80665
-    F[:, V.start + 2, Pp.start + 2] += -2.0 * g / np.sqrt(Rm * Rn)     # free-air gradient
+    # gravity gradient (J2 model, by central differences): latitude and height
+    dL, dh = 1e-5, 1.0
+    F[:, V, Pp.start] += (earth.gravity_n(lat + dL, h) - earth.gravity_n(lat - dL, h)) / (2 * dL)
+    F[:, V, Pp.start + 2] += (earth.gravity_n(lat, h + dh) - earth.gravity_n(lat, h - dh)) / (2 * dh)
     # position
     F[:, Pp.start, V.start] = 1.0 / Rm
     F[:, Pp.start, Pp.start + 2] = -vn / Rm ** 2

@@ -1,0 +1,127 @@
+"""The analytic error model against finite differences of the nonlinear SINS equations."""
+
+import numpy as np
+import pytest
+
+from navsim import earth
+from navsim.estimators import kalman
+from navsim.estimators.error_model import PRESETS, Layout, system_matrix
+from navsim.estimators.measurements import GnssPosition, Height, Velocity
+from navsim.strapdown import NavState, rates_n, rotation, skew
+
+LAYOUT = Layout(PRESETS["p3_15"])
+
+
+def nominal():
+    rng = np.random.default_rng(4)
+    lat, lon, h = 0.65, 2.06, 350.0
+    v = np.array([12.0, -7.0, 1.5])
+    C = rotation(np.array([0.2, -0.1, 2.5]))
+    omega_ib_b = rng.normal(size=3) * 0.2
+    f_b = np.array([0.5, 0.3, -9.6])
+    return lat, lon, h, v, C, omega_ib_b, f_b
+
+
+def derivatives(lat, lon, h, v, C, omega_ib_b, f_b):
+    w_ie, w_en, r_m, r_n = rates_n(np.array([lat]), np.array([h]), v[None])
+    w_ie, w_en = w_ie[0], w_en[0]
+    g = earth.gravity_n(lat, h)
+    C_dot = C @ skew(omega_ib_b) - skew(w_ie + w_en) @ C
+    v_dot = C @ f_b - np.cross(2 * w_ie + w_en, v) + g
+    pos_dot = np.array([v[0] / (r_m[0] + h), v[1] / ((r_n[0] + h) * np.cos(lat)), -v[2]])
+    return C_dot, v_dot, pos_dot
+
+
+def error_rate(dx):
+    """d/dt of the error state dx (estimate minus truth) at the nominal truth."""
+    lat, lon, h, v, C, w, f = nominal()
+    phi, dv, dp, dbg, dba = dx[0:3], dx[3:6], dx[6:9], dx[9:12], dx[12:15]
+    C_est = rotation(-phi) @ C
+    # the estimate sees the measured rate minus its bias estimate: true rate + residual bias
+    Ct, vt, pt = derivatives(lat, lon, h, v, C, w, f)
+    Ce, ve, pe = derivatives(lat + dp[0], lon + dp[1], h + dp[2], v + dv, C_est, w + dbg, f + dba)
+    # C_est = exp(-[phi x]) C  =>  [phi_dot x] ~ -(C_est_dot - exp(-[phi x]) C_dot) C^T
+    E = -(Ce - rotation(-phi) @ Ct) @ C.T
+    phi_dot = 0.5 * np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
+    return np.concatenate([phi_dot, ve - vt, pe - pt, np.zeros(6)])
+
+
+def test_F_matches_finite_differences():
+    lat, lon, h, v, C, w, f = nominal()
+    F = system_matrix(LAYOUT, np.array([lat]), np.array([h]), v[None], C[None], (C @ f)[None])[0]
+    steps = np.array([1e-6] * 3 + [1e-3] * 3 + [1e-8, 1e-8, 1e-2] + [1e-6] * 3 + [1e-4] * 3)
+    J = np.column_stack([(error_rate(s * e) - error_rate(-s * e)) / (2 * s)
+                         for s, e in zip(steps, np.eye(15))])
+    # compare column by column, relative to the column's size
+    for j in range(15):
+        scale = max(np.abs(J[:, j]).max(), 1e-9)
+        np.testing.assert_allclose(F[:, j], J[:, j], atol=1e-3 * scale + 1e-12,
+                                   err_msg=f"column {LAYOUT.labels()[j]}")
+
+
+def nav(lat, lon, h, v, C):
+    return NavState(np.array([lat]), np.array([lon]), np.array([h]), v[None].copy(), C[None].copy())
+
+
+class FakeData:
+    def __init__(self, values):
+        self.values = {k: np.asarray(val)[None, None] if np.ndim(val) == 0 else np.asarray(val)[None, None]
+                       for k, val in values.items()}
+        self.valid = np.ones((1, 1), bool)
+
+
+@pytest.mark.parametrize("model", [GnssPosition("g", np.ones(3)), Velocity("g", np.ones(3)),
+                                   Height("b", 1.0, field="h_m")])
+def test_H_matches_finite_differences(model):
+    lat, lon, h, v, C, _, _ = nominal()
+    # the sensor agrees with the nominal state: the linearisation point of a closed-loop filter
+    data = FakeData({"lat_rad": lat, "lon_rad": lon, "h_m": h, "vel_n_mps": v})
+
+    def z_of(dx):
+        dp, dv = dx[6:9], dx[3:6]
+        return model.model(nav(lat + dp[0], lon + dp[1], h + dp[2], v + dv, rotation(-dx[:3]) @ C),
+                           LAYOUT, data, 0)[0][0]
+
+    _, H, R, valid = model.model(nav(lat, lon, h, v, C), LAYOUT, data, 0)
+    steps = np.array([1e-6] * 3 + [1e-3] * 3 + [1e-8, 1e-8, 1e-2] + [1e-6] * 6)
+    J = np.column_stack([(z_of(s * e) - z_of(-s * e)) / (2 * s) for s, e in zip(steps, np.eye(15))])
+    np.testing.assert_allclose(H[0], J, rtol=1e-5, atol=1e-6)
+    assert valid.all() and R.shape == (1, H.shape[1], H.shape[1])
+
+
+def test_series_and_van_loan_agree():
+    lat, lon, h, v, C, w, f = nominal()
+    F = system_matrix(LAYOUT, np.array([lat] * 2), np.array([h] * 2), np.stack([v, -v]), np.stack([C, C.T]),
+                      np.stack([C @ f, f]))
+    Qc = np.diag(np.r_[np.full(3, 1e-8), np.full(3, 1e-6), np.zeros(9)])
+    P1, Q1 = kalman.discretize_series(F, Qc, 1.0, order=3)
+    P2, Q2 = kalman.discretize_van_loan(F, Qc, 1.0)
+    # third order over 1 s: the truncation is O((|F| T)^4 / 24)
+    np.testing.assert_allclose(P1, P2, rtol=1e-2, atol=1e-6)
+    # the noise reaches the position through attitude and velocity: four integrations, so the
+    # third-order series misses part of Qd over 1 s; the sixth order has it
+    _, Q6 = kalman.discretize_series(F, Qc, 1.0, order=6)
+    for b in range(2):          # correlation-scaled, on the driven (navigation) states
+        d = np.sqrt(np.diag(Q2[b]))[:9]
+        np.testing.assert_allclose(Q6[b][:9, :9] / np.outer(d, d), Q2[b][:9, :9] / np.outer(d, d), atol=2e-3)
+    P8, Q8 = kalman.discretize_series(F, Qc, 1.0, order=8)
+    np.testing.assert_allclose(P8, P2, atol=1e-9)
+
+
+def test_joseph_update_is_the_optimal_update_and_keeps_P_psd():
+    rng = np.random.default_rng(7)
+    A = rng.normal(size=(4, 6, 6))
+    P = A @ np.swapaxes(A, -1, -2) + 0.1 * np.eye(6)
+    H = rng.normal(size=(4, 2, 6))
+    R = np.broadcast_to(np.diag([0.5, 2.0]), (4, 2, 2))
+    x = rng.normal(size=(4, 6))
+    z = rng.normal(size=(4, 2))
+    x1, P1, y, S, nis = kalman.update(x, P, z, H, R)
+    K = P @ np.swapaxes(H, -1, -2) @ np.linalg.inv(S)
+    np.testing.assert_allclose(P1, P - K @ H @ P, atol=1e-9)
+    np.testing.assert_allclose(x1, x + (K @ y[..., None])[..., 0], atol=1e-12)
+    assert np.all(np.linalg.eigvalsh(P1) > 0)
+    np.testing.assert_allclose(nis, np.einsum("bi,bij,bj->b", y, np.linalg.inv(S), y))
+    valid = np.array([True, False, True, False])
+    x2, P2, _, _, nis2 = kalman.update(x, P, z, H, R, valid)
+    assert np.array_equal(x2[1], x[1]) and np.array_equal(P2[3], P[3]) and np.isnan(nis2[1])
