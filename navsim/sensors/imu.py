@@ -4,9 +4,9 @@ Outputs (``SensorData.values``), ``(B, M, 3)``, body axes:
 
 * ``omega_ib_b_rps``: angular rate, sampled at the IMU times;
 * ``f_b_mps2``: specific force, sampled at the IMU times;
-* ``dtheta_b_rad``, ``dv_b_mps``: increments over the interval ending at each sample (the
-  truth integrated by the trapezoid rule at the truth rate, plus the errors times the interval;
-  the first increment covers one interval before ``t_s[0]`` by extrapolation).
+* ``dtheta_b_rad``, ``dv_b_mps``: increments over the interval ending at each sample: the
+  true increments of the recorded trajectory (:func:`truth_increments`) plus the errors times
+  the interval.
 
 The measurement model, per triad: ``y = (I + M) x + b(t) + n + v``, where ``M`` holds scale-factor
 errors on the diagonal and misalignments off it, ``b`` is the sum of the fixed bias, the random
@@ -107,6 +107,67 @@ def _vibration(gens, t, dt, vib, rate_hz, amp_attr):
     return x * (amp / 3.0)
 
 
+def _rot(v):
+    from navsim.strapdown import rotation
+    return rotation(v)
+
+
+def _compensated_to_measured(dv_c, dth, dth_prev, dv_c_prev):
+    """Invert the strapdown's rotation and sculling compensation
+    ``dv_c = dv + dth x dv / 2 + (dth_p x dv + dv_p x dth) / 12`` (to third order)."""
+    return (dv_c - 0.5 * np.cross(dth, dv_c)
+            - (np.cross(dth_prev, dv_c) + np.cross(dv_c_prev, dth)) / 12.0)
+
+
+def truth_increments(truth, step: int = 1):
+    """Ideal increments ``dtheta_b``, ``dv_b`` ``(n, 3)`` over the IMU intervals ending at each
+    IMU sample, such that the strapdown mechanization (coning and sculling compensation)
+    reproduces the recorded trajectory.
+
+    JSBSim integrates the attitude and the inertial velocity with Adams-Bashforth 3
+    (:data:`navsim.flight.properties.INTEGRATORS`): over ``[t_k, t_k+1]`` the body rotates by
+    ``dt (23 w_k - 16 w_k-1 + 5 w_k-2) / 12`` and the inertial velocity changes by the same
+    combination of ``C_ib f``. These are the true increments of the recorded trajectory; a
+    trapezoid on the samples instead would lag the attitude by up to 1e-3 rad in turns. The
+    first increment (ending at ``t_s[0]``) is ``w_0 dt``, ``f_0 dt``.
+    """
+    om, fb = truth.omega_ib_b_rps, truth.f_b_mps2
+    dt = truth.dt_s
+    N = len(om)
+    ab3 = lambda x: np.concatenate([x[:2], (23 * x[2:] - 16 * x[1:-1] + 5 * x[:-2]) / 12.0])
+    if truth.meta.get("integrator", "ab3") != "ab3":
+        ab3 = lambda x: x                                   # rectangular: rate held over the step
+    # per truth step j (interval ending t_j): rotation and compensated velocity increment
+    dth = np.zeros((N, 3))
+    dth[1:] = ab3(om)[:-1] * dt
+    R = _rot(-dth)                                          # body(j-1) vectors -> body(j)
+    dv_c = np.zeros((N, 3))
+    f1 = np.einsum("nij,nj->ni", R[1:], fb[:-1])            # f_{k-1} in body k   (k = j-1)
+    dv_c[1:] = fb[:-1] * dt
+    k = np.arange(2, N - 1)                                 # interval ending j = k + 1
+    f_km1 = f1[k - 1]                                       # f_{k-1} in body k
+    f_km2 = np.einsum("nij,nj->ni", R[k], f1[k - 2])        # f_{k-2} in body k
+    dv_c[k + 1] = dt * (23 * fb[k] - 16 * f_km1 + 5 * f_km2) / 12.0
+    if step > 1:                                            # compose sub-steps into IMU intervals
+        n = (N - 1) // step + 1
+        tot_th = np.zeros((n, 3))
+        tot_v = np.zeros((n, 3))
+        C = np.broadcast_to(np.eye(3), (n - 1, 3, 3)).copy()   # body(start) <- body(current)
+        for m in range(1, step + 1):
+            j = np.arange(n - 1) * step + m
+            tot_v[1:] += np.einsum("nij,nj->ni", C, dv_c[j])
+            tot_th[1:] += np.einsum("nij,nj->ni", C, dth[j]) + 0.5 * np.cross(tot_th[1:], np.einsum("nij,nj->ni", C, dth[j]))
+            C = C @ _rot(dth[j])
+        tot_th[0], tot_v[0] = om[0] * dt * step, fb[0] * dt * step
+        dth, dv_c = tot_th, tot_v
+    dth_prev = np.concatenate([dth[:1], dth[:-1]])
+    dv_prev = np.concatenate([dv_c[:1], dv_c[:-1]])
+    dth_meas = dth.copy()
+    dv_meas = _compensated_to_measured(dv_c, dth, dth_prev, dv_prev)
+    dth_meas[0], dv_meas[0] = dth[0], dv_c[0]
+    return dth_meas, dv_meas
+
+
 def emulate_imu(truth, spec: ImuSpec, seed: int, runs, name: str = "imu") -> SensorData:
     """IMU data of ``runs`` (run indices) from ``truth``; see the module docstring."""
     runs = list(runs)
@@ -116,19 +177,9 @@ def emulate_imu(truth, spec: ImuSpec, seed: int, runs, name: str = "imu") -> Sen
     n = len(t)
     gens = run_generators(seed, runs, name)
     om, fb = truth.omega_ib_b_rps, truth.f_b_mps2
-    # increments over each IMU interval (trapezoid on the truth grid)
-    dt_truth = truth.dt_s
-
-    def increments(x):
-        c = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (x[1:] + x[:-1]) * dt_truth, axis=0)])
-        ci = c[::step]
-        out = np.empty((n, 3))
-        out[1:] = ci[1:] - ci[:-1]
-        out[0] = x[0] * dt
-        return out
-
-    rate_g, incr_g, bias_g, mat_g = _triad(gens, om[::step], increments(om), dt, spec.gyro, n)
-    rate_a, incr_a, bias_a, mat_a = _triad(gens, fb[::step], increments(fb), dt, spec.accel, n)
+    inc_g, inc_a = truth_increments(truth, step)
+    rate_g, incr_g, bias_g, mat_g = _triad(gens, om[::step], inc_g, dt, spec.gyro, n)
+    rate_a, incr_a, bias_a, mat_a = _triad(gens, fb[::step], inc_a, dt, spec.accel, n)
     for vib in spec.vibration:
         va = _vibration(gens, t, dt, vib, spec.rate_hz, "amplitude")
         vg = _vibration(gens, t, dt, vib, spec.rate_hz, "gyro_amplitude")
