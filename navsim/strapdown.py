@@ -54,20 +54,30 @@ def skew(v):
 
 def rotation(rotvec):
     """Rotation matrix ``exp([rotvec x])`` of ``(..., 3)`` rotation vectors (Rodrigues):
-    ``I + s K + c K^2`` with ``K^2 = v v^T - |v|^2 I``."""
+    ``I + s K + c K^2`` with ``K^2 = v v^T - |v|^2 I``; the Taylor series of ``s`` and ``c``
+    (exact to 1e-16) when every angle is below 0.05 rad, as IMU steps are."""
     rotvec = np.asarray(rotvec, float)
     a2 = np.einsum("...i,...i->...", rotvec, rotvec)
-    small = a2 < 1e-8
-    a = np.sqrt(a2)
-    safe = np.where(small, 1.0, a)
-    s = np.where(small, 1.0 - a2 / 6.0, np.sin(safe) / safe)
-    c = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
-    R = skew(rotvec) * s[..., None, None]
-    R += (rotvec[..., :, None] * rotvec[..., None, :]) * c[..., None, None]
-    diag = 1.0 - c * a2
-    R[..., 0, 0] += diag
-    R[..., 1, 1] += diag
-    R[..., 2, 2] += diag
+    if np.all(a2 < 2.5e-3):
+        s = 1.0 - a2 * (1.0 / 6.0) + a2 * a2 * (1.0 / 120.0) - a2 ** 3 * (1.0 / 5040.0)
+        c = 0.5 - a2 * (1.0 / 24.0) + a2 * a2 * (1.0 / 720.0) - a2 ** 3 * (1.0 / 40320.0)
+    else:
+        small = a2 < 1e-8
+        safe = np.where(small, 1.0, np.sqrt(a2))
+        s = np.where(small, 1.0 - a2 / 6.0, np.sin(safe) / safe)
+        c = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    x, y, z = rotvec[..., 0], rotvec[..., 1], rotvec[..., 2]
+    R = np.empty(rotvec.shape[:-1] + (3, 3))
+    cx, cy = c * x, c * y
+    R[..., 0, 0] = 1.0 - c * (y * y + z * z)
+    R[..., 1, 1] = 1.0 - c * (x * x + z * z)
+    R[..., 2, 2] = 1.0 - c * (x * x + y * y)
+    R[..., 0, 1] = cx * y - s * z
+    R[..., 1, 0] = cx * y + s * z
+    R[..., 0, 2] = cx * z + s * y
+    R[..., 2, 0] = cx * z - s * y
+    R[..., 1, 2] = cy * z - s * x
+    R[..., 2, 1] = cy * z + s * x
     return R
 
 
@@ -98,37 +108,44 @@ class Strapdown:
         self.first = True
 
     def step(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> NavState:
+        """Advance by one IMU interval; ``self.dv_n`` keeps the interval's specific-force
+        velocity increment in NED (for the filters' averaged specific force)."""
         s = self.state
         if self.first:               # no previous interval: no coning/sculling terms
             self.dtheta_prev, self.dv_prev = dtheta_b, dv_b
             self.first = False
-        if self._g is None or self._k % self.gravity_every == 0:
+        every = self.gravity_every
+        if self._k % every == 0:
             self._g = earth.gravity_n(s.lat_rad, s.h_m)
             self._w_ie, self._w_en, self._r_m, self._r_n = rates_n(s.lat_rad, s.h_m, s.vel_n_mps)
+            self._w_in = self._w_ie + self._w_en
+            self._cor = 2.0 * self._w_ie + self._w_en
+            # the navigation frame turns by w_in dt (< 1e-6 rad) a step
+            self._C_nn = np.eye(3) - skew(self._w_in * dt)
         self._k += 1
-        # Earth and transport rates change slowly: refreshed with gravity
-        w_ie, w_en, r_m, r_n = self._w_ie, self._w_en, self._r_m, self._r_n
-        w_in = w_ie + w_en
+        r_m, r_n, w_in = self._r_m, self._r_n, self._w_in
         dth, dv, dth_p, dv_p = dtheta_b, dv_b, self.dtheta_prev, self.dv_prev
-        # sculling and rotation compensation, coning compensation
-        dv_c = dv + 0.5 * cross(dth, dv) + (cross(dth_p, dv) + cross(dv_p, dth)) * (1.0 / 12.0)
+        # rotation and sculling compensation: dv + dth x dv / 2 + (dth_p x dv + dv_p x dth) / 12
+        dv_c = dv + cross(0.5 * dth + dth_p * (1.0 / 12.0), dv) + cross(dv_p, dth) * (1.0 / 12.0)
+        # coning compensation
         dth_c = dth + cross(dth_p, dth) * (1.0 / 12.0)
-        dv_n = (s.C_nb @ dv_c[:, :, None])[:, :, 0]
-        dv_n -= 0.5 * dt * cross(w_in, dv_n)
+        C = s.C_nb
+        dv_n = np.einsum("bij,bj->bi", C, dv_c)
+        dv_n -= (0.5 * dt) * cross(w_in, dv_n)
+        self.dv_n = dv_n
         v_old = s.vel_n_mps
-        v_new = v_old + dv_n + (self._g - cross(2.0 * w_ie + w_en, v_old)) * dt
-        # attitude: body rotation, then the navigation frame's (first order: |w_in dt| < 1e-6)
-        C = s.C_nb @ rotation(dth_c)
-        s.C_nb = C - skew(w_in * dt) @ C
+        v_new = v_old + dv_n + (self._g - cross(self._cor, v_old)) * dt
+        # attitude
+        C = self._C_nn @ (C @ rotation(dth_c))
+        s.C_nb = C
         # position (trapezoid)
         v_mid = 0.5 * (v_old + v_new)
         h_new = s.h_m - v_mid[:, 2] * dt
         h_mid = 0.5 * (s.h_m + h_new)
-        lat_new = s.lat_rad + v_mid[:, 0] / (r_m + h_mid) * dt
-        s.lon_rad = s.lon_rad + v_mid[:, 1] / ((r_n + h_mid) * np.cos(0.5 * (s.lat_rad + lat_new))) * dt
+        lat_new = s.lat_rad + v_mid[:, 0] * dt / (r_m + h_mid)
+        s.lon_rad = s.lon_rad + v_mid[:, 1] * dt / ((r_n + h_mid) * np.cos(0.5 * (s.lat_rad + lat_new)))
         s.lat_rad, s.h_m, s.vel_n_mps = lat_new, h_new, v_new
         if self._k % 1000 == 0:         # keep C_nb orthonormal
-            C = s.C_nb
             s.C_nb = 1.5 * C - 0.5 * C @ np.swapaxes(C, -1, -2) @ C
         self.dtheta_prev, self.dv_prev = dth, dv
         return s

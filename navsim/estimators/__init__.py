@@ -5,6 +5,8 @@ Built in: ``sins`` (free inertial, :mod:`.sins`) and ``eskf`` (error-state Kalma
 """
 
 from navsim.estimators import eskf, sins  # noqa: F401  (registers the built-ins)
+
+BUILT_IN = (eskf.ErrorStateKF, sins.FreeInertial)
 from navsim.estimators.base import Innovation, Solution, available, get, register
 
 __all__ = ["Innovation", "Solution", "available", "get", "register"]

@@ -100,7 +100,7 @@ def system_matrix(layout: Layout, lat, h, vel_n, C_nb, f_n) -> np.ndarray:
     r_m, r_n = earth.radii(lat)
     Rm, Rn = r_m + h, r_n + h
     sl, cl, tl = np.sin(lat), np.cos(lat), np.tan(lat)
-    vn, ve, vd = vel_n[:, 0], vel_n[:, 1], vel_n[:, 2]
+    vn, ve = vel_n[:, 0], vel_n[:, 1]
     W = earth.OMEGA_IE_RPS
     w_ie = np.stack([W * cl, np.zeros(B), -W * sl], -1)
     w_en = np.stack([ve / Rn, -vn / Rm, -ve * tl / Rn], -1)

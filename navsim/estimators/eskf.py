@@ -96,7 +96,7 @@ class ErrorStateKF:
         accel = self.b_accel + self.m_accel
         s = self.sd.step(dtheta_b - gyro * dt, dv_b - accel * dt, dt)
         self._sum_C += s.C_nb
-        self._sum_f += (s.C_nb @ (dv_b - accel * dt)[:, :, None])[:, :, 0] / dt
+        self._sum_f += self.sd.dv_n
         self._count += 1
         self._elapsed += dt
 
@@ -126,7 +126,7 @@ class ErrorStateKF:
             return
         s = self.sd.state
         C_mean = self._sum_C / self._count
-        f_mean = self._sum_f / self._count
+        f_mean = self._sum_f / self._elapsed
         F = system_matrix(self.layout, s.lat_rad, s.h_m, s.vel_n_mps, C_mean, f_mean)
         F = add_markov_decay(F, self.layout, self.noise)
         T = self._elapsed

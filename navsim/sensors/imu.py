@@ -168,7 +168,8 @@ def truth_increments(truth, step: int = 1):
     return dth_meas, dv_meas
 
 
-def emulate_imu(truth, spec: ImuSpec, seed: int, runs, name: str = "imu") -> SensorData:
+def emulate_imu(truth, spec: ImuSpec, seed: int, runs, name: str = "imu",
+                keep_rates: bool = True) -> SensorData:
     """IMU data of ``runs`` (run indices) from ``truth``; see the module docstring."""
     runs = list(runs)
     step = decimation(truth.meta.get("rate_hz", 1.0 / truth.dt_s), spec.rate_hz, name)
@@ -204,7 +205,7 @@ def emulate_imu(truth, spec: ImuSpec, seed: int, runs, name: str = "imu") -> Sen
     return SensorData(
         name=name, kind="imu", t_s=t,
         values={"omega_ib_b_rps": rate_g, "f_b_mps2": rate_a, "dtheta_b_rad": incr_g,
-                "dv_b_mps": incr_a},
+                "dv_b_mps": incr_a} if keep_rates else {"dtheta_b_rad": incr_g, "dv_b_mps": incr_a},
         valid=np.ones((B, n), bool),
         errors={"gyro_bias": bias_g, "accel_bias": bias_a, "gyro_matrix": mat_g,
                 "accel_matrix": mat_a},
