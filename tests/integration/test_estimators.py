@@ -60,7 +60,7 @@ def test_accelerometer_bias_gives_half_b_t_squared():
     h = free_inertial_static(spec, 180.0, 50.0)
     for t in (60.0, 120.0, 180.0):
         e = h.pos_err_m[0, np.argmin(np.abs(h.t_s - t)), 0]
-        assert e == pytest.approx(0.5 * b * t * t, rel=0.2)
+        assert e == pytest.approx(0.5 * b * t * t, rel=0.02)   # the issue asks 20 %; Schuler bends it < 0.5 %
 
 
 def test_gyro_bias_gives_g_eps_t_cubed_over_six():
@@ -70,7 +70,7 @@ def test_gyro_bias_gives_g_eps_t_cubed_over_six():
     h = free_inertial_static(spec, 180.0, 50.0)
     for t in (90.0, 180.0):
         e = h.pos_err_m[0, np.argmin(np.abs(h.t_s - t)), 0]
-        assert abs(e) == pytest.approx(9.8 * eps * t ** 3 / 6.0, rel=0.2)
+        assert abs(e) == pytest.approx(9.8 * eps * t ** 3 / 6.0, rel=0.02)
 
 
 def test_schuler_period_of_a_velocity_error():
@@ -178,3 +178,19 @@ def test_third_party_estimator_through_entry_point(tmp_path, monkeypatch, p0_tru
     assert np.abs(h.pos_err_m).max() < 0.01
     with pytest.raises(KeyError, match="did you mean 'eskf'"):
         get("eskff")
+
+
+@pytest.mark.slow
+def test_p3_reproduced_on_the_p3_track():
+    """P3's experiment on its own 3000 s track (about a minute): SINS/GPS within 1 m per axis
+    and 0.05 m/s after convergence; free SINS diverges."""
+    truth = fly(load_track("p3"))
+    runs = range(10)
+    imu, sensors = p3_sensors(truth, runs)
+    res = run_batch(truth, imu, sensors, {"kf": p3_filter(series_order=3), "sins": FreeInertial()},
+                    P3_INITIAL, 1, runs)
+    kf, free = res["kf"], res["sins"]
+    after = kf.t_s >= 100.0
+    assert np.all(np.percentile(np.abs(kf.pos_err_m[:, after]), 99, axis=(0, 1)) < 1.0)
+    assert np.all(np.percentile(np.abs(kf.vel_err_mps[:, after]), 99, axis=(0, 1)) < 0.05)
+    assert np.linalg.norm(free.pos_err_m[:, -1], axis=-1).mean() > 1000.0
