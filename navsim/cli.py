@@ -1,5 +1,6 @@
 """The ``navsim`` command line.
 
+``navsim run SCENARIO``   Monte Carlo of the scenario's estimators, report.pdf and metrics.
 ``navsim fly SCENARIO``   fly the scenario's track, write PNGs, the truth and a summary.
 ``navsim sensors SCENARIO``  emulate the scenario's sensors, plot them against the truth.
 ``navsim validate FILE``  check a scenario without running it.
@@ -100,6 +101,93 @@ def cmd_fly(args) -> int:
     return 0
 
 
+def cmd_run(args) -> int:
+    import yaml
+
+    from navsim.errors import ScenarioError
+    from navsim.metrics import score
+    from navsim.provenance import provenance
+    from navsim.report import write_report
+    from navsim.runner import cached_flight, flight_key, run_monte_carlo
+    from navsim.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    if not scenario.estimators:
+        raise ScenarioError("has no estimators to run", file=args.scenario, key="estimators",
+                            expected="a list of estimators", hint="'navsim fly' flies a track alone")
+    runs = args.runs or scenario.runs
+    seed = scenario.seed if args.seed is None else args.seed
+    workers = args.workers or scenario.workers
+    out = Path(args.out) if args.out else Path("reports") / scenario.name
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    bar, update = _progress(f"flight {scenario.flight.track.name}")
+    try:
+        truth, truth_path, cached = cached_flight(scenario.flight, progress=update)
+    except FlightError as exc:
+        bar.close()
+        print(f"error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    bar.close()
+    from tqdm import tqdm
+    with tqdm(total=runs, desc=f"{runs} runs", unit="run", disable=None) as pbar:
+        result = run_monte_carlo(scenario, truth, truth_path, runs, seed, workers, progress=pbar.update)
+    metrics = {"scenario": scenario.name, "runs": runs, "runs_done": int(len(result.runs)),
+               "seed": seed, "failed_runs": {str(k): v for k, v in result.failed.items()},
+               "interrupted": result.interrupted, "estimators": {}}
+    for label, h in result.histories.items():
+        metrics["estimators"][label] = score(h, scenario.settle_s, scenario.windows)
+    wall = time.perf_counter() - t0
+    metrics["wall_s"] = wall
+    record = {"scenario": str(args.scenario), "runs": runs, "runs_done": int(len(result.runs)),
+              "seed": seed, "workers": workers, "failed_runs": result.failed,
+              "interrupted": result.interrupted, "flight_cached": cached,
+              "flight_key": flight_key(scenario.flight), "wall_s": wall, **provenance()}
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
+    resolved = dict(scenario.raw)
+    resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": runs, "seed": seed, "workers": workers}
+    (out / "scenario.resolved.yaml").write_text(
+        f"# resolved by navsim {record['versions']['navsim']} at git {record['git_revision']}\n"
+        + yaml.safe_dump(resolved, sort_keys=False))
+    (out / "run.json").write_text(json.dumps(record, indent=2, default=str))
+    if result.histories:
+        arrays = {"runs": result.runs}
+        for label, h in result.histories.items():
+            key = label.replace(" ", "_").replace("/", "-")
+            arrays.update({f"{key}.t_s": h.t_s, f"{key}.pos_err_m": h.pos_err_m,
+                           f"{key}.vel_err_mps": h.vel_err_mps, f"{key}.att_err_rad": h.att_err_rad,
+                           f"{key}.diverged": h.diverged})
+            if h.sigma is not None:
+                arrays.update({f"{key}.sigma": h.sigma, f"{key}.nees": h.nees})
+        np.savez_compressed(out / "runs.npz", **arrays)
+    files = write_report(out, scenario, truth, result, metrics, record)
+    rows = []
+    for label, m in metrics["estimators"].items():
+        rms = m.get("rms", {})
+        f = lambda v: "-" if v is None else " ".join(f"{x:.3g}" for x in v)
+        rows.append([label, f(rms.get("pos_m")), f(rms.get("vel_mps")), f(rms.get("att_deg")),
+                     f"{m['nees']['average']:.2f}" if "nees" in m else "-",
+                     f"{m['nees']['fraction_inside'] * 100:.0f}" if "nees" in m else "-", str(m["diverged_runs"])])
+    print(_table(["estimator", "RMS pos N E D m", "RMS vel m/s", "RMS att deg", "NEES", "in band %",
+                  "diverged"], rows))
+    if scenario.reference:
+        from navsim.metrics import lookup
+        ref_rows = []
+        for label, vals in scenario.reference["values"].items():
+            for path, paper in vals.items():
+                ours = lookup(metrics["estimators"].get(label, {}), path)
+                fmt = lambda v: "-" if v is None else (" ".join(f"{x:.3g}" for x in v) if isinstance(v, list) else f"{v:.4g}")
+                ref_rows.append([label, path, fmt(paper), fmt(ours)])
+        print(f"\npublished ({scenario.reference['source']}) versus ours:")
+        print(_table(["estimator", "metric", "paper", "ours"], ref_rows))
+    note = " (interrupted: partial results)" if result.interrupted else ""
+    if result.failed:
+        note += f"; {len(result.failed)} run(s) failed: see run.json"
+    print(f"\n{len(result.runs)}/{runs} runs in {wall:.1f} s{note}; wrote {out}/ "
+          f"(report.pdf, {len([f for f in files if f.suffix == '.png'])} PNGs, metrics.json, runs.npz)")
+    return 130 if result.interrupted else 0
+
+
 def cmd_sensors(args) -> int:
     from navsim.flight.simulator import fly
     from navsim.sensors import emulate
@@ -173,6 +261,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="output folder (default reports/<name>/flight)")
     p.add_argument("--rate-hz", type=float, help="simulation and truth rate (default: scenario's, 100)")
     p.set_defaults(func=cmd_fly)
+    p = sub.add_parser("run", help="run a scenario's Monte Carlo and write its report",
+                       description="Fly the track (cached), emulate the sensors and run every "
+                       "estimator over the Monte Carlo runs; write report.pdf, PNGs, metrics.json, "
+                       "scenario.resolved.yaml and runs.npz; print a summary table.")
+    p.add_argument("scenario", help="scenario YAML file")
+    p.add_argument("--runs", type=int, help="Monte Carlo runs (default: montecarlo.runs)")
+    p.add_argument("--seed", type=int, help="seed (default: montecarlo.seed)")
+    p.add_argument("--workers", type=int, help="worker processes (default: montecarlo.workers)")
+    p.add_argument("--out", help="output folder (default reports/<name>)")
+    p.set_defaults(func=cmd_run)
     p = sub.add_parser("sensors", help="emulate a scenario's sensors and plot them against the truth",
                        description="Fly the scenario's track, emulate its sensors for the Monte "
                        "Carlo runs, write one PNG per sensor (output against truth, error) and print "

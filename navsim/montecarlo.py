@@ -88,6 +88,8 @@ class EstimatorHistory:
     nis: dict                      #: measurement name -> (B, E_m) NIS, NaN without a sample
     nis_dim: dict                  #: measurement name -> its dimension
     diverged: np.ndarray           #: (B,) bool
+    gyro_bias: np.ndarray | None = None    #: (B, E, 3) estimated, rad/s
+    accel_bias: np.ndarray | None = None   #: (B, E, 3) estimated, m/s^2
 
 
 def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialErrors, seed: int,
@@ -130,6 +132,7 @@ class _Recorder:
     def __init__(self, label):
         self.label = label
         self.t, self.att, self.vel, self.pos, self.sig, self.nees = [], [], [], [], [], []
+        self.bg, self.ba = [], []
         self.nis: dict = {}
         self.nis_dim: dict = {}
 
@@ -140,6 +143,9 @@ class _Recorder:
         self.att.append(phi)
         self.vel.append(dv)
         self.pos.append(pos_m)
+        if sol.gyro_bias is not None:
+            self.bg.append(sol.gyro_bias.copy())
+            self.ba.append(sol.accel_bias.copy())
         if sol.P_nav is not None:
             P = sol.P_nav
             e = np.concatenate([phi, dv, pos_filter], -1)
@@ -168,4 +174,6 @@ class _Recorder:
             vel_err_mps=stack(self.vel), pos_err_m=stack(self.pos),
             sigma=stack(self.sig) if self.sig else None,
             nees=np.stack(self.nees, axis=1) if self.nees else None, nis=nis, nis_dim=self.nis_dim,
-            diverged=np.asarray(est.solution().extra.get("diverged", False)))
+            diverged=np.asarray(est.solution().extra.get("diverged", False)) | ~np.all(
+                np.isfinite(stack(self.pos)), axis=(1, 2)),
+            gyro_bias=stack(self.bg) if self.bg else None, accel_bias=stack(self.ba) if self.ba else None)

@@ -22,17 +22,28 @@ def _segments(truth: Truth, ax, label: bool = True) -> None:
 
 def plot_flight(truth: Truth, out_dir: str | Path, prefix: str = "flight") -> list[Path]:
     """Write ``<prefix>_3d.png``, ``<prefix>_ground.png`` and ``<prefix>_time.png``."""
+    import matplotlib.pyplot as plt
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    for name, fig in flight_figures(truth):
+        files.append(out / f"{prefix}_{name}.png")
+        fig.savefig(files[-1], dpi=120, bbox_inches="tight")
+        plt.close(fig)
+    return files
+
+
+def flight_figures(truth: Truth) -> list:
+    """``(name, figure)`` of the 3-D track, the ground track and the time histories."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     north, east = local_ne(truth.lat_rad, truth.lon_rad, truth.lat_rad[0], truth.lon_rad[0])
     h = truth.h_m
     spans = truth.segment_spans()
     colors = plt.cm.tab20(np.linspace(0, 1, max(len(spans), 2)))
-    files = []
+    figs = []
 
     fig = plt.figure(figsize=(8, 6.5))
     ax = fig.add_subplot(projection="3d")
@@ -49,9 +60,7 @@ def plot_flight(truth: Truth, out_dir: str | Path, prefix: str = "flight") -> li
     ax.set_zlabel("height, m")
     ax.set_title(f"{truth.meta.get('track', '')}: 3-D track")
     ax.legend(fontsize=6, loc="upper left", ncol=2)
-    files.append(out / f"{prefix}_3d.png")
-    fig.savefig(files[-1], dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    figs.append(("3d", fig))
 
     fig, ax = plt.subplots(figsize=(7.5, 7))
     for j, (_, name, a, b) in enumerate(spans):
@@ -66,9 +75,7 @@ def plot_flight(truth: Truth, out_dir: str | Path, prefix: str = "flight") -> li
     ax.set_title(f"{truth.meta.get('track', '')}: ground track "
                  f"(origin {np.degrees(truth.lat_rad[0]):.4f}°N, {np.degrees(truth.lon_rad[0]):.4f}°E)")
     ax.legend(fontsize=7, loc="best", ncol=2)
-    files.append(out / f"{prefix}_ground.png")
-    fig.savefig(files[-1], dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    figs.append(("ground", fig))
 
     fig, axs = plt.subplots(4, 1, figsize=(10, 10), sharex=True)
     t = truth.t_s
@@ -93,7 +100,5 @@ def plot_flight(truth: Truth, out_dir: str | Path, prefix: str = "flight") -> li
         ax.grid(alpha=0.3)
     fig.suptitle(f"{truth.meta.get('track', '')}: flight versus time", y=1.0)
     fig.tight_layout()
-    files.append(out / f"{prefix}_time.png")
-    fig.savefig(files[-1], dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    return files
+    figs.append(("time", fig))
+    return figs

@@ -1,0 +1,92 @@
+"""Scores of an estimator over a Monte Carlo batch: RMS after settling, final errors, window
+statistics (P2's Table 1 format), NEES and NIS against chi-square bands.
+
+The quantities (per run, per epoch) are the NED position error ``pos_m``, the velocity error
+``vel_mps``, the attitude error ``att_deg`` and, for windows, ``north_m``, ``east_m``,
+``height_m`` (height error, up positive), ``speed_mps`` (horizontal speed error norm).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import chi2
+
+
+def _rms(x, axis):
+    return np.sqrt(np.nanmean(x ** 2, axis=axis))
+
+
+def chi2_band(dim: int, runs: int, p: float = 0.95) -> tuple[float, float]:
+    """Two-sided band of the average of ``runs`` NEES/NIS of dimension ``dim``."""
+    a = (1 - p) / 2
+    lo, hi = chi2.ppf([a, 1 - a], dim * runs) / runs
+    return float(lo), float(hi)
+
+
+def window_quantities(h, good):
+    pos = h.pos_err_m[good]
+    return {"north_m": pos[..., 0], "east_m": pos[..., 1], "height_m": -pos[..., 2],
+            "speed_mps": np.linalg.norm(h.vel_err_mps[good][..., :2], axis=-1)}
+
+
+def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
+    """The metrics of one estimator's :class:`~navsim.montecarlo.EstimatorHistory`; ``good``
+    selects the runs counted (diverged ones are excluded by default)."""
+    if good is None:
+        good = ~np.asarray(h.diverged, bool)
+    after = h.t_s >= settle_s
+    pos = h.pos_err_m[good][:, after]
+    vel = h.vel_err_mps[good][:, after]
+    att = np.degrees(h.att_err_rad[good][:, after])
+    out = {"runs_counted": int(good.sum()), "diverged_runs": int((~good).sum()),
+           "settle_s": settle_s}
+    if good.sum() == 0 or not after.any():
+        return out
+    out["rms"] = {"pos_m": _rms(pos, (0, 1)).tolist(), "vel_mps": _rms(vel, (0, 1)).tolist(),
+                  "att_deg": _rms(att, (0, 1)).tolist()}
+    out["max_abs"] = {"pos_m": np.nanmax(np.abs(pos), axis=(0, 1)).tolist(),
+                      "vel_mps": np.nanmax(np.abs(vel), axis=(0, 1)).tolist(),
+                      "att_deg": np.nanmax(np.abs(att), axis=(0, 1)).tolist()}
+    out["p99"] = {"pos_m": np.nanpercentile(np.abs(pos), 99, axis=(0, 1)).tolist(),
+                  "vel_mps": np.nanpercentile(np.abs(vel), 99, axis=(0, 1)).tolist(),
+                  "att_deg": np.nanpercentile(np.abs(att), 99, axis=(0, 1)).tolist()}
+    out["final"] = {"pos_m": _rms(h.pos_err_m[good][:, -1], 0).tolist(),
+                    "vel_mps": _rms(h.vel_err_mps[good][:, -1], 0).tolist(),
+                    "att_deg": _rms(np.degrees(h.att_err_rad[good][:, -1]), 0).tolist()}
+    q = window_quantities(h, good)
+    out["windows"] = {}
+    for name, a, b in windows:
+        m = (h.t_s >= a) & (h.t_s <= b)
+        out["windows"][name] = {
+            key: {"max_pos": float(np.nanmax(v[:, m])), "max_neg": float(np.nanmin(v[:, m])),
+                  "std": float(np.nanstd(v[:, m])), "rms": float(_rms(v[:, m], (0, 1)))}
+            for key, v in q.items()} if m.any() else {}
+    if h.nees is not None:
+        n = int(good.sum())
+        lo, hi = chi2_band(9, n)
+        mean = np.nanmean(h.nees[good], axis=0)[1:]
+        out["nees"] = {"average": float(np.nanmean(mean)), "band": [lo, hi],
+                       "fraction_inside": float(np.mean((mean > lo) & (mean < hi))), "dim": 9}
+        out["nis"] = {}
+        for key, nis in h.nis.items():
+            d = h.nis_dim[key]
+            v = nis[good]
+            cols = ~np.isnan(v).all(axis=0)
+            if not cols.any():
+                continue
+            per_epoch = np.nanmean(v[:, cols], axis=0)
+            counts = np.sum(~np.isnan(v[:, cols]), axis=0)
+            lo, hi = chi2_band(d, int(np.median(counts)))
+            out["nis"][key] = {"average": float(np.nanmean(per_epoch)), "band": [lo, hi], "dim": d,
+                               "fraction_inside": float(np.mean((per_epoch > lo) & (per_epoch < hi)))}
+    return out
+
+
+def lookup(metrics: dict, path: str):
+    """The value at a dotted metric path (``rms.pos_m``, ``windows.low_leg.height_m.std``)."""
+    node = metrics
+    for part in path.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node

@@ -1,0 +1,227 @@
+"""The report of a ``navsim run``: PNG figures and ``report.pdf`` (matplotlib ``PdfPages``)."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import numpy as np
+
+from navsim.metrics import chi2_band, lookup
+
+AXES = {"pos": ("position error", "m", ["north", "east", "down"]),
+        "vel": ("velocity error", "m/s", ["north", "east", "down"]),
+        "att": ("attitude error", "deg", ["about north (roll-like)", "about east", "about down (heading)"])}
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _text_page(title: str, lines: list[str]):
+    plt = _plt()
+    fig = plt.figure(figsize=(8.27, 11.69))
+    fig.text(0.06, 0.96, title, fontsize=14, weight="bold", va="top")
+    fig.text(0.04, 0.93, "\n".join(lines), fontsize=6.3, family="monospace", va="top")
+    return fig
+
+
+def _table_lines(headers, rows):
+    widths = [max(len(str(h)), *(len(str(r[i])) for r in rows)) if rows else len(h) for i, h in enumerate(headers)]
+    out = ["  ".join(str(h).ljust(w) for h, w in zip(headers, widths)),
+           "  ".join("-" * w for w in widths)]
+    out += ["  ".join(str(c).ljust(w) for c, w in zip(r, widths)) for r in rows]
+    return out
+
+
+def _fmt(v):
+    if v is None:
+        return "-"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
+    return f"{v:.4g}"
+
+
+def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
+    lines = textwrap.wrap(scenario.description.strip() or "(no description)", 100)
+    lines += ["", f"scenario file : {record['scenario']}", f"track         : {scenario.flight.track.name}",
+              f"runs          : {record['runs_done']} done of {record['runs']} (seed {record['seed']}, "
+              f"workers {record['workers']})",
+              f"failed runs   : {len(record['failed_runs'])}    interrupted: {record['interrupted']}",
+              f"flight        : {'from cache' if record['flight_cached'] else 'flown'} ({record['flight_key']})",
+              f"wall time     : {record['wall_s']:.1f} s", f"git revision  : {record['git_revision']}",
+              *textwrap.wrap("versions      : " + ", ".join(f"{k} {v}" for k, v in record["versions"].items()),
+                             120, subsequent_indent=" " * 16), ""]
+    rows = []
+    for label, m in metrics["estimators"].items():
+        rms = m.get("rms", {})
+        rows.append([label, _fmt(rms.get("pos_m")), _fmt(rms.get("vel_mps")), _fmt(rms.get("att_deg")),
+                     _fmt(m.get("nees", {}).get("average")),
+                     f"{m.get('nees', {}).get('fraction_inside', float('nan')) * 100:.0f} %" if "nees" in m else "-",
+                     str(m["diverged_runs"])])
+    lines += [f"RMS after {scenario.settle_s:g} s (N, E, D), over all runs:", ""]
+    lines += _table_lines(["estimator", "pos m", "vel m/s", "att deg", "NEES avg", "NEES in band", "diverged"], rows)
+    for label, m in metrics["estimators"].items():
+        for name, qs in m.get("windows", {}).items():
+            lines += ["", f"{label}: window '{name}'"]
+            lines += _table_lines(["quantity", "max positive", "max negative", "std", "rms"],
+                                  [[q, _fmt(v["max_pos"]), _fmt(v["max_neg"]), _fmt(v["std"]), _fmt(v["rms"])]
+                                   for q, v in qs.items()])
+    if scenario.reference:
+        lines += ["", f"published ({scenario.reference['source']}) versus ours:"]
+        if scenario.reference.get("note"):
+            lines += textwrap.wrap(scenario.reference["note"], 100)
+        rows = []
+        for label, vals in scenario.reference["values"].items():
+            for path, paper in vals.items():
+                ours = lookup(metrics["estimators"].get(label, {}), path)
+                rows.append([label, path, _fmt(paper), _fmt(ours)])
+        lines += _table_lines(["estimator", "metric", "paper", "ours"], rows)
+    return lines
+
+
+def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5):
+    """Per quantity: each axis against time, estimators overlaid: Monte Carlo RMS (solid),
+    the filter's mean 3-sigma (dashed), a few runs (thin)."""
+    plt = _plt()
+    colors = plt.cm.tab10(np.arange(10))
+    figs = []
+    for key, (title, unit, names) in AXES.items():
+        fig, axs = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
+        for c, (label, h) in enumerate(histories.items()):
+            good = ~np.asarray(h.diverged, bool)
+            if not good.any():
+                continue
+            err = {"pos": h.pos_err_m, "vel": h.vel_err_mps, "att": np.degrees(h.att_err_rad)}[key][good]
+            sig = None
+            if h.sigma is not None:
+                s = {"pos": h.sigma[..., 6:9], "vel": h.sigma[..., 3:6], "att": np.degrees(h.sigma[..., 0:3])}[key]
+                sig = np.sqrt(np.mean(s[good] ** 2, axis=0))
+            rms = np.sqrt(np.mean(err ** 2, axis=0))
+            for j, ax in enumerate(axs):
+                for r in range(min(runs_plotted, err.shape[0])):
+                    ax.plot(h.t_s, err[r, :, j], color=colors[c % 10], lw=0.4, alpha=0.35)
+                ax.plot(h.t_s, rms[:, j], color=colors[c % 10], lw=1.6, label=f"{label}: MC RMS")
+                ax.plot(h.t_s, -rms[:, j], color=colors[c % 10], lw=1.6)
+                if sig is not None:
+                    ax.plot(h.t_s, 3 * sig[:, j], "--", color=colors[c % 10], lw=1.0, label=f"{label}: ±3σ filter")
+                    ax.plot(h.t_s, -3 * sig[:, j], "--", color=colors[c % 10], lw=1.0)
+        for j, ax in enumerate(axs):
+            ax.set_ylabel(f"{names[j]}, {unit}", fontsize=8)
+            ax.grid(alpha=0.3)
+            ax.axvline(settle_s, color="0.5", lw=0.8, ls=":")
+            _symlog_if_needed(ax)
+        axs[0].legend(fontsize=7, loc="upper right", ncol=2)
+        axs[-1].set_xlabel("time, s")
+        fig.suptitle(f"{title}: Monte Carlo RMS envelope, filter ±3σ, {runs_plotted} runs (thin)")
+        fig.tight_layout()
+        figs.append((f"errors_{key}", fig))
+    return figs
+
+
+def _symlog_if_needed(ax):
+    lines = [ln.get_ydata() for ln in ax.get_lines() if len(ln.get_ydata()) > 2]
+    if not lines:
+        return
+    y = np.concatenate([np.abs(np.asarray(v, float)) for v in lines])
+    y = y[np.isfinite(y) & (y > 0)]
+    if y.size and np.percentile(y, 99) > 30 * np.percentile(y, 50):
+        ax.set_yscale("symlog", linthresh=max(np.percentile(y, 50), 1e-9))
+
+
+def consistency_figure(histories: dict):
+    plt = _plt()
+    filters = {k: h for k, h in histories.items() if h.nees is not None}
+    if not filters:
+        return []
+    n_nis = sum(len(h.nis) for h in filters.values())
+    fig, axs = plt.subplots(1 + n_nis, 1, figsize=(10, 2.6 * (1 + n_nis)), sharex=True, squeeze=False)
+    axs = axs[:, 0]
+    colors = plt.cm.tab10(np.arange(10))
+    i = 1
+    for c, (label, h) in enumerate(filters.items()):
+        good = ~np.asarray(h.diverged, bool)
+        n = int(good.sum())
+        if n == 0:
+            continue
+        lo, hi = chi2_band(9, n)
+        axs[0].plot(h.t_s[1:], np.nanmean(h.nees[good], axis=0)[1:], color=colors[c % 10], label=label)
+        axs[0].axhspan(lo, hi, color=colors[c % 10], alpha=0.12)
+        for key, nis in h.nis.items():
+            d = h.nis_dim[key]
+            v = nis[good]
+            cols = ~np.isnan(v).all(axis=0)
+            lo, hi = chi2_band(d, n)
+            axs[i].plot(h.t_s[cols], np.nanmean(v[:, cols], axis=0), ".", ms=2, color=colors[c % 10])
+            axs[i].axhspan(lo, hi, color="0.8", alpha=0.5)
+            axs[i].set_ylabel(f"NIS {key}\n({label}, dim {d})", fontsize=7)
+            axs[i].grid(alpha=0.3)
+            i += 1
+    axs[0].set_ylabel("average NEES\n(pos, vel, att: 9)", fontsize=8)
+    axs[0].legend(fontsize=7)
+    axs[0].grid(alpha=0.3)
+    axs[-1].set_xlabel("time, s")
+    fig.suptitle("Consistency: average NEES and NIS over the runs with their two-sided 95 % chi-square bands")
+    fig.tight_layout()
+    return [("consistency", fig)]
+
+
+def bias_figure(histories: dict, truth_bias: dict, runs_plotted: int = 3):
+    plt = _plt()
+    filters = {k: h for k, h in histories.items() if h.gyro_bias is not None}
+    if not filters or not truth_bias:
+        return []
+    fig, axs = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    colors = plt.cm.tab10(np.arange(10))
+    for col, (key, scale, unit) in enumerate((("gyro_bias", 180 / np.pi * 3600, "deg/h"),
+                                              ("accel_bias", 1e6 / 9.80665, "µg"))):
+        true = truth_bias[key] * scale
+        for j in range(3):
+            ax = axs[j, col]
+            for r in range(min(runs_plotted, true.shape[0])):
+                ax.plot(next(iter(filters.values())).t_s, true[r, :, j], color="k", lw=1.0,
+                        label="truth" if r == 0 else None)
+                for c, (label, h) in enumerate(filters.items()):
+                    ax.plot(h.t_s, getattr(h, key)[r, :, j] * scale, color=colors[c % 10], lw=0.8,
+                            label=label if r == 0 else None)
+            ax.set_ylabel(f"{key.split('_')[0]} {'xyz'[j]}, {unit}", fontsize=8)
+            ax.grid(alpha=0.3)
+    axs[0, 0].legend(fontsize=7)
+    axs[-1, 0].set_xlabel("time, s")
+    axs[-1, 1].set_xlabel("time, s")
+    fig.suptitle(f"IMU bias estimates against the truth (first {runs_plotted} runs)")
+    fig.tight_layout()
+    return [("biases", fig)]
+
+
+def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict) -> list[Path]:
+    """Write the PNGs and ``report.pdf`` into ``out``; returns the files written."""
+    plt = _plt()
+    from matplotlib.backends.backend_pdf import PdfPages
+    from navsim.flight.plots import flight_figures
+    runs_plotted = scenario.report.get("runs_plotted", 5)
+    pages = [("summary", _text_page(f"navsim report: {scenario.name}", summary_lines(scenario, record, metrics)))]
+    pages += [(f"flight_{n}", f) for n, f in flight_figures(truth)]
+    if result.histories:
+        pages += error_figures(result.histories, scenario.settle_s, runs_plotted)
+        pages += consistency_figure(result.histories)
+        pages += bias_figure(result.histories, result.truth_bias)
+    files = []
+    fmts = scenario.report.get("formats", ["pdf", "png"])
+    pdf = PdfPages(out / "report.pdf") if "pdf" in fmts else None
+    for name, fig in pages:
+        if "png" in fmts:
+            files.append(out / f"{name}.png")
+            fig.savefig(files[-1], dpi=110)
+        if pdf is not None:
+            pdf.savefig(fig)
+        plt.close(fig)
+    if pdf is not None:
+        d = pdf.infodict()
+        d["Title"] = f"navsim report: {scenario.name}"
+        pdf.close()
+        files.append(out / "report.pdf")
+    return files

@@ -1,0 +1,157 @@
+"""``navsim run``: fly (cached), emulate, estimate and score a scenario's Monte Carlo runs.
+
+The flight is flown once per distinct flight configuration and cached on disk
+(``$NAVSIM_CACHE``, default ``~/.cache/navsim``), keyed by a hash of everything that determines
+it (track, environment, aircraft model files, rate, navsim version). Runs are cut into chunks of
+a fixed size (so the numbers do not depend on the number of workers); chunks go to a process
+pool. A chunk that fails marks its runs as failed and the others complete; Ctrl-C keeps the
+chunks that finished.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import navsim
+from navsim.flight.properties import AIRCRAFT_DIR
+from navsim.flight.simulator import fly
+from navsim.flight.truth import Truth
+
+CHUNK_RUNS = 25
+
+
+def cache_dir() -> Path:
+    return Path(os.environ.get("NAVSIM_CACHE", Path.home() / ".cache" / "navsim"))
+
+
+def flight_key(config) -> str:
+    """Hash of everything that determines a flight."""
+    def plain(x):
+        if dataclasses.is_dataclass(x):
+            return {f.name: plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
+        if isinstance(x, (list, tuple)):
+            return [plain(v) for v in x]
+        if isinstance(x, dict):
+            return {str(k): plain(v) for k, v in x.items()}
+        if isinstance(x, np.ndarray):
+            return x.tolist()
+        return x
+    h = hashlib.sha256()
+    h.update(json.dumps({"config": plain(config), "version": navsim.__version__}, sort_keys=True,
+                        default=str).encode())
+    adir = Path(config.aircraft_dir) if config.aircraft_dir else AIRCRAFT_DIR
+    for path in sorted((adir / config.aircraft).glob("*")):
+        if path.is_file():
+            h.update(path.read_bytes())
+    return h.hexdigest()[:20]
+
+
+def cached_flight(config, progress=None) -> tuple[Truth, Path, bool]:
+    """The truth of ``config``, flown or read from the cache; returns (truth, path, was_cached)."""
+    path = cache_dir() / "flights" / f"{flight_key(config)}.npz"
+    if path.is_file():
+        try:
+            return Truth.load(path), path, True
+        except (OSError, ValueError, KeyError):
+            path.unlink(missing_ok=True)
+    truth = fly(config, progress=progress)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    truth.save(tmp)
+    os.replace(tmp, path)
+    return truth, path, False
+
+
+@dataclass
+class RunResult:
+    histories: dict                      #: label -> EstimatorHistory over the finished runs
+    runs: np.ndarray                     #: run indices finished
+    failed: dict = field(default_factory=dict)   #: run -> error message
+    interrupted: bool = False
+    truth_bias: dict = field(default_factory=dict)   #: gyro/accel true bias at epochs (B, E, 3)
+
+
+def _chunk(args):
+    """Worker: sensors and estimators of one chunk of runs."""
+    truth_or_path, scenario, seed, runs = args
+    truth = Truth.load(truth_or_path) if isinstance(truth_or_path, (str, Path)) else truth_or_path
+    from navsim.estimators.factory import build
+    from navsim.montecarlo import run_batch
+    from navsim.sensors import emulate
+    from navsim.sensors.imu import emulate_imu
+    imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
+    imu = emulate_imu(truth, imu_cfg.spec, seed, runs, name=imu_cfg.name, keep_rates=False)
+    others = {c.name: emulate(truth, c, seed, runs) for c in scenario.sensors if c.kind != "imu"}
+    estimators = {e.label: build(e) for e in scenario.estimators}
+    hist = run_batch(truth, imu, others, estimators, scenario.initial, seed, runs)
+    # true IMU biases at the epochs of the first estimator, for the bias plots
+    first = next(iter(hist.values()))
+    idx = np.searchsorted(imu.t_s, first.t_s - 1e-9)
+    bias = {k: np.broadcast_to(imu.errors[k], (len(runs), max(imu.errors[k].shape[1], 1), 3))
+            for k in ("gyro_bias", "accel_bias")}
+    bias = {k: (v[:, idx] if v.shape[1] > 1 else np.repeat(v, len(idx), axis=1)) for k, v in bias.items()}
+    return list(runs), hist, bias
+
+
+def _merge(parts):
+    from navsim.montecarlo import EstimatorHistory
+    parts = sorted(parts, key=lambda p: p[0][0])
+    runs = np.concatenate([p[0] for p in parts])
+    labels = list(parts[0][1])
+    merged = {}
+    for label in labels:
+        hs = [p[1][label] for p in parts]
+        cat = lambda name: None if getattr(hs[0], name) is None else np.concatenate([getattr(h, name) for h in hs])
+        merged[label] = EstimatorHistory(
+            label=label, t_s=hs[0].t_s, att_err_rad=cat("att_err_rad"), vel_err_mps=cat("vel_err_mps"),
+            pos_err_m=cat("pos_err_m"), sigma=cat("sigma"), nees=cat("nees"),
+            nis={k: np.concatenate([h.nis[k] for h in hs]) for k in hs[0].nis},
+            nis_dim=hs[0].nis_dim, diverged=cat("diverged"), gyro_bias=cat("gyro_bias"),
+            accel_bias=cat("accel_bias"))
+    bias = {k: np.concatenate([p[2][k] for p in parts]) for k in parts[0][2]}
+    return runs, merged, bias
+
+
+def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: int, workers: int,
+                    progress=None) -> RunResult:
+    """All runs of ``scenario`` on ``truth``, in chunks of :data:`CHUNK_RUNS`."""
+    chunks = [range(a, min(a + CHUNK_RUNS, runs)) for a in range(0, runs, CHUNK_RUNS)]
+    parts, failed, interrupted = [], {}, False
+    try:
+        if workers <= 1:
+            for ch in chunks:
+                try:
+                    parts.append(_chunk((truth, scenario, seed, ch)))
+                except Exception as exc:  # a failing chunk must not lose the others
+                    failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
+                if progress:
+                    progress(len(ch))
+        else:
+            with ProcessPoolExecutor(max_workers=workers) as pool:
+                futures = {pool.submit(_chunk, (str(truth_path), scenario, seed, ch)): ch for ch in chunks}
+                try:
+                    for fut in as_completed(futures):
+                        ch = futures[fut]
+                        try:
+                            parts.append(fut.result())
+                        except Exception as exc:
+                            failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
+                        if progress:
+                            progress(len(ch))
+                except KeyboardInterrupt:
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    raise
+    except KeyboardInterrupt:
+        interrupted = True
+    if not parts:
+        return RunResult({}, np.array([], int), failed, interrupted)
+    done, hist, bias = _merge(parts)
+    return RunResult(hist, done, failed, interrupted, bias)
