@@ -223,6 +223,12 @@ def cmd_sensors(args) -> int:
     return 0
 
 
+def cmd_schema(args) -> int:
+    from navsim.schema import schema_text
+    sys.stdout.write(schema_text())
+    return 0
+
+
 def cmd_validate(args) -> int:
     from navsim.scenario import load_scenario
     for path in args.files:
@@ -284,6 +290,10 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Check scenario files; exit 2 on the first malformed one.")
     p.add_argument("files", nargs="+", help="scenario YAML files")
     p.set_defaults(func=cmd_validate)
+    p = sub.add_parser("schema", help="print the JSON Schema of scenario files",
+                       description="Print the JSON Schema of scenario files (docs/scenario.schema.json) "
+                       "for editors; navsim's own validation is stricter.")
+    p.set_defaults(func=cmd_schema)
     p = sub.add_parser("list", help="list the shipped aircraft, sensors and tracks",
                        description="List the shipped aircraft, sensor catalog entries and tracks.")
     p.set_defaults(func=cmd_list)

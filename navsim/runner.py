@@ -25,7 +25,7 @@ from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import fly
 from navsim.flight.truth import Truth
 
-CHUNK_RUNS = 25
+CHUNK_RUNS = 250
 
 
 def cache_dir() -> Path:

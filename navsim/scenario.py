@@ -56,8 +56,16 @@ def available_aircraft() -> list[str]:
     return sorted(p.name for p in AIRCRAFT_DIR.iterdir() if (p / f"{p.name}.xml").is_file())
 
 
+TOP_KEYS = ("name", "description", "aircraft", "track", "environment", "flight", "sensors",
+            "montecarlo", "estimators", "initial_errors", "metrics", "reference", "report")
+
+
 def parse_scenario(data, file: str | None = None) -> Scenario:
     node = Node(data, "", file)
+    for key in node.data:
+        if key not in TOP_KEYS:
+            raise ScenarioError("is not a known key", file=file, key=str(key),
+                                hint=close_match(str(key), TOP_KEYS))
     name = node.get("name", str, Path(file).stem if file else "scenario")
     description = node.get("description", str, "")
     aircraft = node.get("aircraft", str, "survey10")

@@ -74,9 +74,13 @@ def _vec(node: Node, key: str, default=None, minimum=0.0):
     v = node.data.get(key, default)
     if v is None:
         raise node.error("is missing", key, expected="a number or [x, y, z]")
-    arr = np.broadcast_to(np.asarray(v, float) if not isinstance(v, bool) else np.nan, (3,)) \
-        if isinstance(v, (int, float, list)) else None
-    if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.any(arr <= minimum):
+    arr = None
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        arr = np.full(3, float(v))
+    elif isinstance(v, list) and len(v) == 3 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+        arr = np.asarray(v, float)
+    if arr is None or not np.all(np.isfinite(arr)) or np.any(arr <= minimum):
         raise node.error(f"is {v!r}", key, expected="a positive number or a list of three")
     return [float(x) for x in arr]
 

@@ -1,0 +1,104 @@
+"""The JSON Schema of scenario files (``docs/scenario.schema.json``), for editors.
+
+navsim's own validation (:mod:`navsim.scenario`) is stricter (units, cross references such as
+a measurement's sensor); the schema catches structure and names while typing.
+"""
+
+from __future__ import annotations
+
+import json
+
+from navsim.flight.track import SEGMENT_KEYS
+
+NUM = {"type": "number"}
+POS = {"type": "number", "exclusiveMinimum": 0}
+VEC3 = {"oneOf": [{"type": "number", "minimum": 0},
+                  {"type": "array", "items": {"type": "number", "minimum": 0}, "minItems": 3, "maxItems": 3}]}
+QUANTITY = {"description": "a number with its unit, e.g. '0.2 deg/h' or '[1, 1, 2] m'",
+            "oneOf": [{"type": "string"}, {"type": "number"}, {"type": "array"},
+                      {"type": "object", "properties": {"value": {}, "unit": {"type": "string"}},
+                       "required": ["value", "unit"], "additionalProperties": False}]}
+
+
+def _obj(props: dict, required=(), description: str | None = None) -> dict:
+    out = {"type": "object", "properties": props, "additionalProperties": False}
+    if required:
+        out["required"] = list(required)
+    if description:
+        out["description"] = description
+    return out
+
+
+def _segment(kind: str) -> dict:
+    props = {"type": {"const": kind}, "label": {"type": "string"}, "speed_mps": POS}
+    for key, (typ, _default, cons) in SEGMENT_KEYS[kind].items():
+        props[key] = {"type": "string", "enum": list(cons["choices"])} if "choices" in cons else {"type": "number"}
+    return _obj(props, ["type"])
+
+
+def scenario_schema() -> dict:
+    from navsim.estimators.error_model import BLOCK_SIZES, PRESETS
+    from navsim.sensors.base import FAULT_TYPES
+    from navsim.sensors.catalog import available
+    start = _obj({"type": {"enum": ["air", "launch"]}, "lat_deg": NUM, "lon_deg": NUM, "alt_m": NUM,
+                  "speed_mps": POS, "heading_deg": NUM, "pitch_deg": NUM, "launcher_height_m": POS,
+                  "booster_thrust_n": NUM, "booster_time_s": NUM},
+                 ["lat_deg", "lon_deg", "alt_m", "speed_mps"])
+    track = {"oneOf": [{"type": "string", "description": "a shipped track: p0, p3, p2_sea"},
+                       _obj({"name": {"type": "string"}, "description": {"type": "string"}, "start": start,
+                             "segments": {"type": "array", "minItems": 1,
+                                          "items": {"oneOf": [_segment(k) for k in SEGMENT_KEYS]}}},
+                            ["start", "segments"])]}
+    environment = _obj({
+        "wind": _obj({"speed_mps": NUM, "from_deg": NUM, "force": {"type": "integer", "minimum": 0, "maximum": 6},
+                      "north_mps": NUM, "east_mps": NUM, "down_mps": NUM}),
+        "turbulence": _obj({"type": {"enum": ["none", "milspec", "tustin"]}, "wind20_mps": NUM,
+                            "severity": {"type": "integer", "minimum": 0, "maximum": 7},
+                            "seed": {"type": "integer", "minimum": 0}}),
+        "surface_m": NUM})
+    fault = _obj({"type": {"enum": list(FAULT_TYPES)}, "start_s": NUM, "end_s": NUM,
+                  "value_m": {"oneOf": [NUM, {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3}]},
+                  "factor": NUM, "source": {"type": "array"}, "radius_m": POS, "lost_m": NUM}, ["type"])
+    sensor = _obj({"model": {"enum": sorted(available())}, "override": {"type": "object"},
+                   "off": {"oneOf": [{"const": "all"}, {"type": "array", "items": {"type": "string"}}]},
+                   "faults": {"type": "array", "items": fault}}, ["model"])
+    measurement = _obj({"type": {"enum": ["gnss_position", "velocity", "height"]}, "sensor": {"type": "string"},
+                        "sigma_m": VEC3, "sigma_mps": VEC3, "field": {"type": "string"},
+                        "baro_state": {"type": "boolean"}, "offset_m": NUM}, ["type", "sensor"])
+    estimator = {"type": "object", "required": ["label", "type"],
+                 "properties": {"label": {"type": "string"}, "type": {"type": "string"},
+                                "states": {"oneOf": [{"enum": list(PRESETS)},
+                                                     {"type": "array", "items": {"enum": list(BLOCK_SIZES)}}]},
+                                "period_s": POS, "discretization": {"enum": ["series", "van_loan"]},
+                                "series_order": {"type": "integer", "minimum": 1},
+                                "noise": _obj({"imu": {"type": "string"}, "override": {"type": "object"}}, ["imu"]),
+                                "baro": _obj({"sigma_m": POS, "tau_s": POS}),
+                                "measurements": {"type": "array", "items": measurement}}}
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": "navsim scenario",
+        "description": "One experiment: flight, sensors, estimators, Monte Carlo, metrics, report.",
+        **_obj({
+            "name": {"type": "string"}, "description": {"type": "string"}, "aircraft": {"type": "string"},
+            "track": track, "environment": environment,
+            "flight": _obj({"rate_hz": {"type": "number", "minimum": 20, "maximum": 1000}}),
+            "sensors": {"type": "object", "additionalProperties": sensor},
+            "estimators": {"type": "array", "minItems": 1, "items": estimator},
+            "initial_errors": _obj({"pos_m": VEC3, "vel_mps": VEC3, "att_arcsec": VEC3, "fixed": {"type": "boolean"}}),
+            "montecarlo": _obj({"runs": {"type": "integer", "minimum": 1}, "seed": {"type": "integer", "minimum": 0},
+                                "workers": {"type": "integer", "minimum": 1}}),
+            "metrics": _obj({"settle_s": {"type": "number", "minimum": 0},
+                             "windows": {"type": "array", "items": _obj(
+                                 {"name": {"type": "string"}, "start_s": NUM, "end_s": NUM},
+                                 ["name", "start_s", "end_s"])}}),
+            "reference": _obj({"source": {"type": "string"}, "note": {"type": "string"},
+                               "values": {"type": "object", "additionalProperties": {"type": "object"}}},
+                              ["source", "values"]),
+            "report": _obj({"formats": {"type": "array", "items": {"enum": ["pdf", "png"]}},
+                            "runs_plotted": {"type": "integer", "minimum": 0}}),
+        }, ["track"]),
+    }
+
+
+def schema_text() -> str:
+    return json.dumps(scenario_schema(), indent=2) + "\n"

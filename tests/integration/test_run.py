@@ -1,0 +1,197 @@
+"""``navsim run``: scenarios end to end, determinism across workers, failures kept apart, and
+a corpus of malformed scenarios that must each get a clear error and exit code 2."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from navsim.cli import main
+
+SHORT = """
+name: short_run
+description: a short P3-like run for the tests
+track:
+  start: {lat_deg: 37.0, lon_deg: 118.0, alt_m: 300, speed_mps: 14, heading_deg: 30}
+  segments:
+    - {type: straight, time_s: 20}
+    - {type: turn, by_deg: 90, bank_deg: 25}
+    - {type: straight, time_s: 20}
+sensors:
+  imu: {model: p3_imu}
+  gps: {model: p3_gps, faults: [{type: outage, start_s: 25, end_s: 30}]}
+estimators:
+  - {label: free SINS, type: sins}
+  - label: KF
+    type: eskf
+    states: p3_15
+    noise: {imu: p3_imu}
+    measurements:
+      - {type: gnss_position, sensor: gps, sigma_m: [2, 2, 1]}
+      - {type: velocity, sensor: gps, sigma_mps: 0.05}
+initial_errors: {pos_m: [5, 5, 3], vel_mps: [0.2, 0.2, 0.1], att_arcsec: 60}
+montecarlo: {runs: 6, seed: 4}
+metrics:
+  settle_s: 10
+  windows: [{name: turn, start_s: 20, end_s: 30}]
+reference:
+  source: a test
+  values:
+    KF: {rms.pos_m: [1, 1, 1], windows.turn.height_m.std: 0.5}
+"""
+
+
+@pytest.fixture
+def short(tmp_path, monkeypatch):
+    monkeypatch.setenv("NAVSIM_CACHE", str(tmp_path / "cache"))
+    path = tmp_path / "short.yaml"
+    path.write_text(SHORT)
+    return path
+
+
+def run(path, out, *extra):
+    return main(["run", str(path), "--out", str(out), *extra])
+
+
+def test_run_writes_report_metrics_and_histories(short, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert run(short, out) == 0
+    for name in ("report.pdf", "metrics.json", "scenario.resolved.yaml", "runs.npz", "run.json",
+                 "summary.png", "errors_pos.png", "consistency.png", "biases.png", "flight_3d.png"):
+        assert (out / name).stat().st_size > 0, name
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["runs"] == 6 and m["runs_done"] == 6 and m["seed"] == 4 and m["wall_s"] > 0
+    kf, free = m["estimators"]["KF"], m["estimators"]["free SINS"]
+    for key in ("rms", "final", "max_abs", "p99"):
+        assert len(kf[key]["pos_m"]) == 3 and len(kf[key]["vel_mps"]) == 3 and len(kf[key]["att_deg"]) == 3
+    assert set(kf["windows"]["turn"]["height_m"]) == {"max_pos", "max_neg", "std", "rms"}
+    assert 0.0 <= kf["nees"]["fraction_inside"] <= 1.0 and kf["diverged_runs"] == 0
+    assert "gnss_position:gps" in kf["nis"]
+    assert max(kf["rms"]["pos_m"]) < max(free["rms"]["pos_m"])
+    text = capsys.readouterr().out
+    assert "published (a test) versus ours" in text and "6/6 runs" in text
+    hist = np.load(out / "runs.npz")
+    assert hist["KF.pos_err_m"].shape[0::2] == (6, 3) and hist["KF.pos_err_m"].shape[1] >= 45
+    # the second run reads the flight from the cache
+    assert run(short, tmp_path / "out2") == 0
+    assert json.loads((tmp_path / "out2" / "run.json").read_text())["flight_cached"] is True
+
+
+def test_workers_do_not_change_the_numbers(short, tmp_path, monkeypatch):
+    import navsim.runner
+    monkeypatch.setattr(navsim.runner, "CHUNK_RUNS", 2)          # 3 chunks for 6 runs
+    assert run(short, tmp_path / "w1", "--workers", "1") == 0
+    assert run(short, tmp_path / "w2", "--workers", "2") == 0
+    a = json.loads((tmp_path / "w1" / "metrics.json").read_text())
+    b = json.loads((tmp_path / "w2" / "metrics.json").read_text())
+    assert a["estimators"] == b["estimators"]
+    assert np.array_equal(np.load(tmp_path / "w1" / "runs.npz")["KF.pos_err_m"],
+                          np.load(tmp_path / "w2" / "runs.npz")["KF.pos_err_m"])
+
+
+def test_a_failing_chunk_is_flagged_and_the_others_complete(short, tmp_path, monkeypatch, capsys):
+    import navsim.runner
+    monkeypatch.setattr(navsim.runner, "CHUNK_RUNS", 2)
+    real = navsim.runner._chunk
+
+    def flaky(args):
+        if list(args[3])[0] == 2:
+            raise MemoryError("worker killed")
+        return real(args)
+
+    monkeypatch.setattr(navsim.runner, "_chunk", flaky)
+    assert run(short, tmp_path / "out") == 0
+    m = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert m["runs_done"] == 4 and set(m["failed_runs"]) == {"2", "3"}
+    assert "worker killed" in m["failed_runs"]["2"]
+    assert "2 run(s) failed" in capsys.readouterr().out
+
+
+def test_interrupted_run_keeps_what_finished(short, tmp_path, monkeypatch):
+    import navsim.runner
+    monkeypatch.setattr(navsim.runner, "CHUNK_RUNS", 2)
+    real = navsim.runner._chunk
+
+    def interrupt(args):
+        if list(args[3])[0] == 4:
+            raise KeyboardInterrupt
+        return real(args)
+
+    monkeypatch.setattr(navsim.runner, "_chunk", interrupt)
+    assert run(short, tmp_path / "out") == 130
+    m = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert m["interrupted"] is True and m["runs_done"] == 4
+    assert (tmp_path / "out" / "report.pdf").exists()
+
+
+@pytest.mark.parametrize("name", ["p0_bd_sins_ads", "p2_sea_height", "p3_sins_gps"])
+def test_shipped_scenarios_run_with_few_runs(name, repo_root, tmp_path, monkeypatch):
+    monkeypatch.setenv("NAVSIM_CACHE", str(tmp_path / "cache"))
+    out = tmp_path / name
+    assert main(["run", str(repo_root / "scenarios" / f"{name}.yaml"), "--runs", "2", "--workers", "1",
+                 "--out", str(out)]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["runs_done"] == 2 and all(e["diverged_runs"] == 0 for e in m["estimators"].values())
+    assert (out / "report.pdf").stat().st_size > 50_000
+
+
+BASE = SHORT.replace("reference:\n  source: a test\n  values:\n    KF: {rms.pos_m: [1, 1, 1], windows.turn.height_m.std: 0.5}\n", "")
+
+# (text transformation, key path the message must name, words it must contain)
+CORPUS = [
+    (lambda s: s.replace("name: short_run", "name: [1]"), "name", "expected a string"),
+    (lambda s: s.replace("track:", "trak:"), "trak", "did you mean 'track'"),
+    (lambda s: s.replace("{type: straight, time_s: 20}\n    - {type: turn", "{type: straight, time_s: -20}\n    - {type: turn"),
+     "track.segments[0].time_s", "> 0.0"),
+    (lambda s: s.replace("bank_deg: 25", "bank_deg: 25, bnak: 3"), "track.segments[1].bnak", "did you mean 'bank_deg'"),
+    (lambda s: s.replace("speed_mps: 14,", ""), "track.start.speed_mps", "is missing"),
+    (lambda s: s.replace("model: p3_imu}", "model: p3_imuu}"), "sensors.imu.model", "did you mean 'p3_imu'"),
+    (lambda s: s.replace("sensors:\n  imu: {model: p3_imu}", "sensors:\n  imu: {model: p3_imu, override: {gyro: {bias_sigma: 3}}}"),
+     "sensors.imu.override.gyro.bias_sigma", "has no unit"),
+    (lambda s: s.replace("sensors:\n  imu: {model: p3_imu}", "sensors:\n  imu: {model: p3_imu, override: {gyro: {bias_sigma: -3 deg/h}}}"),
+     "sensors.imu.override.gyro.bias_sigma", "negative"),
+    (lambda s: s.replace("sensors:\n  imu: {model: p3_imu}", "sensors:\n  imu: {model: p3_imu, override: {accel: {bias_sigma: 3 deg/h}}}"),
+     "sensors.imu.override.accel.bias_sigma", "not a unit of acceleration"),
+    (lambda s: s.replace("{type: outage, start_s: 25", "{type: outrage, start_s: 25"), "sensors.gps.faults[0].type", "one of outage"),
+    (lambda s: s.replace("start_s: 25, end_s: 30", "start_s: 25, end_s: 20"), "sensors.gps.faults[0].end_s", "after start_s"),
+    (lambda s: s.replace("type: eskf", "type: ekf"), "estimators[1].type", "did you mean 'eskf'"),
+    (lambda s: s.replace("states: p3_15", "states: p3_16"), "estimators[1].states", "did you mean 'p3_15'"),
+    (lambda s: s.replace("states: p3_15", "states: [att, vel, pos, gyro_bais]"), "estimators[1].states", "gyro_bias"),
+    (lambda s: s.replace("sensor: gps, sigma_m", "sensor: gnss, sigma_m"), "estimators[1].measurements[0].sensor", "did you mean 'gps'"),
+    (lambda s: s.replace("sigma_m: [2, 2, 1]", "sigma_m: [2, 2]"), "estimators[1].measurements[0].sigma_m", "a list of three"),
+    (lambda s: s.replace("{type: velocity, sensor", "{type: speed, sensor"), "estimators[1].measurements[1].type", "one of gnss_position"),
+    (lambda s: s.replace("noise: {imu: p3_imu}", "noise: {imu: p3_gps}"), "estimators[1].noise.imu", "not an IMU"),
+    (lambda s: s.replace("- {label: free SINS, type: sins}", "- {label: KF, type: sins}"), "estimators[1].label", "used twice"),
+    (lambda s: s.replace("montecarlo: {runs: 6, seed: 4}", "montecarlo: {runs: 0, seed: 4}"), "montecarlo.runs", ">= 1"),
+    (lambda s: s.replace("montecarlo: {runs: 6, seed: 4}", "montecarlo: {runs: 6, sed: 4}"), "montecarlo.sed", "did you mean 'seed'"),
+    (lambda s: s.replace("end_s: 30}]", "end_s: 3000}]"), "metrics.windows[0].end_s", "after the end of the flight"),
+    (lambda s: s.replace("settle_s: 10", "settle_s: -1"), "metrics.settle_s", ">= 0.0"),
+    (lambda s: s + "reference:\n  source: x\n  values:\n    KFF: {rms.pos_m: 1}\n", "reference.values.KFF", "did you mean 'KF'"),
+    (lambda s: s + "reference:\n  source: x\n  values:\n    KF: {rmse.pos_m: 1}\n", "reference.values.KF.rmse.pos_m", "not a metric"),
+    (lambda s: s.replace("initial_errors: {pos_m: [5, 5, 3]", "initial_errors: {pos_m: [5, 5, -3]"), "initial_errors.pos_m", "non-negative"),
+    (lambda s: s.replace("sensors:\n  imu: {model: p3_imu}\n", "sensors:\n"), "sensors", "exactly one sensor of kind imu"),
+    (lambda s: s.replace("environment", "x") + "environment: {wind: {force: 13}}\n", "environment.wind.force", "one of 0"),
+]
+
+
+@pytest.mark.parametrize("i", range(len(CORPUS)))
+def test_malformed_scenario_corpus(i, tmp_path, capsys):
+    change, key, words = CORPUS[i]
+    text = change(BASE)
+    assert text != BASE, "the corpus entry must change the scenario"
+    path = tmp_path / f"bad{i}.yaml"
+    path.write_text(text)
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: {key}:" in err, err
+    assert words in err, err
+
+
+def test_malformed_scenario_exits_2_from_run_without_traceback(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text(BASE.replace("type: eskf", "type: ekf"))
+    proc = subprocess.run([sys.executable, "-m", "navsim", "run", str(path)], capture_output=True, text=True)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "estimators[1].type" in proc.stderr and "hint: did you mean 'eskf'?" in proc.stderr

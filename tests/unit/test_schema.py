@@ -1,0 +1,25 @@
+import json
+
+import jsonschema
+import pytest
+import yaml
+
+from navsim.schema import scenario_schema, schema_text
+
+
+def test_published_schema_is_current(repo_root):
+    assert (repo_root / "docs" / "scenario.schema.json").read_text() == schema_text()
+
+
+def test_shipped_scenarios_follow_the_schema(repo_root):
+    schema = scenario_schema()
+    for path in sorted((repo_root / "scenarios").glob("*.yaml")):
+        jsonschema.validate(yaml.safe_load(path.read_text()), schema)
+
+
+@pytest.mark.parametrize("bad", [{"track": "p0", "trak": 1}, {"name": "x"},
+                                 {"track": "p0", "montecarlo": {"runs": 0}},
+                                 {"track": {"start": {"lat_deg": 1}, "segments": []}}])
+def test_schema_rejects_malformed(bad):
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate(bad, json.loads(schema_text()))
