@@ -1,6 +1,7 @@
 """The ``navsim`` command line.
 
 ``navsim run SCENARIO``   Monte Carlo of the scenario's estimators, report.pdf and metrics.
+``navsim sweep SWEEP``    a grid of scenario variants, one metric compared.
 ``navsim fly SCENARIO``   fly the scenario's track, write PNGs, the truth and a summary.
 ``navsim sensors SCENARIO``  emulate the scenario's sensors, plot them against the truth.
 ``navsim validate FILE``  check a scenario without running it.
@@ -223,6 +224,42 @@ def cmd_sensors(args) -> int:
     return 0
 
 
+def cmd_sweep(args) -> int:
+    from tqdm import tqdm
+
+    from navsim.sweep import parse_sweep, run_sweep
+    _, _, _, points = parse_sweep(args.sweep)
+    out = Path(args.out) if args.out else Path("reports") / Path(args.sweep).stem
+    out.mkdir(parents=True, exist_ok=True)
+    with tqdm(total=len(points), desc="sweep points", disable=None) as bar:
+        rows, metric = run_sweep(args.sweep, args.workers, out, progress=bar.update)
+    labels = list(rows[0][1]) if rows else []
+    table = [[", ".join(f"{k}={v}" for k, v in p.items())] + [f"{vals.get(lb, float('nan')):.4g}"
+             if vals.get(lb) is not None else "-" for lb in labels] for p, vals in rows]
+    print(_table(["point"] + [f"{lb}: {metric}" for lb in labels], table))
+    (out / "sweep.json").write_text(json.dumps({"metric": metric, "points": [
+        {"point": p, "values": v} for p, v in rows]}, indent=2, default=str))
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(rows)), 4.5))
+    for lb in labels:
+        ax.plot(range(len(rows)), [v.get(lb, np.nan) if v.get(lb) is not None else np.nan for _, v in rows],
+                "o-", label=lb)
+    ax.set_xticks(range(len(rows)))
+    ax.set_xticklabels(["\n".join(f"{k.split('.')[-1]}={v}" for k, v in p.items()) for p, _ in rows],
+                       fontsize=7)
+    ax.set_ylabel(metric + " (norm)")
+    ax.set_yscale("log")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(f"sweep {Path(args.sweep).name}: {metric}")
+    fig.tight_layout()
+    fig.savefig(out / "sweep.png", dpi=110)
+    print(f"\nwrote {out}/ (sweep.json, sweep.png)")
+    return 0
+
+
 def cmd_schema(args) -> int:
     from navsim.schema import schema_text
     sys.stdout.write(schema_text())
@@ -290,6 +327,13 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Check scenario files; exit 2 on the first malformed one.")
     p.add_argument("files", nargs="+", help="scenario YAML files")
     p.set_defaults(func=cmd_validate)
+    p = sub.add_parser("sweep", help="run a grid of scenario variants and compare a metric",
+                       description="Run every point of a sweep file (a grid or a list of changes "
+                       "to a scenario), each a Monte Carlo; print a table and plot the chosen metric.")
+    p.add_argument("sweep", help="sweep YAML file")
+    p.add_argument("--workers", type=int, help="worker processes (default: the scenario's)")
+    p.add_argument("--out", help="output folder (default reports/<sweep name>)")
+    p.set_defaults(func=cmd_sweep)
     p = sub.add_parser("schema", help="print the JSON Schema of scenario files",
                        description="Print the JSON Schema of scenario files (docs/scenario.schema.json) "
                        "for editors; navsim's own validation is stricter.")

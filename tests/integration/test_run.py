@@ -195,3 +195,27 @@ def test_malformed_scenario_exits_2_from_run_without_traceback(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "navsim", "run", str(path)], capture_output=True, text=True)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert "estimators[1].type" in proc.stderr and "hint: did you mean 'eskf'?" in proc.stderr
+
+
+def test_sweep_grid(short, tmp_path, capsys):
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(f"""
+scenario: {short.name}
+runs: 2
+grid:
+  sensors.gps.override.position_sigma: ["[2, 2, 1] m", "[20, 20, 10] m"]
+  estimators[1].measurements[0].sigma_m: [[2, 2, 1], [20, 20, 10]]
+metric: rms.pos_m
+""")
+    out = tmp_path / "out"
+    assert main(["sweep", str(sweep), "--out", str(out)]) == 0
+    data = json.loads((out / "sweep.json").read_text())
+    assert len(data["points"]) == 4 and (out / "sweep.png").stat().st_size > 0
+    kf = [p["values"]["KF"] for p in data["points"]]
+    # a noisier GPS gives a larger position error, whatever the filter assumes
+    assert kf[2] > kf[0] and kf[3] > kf[1]
+    assert "KF: rms.pos_m" in capsys.readouterr().out
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(f"scenario: {short.name}\ngrid:\n  estimators[5].type: [sins]\n")
+    assert main(["sweep", str(bad)]) == 2
+    assert "estimators[5]" in capsys.readouterr().err

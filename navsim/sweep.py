@@ -1,0 +1,112 @@
+"""``navsim sweep``: a grid (or list) of changes to a scenario, each point a Monte Carlo run.
+
+A sweep file::
+
+    scenario: p3_sins_gps.yaml        # relative to the sweep file
+    runs: 10                          # per point (default: the scenario's)
+    grid:                             # Cartesian product over dotted key paths
+      sensors.imu.override.gyro.bias_sigma: [0.01 deg/h, 0.1 deg/h]
+      estimators[1].series_order: [3, 6]
+    # or points: [{key: value, ...}, ...]
+    metric: rms.pos_m                 # a metrics.json path; vectors are shown by their norm
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import re
+from pathlib import Path
+
+import numpy as np
+
+from navsim.config import Node, load_yaml
+from navsim.errors import ScenarioError
+
+_INDEX = re.compile(r"^(.*)\[(\d+)\]$")
+
+
+def set_path(data, path: str, value, file=None, where="grid"):
+    """Set ``value`` at dotted ``path`` (``a.b[2].c``) in nested mappings and lists."""
+    parts = path.split(".")
+    node = data
+    for i, part in enumerate(parts):
+        m = _INDEX.match(part)
+        key, idx = (m.group(1), int(m.group(2))) if m else (part, None)
+        last = i == len(parts) - 1
+        if idx is None:
+            if last:
+                node[key] = value
+                return
+            node = node.setdefault(key, {})
+            if not isinstance(node, dict):
+                raise ScenarioError(f"'{key}' is not a mapping", file=file, key=f"{where}.{path}")
+        else:
+            seq = node.get(key)
+            if not isinstance(seq, list) or idx >= len(seq):
+                raise ScenarioError(f"'{key}[{idx}]' does not exist in the scenario", file=file,
+                                    key=f"{where}.{path}")
+            if last:
+                seq[idx] = value
+                return
+            node = seq[idx]
+
+
+def parse_sweep(path: str | Path):
+    path = Path(path)
+    node = Node(load_yaml(path), "", str(path))
+    scenario = node.get("scenario", str)
+    base_path = (path.parent / scenario)
+    if not base_path.is_file():
+        raise node.error(f"'{scenario}' not found next to the sweep file", "scenario",
+                         expected="a scenario YAML path relative to the sweep file")
+    runs = node.get("runs", int, None, minimum=1)
+    metric = node.get("metric", str, "rms.pos_m")
+    grid = node.child("grid", None)
+    node._seen.add("points")
+    points = node.data.get("points")
+    if (grid is None) == (points is None):
+        raise node.error("needs exactly one of 'grid' or 'points'")
+    if grid is not None:
+        keys = list(grid.data)
+        for k in keys:
+            grid._seen.add(k)
+            if not isinstance(grid.data[k], list) or not grid.data[k]:
+                raise grid.error("is not a non-empty list of values", str(k))
+        points = [dict(zip(keys, combo)) for combo in itertools.product(*(grid.data[k] for k in keys))]
+        grid.done()
+    elif not (isinstance(points, list) and points and all(isinstance(p, dict) for p in points)):
+        raise node.error("is not a list of mappings", "points")
+    node.done()
+    return base_path, runs, metric, points
+
+
+def run_sweep(path, workers: int | None = None, out: Path | None = None, progress=None):
+    """Run every point; returns the rows ``(point, {label: metric value})`` and the output dir."""
+    from navsim.metrics import lookup, score
+    from navsim.runner import cached_flight, run_monte_carlo
+    from navsim.scenario import parse_scenario
+    base_path, runs, metric, points = parse_sweep(path)
+    base = load_yaml(base_path)
+    scenarios = []
+    for i, point in enumerate(points):
+        data = copy.deepcopy(base)
+        for key, value in point.items():
+            set_path(data, key, value, str(path), f"points[{i}]")
+        try:
+            scenarios.append(parse_scenario(data, f"{base_path} with sweep point {i} ({point})"))
+        except ScenarioError as exc:
+            raise exc from None
+    rows = []
+    for point, sc in zip(points, scenarios):
+        truth, truth_path, _ = cached_flight(sc.flight)
+        n = runs or sc.runs
+        res = run_monte_carlo(sc, truth, truth_path, n, sc.seed, workers or sc.workers)
+        values = {}
+        for label, h in res.histories.items():
+            v = lookup(score(h, sc.settle_s, sc.windows), metric)
+            values[label] = float(np.linalg.norm(v)) if isinstance(v, list) else v
+        rows.append((point, values))
+        if progress:
+            progress(1)
+    return rows, metric
