@@ -203,7 +203,15 @@ def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict
     from matplotlib.backends.backend_pdf import PdfPages
     from navsim.flight.plots import flight_figures
     runs_plotted = scenario.report.get("runs_plotted", 5)
+    import yaml
     pages = [("summary", _text_page(f"navsim report: {scenario.name}", summary_lines(scenario, record, metrics)))]
+    resolved = dict(scenario.raw)
+    resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": record["runs"],
+                              "seed": record["seed"], "workers": record["workers"]}
+    text = yaml.safe_dump(resolved, sort_keys=False, width=110).splitlines()
+    if len(text) > 120:
+        text = text[:118] + ["...", "(the whole file: scenario.resolved.yaml)"]
+    pages.append(("scenario", _text_page("resolved scenario", text)))
     pages += [(f"flight_{n}", f) for n, f in flight_figures(truth)]
     if result.histories:
         pages += error_figures(result.histories, scenario.settle_s, runs_plotted)

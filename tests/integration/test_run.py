@@ -59,7 +59,7 @@ def test_run_writes_report_metrics_and_histories(short, tmp_path, capsys):
     out = tmp_path / "out"
     assert run(short, out) == 0
     for name in ("report.pdf", "metrics.json", "scenario.resolved.yaml", "runs.npz", "run.json",
-                 "summary.png", "errors_pos.png", "consistency.png", "biases.png", "flight_3d.png"):
+                 "summary.png", "scenario.png", "errors_pos.png", "consistency.png", "biases.png", "flight_3d.png"):
         assert (out / name).stat().st_size > 0, name
     m = json.loads((out / "metrics.json").read_text())
     assert m["runs"] == 6 and m["runs_done"] == 6 and m["seed"] == 4 and m["wall_s"] > 0
