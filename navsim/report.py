@@ -169,6 +169,52 @@ def consistency_figure(histories: dict):
     return [("consistency", fig)]
 
 
+def height_figure(histories: dict, scenario, runs_plotted: int = 3):
+    """Height error against time (P2's Figures 4-5): Monte Carlo RMS and a few runs per
+    estimator, sensor fault windows shaded; a second panel zooms on the first metric window."""
+    plt = _plt()
+    faults = [(c.name, f) for c in scenario.sensors for f in c.faults if f.type != "interference"]
+    if not faults and not scenario.windows:
+        return []
+    fig, axs = plt.subplots(2, 1, figsize=(10, 8))
+    colors = plt.cm.tab10(np.arange(10))
+    for ax in axs:
+        for c, (label, h) in enumerate(histories.items()):
+            good = ~np.asarray(h.diverged, bool)
+            if not good.any():
+                continue
+            dh = -h.pos_err_m[good][..., 2]
+            for r in range(min(runs_plotted, dh.shape[0])):
+                ax.plot(h.t_s, dh[r], color=colors[c % 10], lw=0.5, alpha=0.5)
+            ax.plot(h.t_s, np.sqrt(np.mean(dh ** 2, axis=0)), color=colors[c % 10], lw=1.6,
+                    label=f"{label}: RMS over runs")
+        for name, f in faults:
+            ax.axvspan(f.start_s, min(f.end_s, histories[next(iter(histories))].t_s[-1]), color="tab:red",
+                       alpha=0.15)
+            ax.text(f.start_s, 1.0, f"{name} {f.type}", transform=ax.get_xaxis_transform(), fontsize=6,
+                    rotation=90, va="top")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.grid(alpha=0.3)
+        ax.set_ylabel("height error (up), m")
+    if scenario.windows:
+        name, a, b = scenario.windows[0]
+        axs[1].set_xlim(a, b)
+        axs[1].set_title(f"window '{name}' ({a:g}-{b:g} s)", fontsize=9)
+        lim = []
+        for h in histories.values():
+            m = (h.t_s >= a) & (h.t_s <= b)
+            good = ~np.asarray(h.diverged, bool)
+            if m.any() and good.any():
+                lim.append(np.nanpercentile(np.abs(h.pos_err_m[good][:, m, 2]), 99.5))
+        if lim:
+            axs[1].set_ylim(-1.2 * max(lim), 1.2 * max(lim))
+    axs[0].legend(fontsize=7, loc="upper right")
+    axs[1].set_xlabel("time, s")
+    fig.suptitle("Height error against time, sensor fault windows shaded")
+    fig.tight_layout()
+    return [("height", fig)]
+
+
 def bias_figure(histories: dict, truth_bias: dict, runs_plotted: int = 3):
     plt = _plt()
     filters = {k: h for k, h in histories.items() if h.gyro_bias is not None}
@@ -215,6 +261,7 @@ def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict
     pages += [(f"flight_{n}", f) for n, f in flight_figures(truth)]
     if result.histories:
         pages += error_figures(result.histories, scenario.settle_s, runs_plotted)
+        pages += height_figure(result.histories, scenario)
         pages += consistency_figure(result.histories)
         pages += bias_figure(result.histories, result.truth_bias)
     files = []

@@ -62,7 +62,7 @@ def scenario_schema() -> dict:
     sensor = _obj({"model": {"enum": sorted(available())}, "override": {"type": "object"},
                    "off": {"oneOf": [{"const": "all"}, {"type": "array", "items": {"type": "string"}}]},
                    "faults": {"type": "array", "items": fault}}, ["model"])
-    measurement = _obj({"type": {"enum": ["gnss_position", "velocity", "height"]}, "sensor": {"type": "string"},
+    measurement = _obj({"type": {"enum": ["gnss_position", "gnss_horizontal", "velocity", "height"]}, "sensor": {"type": "string"},
                         "sigma_m": VEC3, "sigma_mps": VEC3, "field": {"type": "string"},
                         "baro_state": {"type": "boolean"}, "offset_m": NUM}, ["type", "sensor"])
     estimator = {"type": "object", "required": ["label", "type"],
@@ -73,7 +73,9 @@ def scenario_schema() -> dict:
                                 "series_order": {"type": "integer", "minimum": 1},
                                 "noise": _obj({"imu": {"type": "string"}, "override": {"type": "object"}}, ["imu"]),
                                 "baro": _obj({"sigma_m": POS, "tau_s": POS}),
-                                "measurements": {"type": "array", "items": measurement}}}
+                                "measurements": {"type": "array", "items": measurement},
+                                "height": {"type": "object", "description": "p2_dynamic_height: sensors "
+                                           "gps, radar, baro and the fusion's numbers"}}}
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": "navsim scenario",

@@ -53,7 +53,7 @@ class ErrorStateKF:
 
     @classmethod
     def from_imu_spec(cls, layout: Layout, imu_spec, measurements, baro_sigma_m: float = 0.0,
-                      baro_tau_s: float = 300.0, **kw) -> "ErrorStateKF":
+                      baro_tau_s: float = 300.0, **kw):
         """A filter whose noise model and initial bias uncertainty come from an IMU spec (a
         catalog entry of its own: it need not be the spec that corrupted the data)."""
         g, a = imu_spec.gyro, imu_spec.accel

@@ -16,6 +16,13 @@ Each entry: ``label``, ``type`` (a registered estimator) and its parameters. For
         - {type: velocity, sensor: ads, sigma_mps: 1.0}
         - {type: height, sensor: ads, field: h_pressure_m, sigma_m: 3, baro_state: true}
 
+``p2_dynamic_height`` takes the same keys plus P2's height channel (see
+:mod:`navsim.estimators.p2_height`)::
+
+      height: {gps: gps, radar: radar, baro: baro, gps_sigma_m: 30, baro_sigma_m: 25,
+               radar_noise_m: 0.3, radar_ratio: 0.03, threshold_m: 500, hysteresis_m: 20,
+               window_s: 10, surface_m: 0, gating_sigma: 3, average_radar: true}
+
 Other registered types (third-party) get their parameters as keyword arguments.
 """
 
@@ -59,6 +66,9 @@ def parse_estimators(data, sensors: dict, file: str | None = None, path: str = "
                              hint=close_match(kind, base.available()))
         if kind == "eskf":
             params = _eskf_params(node, sensors)
+        elif kind == "p2_dynamic_height":
+            params = _eskf_params(node, sensors)
+            params["height"] = _height_params(node.child("height"), sensors)
         elif kind == "sins":
             params = {"period_s": node.get("period_s", float, 1.0, exclusive_minimum=0.0)}
         else:
@@ -136,7 +146,7 @@ def _eskf_params(node: Node, sensors: dict) -> dict:
     meas = []
     for j, item in enumerate(raw):
         m = Node(item, node.key(f"measurements[{j}]"), node.file)
-        mtype = m.get("type", str, choices=("gnss_position", "velocity", "height"))
+        mtype = m.get("type", str, choices=("gnss_position", "gnss_horizontal", "velocity", "height"))
         sensor = m.get("sensor", str)
         if sensor not in sensors:
             raise m.error(f"'{sensor}' is not a sensor of this scenario", "sensor",
@@ -145,6 +155,8 @@ def _eskf_params(node: Node, sensors: dict) -> dict:
         entry = {"type": mtype, "sensor": sensor}
         if mtype == "gnss_position":
             entry["sigma_m"] = _vec(m, "sigma_m")
+        elif mtype == "gnss_horizontal":
+            entry["sigma_m"] = _vec(m, "sigma_m")[:2]
         elif mtype == "velocity":
             entry["sigma_mps"] = _vec(m, "sigma_mps")
             entry["field"] = m.get("field", str, "vel_n_mps")
@@ -160,13 +172,36 @@ def _eskf_params(node: Node, sensors: dict) -> dict:
     return params
 
 
+def _height_params(node: Node, sensors: dict) -> dict:
+    """P2's height fusion: ``gps``, ``radar``, ``baro`` sensor names and the model numbers."""
+    out = {}
+    for role, kind in (("gps", "gnss"), ("radar", "radar_altimeter"), ("baro", "baro")):
+        name = node.get(role, str)
+        if sensors.get(name) != kind:
+            raise node.error(f"'{name}' is not a {kind} of this scenario", role,
+                             expected=f"a sensor of kind {kind}",
+                             hint=close_match(name, [k for k, v in sensors.items() if v == kind]))
+        out[role] = name
+    for key, default in (("gps_sigma_m", 30.0), ("baro_sigma_m", 25.0), ("radar_noise_m", 0.3),
+                         ("radar_ratio", 0.03), ("hysteresis_m", 20.0), ("window_s", 10.0)):
+        out[key] = node.get(key, float, default, minimum=0.0)
+    out["threshold_m"] = node.get("threshold_m", float, 500.0)
+    out["surface_m"] = node.get("surface_m", float, 0.0)
+    out["gating_sigma"] = node.get("gating_sigma", float, None, exclusive_minimum=0.0)
+    out["average_radar"] = node.get("average_radar", bool, False)
+    node.done()
+    return out
+
+
 def build(config: EstimatorConfig):
     """A fresh estimator object from its configuration."""
     if config.type == "sins":
         from navsim.estimators.sins import FreeInertial
         return FreeInertial(**config.params)
-    if config.type == "eskf":
+    if config.type in ("eskf", "p2_dynamic_height"):
         from navsim.estimators.eskf import ErrorStateKF
+        from navsim.estimators.measurements import GnssHorizontal
+        from navsim.estimators.p2_height import DynamicHeightKF, HeightFusion
         from navsim.sensors.catalog import load_spec
         p = config.params
         spec = load_spec(p["noise"]["imu"], p["noise"]["override"])
@@ -174,13 +209,17 @@ def build(config: EstimatorConfig):
         for m in p["measurements"]:
             if m["type"] == "gnss_position":
                 models.append(GnssPosition(m["sensor"], np.array(m["sigma_m"])))
+            elif m["type"] == "gnss_horizontal":
+                models.append(GnssHorizontal(m["sensor"], np.array(m["sigma_m"])))
             elif m["type"] == "velocity":
                 models.append(Velocity(m["sensor"], np.array(m["sigma_mps"]), field=m["field"]))
             else:
                 models.append(Height(m["sensor"], m["sigma_m"], field=m["field"],
                                      use_baro_state=m["baro_state"], offset_m=m["offset_m"]))
-        return ErrorStateKF.from_imu_spec(
-            Layout(tuple(p["states"])), spec, models, baro_sigma_m=p["baro"]["sigma_m"],
-            baro_tau_s=p["baro"]["tau_s"], period_s=p["period_s"],
-            discretization=p["discretization"], series_order=p["series_order"])
+        kw = dict(baro_sigma_m=p["baro"]["sigma_m"], baro_tau_s=p["baro"]["tau_s"], period_s=p["period_s"],
+                  discretization=p["discretization"], series_order=p["series_order"])
+        if config.type == "p2_dynamic_height":
+            return DynamicHeightKF.from_imu_spec(Layout(tuple(p["states"])), spec, models,
+                                                 fusion=HeightFusion(**p["height"]), **kw)
+        return ErrorStateKF.from_imu_spec(Layout(tuple(p["states"])), spec, models, **kw)
     return base.get(config.type)(**config.params)

@@ -86,3 +86,20 @@ class Height:
 
 
 MODELS = {"gnss_position": GnssPosition, "velocity": Velocity, "height": Height}
+
+
+@dataclass
+class GnssHorizontal:
+    """INS minus GNSS horizontal position, NED metres: ``[dL (R_M+h), dlambda (R_N+h) cos L]``
+    (the height is left to a separate height channel, as in P2)."""
+
+    sensor: str
+    sigma_m: np.ndarray                  #: (2,) north, east
+    name: str = "gnss_horizontal"
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        z, H, R, valid = GnssPosition(self.sensor, np.r_[self.sigma_m, 1.0]).model(nav, layout, data, j)
+        return z[:, :2], H[:, :2], R[:, :2, :2], valid
+
+
+MODELS["gnss_horizontal"] = GnssHorizontal
