@@ -75,7 +75,10 @@ def scenario_schema() -> dict:
                                 "baro": _obj({"sigma_m": POS, "tau_s": POS}),
                                 "measurements": {"type": "array", "items": measurement},
                                 "height": {"type": "object", "description": "p2_dynamic_height: sensors "
-                                           "gps, radar, baro and the fusion's numbers"}}}
+                                           "gps, radar, baro and the fusion's numbers"},
+                                "adaptive": _obj({"enabled": {"type": "boolean"},
+                                                  "window": {"type": "integer", "minimum": 1},
+                                                  "floor": POS})}}
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": "navsim scenario",

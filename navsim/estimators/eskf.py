@@ -121,9 +121,8 @@ class ErrorStateKF:
                         extra={"P": self.P, "diverged": self.diverged})
 
     # --- filter steps -------------------------------------------------------------------------
-    def predict(self) -> None:
-        if self._count == 0:
-            return
+    def _transition(self):
+        """Phi, Qd over the elapsed period, F from the period's averaged C_nb and f_n."""
         s = self.sd.state
         C_mean = self._sum_C / self._count
         f_mean = self._sum_f / self._elapsed
@@ -134,12 +133,21 @@ class ErrorStateKF:
             Phi, Qd = kalman.discretize_series(F, self.Qc, T, order=self.series_order)
         else:
             Phi, Qd = kalman.discretize_van_loan(F, self.Qc, T)
-        self.x, self.P = kalman.predict(self.x, self.P, Phi, Qd)
-        # the fed-back Markov bias estimates decay like the process
+        return Phi, Qd, T
+
+    def _decay_markov(self, T: float) -> None:
+        """The fed-back Markov bias estimates decay like the process."""
         if self.layout.has("gyro_markov"):
             self.m_gyro *= np.exp(-T / self.noise.gyro_markov_tau_s)
         if self.layout.has("accel_markov"):
             self.m_accel *= np.exp(-T / self.noise.accel_markov_tau_s)
+
+    def predict(self) -> None:
+        if self._count == 0:
+            return
+        Phi, Qd, T = self._transition()
+        self.x, self.P = kalman.predict(self.x, self.P, Phi, Qd)
+        self._decay_markov(T)
         self._reset_accumulators()
 
     def correct(self, model, data, j: int, t: float) -> Innovation:

@@ -23,6 +23,9 @@ Each entry: ``label``, ``type`` (a registered estimator) and its parameters. For
                radar_noise_m: 0.3, radar_ratio: 0.03, threshold_m: 500, hysteresis_m: 20,
                window_s: 10, surface_m: 0, gating_sigma: 3, average_radar: true}
 
+``two_stage_adaptive`` (P0) takes the ES-KF keys plus
+``adaptive: {enabled: true, window: 30, floor: 0.2}`` (see :mod:`navsim.estimators.two_stage`).
+
 Other registered types (third-party) get their parameters as keyword arguments.
 """
 
@@ -66,6 +69,18 @@ def parse_estimators(data, sensors: dict, file: str | None = None, path: str = "
                              hint=close_match(kind, base.available()))
         if kind == "eskf":
             params = _eskf_params(node, sensors)
+        elif kind == "two_stage_adaptive":
+            params = _eskf_params(node, sensors)
+            for block in ("gyro_bias", "accel_bias"):
+                if block not in params["states"]:
+                    raise node.error(f"the two-stage filter needs the '{block}' block", "states")
+            ad = node.child("adaptive", None)
+            params["adaptive"] = {"adaptive": True, "window": 30, "floor": 0.2}
+            if ad is not None:
+                params["adaptive"] = {"adaptive": ad.get("enabled", bool, True),
+                                      "window": ad.get("window", int, 30, minimum=1),
+                                      "floor": ad.get("floor", float, 0.2, exclusive_minimum=0.0)}
+                ad.done()
         elif kind == "p2_dynamic_height":
             params = _eskf_params(node, sensors)
             params["height"] = _height_params(node.child("height"), sensors)
@@ -198,7 +213,7 @@ def build(config: EstimatorConfig):
     if config.type == "sins":
         from navsim.estimators.sins import FreeInertial
         return FreeInertial(**config.params)
-    if config.type in ("eskf", "p2_dynamic_height"):
+    if config.type in ("eskf", "p2_dynamic_height", "two_stage_adaptive"):
         from navsim.estimators.eskf import ErrorStateKF
         from navsim.estimators.measurements import GnssHorizontal
         from navsim.estimators.p2_height import DynamicHeightKF, HeightFusion
@@ -218,6 +233,10 @@ def build(config: EstimatorConfig):
                                      use_baro_state=m["baro_state"], offset_m=m["offset_m"]))
         kw = dict(baro_sigma_m=p["baro"]["sigma_m"], baro_tau_s=p["baro"]["tau_s"], period_s=p["period_s"],
                   discretization=p["discretization"], series_order=p["series_order"])
+        if config.type == "two_stage_adaptive":
+            from navsim.estimators.two_stage import TwoStageAdaptiveKF
+            return TwoStageAdaptiveKF.from_imu_spec(Layout(tuple(p["states"])), spec, models,
+                                                    **p["adaptive"], **kw)
         if config.type == "p2_dynamic_height":
             return DynamicHeightKF.from_imu_spec(Layout(tuple(p["states"])), spec, models,
                                                  fusion=HeightFusion(**p["height"]), **kw)
