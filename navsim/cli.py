@@ -190,7 +190,7 @@ def cmd_run(args) -> int:
 
 
 def cmd_sensors(args) -> int:
-    from navsim.flight.simulator import fly
+    from navsim.runner import cached_flight
     from navsim.sensors import emulate
     from navsim.sensors.plots import channels, plot_sensor
     from navsim.scenario import load_scenario
@@ -205,7 +205,7 @@ def cmd_sensors(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     bar, update = _progress(f"flying {scenario.flight.track.name}")
     try:
-        truth = fly(scenario.flight, progress=update)
+        truth, _, _ = cached_flight(scenario.flight, progress=update)
     finally:
         bar.close()
     rows = []

@@ -27,6 +27,7 @@ from navsim.errors import ScenarioError
 from navsim.sensors.base import (SensorData, decimation, gauss_markov, normals, random_walk,
                                  run_generators)
 from navsim.sensors.specs import AxisErrors, ImuSpec
+from navsim.strapdown import rotation
 
 #: Allan-deviation peak of a first-order Gauss-Markov process, in units of its std
 #: (max over T of sigma_A(T) / sigma); bias instability B is modelled by a Gauss-Markov process
@@ -107,11 +108,6 @@ def _vibration(gens, t, dt, vib, rate_hz, amp_attr):
     return x * (amp / 3.0)
 
 
-def _rot(v):
-    from navsim.strapdown import rotation
-    return rotation(v)
-
-
 def _compensated_to_measured(dv_c, dth, dth_prev, dv_c_prev):
     """Invert the strapdown's rotation and sculling compensation
     ``dv_c = dv + dth x dv / 2 + (dth_p x dv + dv_p x dth) / 12`` (to third order)."""
@@ -140,7 +136,7 @@ def truth_increments(truth, step: int = 1):
     # per truth step j (interval ending t_j): rotation and compensated velocity increment
     dth = np.zeros((N, 3))
     dth[1:] = ab3(om)[:-1] * dt
-    R = _rot(-dth)                                          # body(j-1) vectors -> body(j)
+    R = rotation(-dth)                                          # body(j-1) vectors -> body(j)
     dv_c = np.zeros((N, 3))
     f1 = np.einsum("nij,nj->ni", R[1:], fb[:-1])            # f_{k-1} in body k   (k = j-1)
     dv_c[1:] = fb[:-1] * dt
@@ -157,7 +153,7 @@ def truth_increments(truth, step: int = 1):
             j = np.arange(n - 1) * step + m
             tot_v[1:] += np.einsum("nij,nj->ni", C, dv_c[j])
             tot_th[1:] += np.einsum("nij,nj->ni", C, dth[j]) + 0.5 * np.cross(tot_th[1:], np.einsum("nij,nj->ni", C, dth[j]))
-            C = C @ _rot(dth[j])
+            C = C @ rotation(dth[j])
         tot_th[0], tot_v[0] = om[0] * dt * step, fb[0] * dt * step
         dth, dv_c = tot_th, tot_v
     dth_prev = np.concatenate([dth[:1], dth[:-1]])

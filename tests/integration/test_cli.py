@@ -76,7 +76,8 @@ def test_list(capsys):
     assert "survey10" in out and "p2_sea" in out
 
 
-def test_sensors_command_plots_each_sensor(tmp_path, capsys):
+def test_sensors_command_plots_each_sensor(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("NAVSIM_CACHE", str(tmp_path / "cache"))
     scenario = tmp_path / "s.yaml"
     scenario.write_text("""
 name: short_sensors
