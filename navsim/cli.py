@@ -168,9 +168,11 @@ def cmd_run(args) -> int:
         f = lambda v: "-" if v is None else " ".join(f"{x:.3g}" for x in v)
         rows.append([label, f(rms.get("pos_m")), f(rms.get("vel_mps")), f(rms.get("att_deg")),
                      f"{m['nees']['average']:.2f}" if "nees" in m else "-",
-                     f"{m['nees']['fraction_inside'] * 100:.0f}" if "nees" in m else "-", str(m["diverged_runs"])])
+                     f"{m['nees']['fraction_inside'] * 100:.0f}" if "nees" in m else "-",
+                     "-" if m.get("convergence_s") is None else f"{m['convergence_s']:.0f}",
+                     str(m["diverged_runs"])])
     print(_table(["estimator", "RMS pos N E D m", "RMS vel m/s", "RMS att deg", "NEES", "in band %",
-                  "diverged"], rows))
+                  "converged s", "diverged"], rows))
     if scenario.reference:
         from navsim.metrics import lookup
         ref_rows = []

@@ -50,6 +50,8 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
     out["p99"] = {"pos_m": np.nanpercentile(np.abs(pos), 99, axis=(0, 1)).tolist(),
                   "vel_mps": np.nanpercentile(np.abs(vel), 99, axis=(0, 1)).tolist(),
                   "att_deg": np.nanpercentile(np.abs(att), 99, axis=(0, 1)).tolist()}
+    out["convergence_s"] = convergence_time(h.t_s, np.sqrt(np.nanmean(
+        np.sum(h.pos_err_m[good] ** 2, axis=-1), axis=0)))
     out["final"] = {"pos_m": _rms(h.pos_err_m[good][:, -1], 0).tolist(),
                     "vel_mps": _rms(h.vel_err_mps[good][:, -1], 0).tolist(),
                     "att_deg": _rms(np.degrees(h.att_err_rad[good][:, -1]), 0).tolist()}
@@ -80,6 +82,19 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
             out["nis"][key] = {"average": float(np.nanmean(per_epoch)), "band": [lo, hi], "dim": d,
                                "fraction_inside": float(np.mean((per_epoch > lo) & (per_epoch < hi)))}
     return out
+
+
+def convergence_time(t_s, err, factor: float = 2.0):
+    """First time after which ``err`` (the Monte Carlo RMS of the position error norm) stays
+    below ``factor`` times its steady value (the median over the second half of the run);
+    None if it never settles."""
+    steady = np.nanmedian(err[len(err) // 2:])
+    above = np.flatnonzero(~(err <= factor * steady))
+    if above.size == 0:
+        return float(t_s[0])
+    if above[-1] >= len(err) - 1:
+        return None
+    return float(t_s[above[-1] + 1])
 
 
 def lookup(metrics: dict, path: str):

@@ -61,9 +61,10 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
         rows.append([label, _fmt(rms.get("pos_m")), _fmt(rms.get("vel_mps")), _fmt(rms.get("att_deg")),
                      _fmt(m.get("nees", {}).get("average")),
                      f"{m.get('nees', {}).get('fraction_inside', float('nan')) * 100:.0f} %" if "nees" in m else "-",
-                     str(m["diverged_runs"])])
+                     _fmt(m.get("convergence_s")), str(m["diverged_runs"])])
     lines += [f"RMS after {scenario.settle_s:g} s (N, E, D), over all runs:", ""]
-    lines += _table_lines(["estimator", "pos m", "vel m/s", "att deg", "NEES avg", "NEES in band", "diverged"], rows)
+    lines += _table_lines(["estimator", "pos m", "vel m/s", "att deg", "NEES avg", "NEES in band",
+                           "converged s", "diverged"], rows)
     for label, m in metrics["estimators"].items():
         for name, qs in m.get("windows", {}).items():
             lines += ["", f"{label}: window '{name}'"]

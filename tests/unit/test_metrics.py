@@ -1,0 +1,48 @@
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from navsim.metrics import chi2_band, convergence_time, lookup, score
+from navsim.montecarlo import EstimatorHistory
+
+
+def test_convergence_time_of_an_exponential_decay():
+    t = np.arange(200.0)
+    err = 10 * np.exp(-t / 10) + 1
+    steady = np.median(err[100:])
+    # 10 exp(-t/10) + 1 = 2 steady  ->  t = 10 ln(10 / (2 steady - 1))
+    expected = 10 * math.log(10 / (2 * steady - 1))
+    assert convergence_time(t, err) == pytest.approx(math.ceil(expected))
+    assert convergence_time(t, np.exp(t / 10)) is None
+
+
+def test_chi2_band_of_an_average():
+    lo, hi = chi2_band(3, 50)
+    assert lo == pytest.approx(chi2.ppf(0.025, 150) / 50) and hi == pytest.approx(chi2.ppf(0.975, 150) / 50)
+    assert lo < 3 < hi
+
+
+def test_score_of_a_known_history():
+    rng = np.random.default_rng(3)
+    B, E = 400, 50
+    t = np.arange(E, dtype=float)
+    sig = np.array([1.0, 2.0, 0.5])
+    pos = rng.normal(size=(B, E, 3)) * sig
+    z = np.zeros((B, E, 3))
+    sigma = np.concatenate([np.full((B, E, 6), 1.0), np.broadcast_to(sig, (B, E, 3))], -1)
+    nees = np.sum((pos / sig) ** 2, -1) + rng.chisquare(6, size=(B, E))
+    h = EstimatorHistory("x", t, z, z, pos, sigma, nees, {}, {}, np.zeros(B, bool))
+    m = score(h, settle_s=10.0, windows=(("w", 20.0, 30.0),))
+    np.testing.assert_allclose(m["rms"]["pos_m"], sig, rtol=0.03)
+    assert m["windows"]["w"]["height_m"]["std"] == pytest.approx(0.5, rel=0.05)
+    assert m["windows"]["w"]["height_m"]["max_pos"] > 1.0 > 0 > -1.0 > m["windows"]["w"]["height_m"]["max_neg"]
+    assert m["nees"]["average"] == pytest.approx(9.0, rel=0.03) and m["nees"]["fraction_inside"] > 0.8
+    assert lookup(m, "windows.w.height_m.std") == m["windows"]["w"]["height_m"]["std"]
+    assert lookup(m, "rms.nothing") is None
+    # a diverged run is excluded and counted
+    h.diverged[0] = True
+    h.pos_err_m[0] = np.nan
+    m = score(h, 10.0)
+    assert m["diverged_runs"] == 1 and m["runs_counted"] == B - 1 and np.isfinite(m["rms"]["pos_m"]).all()
