@@ -127,6 +127,13 @@ def truth_increments(truth, step: int = 1):
     trapezoid on the samples instead would lag the attitude by up to 1e-3 rad in turns. The
     first increment (ending at ``t_s[0]``) is ``w_0 dt``, ``f_0 dt``.
     """
+    cache = truth.__dict__.setdefault("_increments", {})     # the truth is shared by every chunk
+    if step not in cache:
+        cache[step] = _truth_increments(truth, step)
+    return cache[step]
+
+
+def _truth_increments(truth, step: int):
     om, fb = truth.omega_ib_b_rps, truth.f_b_mps2
     dt = truth.dt_s
     N = len(om)
