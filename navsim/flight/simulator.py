@@ -119,9 +119,8 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
     ap.speed_cmd = start.speed_mps
     if start.type == "air":
         _air_start(io, ap, limits, start, lat0, lon0, heading, env, dt)
-        launch_steps = 0
     else:
-        launch_steps = _launch_prepare(io, ap, start, lat0, lon0, heading, env, dt)
+        _launch_prepare(io, ap, start, lat0, lon0, heading, env, dt)
 
     runner = SegmentRunner(track.segments, ap, limits, local_of_latlon)
     runner.course_ref = heading
@@ -207,13 +206,13 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
             k += 1
     except FlightError as exc:
         rows, seg = rec.arrays()
-        exc.truth = _make_truth(rows, seg, dt, track, config, launch_steps) if len(rows) > 1 else None
+        exc.truth = _make_truth(rows, seg, dt, track, config) if len(rows) > 1 else None
         raise
     rows, seg = rec.arrays()
-    return _make_truth(rows, seg, dt, track, config, launch_steps)
+    return _make_truth(rows, seg, dt, track, config)
 
 
-def _make_truth(rows, seg, dt, track, config, launch_steps) -> Truth:
+def _make_truth(rows, seg, dt, track, config) -> Truth:
     t = np.arange(len(rows)) * dt
     meta = {"aircraft": config.aircraft, "rate_hz": config.rate_hz, "track": track.name,
             "start": track.start.type, "environment": {
@@ -262,7 +261,7 @@ def _air_start(io, ap, limits, start, lat0, lon0, heading, env, dt) -> None:
                    terrain_m=env.surface_m)
 
 
-def _launch_prepare(io, ap, start, lat0, lon0, heading, env, dt) -> int:
+def _launch_prepare(io, ap, start, lat0, lon0, heading, env, dt) -> None:
     """On the launcher: motor at full power while held, then booster fired at t = 0."""
     pitch = math.radians(start.pitch_deg)
     io.set_initial(lat_rad=lat0, lon_rad=lon0, h_m=start.alt_m + start.launcher_height_m,
@@ -280,4 +279,3 @@ def _launch_prepare(io, ap, start, lat0, lon0, heading, env, dt) -> int:
     ap.throttle_hold = 1.0
     ap.alt_cmd = start.alt_m + start.launcher_height_m
     ap.course_cmd = heading
-    return int(round(start.booster_time_s / dt))
