@@ -170,9 +170,10 @@ def cmd_run(args) -> int:
                      f"{m['nees']['average']:.2f}" if "nees" in m else "-",
                      f"{m['nees']['fraction_inside'] * 100:.0f}" if "nees" in m else "-",
                      "-" if m.get("convergence_s") is None else f"{m['convergence_s']:.0f}",
+                     f"{m['cost']['ms_per_run']:.1f}" if "cost" in m else "-",
                      str(m["diverged_runs"])])
     print(_table(["estimator", "RMS pos N E D m", "RMS vel m/s", "RMS att deg", "NEES", "in band %",
-                  "converged s", "diverged"], rows))
+                  "converged s", "ms/run", "diverged"], rows))
     if scenario.reference:
         from navsim.metrics import lookup
         ref_rows = []

@@ -31,7 +31,9 @@ def window_quantities(h, good):
 
 def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
     """The metrics of one estimator's :class:`~navsim.montecarlo.EstimatorHistory`; ``good``
-    selects the runs counted (diverged ones are excluded by default)."""
+    selects the runs counted (diverged ones are excluded by default). Errors, NEES and NIS are
+    scored from ``settle_s`` on (``nees.average_from_start`` keeps the whole run); the
+    convergence time and the windows use the whole run."""
     if good is None:
         good = ~np.asarray(h.diverged, bool)
     after = h.t_s >= settle_s
@@ -55,6 +57,12 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
     out["final"] = {"pos_m": _rms(h.pos_err_m[good][:, -1], 0).tolist(),
                     "vel_mps": _rms(h.vel_err_mps[good][:, -1], 0).tolist(),
                     "att_deg": _rms(np.degrees(h.att_err_rad[good][:, -1]), 0).tolist()}
+    if h.cost is not None and h.cost["runs"]:
+        c = h.cost
+        out["cost"] = {"ms_per_run": (c["propagate_s"] + c["epoch_s"]) / c["runs"] * 1e3,
+                       "propagate_ms_per_run": c["propagate_s"] / c["runs"] * 1e3,
+                       "epoch_us_per_run": c["epoch_s"] / max(c["epochs"], 1) / c["runs"] * 1e6,
+                       "batch_runs": c["runs"] / c["batches"]}
     q = window_quantities(h, good)
     out["windows"] = {}
     for name, a, b in windows:
@@ -66,13 +74,15 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
     if h.nees is not None:
         n = int(good.sum())
         lo, hi = chi2_band(9, n)
-        mean = np.nanmean(h.nees[good], axis=0)[1:]
+        mean_all = np.nanmean(h.nees[good], axis=0)
+        mean = mean_all[after & (h.t_s > 0)]
         out["nees"] = {"average": float(np.nanmean(mean)), "band": [lo, hi],
-                       "fraction_inside": float(np.mean((mean > lo) & (mean < hi))), "dim": 9}
+                       "fraction_inside": float(np.mean((mean > lo) & (mean < hi))), "dim": 9,
+                       "average_from_start": float(np.nanmean(mean_all[1:]))}
         out["nis"] = {}
         for key, nis in h.nis.items():
             d = h.nis_dim[key]
-            v = nis[good]
+            v = nis[good][:, after]
             cols = ~np.isnan(v).all(axis=0)
             if not cols.any():
                 continue
@@ -87,8 +97,11 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
 def convergence_time(t_s, err, factor: float = 2.0):
     """First time after which ``err`` (the Monte Carlo RMS of the position error norm) stays
     below ``factor`` times its steady value (the median over the second half of the run);
-    None if it never settles."""
+    None if it never settles or if the steady error is not below the initial one (an error that
+    grows, as free inertial navigation's, has not converged)."""
     steady = np.nanmedian(err[len(err) // 2:])
+    if not steady < err[0]:
+        return None
     above = np.flatnonzero(~(err <= factor * steady))
     if above.size == 0:
         return float(t_s[0])

@@ -9,6 +9,7 @@ filter's 1-sigma, NEES and the innovations' NIS (:class:`EstimatorHistory`).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -90,6 +91,9 @@ class EstimatorHistory:
     diverged: np.ndarray           #: (B,) bool
     gyro_bias: np.ndarray | None = None    #: (B, E, 3) estimated, rad/s
     accel_bias: np.ndarray | None = None   #: (B, E, 3) estimated, m/s^2
+    #: CPU seconds spent in ``propagate`` and in the epochs (predict + corrections), summed over
+    #: the batches, and the number of runs and filter epochs they covered
+    cost: dict | None = None
 
 
 def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialErrors, seed: int,
@@ -116,12 +120,17 @@ def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialError
     epoch_every = {label: int(round(est.period_s / dt)) for label, est in estimators.items()}
     for label, est in estimators.items():
         rec[label].add(est, truth, 0, 0.0, [])
+    clock = time.perf_counter
     for i in range(1, n):
         t = imu.t_s[i]
         for label, est in estimators.items():
+            c0 = clock()
             est.propagate(dth[:, i], dv[:, i], dt)
+            c1 = clock()
+            rec[label].propagate_s += c1 - c0
             if i % epoch_every[label] == 0:
                 innov = est.epoch(t, sensors)
+                rec[label].epoch_s += clock() - c1
                 rec[label].add(est, truth, i * step, t, innov)
         if progress is not None and i % 1000 == 0:
             progress(i, n)
@@ -135,6 +144,7 @@ class _Recorder:
         self.bg, self.ba = [], []
         self.nis: dict = {}
         self.nis_dim: dict = {}
+        self.propagate_s = self.epoch_s = 0.0
 
     def add(self, est, truth, k, t, innovations):
         sol = est.solution()
@@ -176,4 +186,6 @@ class _Recorder:
             nees=np.stack(self.nees, axis=1) if self.nees else None, nis=nis, nis_dim=self.nis_dim,
             diverged=np.asarray(est.solution().extra.get("diverged", False)) | ~np.all(
                 np.isfinite(stack(self.pos)), axis=(1, 2)),
-            gyro_bias=stack(self.bg) if self.bg else None, accel_bias=stack(self.ba) if self.ba else None)
+            gyro_bias=stack(self.bg) if self.bg else None, accel_bias=stack(self.ba) if self.ba else None,
+            cost={"propagate_s": self.propagate_s, "epoch_s": self.epoch_s, "runs": len(self.pos[0]),
+                  "epochs": E - 1, "batches": 1})

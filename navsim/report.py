@@ -61,10 +61,12 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
         rows.append([label, _fmt(rms.get("pos_m")), _fmt(rms.get("vel_mps")), _fmt(rms.get("att_deg")),
                      _fmt(m.get("nees", {}).get("average")),
                      f"{m.get('nees', {}).get('fraction_inside', float('nan')) * 100:.0f} %" if "nees" in m else "-",
-                     _fmt(m.get("convergence_s")), str(m["diverged_runs"])])
-    lines += [f"RMS after {scenario.settle_s:g} s (N, E, D), over all runs:", ""]
+                     _fmt(m.get("convergence_s")), _fmt(m.get("cost", {}).get("ms_per_run")),
+                     _fmt(m.get("cost", {}).get("epoch_us_per_run")), str(m["diverged_runs"])])
+    lines += [f"RMS, NEES and NIS after {scenario.settle_s:g} s (N, E, D), over all runs; cost: wall time "
+              "per run of the batched filter (propagation + epochs), and of one epoch:", ""]
     lines += _table_lines(["estimator", "pos m", "vel m/s", "att deg", "NEES avg", "NEES in band",
-                           "converged s", "diverged"], rows)
+                           "converged s", "ms/run", "epoch us/run", "diverged"], rows)
     for label, m in metrics["estimators"].items():
         for name, qs in m.get("windows", {}).items():
             lines += ["", f"{label}: window '{name}'"]

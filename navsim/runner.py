@@ -101,6 +101,14 @@ def _chunk(args):
     return list(runs), hist, bias
 
 
+def _sum_cost(costs):
+    if any(c is None for c in costs):
+        return None
+    return {"propagate_s": sum(c["propagate_s"] for c in costs), "epoch_s": sum(c["epoch_s"] for c in costs),
+            "runs": sum(c["runs"] for c in costs), "epochs": costs[0]["epochs"],
+            "batches": sum(c["batches"] for c in costs)}
+
+
 def _merge(parts):
     from navsim.montecarlo import EstimatorHistory
     parts = sorted(parts, key=lambda p: p[0][0])
@@ -115,7 +123,7 @@ def _merge(parts):
             pos_err_m=cat("pos_err_m"), sigma=cat("sigma"), nees=cat("nees"),
             nis={k: np.concatenate([h.nis[k] for h in hs]) for k in hs[0].nis},
             nis_dim=hs[0].nis_dim, diverged=cat("diverged"), gyro_bias=cat("gyro_bias"),
-            accel_bias=cat("accel_bias"))
+            accel_bias=cat("accel_bias"), cost=_sum_cost([h.cost for h in hs]))
     bias = {k: np.concatenate([p[2][k] for p in parts]) for k in parts[0][2]}
     return runs, merged, bias
 

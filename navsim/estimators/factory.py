@@ -24,7 +24,7 @@ Each entry: ``label``, ``type`` (a registered estimator) and its parameters. For
                window_s: 10, surface_m: 0, gating_sigma: 3, average_radar: true}
 
 ``two_stage_adaptive`` (P0) takes the ES-KF keys plus
-``adaptive: {enabled: true, window: 30, floor: 0.2}`` (see :mod:`navsim.estimators.two_stage`).
+``adaptive: {enabled: true, window: 30, floor: 1.0}`` (see :mod:`navsim.estimators.two_stage`).
 
 Other registered types (third-party) get their parameters as keyword arguments.
 """
@@ -75,11 +75,11 @@ def parse_estimators(data, sensors: dict, file: str | None = None, path: str = "
                 if block not in params["states"]:
                     raise node.error(f"the two-stage filter needs the '{block}' block", "states")
             ad = node.child("adaptive", None)
-            params["adaptive"] = {"adaptive": True, "window": 30, "floor": 0.2}
+            params["adaptive"] = {"adaptive": True, "window": 30, "floor": 1.0}
             if ad is not None:
                 params["adaptive"] = {"adaptive": ad.get("enabled", bool, True),
                                       "window": ad.get("window", int, 30, minimum=1),
-                                      "floor": ad.get("floor", float, 0.2, exclusive_minimum=0.0)}
+                                      "floor": ad.get("floor", float, 1.0, exclusive_minimum=0.0)}
                 ad.done()
         elif kind == "p2_dynamic_height":
             params = _eskf_params(node, sensors)

@@ -8,7 +8,11 @@ ADS values ``(B, M)``: ``p_static_pa``, ``p_total_pa``, ``temp_k`` (sensors with
 per-run bias), and what the ADS computes from them: ``h_pressure_m`` (pressure altitude),
 ``cas_mps``, ``tas_mps``, and ``vel_n_mps`` ``(B, M, 3)``, the ground velocity P0 feeds its filter:
 the true airspeed along the body x axis rotated to NED with the attitude, plus a wind estimate
-(zero, as in P0, unless ``wind_estimate_n_mps`` is given). ``formula: p0`` uses P0's printed
+(zero, as in P0, unless ``wind_estimate_n_mps`` is given). With ``velocity_axis: air`` the
+airspeed is along the air-relative direction measured by angle-of-attack and sideslip vanes
+(``alpha_rad``, ``beta_rad`` values), which removes P0's angle-of-attack error (about 1 m/s
+at cruise). ``pitot: differential`` measures the dynamic pressure directly, so that the static
+sensor's bias no longer enters the airspeed. ``formula: p0`` uses P0's printed
 formulas (``H_p = 145442 (1 - (Ps/29.9213)^0.19026)`` ft and ``V = sqrt(2 q / rho)``).
 """
 
@@ -61,7 +65,11 @@ def emulate_ads(truth, spec: AdsSpec, seed: int, runs, faults=(), name: str = "a
         return out
 
     ps = sensor(truth.p_static_pa[::step], spec.static_noise, spec.static_bias_sigma)
-    pt = sensor(truth.p_total_pa[::step], spec.total_noise, spec.total_bias_sigma)
+    if spec.pitot == "differential":
+        qc_true = truth.p_total_pa[::step] - truth.p_static_pa[::step]
+        pt = ps + sensor(qc_true, spec.total_noise, spec.total_bias_sigma)
+    else:
+        pt = sensor(truth.p_total_pa[::step], spec.total_noise, spec.total_bias_sigma)
     temp = sensor(truth.temp_k[::step], spec.temperature_noise, 0.0)
     pt = np.maximum(pt, ps)          # a pitot never reads below static
     if spec.formula == "p0":
@@ -71,13 +79,23 @@ def emulate_ads(truth, spec: AdsSpec, seed: int, runs, faults=(), name: str = "a
         h_p = atm.pressure_altitude(ps)
         tas = atm.tas_from_air_data(pt, ps, temp)
     cas = atm.cas_from_qc(pt - ps)
-    x_n = dcm_from_quat(truth.quat_nb[::step])[:, :, 0]          # body x axis in NED
-    vel = tas[..., None] * x_n[None] + np.asarray(wind_estimate_n_mps, float)
+    C_nb = dcm_from_quat(truth.quat_nb[::step])
+    values = {}
+    if spec.velocity_axis == "air":
+        alpha = sensor(truth.alpha_rad[::step], spec.vane_noise, 0.0)
+        beta = sensor(truth.beta_rad[::step], spec.vane_noise, 0.0)
+        dir_b = np.stack([np.cos(alpha) * np.cos(beta), np.sin(beta), np.sin(alpha) * np.cos(beta)], -1)
+        dir_n = np.einsum("mij,bmj->bmi", C_nb, dir_b)
+        values = {"alpha_rad": alpha, "beta_rad": beta}
+    else:
+        dir_n = C_nb[None, :, :, 0]                                # body x axis in NED
+    vel = tas[..., None] * dir_n + np.asarray(wind_estimate_n_mps, float)
     valid = np.ones((B, M), bool)
     apply_outages(valid, t, faults)
     return SensorData(name=name, kind="ads", t_s=t,
                       values={"p_static_pa": ps, "p_total_pa": pt, "temp_k": temp,
-                              "h_pressure_m": h_p, "cas_mps": cas, "tas_mps": tas, "vel_n_mps": vel},
+                              "h_pressure_m": h_p, "cas_mps": cas, "tas_mps": tas, "vel_n_mps": vel,
+                              **values},
                       valid=valid,
                       errors={"h_error_m": h_p - truth.h_m[::step], "tas_error_mps": tas - truth.tas_mps[::step],
                               "vel_error_n_mps": vel - truth.vel_n_mps[::step]},

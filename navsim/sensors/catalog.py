@@ -74,7 +74,9 @@ FIELDS: dict[str, dict] = {
             "total_noise": ("total_noise", "pressure", "1"),
             "total_bias_sigma": ("total_bias_sigma", "pressure", "1"),
             "temperature_noise": ("temperature_noise", "temperature", "1"),
-            "formula": ("formula", None, "str")},
+            "formula": ("formula", None, "str"), "pitot": ("pitot", None, "str"),
+            "velocity_axis": ("velocity_axis", None, "str"),
+            "vane_noise": ("vane_noise", "angle", "1")},
     "radar_altimeter": {"rate_hz": ("rate_hz", None, "plain"), "noise": ("noise", "length", "1"),
                         "noise_ratio": ("noise_ratio", "ratio", "1"),
                         "min_range": ("min_range", "length", "1"),
@@ -93,7 +95,8 @@ FIELDS: dict[str, dict] = {
                "noise_ratio": ("noise_ratio", "ratio", "1"),
                "landmarks": ("landmarks", None, "landmarks")},
 }
-_CHOICES = {"type": ("sine", "random"), "formula": ("isa", "p0")}
+_CHOICES = {"type": ("sine", "random"), "formula": ("isa", "p0"),
+            "pitot": ("absolute", "differential"), "velocity_axis": ("body_x", "air")}
 _NON_NEGATIVE_EXCEPT = {"bias", "offset", "scale_factor", "hard_iron", "lever_arm", "soft_iron"}
 META_KEYS = {"kind", "description", "source", "name"}
 

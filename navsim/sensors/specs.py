@@ -92,7 +92,13 @@ class BaroSpec:
 
 @dataclass(frozen=True)
 class AdsSpec:
-    """Air data system (P0): static and total pressure and temperature sensors."""
+    """Air data system (P0): static and total pressure and temperature sensors.
+
+    ``pitot: absolute`` measures the total pressure with its own absolute sensor (its error and
+    the static sensor's both enter the dynamic pressure); ``differential`` measures the dynamic
+    pressure ``pt - ps`` with a differential sensor, ``total_*`` then being that sensor's noise
+    and bias. ``velocity_axis: body_x`` gives P0's ground velocity (airspeed along the body x
+    axis); ``air`` uses angle-of-attack and sideslip vanes (``vane_noise``) for the direction."""
 
     rate_hz: float = 10.0
     static_noise: float = 0.0                 #: Pa
@@ -101,6 +107,9 @@ class AdsSpec:
     total_bias_sigma: float = 0.0             #: Pa, per run
     temperature_noise: float = 0.0            #: K
     formula: str = "isa"                      #: "isa" (exact) or "p0" (P0's printed formulas)
+    pitot: str = "absolute"                   #: "absolute" or "differential"
+    velocity_axis: str = "body_x"             #: "body_x" (P0) or "air" (alpha/beta vanes)
+    vane_noise: float = 0.0                   #: rad, alpha and beta vanes
 
 
 @dataclass(frozen=True)
@@ -155,7 +164,7 @@ ERROR_FIELDS = {
     "gnss": ["position_sigma", "velocity_sigma", "markov_sigma", "latency_s", "lever_arm_b"],
     "baro": ["offset", "offset_sigma", "markov_sigma", "noise"],
     "ads": ["static_noise", "static_bias_sigma", "total_noise", "total_bias_sigma",
-            "temperature_noise"],
+            "temperature_noise", "vane_noise"],
     "radar_altimeter": ["noise", "noise_ratio", "tilt_noise_gain", "wave_height",
                         "beam_half_width"],
     "magnetometer": ["hard_iron", "hard_iron_sigma", "soft_iron", "soft_iron_sigma", "noise"],

@@ -165,6 +165,32 @@ def test_ads_p0_formula_and_ground_velocity(truth):
     assert np.all(err <= truth.tas_mps[::10] * (np.abs(truth.alpha_rad[::10]) + np.abs(truth.beta_rad[::10]) + 1e-3))
 
 
+def test_ads_vanes_give_the_ground_velocity_in_calm_air(truth):
+    ideal_air = ideal(load_spec("p0_ads", {"velocity_axis": "air"}))
+    ads = emulate(truth, SensorConfig("ads", "x", ideal_air), 1, [0])
+    # airspeed along the vane-measured air-relative direction: calm air -> the ground velocity
+    np.testing.assert_allclose(ads.values["vel_n_mps"][0], truth.vel_n_mps[::10], atol=0.02)
+    np.testing.assert_array_equal(ads.values["alpha_rad"][0], truth.alpha_rad[::10])
+    # vane noise tilts the direction by about V * sigma
+    noisy = emulate(truth, SensorConfig("ads", "x", load_spec("p0_ads", {"velocity_axis": "air", "vane_noise": "0.5 deg",
+                                                                         "static_noise": "0 Pa", "total_noise": "0 Pa",
+                                                                         "static_bias_sigma": "0 Pa", "total_bias_sigma": "0 Pa"})), 1, [0])
+    err = noisy.values["vel_n_mps"][0] - truth.vel_n_mps[::10]
+    assert np.sqrt((err ** 2).sum(-1).mean()) == pytest.approx(14.0 * math.radians(0.5) * math.sqrt(2), rel=0.15)
+
+
+def test_differential_pitot_keeps_the_static_bias_out_of_the_airspeed(truth):
+    runs = range(200)
+    only_static_bias = {"static_noise": "0 Pa", "total_noise": "0 Pa", "total_bias_sigma": "0 Pa",
+                        "temperature_noise": "0 K", "static_bias_sigma": "20 Pa"}
+    diff = emulate(truth, SensorConfig("ads", "x", load_spec("p0_ads", only_static_bias)), 1, runs)
+    absolute = emulate(truth, SensorConfig("ads", "x", load_spec("p0_ads", {**only_static_bias, "pitot": "absolute"})), 1, runs)
+    # dq = 20 Pa -> dV = dq / (rho V) ~ 1.3 m/s with two absolute sensors; ~0 with a differential one
+    assert np.abs(diff.errors["tas_error_mps"]).max() < 0.05
+    assert np.std(absolute.errors["tas_error_mps"][:, 0]) == pytest.approx(
+        20.0 / (truth.p_static_pa[0] / (287.05 * truth.temp_k[0]) * truth.tas_mps[0]), rel=0.2)
+
+
 def test_magnetometer_field_and_iron(truth):
     t = truth.t_s[::10]
     m_n = field_along(truth, t, "2025-01-01")

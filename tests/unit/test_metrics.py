@@ -16,6 +16,7 @@ def test_convergence_time_of_an_exponential_decay():
     expected = 10 * math.log(10 / (2 * steady - 1))
     assert convergence_time(t, err) == pytest.approx(math.ceil(expected))
     assert convergence_time(t, np.exp(t / 10)) is None
+    assert convergence_time(t, 1 + 1e-6 * t ** 3) is None          # free-inertial drift
 
 
 def test_chi2_band_of_an_average():
@@ -46,3 +47,18 @@ def test_score_of_a_known_history():
     h.pos_err_m[0] = np.nan
     m = score(h, 10.0)
     assert m["diverged_runs"] == 1 and m["runs_counted"] == B - 1 and np.isfinite(m["rms"]["pos_m"]).all()
+
+
+def test_nees_is_scored_after_the_settling_time():
+    rng = np.random.default_rng(4)
+    B, E = 200, 60
+    t = np.arange(E, dtype=float)
+    z = np.zeros((B, E, 3))
+    nees = rng.chisquare(9, size=(B, E))
+    nees[:, :20] *= 50.0                        # an adaptive filter still learning its R
+    h = EstimatorHistory("x", t, z, z, z, np.ones((B, E, 9)), nees, {}, {}, np.zeros(B, bool))
+    lo, hi = chi2_band(9, B)
+    settled = score(h, settle_s=20.0)["nees"]
+    assert lo < settled["average"] < hi and settled["fraction_inside"] > 0.8
+    assert settled["average_from_start"] > 100.0
+    assert score(h, settle_s=0.0)["nees"]["average"] > 100.0
