@@ -1,12 +1,13 @@
 """Reading YAML configuration with errors that name the key path, what was expected and a hint.
 
-YAML is read with ``yaml.safe_load`` and nothing in it is evaluated.
+YAML is read with a ``yaml.SafeLoader`` subclass (YAML 1.2 booleans) and nothing in it is evaluated.
 """
 
 from __future__ import annotations
 
 import difflib
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -19,15 +20,29 @@ _TYPE_NAMES = {float: "a number", int: "an integer", str: "a string", bool: "tru
                dict: "a mapping", list: "a list"}
 
 
+class SafeLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` with YAML 1.2 booleans: only ``true``/``false`` are booleans, so that
+    keys and values such as ``off`` (a sensor's switched-off error sources), ``on``, ``yes``,
+    ``no`` stay strings (PyYAML's YAML 1.1 default reads ``off:`` as the key ``False``)."""
+
+
+SafeLoader.yaml_implicit_resolvers = {
+    first: [(tag, rx) for tag, rx in resolvers if tag != "tag:yaml.org,2002:bool"]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+SafeLoader.add_implicit_resolver("tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"),
+                                 list("tTfF"))
+
+
 def load_yaml(path: str | Path) -> Any:
-    """Read a YAML file with ``safe_load``; syntax errors become :class:`ScenarioError`."""
+    """Read a YAML file with the safe loader (:class:`SafeLoader`: no object construction, YAML
+    1.2 booleans); syntax errors become :class:`ScenarioError`."""
     path = Path(path)
     try:
         text = path.read_text()
     except OSError as exc:
         raise ScenarioError(f"cannot read the file: {exc.strerror}", file=str(path)) from None
     try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=SafeLoader)  # noqa: S506 (a SafeLoader subclass)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else None

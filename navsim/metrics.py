@@ -71,6 +71,14 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
             key: {"max_pos": float(np.nanmax(v[:, m])), "max_neg": float(np.nanmin(v[:, m])),
                   "std": float(np.nanstd(v[:, m])), "rms": float(_rms(v[:, m], (0, 1)))}
             for key, v in q.items()} if m.any() else {}
+        if m.any():
+            out["windows"][name]["horizontal_m"] = {"rms": float(_rms(np.hypot(*np.moveaxis(
+                h.pos_err_m[good][:, m, :2], -1, 0)), (0, 1)))}
+        if m.any() and h.nees is not None and good.any():
+            lo, hi = chi2_band(9, int(good.sum()))
+            mean = np.nanmean(h.nees[good][:, m], axis=0)
+            out["windows"][name]["nees"] = {"average": float(np.nanmean(mean)),
+                                            "fraction_inside": float(np.mean((mean > lo) & (mean < hi)))}
     if h.nees is not None:
         n = int(good.sum())
         lo, hi = chi2_band(9, n)
@@ -94,20 +102,23 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
     return out
 
 
-def convergence_time(t_s, err, factor: float = 2.0):
-    """First time after which ``err`` (the Monte Carlo RMS of the position error norm) stays
-    below ``factor`` times its steady value (the median over the second half of the run);
-    None if it never settles or if the steady error is not below the initial one (an error that
-    grows, as free inertial navigation's, has not converged)."""
+def convergence_time(t_s, err, factor: float = 2.0, hold_s: float = 60.0):
+    """First time from which ``err`` (the Monte Carlo RMS of the position error norm) stays
+    below ``factor`` times its steady value (the median over the second half of the run) for
+    ``hold_s`` (or to the end of the run), so that a later fault window does not count as
+    a failure to converge; None if it never does, or if the steady error is not below the
+    initial one (an error that grows, as free inertial navigation's, has not converged)."""
+    t_s, err = np.asarray(t_s, float), np.asarray(err, float)
     steady = np.nanmedian(err[len(err) // 2:])
     if not steady < err[0]:
         return None
-    above = np.flatnonzero(~(err <= factor * steady))
-    if above.size == 0:
-        return float(t_s[0])
-    if above[-1] >= len(err) - 1:
-        return None
-    return float(t_s[above[-1] + 1])
+    ok = err <= factor * steady
+    bad_t = t_s[~ok]
+    for i in np.flatnonzero(ok):
+        later_bad = bad_t[bad_t > t_s[i]]
+        if later_bad.size == 0 or later_bad[0] - t_s[i] >= hold_s:
+            return float(t_s[i])
+    return None
 
 
 def lookup(metrics: dict, path: str):

@@ -71,8 +71,11 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
         for name, qs in m.get("windows", {}).items():
             lines += ["", f"{label}: window '{name}'"]
             lines += _table_lines(["quantity", "max positive", "max negative", "std", "rms"],
-                                  [[q, _fmt(v["max_pos"]), _fmt(v["max_neg"]), _fmt(v["std"]), _fmt(v["rms"])]
-                                   for q, v in qs.items()])
+                                  [[q, _fmt(v.get("max_pos")), _fmt(v.get("max_neg")), _fmt(v.get("std")),
+                                    _fmt(v.get("rms"))] for q, v in qs.items() if q != "nees"])
+            if "nees" in qs:
+                lines += [f"  NEES average {qs['nees']['average']:.3g}, "
+                          f"{qs['nees']['fraction_inside'] * 100:.0f} % of the epochs inside the 95 % band"]
     if scenario.reference:
         lines += ["", f"published ({scenario.reference['source']}) versus ours:"]
         if scenario.reference.get("note"):
@@ -86,9 +89,17 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
     return lines
 
 
-def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5):
+def _shade(ax, spans, label: bool = False):
+    """Shade the metric windows ``(name, start_s, end_s)`` (fault, interference, sighting)."""
+    for name, a, b in spans:
+        ax.axvspan(a, b, color="tab:orange", alpha=0.12, lw=0)
+        if label:
+            ax.text(a, 1.0, name, transform=ax.get_xaxis_transform(), fontsize=6, rotation=90, va="top")
+
+
+def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5, spans=()):
     """Per quantity: each axis against time, estimators overlaid: Monte Carlo RMS (solid),
-    the filter's mean 3-sigma (dashed), a few runs (thin)."""
+    the filter's mean 3-sigma (dashed), a few runs (thin); the metric windows shaded."""
     plt = _plt()
     colors = plt.cm.tab10(np.arange(10))
     figs = []
@@ -116,6 +127,7 @@ def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5):
             ax.set_ylabel(f"{names[j]}, {unit}", fontsize=8)
             ax.grid(alpha=0.3)
             ax.axvline(settle_s, color="0.5", lw=0.8, ls=":")
+            _shade(ax, spans, label=j == 0)
             _symlog_if_needed(ax)
         axs[0].legend(fontsize=7, loc="upper right", ncol=2)
         axs[-1].set_xlabel("time, s")
@@ -135,7 +147,7 @@ def _symlog_if_needed(ax):
         ax.set_yscale("symlog", linthresh=max(np.percentile(y, 50), 1e-9))
 
 
-def consistency_figure(histories: dict):
+def consistency_figure(histories: dict, spans=()):
     plt = _plt()
     filters = {k: h for k, h in histories.items() if h.nees is not None}
     if not filters:
@@ -163,6 +175,8 @@ def consistency_figure(histories: dict):
             axs[i].set_ylabel(f"NIS {key}\n({label}, dim {d})", fontsize=7)
             axs[i].grid(alpha=0.3)
             i += 1
+    for j, ax in enumerate(axs):
+        _shade(ax, spans, label=j == 0)
     axs[0].set_ylabel("average NEES\n(pos, vel, att: 9)", fontsize=8)
     axs[0].legend(fontsize=7)
     axs[0].grid(alpha=0.3)
@@ -263,9 +277,9 @@ def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict
     pages.append(("scenario", _text_page("resolved scenario", text)))
     pages += [(f"flight_{n}", f) for n, f in flight_figures(truth)]
     if result.histories:
-        pages += error_figures(result.histories, scenario.settle_s, runs_plotted)
+        pages += error_figures(result.histories, scenario.settle_s, runs_plotted, scenario.windows)
         pages += height_figure(result.histories, scenario)
-        pages += consistency_figure(result.histories)
+        pages += consistency_figure(result.histories, scenario.windows)
         pages += bias_figure(result.histories, result.truth_bias)
     files = []
     fmts = scenario.report.get("formats", ["pdf", "png"])

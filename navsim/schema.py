@@ -78,7 +78,19 @@ def scenario_schema() -> dict:
                                            "gps, radar, baro and the fusion's numbers"},
                                 "adaptive": _obj({"enabled": {"type": "boolean"},
                                                   "window": {"type": "integer", "minimum": 1},
-                                                  "floor": POS})}}
+                                                  "floor": POS}),
+                                "sage_husa": _obj({"forgetting": {"type": "number", "exclusiveMinimum": 0,
+                                                                  "exclusiveMaximum": 1},
+                                                   "floor": POS, "sensors": {"type": "array", "items": {"type": "string"}}}),
+                                "locals": {"type": "array", "items": _obj({
+                                    "name": {"type": "string"}, "beta": POS,
+                                    "measurements": {"type": "array", "items": measurement}}, ["name", "beta", "measurements"])},
+                                "master_beta": NUM, "reset": {"type": "boolean"},
+                                "isolation": _obj({"window": {"type": "number", "minimum": 1}, "p": POS}),
+                                "fuzzy": _obj({"window": {"type": "number", "minimum": 1},
+                                               "rules": {"type": "array", "items": {
+                                                   "type": "array", "items": POS, "minItems": 2, "maxItems": 2}},
+                                               "sensors": {"type": "array", "items": {"type": "string"}}})}}
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": "navsim scenario",

@@ -152,10 +152,16 @@ class ErrorStateKF:
 
     def correct(self, model, data, j: int, t: float) -> Innovation:
         z, H, R, valid = model.model(self.sd.state, self.layout, data, j)
+        R = self.measurement_noise(model, z, H, R, valid)
         self.x, self.P, y, S, nis = kalman.update(self.x, self.P, z, H, R, valid)
         bad = ~np.all(np.isfinite(self.P), axis=(1, 2)) | (np.diagonal(self.P, axis1=1, axis2=2) < 0).any(-1)
         self.diverged |= bad
         return Innovation(model.name, model.sensor, t, y, S, nis)
+
+    def measurement_noise(self, model, z, H, R, valid):
+        """The R used for this update: the model's own here; adaptive filters override it
+        (``z, H`` are the model's, ``valid`` the runs that have a sample)."""
+        return R
 
     def feedback(self) -> None:
         """Inject the estimated errors into the mechanization and the IMU compensation."""

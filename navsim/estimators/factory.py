@@ -26,6 +26,15 @@ Each entry: ``label``, ``type`` (a registered estimator) and its parameters. For
 ``two_stage_adaptive`` (P0) takes the ES-KF keys plus
 ``adaptive: {enabled: true, window: 30, floor: 1.0}`` (see :mod:`navsim.estimators.two_stage`).
 
+``federated`` (P1) takes the ES-KF keys with ``locals`` instead of ``measurements``:
+``locals: [{name: SINS/GPS, beta: 0.5, measurements: [...]}, ...]``, ``master_beta: 0``,
+``reset: true`` and ``isolation: {window: 5, p: 0.999}`` (see :mod:`navsim.estimators.federated`).
+
+``sage_husa`` (P1) takes the ES-KF keys plus ``sage_husa: {forgetting: 0.95, floor: 1.0,
+sensors: [gps]}`` and ``fuzzy_adaptive`` (P1) ``fuzzy: {window: 3, sensors: [gps],
+rules: [[1, 1], [2, 4], [3, 9], [5, 25], [10, 100]]}`` (see their modules); ``sensors`` lists
+the sensors whose R is adapted (default: all).
+
 Other registered types (third-party) get their parameters as keyword arguments.
 """
 
@@ -84,6 +93,12 @@ def parse_estimators(data, sensors: dict, file: str | None = None, path: str = "
         elif kind == "p2_dynamic_height":
             params = _eskf_params(node, sensors)
             params["height"] = _height_params(node.child("height"), sensors)
+        elif kind == "federated":
+            params = _eskf_params(node, sensors)
+            params["federated"] = _federated_params(node, sensors)
+        elif kind in ("sage_husa", "fuzzy_adaptive"):
+            params = _eskf_params(node, sensors)
+            params["adaptive"] = _adaptive_params(node, kind, sensors)
         elif kind == "sins":
             params = {"period_s": node.get("period_s", float, 1.0, exclusive_minimum=0.0)}
         else:
@@ -152,12 +167,25 @@ def _eskf_params(node: Node, sensors: dict) -> dict:
         baro.done()
     if "baro" in blocks and params["baro"]["sigma_m"] == 0.0:
         raise node.error("the 'baro' state needs its model", "baro", expected="{sigma_m: ..., tau_s: ...}")
-    node._seen.add("measurements")
-    raw = node.data.get("measurements")
-    if not isinstance(raw, list) or not raw:
-        raise node.error("is missing or empty", "measurements",
-                         expected="a list of measurement models",
-                         hint="e.g. [{type: gnss_position, sensor: gps, sigma_m: [2, 2, 1]}]")
+    if node.data.get("type") == "federated":
+        params["measurements"] = []
+        return params
+    params["measurements"] = _measurements(node, sensors)
+    return params
+
+
+def _list(node: Node, key: str, minimum: int, expected: str, hint: str) -> list:
+    node._seen.add(key)
+    raw = node.data.get(key)
+    if not isinstance(raw, list) or len(raw) < minimum:
+        raise node.error("is missing or too short", key, expected=expected, hint=hint)
+    return raw
+
+
+def _measurements(node: Node, sensors: dict) -> list:
+    """The ``measurements`` list of an estimator (or of a federated filter's local filter)."""
+    raw = _list(node, "measurements", 1, "a list of measurement models",
+                "e.g. [{type: gnss_position, sensor: gps, sigma_m: [2, 2, 1]}]")
     meas = []
     for j, item in enumerate(raw):
         m = Node(item, node.key(f"measurements[{j}]"), node.file)
@@ -183,8 +211,70 @@ def _eskf_params(node: Node, sensors: dict) -> dict:
             entry["offset_m"] = m.get("offset_m", float, 0.0)
         m.done()
         meas.append(entry)
-    params["measurements"] = meas
-    return params
+    return meas
+
+
+def _federated_params(node: Node, sensors: dict) -> dict:
+    """``locals: [{name, beta, measurements}]``, ``master_beta``, ``reset``, ``isolation``."""
+    raw = _list(node, "locals", 2, "a list of at least two {name, beta, measurements}",
+                "e.g. [{name: SINS/GPS, beta: 0.5, measurements: [...]}, ...]")
+    out = []
+    for i, item in enumerate(raw):
+        loc = Node(item, node.key(f"locals[{i}]"), node.file)
+        out.append({"name": loc.get("name", str), "beta": loc.get("beta", float, exclusive_minimum=0.0),
+                    "measurements": _measurements(loc, sensors)})
+        loc.done()
+    master = node.get("master_beta", float, 0.0, minimum=0.0)
+    total = sum(o["beta"] for o in out) + master
+    if abs(total - 1.0) > 1e-6:
+        raise node.error(f"the information-sharing factors add up to {total:g}", "locals",
+                         expected="sum of the locals' beta + master_beta = 1")
+    iso = node.child("isolation", None)
+    isolation = None
+    if iso is not None:
+        isolation = {"window": iso.get("window", float, 5.0, minimum=1.0),
+                     "p": iso.get("p", float, 0.999, exclusive_minimum=0.5, maximum=0.999999)}
+        iso.done()
+    return {"locals": out, "master_beta": master, "reset": node.get("reset", bool, True),
+            "isolation": isolation}
+
+
+def _adaptive_params(node: Node, kind: str, sensors: dict) -> dict:
+    """``sage_husa:`` / ``fuzzy:`` blocks (both optional)."""
+    key = "sage_husa" if kind == "sage_husa" else "fuzzy"
+    sub = node.child(key, None)
+    if sub is None:
+        return {}
+    out = {}
+    if kind == "sage_husa":
+        out["forgetting"] = sub.get("forgetting", float, 0.95, exclusive_minimum=0.0, maximum=0.9999)
+        out["floor"] = sub.get("floor", float, 1.0, exclusive_minimum=0.0)
+    else:
+        out["window"] = sub.get("window", float, 3.0, minimum=1.0)
+        sub._seen.add("rules")
+        rules = sub.data.get("rules")
+        if rules is not None:
+            ok = (isinstance(rules, list) and rules and all(
+                isinstance(r, list) and len(r) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                         for x in r) for r in rules))
+            arr = np.asarray(rules, float) if ok else None
+            if not ok or np.any(np.diff(arr[:, 0]) <= 0) or np.any(arr[:, 1] <= 0):
+                raise sub.error(f"is {rules!r}", "rules",
+                                expected="a list of [r, s] pairs with r increasing and s > 0",
+                                hint="e.g. [[1, 1], [2, 4], [3, 9], [5, 25], [10, 100]]")
+            out["rules"] = [[float(a), float(b)] for a, b in rules]
+    sub._seen.add("sensors")
+    names = sub.data.get("sensors")
+    if names is not None:
+        if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+            raise sub.error(f"is {names!r}", "sensors", expected="a list of sensor names")
+        for n in names:
+            if n not in sensors:
+                raise sub.error(f"'{n}' is not a sensor of this scenario", "sensors",
+                                expected="one of " + ", ".join(sensors), hint=close_match(n, sensors))
+        out["sensors"] = list(names)
+    sub.done()
+    return out
 
 
 def _height_params(node: Node, sensors: dict) -> dict:
@@ -208,37 +298,56 @@ def _height_params(node: Node, sensors: dict) -> dict:
     return out
 
 
+def _models(entries: list) -> list:
+    from navsim.estimators.measurements import GnssHorizontal
+    models = []
+    for m in entries:
+        if m["type"] == "gnss_position":
+            models.append(GnssPosition(m["sensor"], np.array(m["sigma_m"])))
+        elif m["type"] == "gnss_horizontal":
+            models.append(GnssHorizontal(m["sensor"], np.array(m["sigma_m"])))
+        elif m["type"] == "velocity":
+            models.append(Velocity(m["sensor"], np.array(m["sigma_mps"]), field=m["field"]))
+        else:
+            models.append(Height(m["sensor"], m["sigma_m"], field=m["field"],
+                                 use_baro_state=m["baro_state"], offset_m=m["offset_m"]))
+    return models
+
+
+ESKF_FAMILY = ("eskf", "p2_dynamic_height", "two_stage_adaptive", "sage_husa", "fuzzy_adaptive", "federated")
+
+
 def build(config: EstimatorConfig):
     """A fresh estimator object from its configuration."""
     if config.type == "sins":
         from navsim.estimators.sins import FreeInertial
         return FreeInertial(**config.params)
-    if config.type in ("eskf", "p2_dynamic_height", "two_stage_adaptive"):
-        from navsim.estimators.eskf import ErrorStateKF
-        from navsim.estimators.measurements import GnssHorizontal
+    if config.type not in ESKF_FAMILY:
+        return base.get(config.type)(**config.params)
+    from navsim.estimators.eskf import ErrorStateKF
+    from navsim.sensors.catalog import load_spec
+    p = config.params
+    spec = load_spec(p["noise"]["imu"], p["noise"]["override"])
+    layout = Layout(tuple(p["states"]))
+    models = _models(p["measurements"])
+    kw = dict(baro_sigma_m=p["baro"]["sigma_m"], baro_tau_s=p["baro"]["tau_s"], period_s=p["period_s"],
+              discretization=p["discretization"], series_order=p["series_order"])
+    if config.type == "federated":
+        from navsim.estimators.federated import FederatedKF
+        f = p["federated"]
+        locals_ = [{**loc, "measurements": _models(loc["measurements"])} for loc in f["locals"]]
+        return FederatedKF.from_imu_spec(layout, spec, locals_, master_beta=f["master_beta"],
+                                         reset=f["reset"], isolation=f["isolation"], **kw)
+    if config.type == "two_stage_adaptive":
+        from navsim.estimators.two_stage import TwoStageAdaptiveKF
+        return TwoStageAdaptiveKF.from_imu_spec(layout, spec, models, **p["adaptive"], **kw)
+    if config.type == "sage_husa":
+        from navsim.estimators.sage_husa import SageHusaKF
+        return SageHusaKF.from_imu_spec(layout, spec, models, **p["adaptive"], **kw)
+    if config.type == "fuzzy_adaptive":
+        from navsim.estimators.fuzzy_adaptive import FuzzyAdaptiveKF
+        return FuzzyAdaptiveKF.from_imu_spec(layout, spec, models, **p["adaptive"], **kw)
+    if config.type == "p2_dynamic_height":
         from navsim.estimators.p2_height import DynamicHeightKF, HeightFusion
-        from navsim.sensors.catalog import load_spec
-        p = config.params
-        spec = load_spec(p["noise"]["imu"], p["noise"]["override"])
-        models = []
-        for m in p["measurements"]:
-            if m["type"] == "gnss_position":
-                models.append(GnssPosition(m["sensor"], np.array(m["sigma_m"])))
-            elif m["type"] == "gnss_horizontal":
-                models.append(GnssHorizontal(m["sensor"], np.array(m["sigma_m"])))
-            elif m["type"] == "velocity":
-                models.append(Velocity(m["sensor"], np.array(m["sigma_mps"]), field=m["field"]))
-            else:
-                models.append(Height(m["sensor"], m["sigma_m"], field=m["field"],
-                                     use_baro_state=m["baro_state"], offset_m=m["offset_m"]))
-        kw = dict(baro_sigma_m=p["baro"]["sigma_m"], baro_tau_s=p["baro"]["tau_s"], period_s=p["period_s"],
-                  discretization=p["discretization"], series_order=p["series_order"])
-        if config.type == "two_stage_adaptive":
-            from navsim.estimators.two_stage import TwoStageAdaptiveKF
-            return TwoStageAdaptiveKF.from_imu_spec(Layout(tuple(p["states"])), spec, models,
-                                                    **p["adaptive"], **kw)
-        if config.type == "p2_dynamic_height":
-            return DynamicHeightKF.from_imu_spec(Layout(tuple(p["states"])), spec, models,
-                                                 fusion=HeightFusion(**p["height"]), **kw)
-        return ErrorStateKF.from_imu_spec(Layout(tuple(p["states"])), spec, models, **kw)
-    return base.get(config.type)(**config.params)
+        return DynamicHeightKF.from_imu_spec(layout, spec, models, fusion=HeightFusion(**p["height"]), **kw)
+    return ErrorStateKF.from_imu_spec(layout, spec, models, **kw)

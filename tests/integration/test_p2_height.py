@@ -5,18 +5,13 @@ import pytest
 
 from navsim.estimators.p2_height import DynamicHeightKF, HeightFusion
 from navsim.metrics import score
-from navsim.runner import cached_flight, run_monte_carlo
-from navsim.scenario import load_scenario
+from navsim.runner import run_monte_carlo
 from navsim.strapdown import NavState
 
 
 @pytest.fixture(scope="module")
-def p2(repo_root, tmp_path_factory):
-    import os
-    os.environ.setdefault("NAVSIM_CACHE", str(tmp_path_factory.mktemp("cache")))
-    scenario = load_scenario(repo_root / "scenarios" / "p2_sea_height.yaml")
-    truth, path, _ = cached_flight(scenario.flight)
-    return scenario, truth, path
+def p2(shipped_flight):
+    return shipped_flight("p2_sea_height")
 
 
 def low_leg(metrics, window="low_leg"):

@@ -4,6 +4,7 @@ import jsonschema
 import pytest
 import yaml
 
+from navsim.config import SafeLoader
 from navsim.schema import scenario_schema, schema_text
 
 
@@ -14,7 +15,7 @@ def test_published_schema_is_current(repo_root):
 def test_shipped_scenarios_follow_the_schema(repo_root):
     schema = scenario_schema()
     for path in sorted((repo_root / "scenarios").glob("*.yaml")):
-        jsonschema.validate(yaml.safe_load(path.read_text()), schema)
+        jsonschema.validate(yaml.load(path.read_text(), Loader=SafeLoader), schema)
 
 
 @pytest.mark.parametrize("bad", [{"track": "p0", "trak": 1}, {"name": "x"},
@@ -23,3 +24,13 @@ def test_shipped_scenarios_follow_the_schema(repo_root):
 def test_schema_rejects_malformed(bad):
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate(bad, json.loads(schema_text()))
+
+
+def test_yaml_reads_off_as_a_string_and_keeps_true_false(tmp_path):
+    from navsim.config import load_yaml
+    path = tmp_path / "x.yaml"
+    path.write_text("off: [bias]\non: yes\nflag: true\nother: False\nobj: !!python/object:os.system ls\n")
+    with pytest.raises(Exception):                 # no object construction (safe loader)
+        load_yaml(path)
+    path.write_text("off: [bias]\non: yes\nflag: true\nother: False\n")
+    assert load_yaml(path) == {"off": ["bias"], "on": "yes", "flag": True, "other": False}
