@@ -109,7 +109,7 @@ def cmd_run(args) -> int:
     from navsim.metrics import score
     from navsim.provenance import provenance
     from navsim.report import write_report
-    from navsim.runner import cached_flight, flight_key, run_monte_carlo
+    from navsim.runner import cached_flight, flight_key, run_closed_loop, run_monte_carlo
     from navsim.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
@@ -122,22 +122,32 @@ def cmd_run(args) -> int:
     out = Path(args.out) if args.out else Path("reports") / scenario.name
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    bar, update = _progress(f"flight {scenario.flight.track.name}")
-    try:
-        truth, truth_path, cached = cached_flight(scenario.flight, progress=update)
-    except FlightError as exc:
-        bar.close()
-        print(f"error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    bar.close()
     from tqdm import tqdm
-    with tqdm(total=runs, desc=f"{runs} runs", unit="run", disable=None) as pbar:
-        result = run_monte_carlo(scenario, truth, truth_path, runs, seed, workers, progress=pbar.update)
+    loop = reference = None
+    if scenario.closed_loop is not None:
+        cached = False
+        with tqdm(total=runs, desc=f"{runs} runs, navigation in the loop", unit="run", disable=None) as pbar:
+            result, loop, reference = run_closed_loop(scenario, runs, seed, workers, progress=pbar.update)
+        truth = reference.truth
+    else:
+        bar, update = _progress(f"flight {scenario.flight.track.name}")
+        try:
+            truth, truth_path, cached = cached_flight(scenario.flight, progress=update)
+        except FlightError as exc:
+            bar.close()
+            print(f"error: {exc}", file=sys.stderr)
+            return exc.exit_code
+        bar.close()
+        with tqdm(total=runs, desc=f"{runs} runs", unit="run", disable=None) as pbar:
+            result = run_monte_carlo(scenario, truth, truth_path, runs, seed, workers, progress=pbar.update)
     metrics = {"scenario": scenario.name, "runs": runs, "runs_done": int(len(result.runs)),
                "seed": seed, "failed_runs": {str(k): v for k, v in result.failed.items()},
                "interrupted": result.interrupted, "estimators": {}}
     for label, h in result.histories.items():
         metrics["estimators"][label] = score(h, scenario.settle_s, scenario.windows)
+    if loop is not None:
+        from navsim.metrics import closed_loop_metrics
+        metrics["closed_loop"] = closed_loop_metrics(loop, reference, scenario.closed_loop)
     wall = time.perf_counter() - t0
     metrics["wall_s"] = wall
     record = {"scenario": str(args.scenario), "runs": runs, "runs_done": int(len(result.runs)),
@@ -160,8 +170,10 @@ def cmd_run(args) -> int:
                            f"{key}.diverged": h.diverged})
             if h.sigma is not None:
                 arrays.update({f"{key}.sigma": h.sigma, f"{key}.nees": h.nees})
+        if loop:
+            arrays.update({f"closed_loop.{k}": np.asarray(v) for k, v in loop.items()})
         np.savez_compressed(out / "runs.npz", **arrays)
-    files = write_report(out, scenario, truth, result, metrics, record)
+    files = write_report(out, scenario, truth, result, metrics, record, loop, reference)
     rows = []
     for label, m in metrics["estimators"].items():
         rms = m.get("rms", {})
@@ -174,6 +186,9 @@ def cmd_run(args) -> int:
                      str(m["diverged_runs"])])
     print(_table(["estimator", "RMS pos N E D m", "RMS vel m/s", "RMS att deg", "NEES", "in band %",
                   "converged s", "ms/run", "diverged"], rows))
+    if loop is not None:
+        from navsim.report import closed_loop_lines
+        print("\n".join(closed_loop_lines(metrics["closed_loop"])[1:]))
     if scenario.reference:
         from navsim.metrics import lookup
         ref_rows = []

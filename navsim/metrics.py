@@ -129,3 +129,36 @@ def lookup(metrics: dict, path: str):
             return None
         node = node[part]
     return node
+
+
+def closed_loop_metrics(loop: dict, reference, config) -> dict:
+    """Outcome of navigation-in-the-loop runs (``loop``: the per-run arrays of
+    :func:`navsim.runner.run_closed_loop`) and the truth-guided ``reference`` flight: how many
+    runs landed, reached the recovery area, failed; CEP50/CEP95 of the true miss distance (and
+    of the navigation solution's own, which the guidance closed), against the reference."""
+    from navsim.closedloop import cep
+    out = {"fly_on": config.fly_on, "time_limit_s": config.time_limit_s}
+    if not loop:
+        return out
+    outcome = [str(o) for o in loop["outcome"]]
+    out["outcomes"] = {k: outcome.count(k) for k in sorted(set(outcome))}
+    rtl = config.return_to_land
+    if rtl is not None:
+        miss = np.asarray(loop["miss_m"], float)
+        out["return_to_land"] = {
+            "area_m": rtl.area_m, "landed": int(np.isfinite(miss).sum()),
+            "reached_area": int((miss <= rtl.area_m).sum()),
+            "miss": cep(miss), "miss_estimate": cep(loop["miss_est_m"]),
+            "abort_t_s": _finite_stats(loop["abort_t_s"]), "land_t_s": _finite_stats(loop["land_t_s"]),
+            "truth_guided": {"miss_m": float(reference.miss_m[0]) if np.isfinite(reference.miss_m[0]) else None,
+                             "land_t_s": float(reference.land_t_s[0]) if np.isfinite(reference.land_t_s[0]) else None,
+                             "outcome": reference.outcome[0]}}
+    return out
+
+
+def _finite_stats(x) -> dict:
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    if not x.size:
+        return {"n": 0}
+    return {"n": int(x.size), "min": float(x.min()), "mean": float(x.mean()), "max": float(x.max())}

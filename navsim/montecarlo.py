@@ -63,8 +63,8 @@ def perturbed_start(truth, errors: np.ndarray, k: int = 0) -> NavState:
 def nav_errors(nav: NavState, truth, k: int):
     """Errors of ``nav`` against truth sample ``k``: attitude phi (rad, ``(B, 3)``), velocity
     (m/s), position NED (m), and the position error in the filter's units (dL, dlambda, dh)."""
-    C_true = dcm_from_quat(truth.quat_nb[k])
-    E = nav.C_nb @ C_true.T                                    # = I - [phi x]
+    C_true = dcm_from_quat(truth.quat_nb[k])                   # (3, 3), or (B, 3, 3) per run
+    E = nav.C_nb @ np.swapaxes(C_true, -1, -2)                 # = I - [phi x]
     phi = 0.5 * np.stack([E[:, 1, 2] - E[:, 2, 1], E[:, 2, 0] - E[:, 0, 2], E[:, 0, 1] - E[:, 1, 0]], -1)
     dv = nav.vel_n_mps - truth.vel_n_mps[k]
     dlat = nav.lat_rad - truth.lat_rad[k]

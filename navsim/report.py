@@ -76,6 +76,7 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
             if "nees" in qs:
                 lines += [f"  NEES average {qs['nees']['average']:.3g}, "
                           f"{qs['nees']['fraction_inside'] * 100:.0f} % of the epochs inside the 95 % band"]
+    lines += closed_loop_lines(metrics.get("closed_loop"))
     if scenario.reference:
         lines += ["", f"published ({scenario.reference['source']}) versus ours:"]
         if scenario.reference.get("note"):
@@ -87,6 +88,76 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
                 rows.append([label, path, _fmt(paper), _fmt(ours)])
         lines += _table_lines(["estimator", "metric", "paper", "ours"], rows)
     return lines
+
+
+def closed_loop_lines(m: dict | None) -> list[str]:
+    """The summary of navigation in the loop (``metrics['closed_loop']``)."""
+    if not m:
+        return []
+    lines = ["", f"navigation in the loop: flown on '{m['fly_on']}'; outcomes "
+             + ", ".join(f"{k} {v}" for k, v in m.get("outcomes", {}).items())]
+    r = m.get("return_to_land")
+    if r:
+        ref = r["truth_guided"]
+        lines += [f"return to land: {r['landed']} landed, {r['reached_area']} inside the {r['area_m']:g} m "
+                  f"recovery area; mission abandoned at {_fmt(r['abort_t_s'].get('mean'))} s (mean), "
+                  f"parachute at {_fmt(r['land_t_s'].get('mean'))} s (mean)", ""]
+        lines += _table_lines(["miss distance", "CEP50 m", "CEP95 m", "mean m", "max m", "runs"],
+                              [["true (guided on the solution)", _fmt(r["miss"]["cep50_m"]),
+                                _fmt(r["miss"]["cep95_m"]), _fmt(r["miss"]["mean_m"]),
+                                _fmt(r["miss"]["max_m"]), str(r["miss"]["n"])],
+                               ["the solution's own", _fmt(r["miss_estimate"]["cep50_m"]),
+                                _fmt(r["miss_estimate"]["cep95_m"]), _fmt(r["miss_estimate"]["mean_m"]),
+                                _fmt(r["miss_estimate"]["max_m"]), str(r["miss_estimate"]["n"])],
+                               ["same flight guided on the truth", _fmt(ref["miss_m"]), "-", "-", "-", "1"]])
+    return lines
+
+
+def closed_loop_figures(loop: dict, reference, scenario):
+    """Plan view of every run's true path with the landings and CEP circles, and the miss
+    distances' distribution against the truth-guided flight."""
+    plt = _plt()
+    rtl = scenario.closed_loop.return_to_land
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11.5, 5.2), gridspec_kw={"width_ratios": [1.3, 1]})
+    paths = loop["path_n_m"]
+    for p in paths:
+        ax.plot(p[:, 1], p[:, 0], lw=0.5, color="tab:blue", alpha=0.35)
+    ref = reference.path_n_m[0]
+    ax.plot(ref[:, 1], ref[:, 0], lw=1.5, color="k", label="guided on the truth")
+    if rtl is not None and reference.point_n_m is not None:
+        pn, pe = reference.point_n_m
+        land = loop["landing_n_m"]
+        ax.plot(land[:, 1], land[:, 0], "x", color="tab:red", ms=4, label="parachute (truth)")
+        ax.plot([pe], [pn], "*", color="tab:green", ms=12, label="recovery point")
+        miss = np.asarray(loop["miss_m"], float)
+        th = np.linspace(0, 2 * np.pi, 200)
+        for q, ls in ((50, "--"), (95, ":")):
+            if np.isfinite(miss).any():
+                r = np.nanpercentile(miss, q)
+                ax.plot(pe + r * np.sin(th), pn + r * np.cos(th), ls, color="tab:red", lw=1,
+                        label=f"CEP{q} {r:.1f} m")
+        ax.plot(pe + rtl.area_m * np.sin(th), pn + rtl.area_m * np.cos(th), "-", color="tab:green",
+                lw=0.8, label=f"recovery area {rtl.area_m:g} m")
+        srt = np.sort(miss[np.isfinite(miss)])
+        if srt.size:
+            bx.step(srt, np.arange(1, srt.size + 1) / srt.size, where="post", color="tab:blue",
+                    label=f"guided on the solution ({srt.size} runs)")
+            for q, ls in ((50, "--"), (95, ":")):
+                bx.axvline(np.percentile(srt, q), ls=ls, color="tab:red", lw=1,
+                           label=f"CEP{q} {np.percentile(srt, q):.1f} m")
+        if np.isfinite(reference.miss_m[0]):
+            bx.axvline(reference.miss_m[0], color="k", lw=1.5,
+                       label=f"guided on the truth {reference.miss_m[0]:.2f} m")
+        bx.set(xlabel="true miss distance at the parachute, m", ylabel="fraction of runs",
+               title="miss distance")
+        bx.legend(fontsize=7, loc="lower right")
+        bx.grid(alpha=0.3)
+    ax.set(xlabel="east, m", ylabel="north, m", title=f"true paths, flown on '{scenario.closed_loop.fly_on}'")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(fontsize=7, loc="best")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return [("closed_loop", fig)]
 
 
 def _shade(ax, spans, label: bool = False):
@@ -260,8 +331,10 @@ def bias_figure(histories: dict, truth_bias: dict, runs_plotted: int = 3):
     return [("biases", fig)]
 
 
-def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict) -> list[Path]:
-    """Write the PNGs and ``report.pdf`` into ``out``; returns the files written."""
+def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict,
+                 loop: dict | None = None, reference=None) -> list[Path]:
+    """Write the PNGs and ``report.pdf`` into ``out``; returns the files written. ``loop`` and
+    ``reference``: the per-run outcome of a closed-loop scenario and its truth-guided flight."""
     plt = _plt()
     from matplotlib.backends.backend_pdf import PdfPages
     from navsim.flight.plots import flight_figures
@@ -276,6 +349,8 @@ def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict
         text = text[:118] + ["...", "(the whole file: scenario.resolved.yaml)"]
     pages.append(("scenario", _text_page("resolved scenario", text)))
     pages += [(f"flight_{n}", f) for n, f in flight_figures(truth)]
+    if loop:
+        pages += closed_loop_figures(loop, reference, scenario)
     if result.histories:
         pages += error_figures(result.histories, scenario.settle_s, runs_plotted, scenario.windows)
         pages += height_figure(result.histories, scenario)

@@ -128,23 +128,23 @@ def _merge(parts):
     return runs, merged, bias
 
 
-def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: int, workers: int,
-                    progress=None) -> RunResult:
-    """All runs of ``scenario`` on ``truth``, in chunks of :data:`CHUNK_RUNS`."""
-    chunks = [range(a, min(a + CHUNK_RUNS, runs)) for a in range(0, runs, CHUNK_RUNS)]
+def run_chunks(fn, chunks, make_args, workers: int, progress=None):
+    """Run ``fn(make_args(chunk, in_worker))`` for each chunk of run indices, in this process or
+    a pool of ``workers``; a chunk that raises marks its runs as failed and the others complete;
+    Ctrl-C keeps what finished. Returns ``(parts, failed, interrupted)``."""
     parts, failed, interrupted = [], {}, False
     try:
         if workers <= 1:
             for ch in chunks:
                 try:
-                    parts.append(_chunk((truth, scenario, seed, ch)))
+                    parts.append(fn(make_args(ch, False)))
                 except Exception as exc:  # a failing chunk must not lose the others
                     failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
                 if progress:
                     progress(len(ch))
         else:
             with ProcessPoolExecutor(max_workers=workers) as pool:
-                futures = {pool.submit(_chunk, (str(truth_path), scenario, seed, ch)): ch for ch in chunks}
+                futures = {pool.submit(fn, make_args(ch, True)): ch for ch in chunks}
                 try:
                     for fut in as_completed(futures):
                         ch = futures[fut]
@@ -159,7 +159,81 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: i
                     raise
     except KeyboardInterrupt:
         interrupted = True
+    return parts, failed, interrupted
+
+
+def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: int, workers: int,
+                    progress=None) -> RunResult:
+    """All runs of ``scenario`` on ``truth``, in chunks of :data:`CHUNK_RUNS`."""
+    chunks = [range(a, min(a + CHUNK_RUNS, runs)) for a in range(0, runs, CHUNK_RUNS)]
+    parts, failed, interrupted = run_chunks(
+        _chunk, chunks, lambda ch, remote: (str(truth_path) if remote else truth, scenario, seed, ch),
+        workers, progress)
     if not parts:
         return RunResult({}, np.array([], int), failed, interrupted)
     done, hist, bias = _merge(parts)
     return RunResult(hist, done, failed, interrupted, bias)
+
+
+# --- navigation in the loop ---------------------------------------------------------------------
+CLOSED_CHUNK_RUNS = 25
+
+
+def _closed_chunk(args):
+    """Worker: one chunk of closed-loop runs (each run flies its own aircraft)."""
+    scenario, seed, runs = args
+    from navsim.closedloop import end_records, fly_batch
+    b = fly_batch(scenario, seed, runs)
+    end_records(b, 1.0 / scenario.flight.rate_hz)
+    extra = {"outcome": np.array(b.outcome), "abort_t_s": b.abort_t_s, "land_t_s": b.land_t_s,
+             "fail_t_s": b.fail_t_s, "miss_m": b.miss_m, "miss_est_m": b.miss_est_m,
+             "landing_n_m": b.landing_n_m, "path_t_s": b.path_t_s, "path_n_m": b.path_n_m}
+    return list(runs), b.histories, b.truth_bias, extra, b.failed
+
+
+def _pad(a, E: int, axis: int = 1):
+    if a is None or a.shape[axis] == E:
+        return a
+    width = [(0, 0)] * a.ndim
+    width[axis] = (0, E - a.shape[axis])
+    return np.pad(a.astype(float) if a.dtype.kind != "f" else a, width, constant_values=np.nan)
+
+
+def _pad_part(part, t_full, path_t_full):
+    """Extend a chunk's records (which end when its last run landed) to the longest chunk."""
+    runs, hist, bias, extra, failed = part
+    E = len(t_full)
+    for h in hist.values():
+        for name in ("att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "nees", "gyro_bias", "accel_bias"):
+            setattr(h, name, _pad(getattr(h, name), E))
+        h.nis = {k: _pad(v, E) for k, v in h.nis.items()}
+        h.t_s = t_full
+    bias = {k: _pad(v, E) for k, v in bias.items()}
+    extra = dict(extra, path_n_m=_pad(extra["path_n_m"], len(path_t_full)), path_t_s=path_t_full)
+    return runs, hist, bias, extra, failed
+
+
+def run_closed_loop(scenario, runs: int, seed: int, workers: int, progress=None):
+    """All runs of a closed-loop scenario in chunks of :data:`CLOSED_CHUNK_RUNS`, and the same
+    flight guided on the truth; returns ``(RunResult, extra, reference)``: ``extra`` holds the
+    per-run outcome, abort and landing times, miss distances and true paths (runs in order),
+    ``reference`` the :class:`~navsim.closedloop.LoopBatch` of the truth-guided flight."""
+    from navsim.closedloop import end_records, fly_batch
+    reference = fly_batch(scenario, seed, [0], on_truth=True, keep_truth=True)
+    end_records(reference, 1.0 / scenario.flight.rate_hz)
+    chunks = [range(a, min(a + CLOSED_CHUNK_RUNS, runs)) for a in range(0, runs, CLOSED_CHUNK_RUNS)]
+    parts, failed, interrupted = run_chunks(_closed_chunk, chunks, lambda ch, remote: (scenario, seed, ch),
+                                            workers, progress)
+    if not parts:
+        return RunResult({}, np.array([], int), failed, interrupted), {}, reference
+    longest = max(parts, key=lambda p: len(next(iter(p[1].values())).t_s))
+    t_full = next(iter(longest[1].values())).t_s
+    parts = [_pad_part(p, t_full, longest[3]["path_t_s"]) for p in parts]
+    for p in parts:
+        failed.update(p[4])
+    done, hist, bias = _merge([p[:3] for p in parts])
+    order = sorted(parts, key=lambda p: p[0][0])
+    extra = {k: np.concatenate([p[3][k] for p in order]) for k in order[0][3] if k != "path_t_s"}
+    extra["path_t_s"] = longest[3]["path_t_s"]
+    extra["runs"] = done
+    return RunResult(hist, done, failed, interrupted, bias), extra, reference

@@ -50,6 +50,7 @@ class Scenario:
     windows: tuple = ()                  #: (name, start_s, end_s)
     reference: dict | None = None
     report: dict = field(default_factory=dict)
+    closed_loop: object = None           #: navsim.closedloop.ClosedLoopConfig, or None (open loop)
 
 
 def available_aircraft() -> list[str]:
@@ -57,7 +58,8 @@ def available_aircraft() -> list[str]:
 
 
 TOP_KEYS = ("name", "description", "aircraft", "track", "environment", "flight", "sensors",
-            "montecarlo", "estimators", "initial_errors", "metrics", "reference", "report")
+            "montecarlo", "estimators", "initial_errors", "metrics", "reference", "report",
+            "closed_loop")
 
 
 def parse_scenario(data, file: str | None = None) -> Scenario:
@@ -104,6 +106,8 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
                                 expected="exactly one sensor of kind imu when estimators are given")
     initial = _initial(node.child("initial_errors", None))
     duration = _duration(node, file)
+    if node.data.get("closed_loop") is not None:
+        duration = math.inf           # each run's flight ends where its navigation takes it
     settle_s, windows = 0.0, ()
     metrics = node.child("metrics", None)
     if metrics is not None:
@@ -126,12 +130,20 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     if flight_node is not None:
         rate_hz = flight_node.get("rate_hz", float, 100.0, minimum=20.0, maximum=1000.0)
         flight_node.done()
+    closed_loop = None
+    cl_node = node.child("closed_loop", None)
+    if cl_node is not None:
+        if not estimators:
+            raise cl_node.error("needs estimators", "fly_on", expected="an estimators list to fly on")
+        from navsim.closedloop import parse_closed_loop
+        closed_loop = parse_closed_loop(cl_node, [e.label for e in estimators], sensors, track,
+                                        duration, rate_hz)
     node.done()
     config = FlightConfig(track=track, environment=environment, aircraft=aircraft, rate_hz=rate_hz)
     return Scenario(name=name, description=description, flight=config,
                     path=Path(file) if file else None, raw=data, sensors=sensors, runs=runs, seed=seed,
                     workers=workers, estimators=estimators, initial=initial, settle_s=settle_s,
-                    windows=windows, reference=reference, report=report)
+                    windows=windows, reference=reference, report=report, closed_loop=closed_loop)
 
 
 ARCSEC = math.pi / 180 / 3600

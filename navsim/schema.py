@@ -113,6 +113,16 @@ def scenario_schema() -> dict:
                               ["source", "values"]),
             "report": _obj({"formats": {"type": "array", "items": {"enum": ["pdf", "png"]}},
                             "runs_plotted": {"type": "integer", "minimum": 0}}),
+            "closed_loop": _obj({
+                "fly_on": {"type": "string", "description": "estimator label the autopilot flies on, or truth"},
+                "time_limit_s": {"type": "number", "exclusiveMinimum": 0},
+                "return_to_land": _obj({
+                    "gnss": {"type": "string"}, "lost_s": {"type": "number", "exclusiveMinimum": 0},
+                    "lat_deg": NUM, "lon_deg": NUM, "north_m": NUM, "east_m": NUM, "alt_m": NUM,
+                    "acceptance_m": {"type": "number", "minimum": 0},
+                    "area_m": {"type": "number", "exclusiveMinimum": 0}}, ["gnss"],
+                    "P1's safety strategy: on GNSS loss fly back to the recovery point")},
+                ["fly_on"], "navigation in the loop: every run flies on an estimator's solution"),
         }, ["track"]),
     }
 

@@ -81,6 +81,78 @@ class _Recorder:
         return rows, seg
 
 
+class Aircraft:
+    """One JSBSim aircraft under the autopilot, started (trimmed in the air or on its launcher)
+    and ready to be stepped: :func:`fly` steps one on the truth; the closed loop
+    (:mod:`navsim.closedloop`) steps one per Monte Carlo run on a navigation solution."""
+
+    def __init__(self, config: FlightConfig):
+        track, env = config.track, config.environment
+        self.config, self.dt = config, 1.0 / config.rate_hz
+        self.io = io = P.JSBSimIO(config.aircraft, self.dt, config.aircraft_dir)
+        self.limits = load_limits(config.aircraft, config.aircraft_dir)
+        self.ap = ap = Autopilot(config.gains)
+        start = track.start
+        self.lat0, self.lon0 = lat0, lon0 = math.radians(start.lat_deg), math.radians(start.lon_deg)
+        r_m, r_n = radii(lat0)
+        self.k_north, self.k_east = float(r_m), float(r_n) * math.cos(lat0)
+        io.set_terrain(env.surface_m)
+        io.set_wind_ned(env.wind_n_mps)
+        self.turbulence_pending = env.turbulence != "none"
+        if self.turbulence_pending and start.type == "air":
+            self.start_turbulence()   # JSBSim's turbulence models need airspeed: launch turns it on later
+        heading = math.radians(start.heading_deg)
+        ap.course_cmd = heading
+        ap.speed_cmd = start.speed_mps
+        if start.type == "air":
+            _air_start(io, ap, self.limits, start, lat0, lon0, heading, env, self.dt)
+        else:
+            _launch_prepare(io, ap, start, lat0, lon0, heading, env, self.dt)
+        self.runner = SegmentRunner(track.segments, ap, self.limits, self.local_of_latlon)
+        self.runner.course_ref = heading
+        self.runner.speed_target = start.speed_mps
+
+    def local_of_latlon(self, lat, lon):
+        """North and east (m) of a latitude and longitude (rad) from the track's start."""
+        return (lat - self.lat0) * self.k_north, (lon - self.lon0) * self.k_east
+
+    def start_turbulence(self) -> None:
+        env = self.config.environment
+        self.io.set_turbulence(env.turbulence, env.turbulence_wind20_mps, env.turbulence_severity,
+                               env.turbulence_seed)
+        self.turbulence_pending = False
+
+
+class Watchdog:
+    """The failure checks of every step, on the true state: NaN, ground or sea impact, stall
+    (angle of attack above the stall for :data:`STALL_PERSIST_S`), loss of control."""
+
+    def __init__(self, limits: Limits, dt: float):
+        self.stall_alpha = math.radians(limits.stall_alpha_deg + 1.0)
+        self.stall_steps = int(round(STALL_PERSIST_S / dt))
+        self.over_alpha = 0
+
+    def check(self, row, ground_ok: bool = False, stall_ok: bool = False) -> str | None:
+        """The reason the flight failed at this ``row``, or None. ``ground_ok``: skip the
+        impact check (on the launcher); ``stall_ok``: skip the stall check (booster phase)."""
+        isfinite = math.isfinite
+        if not (isfinite(row[P.COL_H]) and isfinite(row[P.COL_TAS]) and isfinite(row[P.COL_ROLL])):
+            return "the state became NaN (numerical failure)"
+        if row[P.COL_HAGL] < 0.5 and not ground_ok:
+            return f"ground or sea impact (height above surface {row[P.COL_HAGL]:.1f} m)"
+        if row[P.COL_ALPHA] > self.stall_alpha and not stall_ok:
+            self.over_alpha += 1
+            if self.over_alpha >= self.stall_steps:
+                return (f"stall (angle of attack {math.degrees(row[P.COL_ALPHA]):.1f} deg "
+                        f"at {row[P.COL_TAS]:.1f} m/s for {STALL_PERSIST_S:g} s)")
+        else:
+            self.over_alpha = 0
+        if abs(row[P.COL_ROLL]) > MAX_ROLL_RAD or abs(row[P.COL_PITCH]) > MAX_PITCH_RAD:
+            return (f"loss of control (roll {math.degrees(row[P.COL_ROLL]):.0f} deg, "
+                    f"pitch {math.degrees(row[P.COL_PITCH]):.0f} deg)")
+        return None
+
+
 def fly(config: FlightConfig | Track, progress=None) -> Truth:
     """Fly ``config`` and return its truth, sampled at ``config.rate_hz``.
 
@@ -89,54 +161,19 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
     """
     if isinstance(config, Track):
         config = FlightConfig(track=config)
-    track, env = config.track, config.environment
-    dt = 1.0 / config.rate_hz
-    io = P.JSBSimIO(config.aircraft, dt, config.aircraft_dir)
-    limits = load_limits(config.aircraft, config.aircraft_dir)
-    ap = Autopilot(config.gains)
+    craft = Aircraft(config)
+    track, io, ap, runner, dt = config.track, craft.io, craft.ap, craft.runner, craft.dt
     start = track.start
-
-    lat0, lon0 = math.radians(start.lat_deg), math.radians(start.lon_deg)
-    r_m, r_n = radii(lat0)
-    k_north, k_east = float(r_m), float(r_n) * math.cos(lat0)
-
-    def local_of_latlon(lat, lon):
-        return (lat - lat0) * k_north, (lon - lon0) * k_east
-
-    io.set_terrain(env.surface_m)
-    io.set_wind_ned(env.wind_n_mps)
-    turbulence_pending = env.turbulence != "none"
-
-    def start_turbulence():
-        io.set_turbulence(env.turbulence, env.turbulence_wind20_mps, env.turbulence_severity,
-                          env.turbulence_seed)
-
-    if turbulence_pending and start.type == "air":
-        start_turbulence()        # JSBSim's turbulence models need airspeed: launch turns it on later
-        turbulence_pending = False
-    heading = math.radians(start.heading_deg)
-    ap.course_cmd = heading
-    ap.speed_cmd = start.speed_mps
-    if start.type == "air":
-        _air_start(io, ap, limits, start, lat0, lon0, heading, env, dt)
-    else:
-        _launch_prepare(io, ap, start, lat0, lon0, heading, env, dt)
-
-    runner = SegmentRunner(track.segments, ap, limits, local_of_latlon)
-    runner.course_ref = heading
-    runner.speed_target = start.speed_mps
+    lat0, lon0, k_north, k_east = craft.lat0, craft.lon0, craft.k_north, craft.k_east
+    watch = Watchdog(craft.limits, dt)
     state = State()
     rec = _Recorder(len(P.RAW_PROPERTIES), 1 << 14)
     nominal = nominal_duration_s(track)
-    stall_alpha = math.radians(limits.stall_alpha_deg + 1.0)
-    stall_steps = int(round(STALL_PERSIST_S / dt))
-    over_alpha = 0
     launching = start.type == "launch"
     booster_steps = int(round(start.booster_time_s / dt)) if launching else 0
     k = 0
     next_progress = 0.0
     read_row, set_controls, run, step_ap = io.read_row, io.set_controls, io.run, ap.step
-    isfinite = math.isfinite
     try:
         while True:
             t = k * dt
@@ -150,29 +187,17 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
             state.course = course = math.atan2(ve, vn)
             state.tas = tas = row[P.COL_TAS]
             # --- failure checks -----------------------------------------------------------
-            if not (isfinite(h) and isfinite(tas) and isfinite(row[P.COL_ROLL])):
-                raise runner.fail("the state became NaN (numerical failure)", state)
-            if row[P.COL_HAGL] < 0.5 and not (launching and t < 5.0):
-                raise runner.fail(f"ground or sea impact (height above surface "
-                                  f"{row[P.COL_HAGL]:.1f} m)", state)
-            if row[P.COL_ALPHA] > stall_alpha and not (launching and k <= booster_steps):
-                over_alpha += 1
-                if over_alpha >= stall_steps:
-                    raise runner.fail(f"stall (angle of attack {math.degrees(row[P.COL_ALPHA]):.1f} deg "
-                                      f"at {tas:.1f} m/s for {STALL_PERSIST_S:g} s)", state)
-            else:
-                over_alpha = 0
-            if abs(row[P.COL_ROLL]) > MAX_ROLL_RAD or abs(row[P.COL_PITCH]) > MAX_PITCH_RAD:
-                raise runner.fail(f"loss of control (roll {math.degrees(row[P.COL_ROLL]):.0f} deg, "
-                                  f"pitch {math.degrees(row[P.COL_PITCH]):.0f} deg)", state)
+            reason = watch.check(row, ground_ok=launching and t < 5.0,
+                                 stall_ok=launching and k <= booster_steps)
+            if reason is not None:
+                raise runner.fail(reason, state)
             # --- segments -----------------------------------------------------------------
             if launching:
                 ap.course_cmd = course if state.ground_speed > 1.0 else ap.course_cmd  # wings level
                 if k == booster_steps:
                     io.set_booster_n(0.0)
-                if turbulence_pending and tas > 8.0:
-                    start_turbulence()
-                    turbulence_pending = False
+                if craft.turbulence_pending and tas > 8.0:
+                    craft.start_turbulence()
                 if k >= booster_steps and tas >= 0.9 * start.speed_mps and row[P.COL_HAGL] > 10.0:
                     launching = False
                     ap.pitch_hold = None

@@ -27,7 +27,7 @@ from navsim.errors import ScenarioError
 from navsim.sensors.base import (SensorData, decimation, gauss_markov, normals, random_walk,
                                  run_generators)
 from navsim.sensors.specs import AxisErrors, ImuSpec
-from navsim.strapdown import rotation
+from navsim.strapdown import cross, rotation
 
 #: Allan-deviation peak of a first-order Gauss-Markov process, in units of its std
 #: (max over T of sigma_A(T) / sigma); bias instability B is modelled by a Gauss-Markov process
@@ -111,8 +111,8 @@ def _vibration(gens, t, dt, vib, rate_hz, amp_attr):
 def _compensated_to_measured(dv_c, dth, dth_prev, dv_c_prev):
     """Invert the strapdown's rotation and sculling compensation
     ``dv_c = dv + dth x dv / 2 + (dth_p x dv + dv_p x dth) / 12`` (to third order)."""
-    return (dv_c - 0.5 * np.cross(dth, dv_c)
-            - (np.cross(dth_prev, dv_c) + np.cross(dv_c_prev, dth)) / 12.0)
+    return (dv_c - 0.5 * cross(dth, dv_c)
+            - (cross(dth_prev, dv_c) + cross(dv_c_prev, dth)) / 12.0)
 
 
 def truth_increments(truth, step: int = 1):
@@ -213,3 +213,75 @@ def emulate_imu(truth, spec: ImuSpec, seed: int, runs, name: str = "imu",
         errors={"gyro_bias": bias_g, "accel_bias": bias_a, "gyro_matrix": mat_g,
                 "accel_matrix": mat_a},
         meta={"rate_hz": spec.rate_hz, "dt_s": dt, "runs": runs, "seed": seed})
+
+
+class OnlineIncrements:
+    """The ideal increments of :func:`truth_increments`, computed sample by sample for a batch
+    of ``B`` trajectories that are not known in advance (navigation in the loop: every run flies
+    its own aircraft). :meth:`update` takes the sample ``j`` of each run, ``omega_ib_b`` and
+    ``f_b`` ``(B, 3)``, and returns the increments over the interval ending at ``t_j`` (they
+    depend on the samples up to ``j - 1``: JSBSim's Adams-Bashforth 3 step). Same formulas, same
+    start-up as the whole-record version, to rounding (the IMU rate is the flight rate)."""
+
+    def __init__(self, B: int, dt: float):
+        self.dt, self.j = dt, 0
+        self.om = [np.zeros((B, 3))] * 3           # samples j-1, j-2, j-3
+        self.f = [np.zeros((B, 3))] * 3
+        self.R = [np.broadcast_to(np.eye(3), (B, 3, 3))] * 2      # R[j-1], R[j-2]
+        self.dth_prev = np.zeros((B, 3))
+        self.dvc_prev = np.zeros((B, 3))
+
+    def update(self, omega_ib_b: np.ndarray, f_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        j, dt = self.j, self.dt
+        om, f = self.om, self.f
+        if j == 0:
+            dth, dv_c = np.zeros_like(omega_ib_b), np.zeros_like(f_b)
+        else:
+            a = om[0] if j - 1 < 2 else (23 * om[0] - 16 * om[1] + 5 * om[2]) / 12.0
+            dth = a * dt
+            if j >= 3:
+                R1, R2 = self.R
+                f_km1 = np.einsum("bij,bj->bi", R1, f[1])
+                f_km2 = np.einsum("bij,bj->bi", R1, np.einsum("bij,bj->bi", R2, f[2]))
+                dv_c = dt * (23 * f[0] - 16 * f_km1 + 5 * f_km2) / 12.0
+            else:
+                dv_c = f[0] * dt
+        if j == 0:
+            dth_m, dv_m = dth, dv_c
+        else:
+            dth_m, dv_m = dth, _compensated_to_measured(dv_c, dth, self.dth_prev, self.dvc_prev)
+        self.R = [rotation(-dth), self.R[0]]
+        self.om = [np.asarray(omega_ib_b, float), om[0], om[1]]
+        self.f = [np.asarray(f_b, float), f[0], f[1]]
+        self.dth_prev, self.dvc_prev = dth, dv_c
+        self.j += 1
+        return dth_m, dv_m
+
+
+def error_increments(spec: ImuSpec, seed: int, runs, n: int, dt: float, name: str = "imu") -> dict:
+    """The errors of :func:`emulate_imu` that do not depend on the trajectory, for ``n``
+    samples of ``runs``: ``gyro``/``accel`` ``(B, n, 3)``, the increments of bias, noise and
+    vibration over each interval, and ``gyro_matrix``/``accel_matrix`` ``(B, 3, 3)``
+    (``I + M``), so that the measured increment is ``matrix @ ideal + error`` (then quantized):
+    the same numbers as :func:`emulate_imu` with the same ``n``. Range saturation is not
+    applied (it needs the rate, which a closed loop does not keep)."""
+    runs = list(runs)
+    gens = run_generators(seed, runs, name)
+    zero = np.zeros((n, 3))
+    t = np.arange(n) * dt
+    _, err_g, bias_g, mat_g = _triad(gens, zero, zero, dt, spec.gyro, n)
+    _, err_a, bias_a, mat_a = _triad(gens, zero, zero, dt, spec.accel, n)
+    for vib in spec.vibration:
+        err_a = err_a + _vibration(gens, t, dt, vib, spec.rate_hz, "amplitude") * dt
+        err_g = err_g + _vibration(gens, t, dt, vib, spec.rate_hz, "gyro_amplitude") * dt
+    B = len(runs)
+    return {"gyro": np.broadcast_to(err_g, (B, n, 3)), "accel": np.broadcast_to(err_a, (B, n, 3)),
+            "gyro_matrix": mat_g, "accel_matrix": mat_a, "gyro_bias": bias_g, "accel_bias": bias_a}
+
+
+def quantize_increment(incr: np.ndarray, e: AxisErrors, dt: float) -> np.ndarray:
+    """Increments rounded to the triad's ``quantization`` (rate LSB times the interval)."""
+    if not e.quantization:
+        return incr
+    q = e.quantization * dt
+    return np.round(incr / q) * q

@@ -1,0 +1,397 @@
+"""Navigation in the loop: the autopilot and the guidance fly on an estimator's solution.
+
+An open-loop scenario flies once and corrupts that one truth for every run. With a
+``closed_loop`` block each Monte Carlo run flies its own aircraft: at every step the guidance
+(position, course, ground speed) and the height, climb-rate, roll and pitch the autopilot holds
+come from the navigation solution of the estimator named by ``fly_on``, so navigation errors
+move the aircraft. Airspeed, body rates and sideslip stay on the truth (the air-data and gyro
+signals an autopilot reads directly). ``fly_on: truth`` flies the same loop on the truth.
+
+P1's safety strategy (Jiang & Chen) is ``return_to_land``: when the watched GNSS receiver has
+had no fix for longer than ``lost_s``, the mission is abandoned and the aircraft flies, on the
+navigation solution with whatever aids remain, to the recovery point; when the solution says
+it is there (within ``acceptance_m`` along the leg), the parachute opens and the run's miss
+distance is the true horizontal distance to the recovery point. The aircraft is then flown on
+(straight and level) until every run has landed, so that every run's estimator is scored over
+the same time span::
+
+    closed_loop:
+      fly_on: SINS/GNSS/baro           # an estimator label, or truth
+      time_limit_s: 1500               # the loop stops here at the latest
+      return_to_land:
+        gnss: gps                      # the receiver watched (a gnss sensor of the scenario)
+        lost_s: 10                     # no fix for longer than this: abort the mission
+        lat_deg: 30.5                  # the recovery point (or north_m / east_m from the start)
+        lon_deg: 114.3
+        alt_m: 120                     # height of the way back (default: the height held)
+        acceptance_m: 0                # the parachute opens this far before the point (estimate)
+        area_m: 150                    # a landing within this of the point reached the area
+
+Sensors: every run's sensor errors are its own random streams, drawn as in open loop by the
+same emulators (on a static record as long as ``time_limit_s``: the errors of the supported
+sensors do not depend on the trajectory) and added to the run's own truth as it is flown: IMU
+(scale factor, misalignment, biases, noise, vibration, quantization; the IMU rate must be the
+flight rate), GNSS (no latency, lever arm or interference: they depend on the trajectory) and
+barometer. Other kinds are refused with a clear error.
+
+JSBSim holds one aircraft per instance, so the physics and the scalar autopilot step each run
+in turn; sensors and estimators are batched over the runs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from navsim.config import Node, close_match
+from navsim.errors import FlightError, ScenarioError
+from navsim.flight import properties as P
+from navsim.flight.segments import State
+from navsim.flight.simulator import Aircraft, Watchdog
+from navsim.flight.track import Segment
+from navsim.flight.truth import Truth, truth_from_rows
+from navsim.transform import quat_from_euler
+
+SUPPORTED_KINDS = ("imu", "gnss", "baro")
+RETURN_LABEL = "return to land"
+
+
+@dataclass(frozen=True)
+class ReturnToLand:
+    gnss: str
+    lost_s: float
+    point: dict                  #: lat_deg/lon_deg or north_m/east_m
+    alt_m: float | None
+    acceptance_m: float
+    area_m: float
+
+
+@dataclass(frozen=True)
+class ClosedLoopConfig:
+    fly_on: str                  #: estimator label, or "truth"
+    time_limit_s: float
+    return_to_land: ReturnToLand | None = None
+
+
+def parse_closed_loop(node: Node, labels: list[str], sensors, track, duration_s: float,
+                      rate_hz: float) -> ClosedLoopConfig:
+    """Validate a scenario's ``closed_loop`` block (``sensors``: the scenario's SensorConfigs)."""
+    fly_on = node.get("fly_on", str)
+    if fly_on != "truth" and fly_on not in labels:
+        raise node.error(f"'{fly_on}' is not an estimator of this scenario", "fly_on",
+                         expected="an estimator label or 'truth'", hint=close_match(fly_on, labels))
+    default_limit = (duration_s * 1.5 + 300.0) if math.isfinite(duration_s) else 3600.0
+    limit = node.get("time_limit_s", float, default_limit, exclusive_minimum=0.0)
+    if track.start.type != "air":
+        raise ScenarioError("starts on a launcher", file=node.file, key="track.start.type",
+                            expected="with closed_loop, an air start", hint="launches are flown open loop only")
+    imu = [c for c in sensors if c.kind == "imu"]
+    for c in sensors:
+        key = f"sensors.{c.name}"
+        if c.kind not in SUPPORTED_KINDS:
+            raise ScenarioError(f"is a {c.kind}, whose errors depend on the trajectory: it cannot be "
+                                "flown in the loop", file=node.file, key=key,
+                                expected="with closed_loop, sensors of kinds " + ", ".join(SUPPORTED_KINDS),
+                                hint="remove it from this scenario or fly it open loop")
+        if c.kind == "gnss" and (c.spec.latency_s or np.any(c.spec.lever_arm_b)
+                                 or any(f.type == "interference" for f in c.faults)):
+            raise ScenarioError("has latency, a lever arm or interference, which depend on the "
+                                "trajectory", file=node.file, key=key,
+                                expected="with closed_loop, a GNSS whose errors do not",
+                                hint="override latency: 0 s and lever_arm: [0, 0, 0] m")
+    if imu and abs(imu[0].spec.rate_hz - rate_hz) > 1e-9:
+        raise ScenarioError(f"runs at {imu[0].spec.rate_hz:g} Hz, the flight at {rate_hz:g} Hz",
+                            file=node.file, key=f"sensors.{imu[0].name}",
+                            expected="with closed_loop, an IMU at the flight rate (flight.rate_hz)",
+                            hint=f"flight: {{rate_hz: {imu[0].spec.rate_hz:g}}}")
+    rtl = None
+    sub = node.child("return_to_land", None)
+    if sub is not None:
+        gnss = sub.get("gnss", str)
+        kinds = {c.name: c.kind for c in sensors}
+        if kinds.get(gnss) != "gnss":
+            raise sub.error(f"'{gnss}' is not a gnss sensor of this scenario", "gnss",
+                            hint=close_match(gnss, [k for k, v in kinds.items() if v == "gnss"]))
+        if "lat_deg" in sub.data or "lon_deg" in sub.data:
+            point = {"lat_deg": sub.get("lat_deg", float, minimum=-90.0, maximum=90.0),
+                     "lon_deg": sub.get("lon_deg", float, minimum=-180.0, maximum=180.0)}
+        else:
+            point = {"north_m": sub.get("north_m", float), "east_m": sub.get("east_m", float)}
+        rtl = ReturnToLand(gnss=gnss, lost_s=sub.get("lost_s", float, 10.0, exclusive_minimum=0.0),
+                           point=point, alt_m=sub.get("alt_m", float, None),
+                           acceptance_m=sub.get("acceptance_m", float, 0.0, minimum=0.0),
+                           area_m=sub.get("area_m", float, 150.0, exclusive_minimum=0.0))
+        sub.done()
+    node.done()
+    return ClosedLoopConfig(fly_on=fly_on, time_limit_s=limit, return_to_land=rtl)
+
+
+class _StepTruth:
+    """The true state of ``B`` runs at one step, shaped as a one-sample truth record
+    (``[0]`` gives ``(B, ...)``) for :func:`navsim.montecarlo.nav_errors`."""
+
+    def __init__(self, rows: np.ndarray, batched: bool = True):
+        r = rows
+        one = (lambda x: x[None]) if batched else (lambda x: x)   # unbatched: ``[k]`` is run k
+        self.lat_rad = one(r[:, P.COL_LAT])
+        self.lon_rad = one(r[:, P.COL_LON])
+        self.h_m = one(r[:, P.COL_H])
+        self.vel_n_mps = one(r[:, P.COL_VN:P.COL_VD + 1])
+        self.quat_nb = one(quat_from_euler(r[:, P.COL_ROLL], r[:, P.COL_PITCH], r[:, P.COL_YAW]))
+        self.omega_ib_b_rps = r[:, P.COL_PI:P.COL_RI + 1]
+        self.f_b_mps2 = r[:, P.COL_FX:P.COL_FZ + 1] / r[:, P.COL_MASS:P.COL_MASS + 1]
+
+
+@dataclass
+class LoopBatch:
+    """What :func:`fly_batch` returns for its runs."""
+
+    histories: dict              #: label -> EstimatorHistory
+    outcome: list                #: per run: landed, completed (track flown), failed, time limit
+    failed: dict                 #: run index -> reason
+    abort_t_s: np.ndarray        #: (B,) time the mission was abandoned (NaN: never)
+    land_t_s: np.ndarray         #: (B,) time the parachute opened (NaN: never)
+    fail_t_s: np.ndarray         #: (B,) time the flight failed (NaN: never)
+    miss_m: np.ndarray           #: (B,) true horizontal distance of the landing to the point
+    miss_est_m: np.ndarray       #: (B,) the same, of the navigation solution
+    landing_n_m: np.ndarray      #: (B, 2) true north, east of the landing from the track start
+    path_t_s: np.ndarray         #: (E,) times of the recorded paths (the estimators' epochs)
+    path_n_m: np.ndarray         #: (B, E, 3) true north, east, height from the track start
+    point_n_m: tuple | None      #: the recovery point, north/east from the track start
+    truth_bias: dict             #: gyro_bias/accel_bias (B, E, 3) at the epochs
+    truth: Truth | None = None   #: the whole truth of the first run (``keep_truth``)
+
+
+def _sensor_streams(scenario, seed, runs, dt, n):
+    """IMU error increments and the other sensors' data (values to be filled in flight)."""
+    from navsim.sensors import emulate
+    from navsim.sensors.imu import error_increments
+    imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
+    imu = error_increments(imu_cfg.spec, seed, runs, n, dt, name=imu_cfg.name)
+    start = scenario.flight.track.start
+    static = Truth.static((n - 1) * dt, 1.0 / dt, start.lat_deg, start.lon_deg, start.alt_m)
+    others = {c.name: emulate(static, c, seed, runs) for c in scenario.sensors if c.kind != "imu"}
+    for data in others.values():
+        data.meta["step"] = int(round(1.0 / (data.meta["rate_hz"] * dt)))
+    return imu_cfg, imu, others
+
+
+def _fill(data, j: int, rows: np.ndarray) -> None:
+    """Sample ``j`` of a sensor from the runs' true state ``rows`` plus the run's own error."""
+    from navsim import earth
+    lat, lon, h = rows[:, P.COL_LAT], rows[:, P.COL_LON], rows[:, P.COL_H]
+    v = data.values
+    if data.kind == "gnss":
+        err = data.errors["pos_error_n_m"][:, j]
+        r_m, r_n = earth.radii(lat)
+        v["lat_rad"][:, j] = lat + err[:, 0] / (r_m + h)
+        v["lon_rad"][:, j] = lon + err[:, 1] / ((r_n + h) * np.cos(lat))
+        v["h_m"][:, j] = h - err[:, 2]
+        if "vel_n_mps" in v:
+            v["vel_n_mps"][:, j] = rows[:, P.COL_VN:P.COL_VD + 1] + data.errors["vel_error_n_mps"][:, j]
+    elif data.kind == "baro":
+        from navsim import atmosphere
+        v["h_baro_m"][:, j] = h + data.errors["h_error_m"][:, j]
+        v["p_static_pa"][:, j] = atmosphere.pressure(v["h_baro_m"][:, j])
+
+
+def _guidance(nav, craft0) -> tuple:
+    """North, east, height, course, ground speed, climb rate, roll, pitch of a NavState, as
+    lists (one value per run)."""
+    vel = nav.vel_n_mps
+    C = nav.C_nb
+    return (((nav.lat_rad - craft0.lat0) * craft0.k_north).tolist(),
+            ((nav.lon_rad - craft0.lon0) * craft0.k_east).tolist(), nav.h_m.tolist(),
+            np.arctan2(vel[:, 1], vel[:, 0]).tolist(), np.hypot(vel[:, 0], vel[:, 1]).tolist(),
+            (-vel[:, 2]).tolist(), np.arctan2(C[:, 2, 1], C[:, 2, 2]).tolist(),
+            (-np.arcsin(np.clip(C[:, 2, 0], -1.0, 1.0))).tolist())
+
+
+def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: bool = False,
+              progress=None) -> LoopBatch:
+    """Fly the runs ``runs`` of ``scenario`` with navigation in the loop (see the module
+    docstring); ``on_truth`` flies them on the truth whatever ``fly_on`` says; ``keep_truth``
+    keeps the first run's whole truth record (for the flight pages of the report)."""
+    from navsim.estimators.factory import build
+    from navsim.montecarlo import _Recorder, perturbed_start
+    from navsim.sensors.imu import OnlineIncrements, quantize_increment
+    cl = scenario.closed_loop
+    rtl = cl.return_to_land
+    runs = list(runs)
+    B = len(runs)
+    fc = scenario.flight
+    dt = 1.0 / fc.rate_hz
+    n_max = int(round(cl.time_limit_s / dt)) + 1
+    imu_cfg, imu_err, sensors = _sensor_streams(scenario, seed, runs, dt, n_max)
+    craft = [Aircraft(fc) for _ in range(B)]
+    watch = [Watchdog(c.limits, dt) for c in craft]
+    c0 = craft[0]
+    n_track = len(fc.track.segments)
+    point = None
+    if rtl is not None:
+        point = ((rtl.point["north_m"], rtl.point["east_m"]) if "north_m" in rtl.point else
+                 c0.local_of_latlon(math.radians(rtl.point["lat_deg"]), math.radians(rtl.point["lon_deg"])))
+        goto = Segment("goto", RETURN_LABEL, {"north_m": point[0], "east_m": point[1],
+                                              "acceptance_m": rtl.acceptance_m,
+                                              **({"alt_m": rtl.alt_m} if rtl.alt_m is not None else {})})
+    estimators = {e.label: build(e) for e in scenario.estimators}
+    driver = None if (on_truth or cl.fly_on == "truth") else estimators[cl.fly_on]
+
+    rows = np.array([c.io.read_row() for c in craft])
+    view = _StepTruth(rows)
+    errors = scenario.initial.draw(seed, runs)
+    nav0 = perturbed_start(_StepTruth(rows[:1], batched=False), errors, 0)
+    sigma0 = scenario.initial.sigma_blocks(rows[0, P.COL_LAT], rows[0, P.COL_H])
+    for est in estimators.values():
+        est.initialize(nav0, {**sigma0, **(est.noise_sigma0() if hasattr(est, "noise_sigma0") else {})})
+    rec = {label: _Recorder(label) for label in estimators}
+    for label, est in estimators.items():
+        rec[label].add(est, view, 0, 0.0, [])
+    every = {label: int(round(est.period_s / dt)) for label, est in estimators.items()}
+    path_every = min(every.values())
+    inc = OnlineIncrements(B, dt)
+    inc.update(view.omega_ib_b_rps, view.f_b_mps2)
+    states = [State() for _ in range(B)]
+    status = ["flying"] * B          # flying, aborted (returning), landed, completed, failed
+    failed = {}
+    abort_t = np.full(B, np.nan)
+    land_t = np.full(B, np.nan)
+    fail_t = np.full(B, np.nan)
+    landing = np.full((B, 2), np.nan)
+    landing_est = np.full((B, 2), np.nan)
+    last_fix = np.zeros(B)
+    paths, path_t = [], []
+    kept = [] if keep_truth else None
+    seg_kept = []
+    for k in range(n_max):
+        t = k * dt
+        if k > 0:
+            view = _StepTruth(rows)
+            dth, dv = inc.update(view.omega_ib_b_rps, view.f_b_mps2)
+            dth = np.einsum("bij,bj->bi", imu_err["gyro_matrix"], dth) + imu_err["gyro"][:, k]
+            dv = np.einsum("bij,bj->bi", imu_err["accel_matrix"], dv) + imu_err["accel"][:, k]
+            dth = quantize_increment(dth, imu_cfg.spec.gyro, dt)
+            dv = quantize_increment(dv, imu_cfg.spec.accel, dt)
+            for data in sensors.values():
+                if k % data.meta["step"] == 0:
+                    _fill(data, k // data.meta["step"], rows)
+            for label, est in estimators.items():
+                est.propagate(dth, dv, dt)
+                if k % every[label] == 0:
+                    rec[label].add(est, view, 0, t, est.epoch(t, sensors))
+        if k % path_every == 0:
+            path_t.append(t)
+            paths.append(np.stack([(rows[:, P.COL_LAT] - c0.lat0) * c0.k_north,
+                                   (rows[:, P.COL_LON] - c0.lon0) * c0.k_east, rows[:, P.COL_H]], -1))
+        if rtl is not None:
+            g = sensors[rtl.gnss]
+            if k % g.meta["step"] == 0:
+                last_fix[g.valid[:, k // g.meta["step"]]] = t
+        nav = driver.solution().nav if driver is not None else None
+        guide = _guidance(nav, c0) if nav is not None else None
+        for b, c in enumerate(craft):
+            if status[b] == "failed":
+                continue
+            row = rows[b]
+            s = states[b]
+            s.t = t
+            s.tas = tas = row[P.COL_TAS]
+            if guide is None:
+                s.north = (row[P.COL_LAT] - c0.lat0) * c0.k_north
+                s.east = (row[P.COL_LON] - c0.lon0) * c0.k_east
+                s.h, vn, ve = row[P.COL_H], row[P.COL_VN], row[P.COL_VE]
+                s.course, s.ground_speed = math.atan2(ve, vn), math.hypot(vn, ve)
+                climb, roll, pitch = -row[P.COL_VD], row[P.COL_ROLL], row[P.COL_PITCH]
+            else:
+                s.north, s.east, s.h, s.course, s.ground_speed = (guide[0][b], guide[1][b], guide[2][b],
+                                                                  guide[3][b], guide[4][b])
+                climb, roll, pitch = guide[5][b], guide[6][b], guide[7][b]
+            runner = c.runner
+            try:
+                reason = watch[b].check(row)
+                if reason is not None:
+                    raise runner.fail(reason, s)
+                if status[b] == "flying" and rtl is not None and t - last_fix[b] > rtl.lost_s:
+                    status[b], abort_t[b] = "aborted", t
+                    runner.segments, runner.index, runner.finished = [goto], -1, False
+                if runner.index < 0:
+                    runner.next(s)
+                if not runner.finished:
+                    runner.update(s, dt)
+                    if runner.finished:
+                        if status[b] == "aborted":
+                            status[b], land_t[b] = "landed", t
+                            landing[b] = ((row[P.COL_LAT] - c0.lat0) * c0.k_north,
+                                          (row[P.COL_LON] - c0.lon0) * c0.k_east)
+                            landing_est[b] = (s.north, s.east)
+                        else:
+                            status[b] = "completed"
+            except FlightError as exc:
+                status[b], fail_t[b] = "failed", t
+                failed[runs[b]] = str(exc)
+                continue
+            if kept is not None and b == 0:
+                kept.append(row.copy())
+                seg_kept.append(n_track if status[0] in ("aborted", "landed") else
+                                runner.index - 1 if runner.finished else runner.index)
+            c.io.set_controls(*c.ap.step(dt, tas, s.h, climb, roll, pitch, row[P.COL_P], row[P.COL_Q],
+                                         row[P.COL_BETA], s.course))
+            c.io.run()
+        if all(st in ("landed", "completed", "failed") for st in status):
+            break
+        if progress is not None and k % 1000 == 0:
+            progress(t, cl.time_limit_s)
+        new = [c.io.read_row() if status[b] != "failed" else rows[b] for b, c in enumerate(craft)]
+        rows = np.array(new)
+    outcome = ["time limit" if st in ("flying", "aborted") else st for st in status]
+    histories = {label: r.history(estimators[label]) for label, r in rec.items()}
+    ks = np.round(next(iter(histories.values())).t_s / dt).astype(int)
+    bias = {}
+    for key in ("gyro_bias", "accel_bias"):
+        v = np.broadcast_to(imu_err[key], (B, imu_err[key].shape[1], 3))
+        bias[key] = v[:, ks] if v.shape[1] > 1 else np.repeat(v, len(ks), axis=1)
+    miss = np.hypot(*(landing - np.asarray(point)).T) if point is not None else np.full(B, np.nan)
+    miss_est = np.hypot(*(landing_est - np.asarray(point)).T) if point is not None else np.full(B, np.nan)
+    truth = None
+    if kept:
+        labels = [s.label for s in fc.track.segments] + [RETURN_LABEL]
+        truth = truth_from_rows(np.array(kept), np.arange(len(kept)) * dt, np.array(seg_kept), labels,
+                                {"aircraft": fc.aircraft, "rate_hz": fc.rate_hz, "track": fc.track.name,
+                                 "start": "air", "closed_loop": True})
+    return LoopBatch(histories=histories, outcome=outcome, failed=failed, abort_t_s=abort_t,
+                     land_t_s=land_t, fail_t_s=fail_t, miss_m=miss, miss_est_m=miss_est, landing_n_m=landing,
+                     path_t_s=np.array(path_t), path_n_m=np.stack(paths, axis=1), point_n_m=point,
+                     truth_bias=bias, truth=truth)
+
+
+def end_records(batch: LoopBatch, dt: float) -> None:
+    """Blank (NaN) every run's records after its own end (landing, failure, time limit), so
+    that what a run contributes does not depend on the runs it was batched with."""
+    end = np.where(np.isfinite(batch.land_t_s), batch.land_t_s, np.inf)
+    for r, reason in enumerate(batch.outcome):
+        if reason == "failed":
+            end[r] = batch.fail_t_s[r]
+    for h in batch.histories.values():
+        after = h.t_s[None, :] > end[:, None] + 0.5 * dt            # (B, E)
+        for name in ("att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "gyro_bias", "accel_bias"):
+            a = getattr(h, name)
+            if a is not None:
+                a[after] = np.nan
+        if h.nees is not None:
+            h.nees[after] = np.nan
+        for v in h.nis.values():
+            v[after] = np.nan
+    after = batch.path_t_s[None, :] > end[:, None] + 0.5 * dt
+    batch.path_n_m[after] = np.nan
+
+
+def cep(miss_m: np.ndarray) -> dict:
+    """Circular error probable of horizontal miss distances: the 50 % and 95 % quantiles."""
+    m = np.asarray(miss_m, float)
+    m = m[np.isfinite(m)]
+    if not m.size:
+        return {"cep50_m": None, "cep95_m": None, "mean_m": None, "max_m": None, "n": 0}
+    return {"cep50_m": float(np.percentile(m, 50)), "cep95_m": float(np.percentile(m, 95)),
+            "mean_m": float(m.mean()), "max_m": float(m.max()), "n": int(m.size)}
