@@ -147,7 +147,7 @@ def cmd_run(args) -> int:
         metrics["estimators"][label] = score(h, scenario.settle_s, scenario.windows)
     if loop is not None:
         from navsim.metrics import closed_loop_metrics
-        metrics["closed_loop"] = closed_loop_metrics(loop, reference, scenario.closed_loop)
+        metrics["closed_loop"] = closed_loop_metrics(loop, reference, scenario.closed_loop, result.histories)
     wall = time.perf_counter() - t0
     metrics["wall_s"] = wall
     record = {"scenario": str(args.scenario), "runs": runs, "runs_done": int(len(result.runs)),

@@ -131,7 +131,27 @@ def lookup(metrics: dict, path: str):
     return node
 
 
-def closed_loop_metrics(loop: dict, reference, config) -> dict:
+def landing_consistency(h, land_t_s) -> dict:
+    """How the filter's own horizontal uncertainty at the parachute compares with its true
+    horizontal error there: the average over the landed runs of ``eN²/σN² + eE²/σE²`` (2 degrees
+    of freedom: inside ``band`` when the filter is consistent) and the CEP50 its sigmas
+    predict, ``1.1774 sqrt((σN² + σE²)/2)`` (median over runs)."""
+    land = np.asarray(land_t_s, float)
+    ok = np.isfinite(land)
+    if h.sigma is None or not ok.any():
+        return {}
+    k = np.clip(np.searchsorted(h.t_s, land[ok] + 1e-9) - 1, 0, len(h.t_s) - 1)
+    rows = np.flatnonzero(ok)
+    e = h.pos_err_m[rows, k, :2]
+    sd = h.sigma[rows, k, 6:8]
+    q = np.sum((e / sd) ** 2, axis=-1)
+    lo, hi = chi2_band(2, int(ok.sum()))
+    return {"normalised_error": float(np.mean(q)), "band": [lo, hi], "dim": 2,
+            "predicted_cep50_m": float(np.median(1.1774 * np.sqrt(np.mean(sd ** 2, axis=-1)))),
+            "horizontal_error_rms_m": float(np.sqrt(np.mean(np.sum(e ** 2, axis=-1))))}
+
+
+def closed_loop_metrics(loop: dict, reference, config, histories: dict | None = None) -> dict:
     """Outcome of navigation-in-the-loop runs (``loop``: the per-run arrays of
     :func:`navsim.runner.run_closed_loop`) and the truth-guided ``reference`` flight: how many
     runs landed, reached the recovery area, failed; CEP50/CEP95 of the true miss distance (and
@@ -153,6 +173,9 @@ def closed_loop_metrics(loop: dict, reference, config) -> dict:
             "truth_guided": {"miss_m": float(reference.miss_m[0]) if np.isfinite(reference.miss_m[0]) else None,
                              "land_t_s": float(reference.land_t_s[0]) if np.isfinite(reference.land_t_s[0]) else None,
                              "outcome": reference.outcome[0]}}
+        h = (histories or {}).get(config.fly_on)
+        if h is not None:
+            out["return_to_land"]["consistency"] = landing_consistency(h, loop["land_t_s"])
     return out
 
 

@@ -110,6 +110,11 @@ def closed_loop_lines(m: dict | None) -> list[str]:
                                 _fmt(r["miss_estimate"]["cep95_m"]), _fmt(r["miss_estimate"]["mean_m"]),
                                 _fmt(r["miss_estimate"]["max_m"]), str(r["miss_estimate"]["n"])],
                                ["same flight guided on the truth", _fmt(ref["miss_m"]), "-", "-", "-", "1"]])
+        c = r.get("consistency")
+        if c:
+            lines += ["", f"the filter at the parachute: horizontal error RMS {c['horizontal_error_rms_m']:.3g} m, "
+                      f"its sigmas predict CEP50 {c['predicted_cep50_m']:.3g} m; normalised error "
+                      f"(e/sigma)^2 {c['normalised_error']:.3g} (95 % band {c['band'][0]:.2f}-{c['band'][1]:.2f})"]
     return lines
 
 

@@ -124,8 +124,11 @@ def truth_increments(truth, step: int = 1):
     (:data:`navsim.flight.properties.INTEGRATORS`): over ``[t_k, t_k+1]`` the body rotates by
     ``dt (23 w_k - 16 w_k-1 + 5 w_k-2) / 12`` and the inertial velocity changes by the same
     combination of ``C_ib f``. These are the true increments of the recorded trajectory; a
-    trapezoid on the samples instead would lag the attitude by up to 1e-3 rad in turns. The
-    first increment (ending at ``t_s[0]``) is ``w_0 dt``, ``f_0 dt``.
+    trapezoid on the samples instead would lag the attitude by up to 1e-3 rad in turns. JSBSim's
+    initial conditions fill the history with the first derivative (``w_-1 = w_-2 = w_0``): the
+    first step is Euler's, the second already ``(23 w_1 - 11 w_0) / 12``; taking it as Euler's
+    too left a start-up attitude error of up to 150" wherever the first rates differ (a trim
+    in wind). The increment ending at ``t_s[0]`` is zero (``step`` > 1: ``w_0 dt``, ``f_0 dt``).
     """
     cache = truth.__dict__.setdefault("_increments", {})     # the truth is shared by every chunk
     if step not in cache:
@@ -137,7 +140,10 @@ def _truth_increments(truth, step: int):
     om, fb = truth.omega_ib_b_rps, truth.f_b_mps2
     dt = truth.dt_s
     N = len(om)
-    ab3 = lambda x: np.concatenate([x[:2], (23 * x[2:] - 16 * x[1:-1] + 5 * x[:-2]) / 12.0])
+    # JSBSim's initial conditions fill the Adams-Bashforth history with the first derivative:
+    # samples -1 and -2 are copies of sample 0 (so step 0 is Euler's, step 1 already AB3)
+    ab3 = lambda x: (23 * x - 16 * np.concatenate([x[:1], x[:-1]])
+                     + 5 * np.concatenate([x[:1], x[:1], x[:-2]])) / 12.0
     if truth.meta.get("integrator", "ab3") != "ab3":
         ab3 = lambda x: x                                   # rectangular: rate held over the step
     # per truth step j (interval ending t_j): rotation and compensated velocity increment
@@ -147,10 +153,12 @@ def _truth_increments(truth, step: int):
     dv_c = np.zeros((N, 3))
     f1 = np.einsum("nij,nj->ni", R[1:], fb[:-1])            # f_{k-1} in body k   (k = j-1)
     dv_c[1:] = fb[:-1] * dt
-    k = np.arange(2, N - 1)                                 # interval ending j = k + 1
-    f_km1 = f1[k - 1]                                       # f_{k-1} in body k
-    f_km2 = np.einsum("nij,nj->ni", R[k], f1[k - 2])        # f_{k-2} in body k
-    dv_c[k + 1] = dt * (23 * fb[k] - 16 * f_km1 + 5 * f_km2) / 12.0
+    if truth.meta.get("integrator", "ab3") == "ab3":
+        k = np.arange(1, N - 1)                             # interval ending j = k + 1
+        f_km1 = f1[k - 1]                                   # f_{k-1} in body k
+        g = np.concatenate([fb[:1], f1])                    # f_{m} in body m+1, f_{-1} = f_0
+        f_km2 = np.einsum("nij,nj->ni", R[k], g[k - 1])     # f_{k-2} in body k
+        dv_c[k + 1] = dt * (23 * fb[k] - 16 * f_km1 + 5 * f_km2) / 12.0
     if step > 1:                                            # compose sub-steps into IMU intervals
         n = (N - 1) // step + 1
         tot_th = np.zeros((n, 3))
@@ -225,34 +233,35 @@ class OnlineIncrements:
 
     def __init__(self, B: int, dt: float):
         self.dt, self.j = dt, 0
-        self.om = [np.zeros((B, 3))] * 3           # samples j-1, j-2, j-3
-        self.f = [np.zeros((B, 3))] * 3
-        self.R = [np.broadcast_to(np.eye(3), (B, 3, 3))] * 2      # R[j-1], R[j-2]
+        self.om = self.f = None                    # samples j-1, j-2, j-3
+        self.R = None                              # R[j-1], R[j-2]
         self.dth_prev = np.zeros((B, 3))
         self.dvc_prev = np.zeros((B, 3))
 
     def update(self, omega_ib_b: np.ndarray, f_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         j, dt = self.j, self.dt
-        om, f = self.om, self.f
+        omega_ib_b, f_b = np.asarray(omega_ib_b, float), np.asarray(f_b, float)
         if j == 0:
+            # the Adams-Bashforth history starts filled with the first sample (as JSBSim's)
+            self.om, self.f = [omega_ib_b] * 3, [f_b] * 3
+            eye = np.broadcast_to(np.eye(3), omega_ib_b.shape + (3,))
+            self.R = [eye, eye]
             dth, dv_c = np.zeros_like(omega_ib_b), np.zeros_like(f_b)
-        else:
-            a = om[0] if j - 1 < 2 else (23 * om[0] - 16 * om[1] + 5 * om[2]) / 12.0
-            dth = a * dt
-            if j >= 3:
-                R1, R2 = self.R
-                f_km1 = np.einsum("bij,bj->bi", R1, f[1])
-                f_km2 = np.einsum("bij,bj->bi", R1, np.einsum("bij,bj->bi", R2, f[2]))
-                dv_c = dt * (23 * f[0] - 16 * f_km1 + 5 * f_km2) / 12.0
-            else:
-                dv_c = f[0] * dt
-        if j == 0:
             dth_m, dv_m = dth, dv_c
         else:
+            om, f = self.om, self.f
+            dth = (23 * om[0] - 16 * om[1] + 5 * om[2]) / 12.0 * dt
+            if j == 1:
+                dv_c = f[0] * dt
+            else:
+                R1, R2 = self.R
+                f_km1 = np.einsum("bij,bj->bi", R1, f[1])
+                f_km2 = np.einsum("bij,bj->bi", R1, np.einsum("bij,bj->bi", R2, f[2]) if j > 2 else f[2])
+                dv_c = dt * (23 * f[0] - 16 * f_km1 + 5 * f_km2) / 12.0
             dth_m, dv_m = dth, _compensated_to_measured(dv_c, dth, self.dth_prev, self.dvc_prev)
         self.R = [rotation(-dth), self.R[0]]
-        self.om = [np.asarray(omega_ib_b, float), om[0], om[1]]
-        self.f = [np.asarray(f_b, float), f[0], f[1]]
+        self.om = [omega_ib_b, self.om[0], self.om[1]]
+        self.f = [f_b, self.f[0], self.f[1]]
         self.dth_prev, self.dvc_prev = dth, dv_c
         self.j += 1
         return dth_m, dv_m
