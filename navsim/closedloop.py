@@ -41,6 +41,7 @@ in turn; sensors and estimators are batched over the runs.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -265,6 +266,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
     paths, path_t = [], []
     kept = [] if keep_truth else None
     seg_kept = []
+    clock = time.perf_counter
     for k in range(n_max):
         t = k * dt
         if k > 0:
@@ -278,9 +280,14 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
                 if k % data.meta["step"] == 0:
                     _fill(data, k // data.meta["step"], rows)
             for label, est in estimators.items():
+                tic = clock()
                 est.propagate(dth, dv, dt)
+                toc = clock()
+                rec[label].propagate_s += toc - tic
                 if k % every[label] == 0:
-                    rec[label].add(est, view, 0, t, est.epoch(t, sensors))
+                    innov = est.epoch(t, sensors)
+                    rec[label].epoch_s += clock() - toc
+                    rec[label].add(est, view, 0, t, innov)
         if k % path_every == 0:
             path_t.append(t)
             paths.append(np.stack([(rows[:, P.COL_LAT] - c0.lat0) * c0.k_north,

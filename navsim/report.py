@@ -143,6 +143,17 @@ def closed_loop_figures(loop: dict, reference, scenario):
                         label=f"CEP{q} {r:.1f} m")
         ax.plot(pe + rtl.area_m * np.sin(th), pn + rtl.area_m * np.cos(th), "-", color="tab:green",
                 lw=0.8, label=f"recovery area {rtl.area_m:g} m")
+        zoom = ax.inset_axes([0.03, 0.03, 0.36, 0.36])          # the recovery area, magnified
+        zoom.plot(land[:, 1], land[:, 0], "x", color="tab:red", ms=3)
+        zoom.plot([pe], [pn], "*", color="tab:green", ms=9)
+        for q, ls in ((50, "--"), (95, ":")):
+            if np.isfinite(miss).any():
+                r = np.nanpercentile(miss, q)
+                zoom.plot(pe + r * np.sin(th), pn + r * np.cos(th), ls, color="tab:red", lw=0.8)
+        zoom.plot(pe + rtl.area_m * np.sin(th), pn + rtl.area_m * np.cos(th), "-", color="tab:green", lw=0.8)
+        half = 1.15 * max(rtl.area_m, float(np.nanmax(miss)) if np.isfinite(miss).any() else 0.0)
+        zoom.set(xlim=(pe - half, pe + half), ylim=(pn - half, pn + half), aspect="equal")
+        zoom.tick_params(labelsize=6)
         srt = np.sort(miss[np.isfinite(miss)])
         if srt.size:
             bx.step(srt, np.arange(1, srt.size + 1) / srt.size, where="post", color="tab:blue",
