@@ -143,8 +143,15 @@ def cmd_run(args) -> int:
     metrics = {"scenario": scenario.name, "runs": runs, "runs_done": int(len(result.runs)),
                "seed": seed, "failed_runs": {str(k): v for k, v in result.failed.items()},
                "interrupted": result.interrupted, "estimators": {}}
+    from navsim.metrics import sighting_metrics, sighting_spans
+    sightings = sighting_spans(truth, scenario) if truth is not None else []
     for label, h in result.histories.items():
         metrics["estimators"][label] = score(h, scenario.settle_s, scenario.windows)
+        if sightings and h.sigma is not None:
+            metrics["estimators"][label]["landmarks"] = sighting_metrics(h, sightings)
+        if h.calibration:
+            from navsim.metrics import calibration_metrics
+            metrics["estimators"][label]["calibration"] = calibration_metrics(h, result.truth_bias)
     if loop is not None:
         from navsim.metrics import closed_loop_metrics
         metrics["closed_loop"] = closed_loop_metrics(loop, reference, scenario.closed_loop, result.histories)
@@ -173,7 +180,7 @@ def cmd_run(args) -> int:
         if loop:
             arrays.update({f"closed_loop.{k}": np.asarray(v) for k, v in loop.items()})
         np.savez_compressed(out / "runs.npz", **arrays)
-    files = write_report(out, scenario, truth, result, metrics, record, loop, reference)
+    files = write_report(out, scenario, truth, result, metrics, record, loop, reference, sightings)
     rows = []
     for label, m in metrics["estimators"].items():
         rms = m.get("rms", {})
@@ -186,9 +193,13 @@ def cmd_run(args) -> int:
                      str(m["diverged_runs"])])
     print(_table(["estimator", "RMS pos N E D m", "RMS vel m/s", "RMS att deg", "NEES", "in band %",
                   "converged s", "ms/run", "diverged"], rows))
+    from navsim.report import calibration_lines, closed_loop_lines, sighting_lines
+    if any(m.get("calibration") for m in metrics["estimators"].values()):
+        print("\n".join(calibration_lines(metrics)[1:]))
     if loop is not None:
-        from navsim.report import closed_loop_lines
         print("\n".join(closed_loop_lines(metrics["closed_loop"])[1:]))
+    if sightings:
+        print("\n".join(sighting_lines(metrics)[1:]))
     if scenario.reference:
         from navsim.metrics import lookup
         ref_rows = []

@@ -26,7 +26,8 @@ def chi2_band(dim: int, runs: int, p: float = 0.95) -> tuple[float, float]:
 def window_quantities(h, good):
     pos = h.pos_err_m[good]
     return {"north_m": pos[..., 0], "east_m": pos[..., 1], "height_m": -pos[..., 2],
-            "speed_mps": np.linalg.norm(h.vel_err_mps[good][..., :2], axis=-1)}
+            "speed_mps": np.linalg.norm(h.vel_err_mps[good][..., :2], axis=-1),
+            "heading_deg": np.degrees(h.att_err_rad[good][..., 2])}
 
 
 def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
@@ -185,3 +186,73 @@ def _finite_stats(x) -> dict:
     if not x.size:
         return {"n": 0}
     return {"n": int(x.size), "min": float(x.min()), "mean": float(x.mean()), "max": float(x.max())}
+
+
+def sighting_spans(truth, scenario, seed: int = 0) -> list[tuple]:
+    """``(name, start_s, end_s, sigma_m)`` of every landmark sighting of the scenario's cameras
+    on ``truth`` (the same for every run: the flight is shared), ``sigma_m`` the camera's fix
+    noise per axis at the sighting's last fix (``noise + noise_ratio * range``)."""
+    from navsim.sensors import emulate
+    out = []
+    for c in scenario.sensors:
+        if c.kind != "camera":
+            continue
+        data = emulate(truth, c, seed, [0])
+        v = data.valid[0].astype(int)
+        edges = np.flatnonzero(np.diff(np.r_[0, v, 0]))
+        for a, b in zip(edges[::2], edges[1::2]):
+            lm = int(data.values["landmark"][0, a])
+            sigma = c.spec.noise + c.spec.noise_ratio * float(data.errors["range_m"][b - 1])
+            out.append((f"{c.name} landmark {lm}", float(data.t_s[a]), float(data.t_s[b - 1]), sigma))
+    return out
+
+
+def sighting_metrics(h, spans, good=None) -> dict:
+    """Position error of an estimator at the last fix of each landmark sighting against the
+    camera's fix noise ``sigma``: per sighting the RMS over runs of the north and east errors
+    and their largest ratio to ``sigma``; over all, the share of (run, sighting, axis) inside
+    3 sigma, and the RMS horizontal error just before the sightings (the growth between them)."""
+    if good is None:
+        good = ~np.asarray(h.diverged, bool)
+    if not spans or not good.any():
+        return {}
+    per, inside, before = [], [], []
+    for name, a, b, sigma in spans:
+        k = int(np.clip(np.searchsorted(h.t_s, b - 1e-6), 0, len(h.t_s) - 1))
+        k0 = int(np.clip(np.searchsorted(h.t_s, a - 1e-6) - 1, 0, len(h.t_s) - 1))
+        e = h.pos_err_m[good][:, k, :2]
+        ratio = np.abs(e) / sigma
+        inside.append(ratio <= 3.0)
+        before.append(float(np.sqrt(np.mean(np.sum(h.pos_err_m[good][:, k0, :2] ** 2, -1)))))
+        per.append({"name": name, "t_s": float(h.t_s[k]), "sigma_m": sigma,
+                    "rms_ne_m": np.sqrt(np.mean(e ** 2, axis=0)).tolist(),
+                    "max_ratio": float(ratio.max()), "rms_before_m": before[-1]})
+    inside = np.concatenate([x.ravel() for x in inside])
+    return {"count": len(spans), "fraction_within_3sigma": float(inside.mean()),
+            "max_ratio": float(max(p["max_ratio"] for p in per)),
+            "rms_after_m": float(np.sqrt(np.mean([np.mean(np.square(p["rms_ne_m"])) for p in per]))),
+            "rms_before_m": {"median": float(np.median(before)), "max": float(np.max(before))},
+            "sightings": per}
+
+
+def calibration_metrics(h, truth_bias: dict) -> dict:
+    """Online sensor calibrations of an estimator against the truth, at their last epoch (the
+    end of the calibration): hard-iron error in % of the field magnitude and soft-iron error in %
+    (Frobenius, relative), mean, 95th percentile and maximum over the runs; and against time
+    (mean and maximum) for the plots."""
+    from navsim.magcal import errors
+    out = {}
+    for sensor, c in h.calibration.items():
+        keys = [f"{sensor}.hard_iron_T", f"{sensor}.soft_iron", f"{sensor}.field_T"]
+        if not all(k in truth_bias for k in keys):
+            continue
+        hard_t, soft_t, field = (truth_bias[k] for k in keys)
+        hard, soft = errors(c["hard_iron_T"], c["soft_iron"], hard_t[:, None], soft_t[:, None], field[:, None])
+        stats = lambda x: {"mean": float(np.mean(x)), "p95": float(np.percentile(x, 95)), "max": float(np.max(x))}
+        out[sensor] = {"t_s": float(c["t_s"][-1]), "hard_iron_pct": stats(100 * hard[:, -1]),
+                       "soft_iron_pct": stats(100 * soft[:, -1]),
+                       "history": {"t_s": c["t_s"].tolist(), "hard_iron_pct_mean": (100 * hard.mean(0)).tolist(),
+                                   "hard_iron_pct_max": (100 * hard.max(0)).tolist(),
+                                   "soft_iron_pct_mean": (100 * soft.mean(0)).tolist(),
+                                   "soft_iron_pct_max": (100 * soft.max(0)).tolist()}}
+    return out

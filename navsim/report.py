@@ -77,6 +77,8 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
                 lines += [f"  NEES average {qs['nees']['average']:.3g}, "
                           f"{qs['nees']['fraction_inside'] * 100:.0f} % of the epochs inside the 95 % band"]
     lines += closed_loop_lines(metrics.get("closed_loop"))
+    lines += sighting_lines(metrics)
+    lines += calibration_lines(metrics)
     if scenario.reference:
         lines += ["", f"published ({scenario.reference['source']}) versus ours:"]
         if scenario.reference.get("note"):
@@ -88,6 +90,103 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
                 rows.append([label, path, _fmt(paper), _fmt(ours)])
         lines += _table_lines(["estimator", "metric", "paper", "ours"], rows)
     return lines
+
+
+def landmark_figure(histories: dict, metrics: dict, sightings, runs_plotted: int = 3):
+    """Horizontal position error of the landmark-aided estimators on a linear scale, the
+    sightings shaded, the camera's 3-sigma fix noise marked at the end of each sighting."""
+    labels = [k for k, m in metrics["estimators"].items() if m.get("landmarks") and
+              m["landmarks"]["fraction_within_3sigma"] > 0.5]
+    if not labels or not sightings:
+        return []
+    plt = _plt()
+    fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
+    for label in labels:
+        h = histories[label]
+        good = ~np.asarray(h.diverged, bool)
+        for j, (ax, name) in enumerate(zip(axes, ("north", "east"))):
+            e = h.pos_err_m[good][..., j]
+            for r in range(min(runs_plotted, e.shape[0])):
+                ax.plot(h.t_s, e[r], lw=0.5, alpha=0.6)
+            ax.plot(h.t_s, np.sqrt(np.mean(e ** 2, axis=0)), "k", lw=1.2, label=f"{label}: MC RMS")
+        ratio = [s["max_ratio"] for s in metrics["estimators"][label]["landmarks"]["sightings"]]
+        axes[2].plot([s[2] for s in sightings], ratio, "o", ms=3, label=f"{label}: worst run")
+    for ax in axes:
+        _shade(ax, sightings)
+        ax.grid(alpha=0.3)
+    for ax, name in zip(axes[:2], ("north", "east")):
+        ts = [s[2] for s in sightings]
+        ax.plot(ts, [3 * s[3] for s in sightings], "g_", ms=8, label="3 sigma of the fix")
+        ax.plot(ts, [-3 * s[3] for s in sightings], "g_", ms=8)
+        ax.set_ylabel(f"{name} error, m")
+        lim = 8 * max(s[3] for s in sightings)
+        ax.set_ylim(-lim, lim)
+    axes[2].axhline(3.0, color="g", lw=1, label="3")
+    axes[2].set(ylabel="|error| / fix sigma\nat the sighting's end", xlabel="time, s")
+    axes[0].legend(fontsize=7, loc="upper right")
+    axes[2].legend(fontsize=7, loc="upper right")
+    axes[0].set_title("landmark sightings (green): the error drifts between anchors and returns after each")
+    fig.tight_layout()
+    return [("landmarks", fig)]
+
+
+def calibration_lines(metrics: dict) -> list[str]:
+    """Online magnetometer calibrations at their end (mean / 95th percentile / worst run)."""
+    rows = [[label, sensor, f"{c['t_s']:.0f}",
+             " / ".join(f"{c['hard_iron_pct'][k]:.3g}" for k in ("mean", "p95", "max")),
+             " / ".join(f"{c['soft_iron_pct'][k]:.3g}" for k in ("mean", "p95", "max"))]
+            for label, m in metrics["estimators"].items() for sensor, c in m.get("calibration", {}).items()]
+    if not rows:
+        return []
+    return ["", "magnetometer calibration when frozen (mean / 95th percentile / worst run):", ""] + \
+        _table_lines(["estimator", "sensor", "at s", "hard iron % of field", "soft iron % Frobenius"], rows)
+
+
+def calibration_figure(histories: dict, metrics: dict, spans=()):
+    """Magnetometer calibration errors against time (estimators that calibrate online) and the
+    heading error of every estimator (Monte Carlo RMS), windows shaded."""
+    cals = [(label, sensor, c) for label, m in metrics["estimators"].items()
+            for sensor, c in m.get("calibration", {}).items()]
+    if not cals:
+        return []
+    plt = _plt()
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(10, 7.5))
+    for label, sensor, c in cals:
+        hist = c["history"]
+        for key, color in (("hard_iron", "tab:red"), ("soft_iron", "tab:blue")):
+            ax.plot(hist["t_s"], hist[f"{key}_pct_mean"], color=color, label=f"{label} ({sensor}): {key} mean")
+            ax.plot(hist["t_s"], hist[f"{key}_pct_max"], color=color, ls=":", label=f"{key} worst run")
+        ax.axvline(c["t_s"], color="k", lw=1)
+        ax.text(c["t_s"], 0.02, "calibration frozen ", transform=ax.get_xaxis_transform(), fontsize=7,
+                va="bottom", ha="right")
+    ax.axhline(2.0, color="g", lw=1, label="2 %")
+    ax.set(yscale="log", ylabel="error, %", xlabel="time, s",
+           title="hard iron (% of the field) and soft iron (% Frobenius) against time")
+    ax.legend(fontsize=7, loc="center left", ncol=2)
+    ax.grid(alpha=0.3)
+    for label, h in histories.items():
+        good = ~np.asarray(h.diverged, bool)
+        e = np.degrees(h.att_err_rad[good][..., 2])
+        bx.plot(h.t_s, np.sqrt(np.nanmean(e ** 2, axis=0)), label=label)
+    _shade(bx, spans, label=True)
+    bx.set(yscale="log", ylabel="heading error RMS, deg", xlabel="time, s")
+    bx.legend(fontsize=7)
+    bx.grid(alpha=0.3)
+    fig.tight_layout()
+    return [("calibration", fig)]
+
+
+def sighting_lines(metrics: dict) -> list[str]:
+    """The landmark-sighting table (estimators with ``landmarks`` metrics)."""
+    rows = [[label, str(m["landmarks"]["count"]), _fmt(m["landmarks"]["rms_before_m"]["median"]),
+             _fmt(m["landmarks"]["rms_after_m"]), _fmt(m["landmarks"]["max_ratio"]),
+             f"{m['landmarks']['fraction_within_3sigma'] * 100:.1f} %"]
+            for label, m in metrics["estimators"].items() if m.get("landmarks")]
+    if not rows:
+        return []
+    return ["", "landmark sightings (shaded green): horizontal error just before a sighting (RMS, median over "
+            "sightings), after its last fix (RMS per axis), largest |error| / fix sigma, share inside 3 sigma:", ""] + \
+        _table_lines(["estimator", "sightings", "before m", "after m", "max |e|/sigma", "inside 3 sigma"], rows)
 
 
 def closed_loop_lines(m: dict | None) -> list[str]:
@@ -177,8 +276,13 @@ def closed_loop_figures(loop: dict, reference, scenario):
 
 
 def _shade(ax, spans, label: bool = False):
-    """Shade the metric windows ``(name, start_s, end_s)`` (fault, interference, sighting)."""
-    for name, a, b in spans:
+    """Shade the metric windows ``(name, start_s, end_s)`` (fault, interference) in orange and
+    landmark sightings ``(name, start_s, end_s, sigma_m)`` in green, unlabelled."""
+    for span in spans:
+        name, a, b = span[:3]
+        if len(span) > 3:
+            ax.axvspan(a, b, color="tab:green", alpha=0.25, lw=0)
+            continue
         ax.axvspan(a, b, color="tab:orange", alpha=0.12, lw=0)
         if label:
             ax.text(a, 1.0, name, transform=ax.get_xaxis_transform(), fontsize=6, rotation=90, va="top")
@@ -348,9 +452,10 @@ def bias_figure(histories: dict, truth_bias: dict, runs_plotted: int = 3):
 
 
 def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict,
-                 loop: dict | None = None, reference=None) -> list[Path]:
+                 loop: dict | None = None, reference=None, sightings=()) -> list[Path]:
     """Write the PNGs and ``report.pdf`` into ``out``; returns the files written. ``loop`` and
-    ``reference``: the per-run outcome of a closed-loop scenario and its truth-guided flight."""
+    ``reference``: the per-run outcome of a closed-loop scenario and its truth-guided flight;
+    ``sightings``: landmark sightings ``(name, start_s, end_s, sigma_m)``, shaded in green."""
     plt = _plt()
     from matplotlib.backends.backend_pdf import PdfPages
     from navsim.flight.plots import flight_figures
@@ -368,9 +473,12 @@ def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict
     if loop:
         pages += closed_loop_figures(loop, reference, scenario)
     if result.histories:
-        pages += error_figures(result.histories, scenario.settle_s, runs_plotted, scenario.windows)
+        spans = tuple(scenario.windows) + tuple(sightings)
+        pages += error_figures(result.histories, scenario.settle_s, runs_plotted, spans)
         pages += height_figure(result.histories, scenario)
-        pages += consistency_figure(result.histories, scenario.windows)
+        pages += landmark_figure(result.histories, metrics, sightings, runs_plotted)
+        pages += calibration_figure(result.histories, metrics, scenario.windows)
+        pages += consistency_figure(result.histories, spans)
         pages += bias_figure(result.histories, result.truth_bias)
     files = []
     fmts = scenario.report.get("formats", ["pdf", "png"])

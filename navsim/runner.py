@@ -98,6 +98,11 @@ def _chunk(args):
     bias = {k: np.broadcast_to(imu.errors[k], (len(runs), max(imu.errors[k].shape[1], 1), 3))
             for k in ("gyro_bias", "accel_bias")}
     bias = {k: (v[:, idx] if v.shape[1] > 1 else np.repeat(v, len(idx), axis=1)) for k, v in bias.items()}
+    for name, data in others.items():             # magnetometers: the true hard and soft iron
+        if data.kind == "magnetometer":
+            bias[f"{name}.hard_iron_T"] = np.asarray(data.errors["hard_iron_T"])[:, 0]
+            bias[f"{name}.soft_iron"] = np.asarray(data.errors["soft_iron"])
+            bias[f"{name}.field_T"] = np.full(len(runs), np.linalg.norm(data.errors["field_n_T"], axis=-1).mean())
     return list(runs), hist, bias
 
 
@@ -123,7 +128,10 @@ def _merge(parts):
             pos_err_m=cat("pos_err_m"), sigma=cat("sigma"), nees=cat("nees"),
             nis={k: np.concatenate([h.nis[k] for h in hs]) for k in hs[0].nis},
             nis_dim=hs[0].nis_dim, diverged=cat("diverged"), gyro_bias=cat("gyro_bias"),
-            accel_bias=cat("accel_bias"), cost=_sum_cost([h.cost for h in hs]))
+            accel_bias=cat("accel_bias"), cost=_sum_cost([h.cost for h in hs]),
+            calibration={s: {"t_s": c["t_s"], **{k: np.concatenate([h.calibration[s][k] for h in hs])
+                                                 for k in c if k != "t_s"}}
+                         for s, c in hs[0].calibration.items()})
     bias = {k: np.concatenate([p[2][k] for p in parts]) for k in parts[0][2]}
     return runs, merged, bias
 

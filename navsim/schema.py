@@ -62,7 +62,12 @@ def scenario_schema() -> dict:
     sensor = _obj({"model": {"enum": sorted(available())}, "override": {"type": "object"},
                    "off": {"oneOf": [{"const": "all"}, {"type": "array", "items": {"type": "string"}}]},
                    "faults": {"type": "array", "items": fault}}, ["model"])
-    measurement = _obj({"type": {"enum": ["gnss_position", "gnss_horizontal", "velocity", "height"]}, "sensor": {"type": "string"},
+    measurement = _obj({"type": {"enum": ["gnss_position", "gnss_horizontal", "velocity", "height", "landmark",
+                                          "magnetic_field"]},
+                        "sensor": {"type": "string"}, "ratio": {"type": "number", "minimum": 0},
+                        "sigma_uT": POS, "calibrate_until_s": {"type": "number", "minimum": 0},
+                        "calibrate_from_s": {"type": "number", "minimum": 0},
+                        "date": {"type": "string"},
                         "sigma_m": VEC3, "sigma_mps": VEC3, "field": {"type": "string"},
                         "baro_state": {"type": "boolean"}, "offset_m": NUM}, ["type", "sensor"])
     estimator = {"type": "object", "required": ["label", "type"],

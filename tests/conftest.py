@@ -27,3 +27,16 @@ def shipped_flight(repo_root, tmp_path_factory):
         truth, path, _ = cached_flight(scenario.flight)
         return scenario, truth, path
     return get
+
+
+@pytest.fixture
+def assert_scenario_error():
+    """``check(data, key, words)``: parsing the scenario mapping ``data`` raises a ScenarioError
+    that names ``bad.yaml``, the key path ``key`` and contains ``words``."""
+    def check(data, key, words):
+        from navsim.errors import ScenarioError
+        from navsim.scenario import parse_scenario
+        with pytest.raises(ScenarioError) as exc:
+            parse_scenario(data, "bad.yaml")
+        assert f"bad.yaml: {key}:" in str(exc.value) and words in str(exc.value), str(exc.value)
+    return check

@@ -15,6 +15,10 @@ Each entry: ``label``, ``type`` (a registered estimator) and its parameters. For
         - {type: gnss_position, sensor: bd, sigma_m: [8, 8, 8]}
         - {type: velocity, sensor: ads, sigma_mps: 1.0}
         - {type: height, sensor: ads, field: h_pressure_m, sigma_m: 3, baro_state: true}
+        - {type: landmark, sensor: camera, sigma_m: 3, ratio: 0.01}   # P1: std 3 m + 1 % of range
+        - {type: magnetic_field, sensor: mag, sigma_uT: 1.0, calibrate_from_s: 100,
+           calibrate_until_s: 150}       # P1: RLS calibration in the calibration turns,
+                                         # field-vector aiding after
 
 ``p2_dynamic_height`` takes the same keys plus P2's height channel (see
 :mod:`navsim.estimators.p2_height`)::
@@ -189,14 +193,30 @@ def _measurements(node: Node, sensors: dict) -> list:
     meas = []
     for j, item in enumerate(raw):
         m = Node(item, node.key(f"measurements[{j}]"), node.file)
-        mtype = m.get("type", str, choices=("gnss_position", "gnss_horizontal", "velocity", "height"))
+        mtype = m.get("type", str, choices=("gnss_position", "gnss_horizontal", "velocity", "height",
+                                            "landmark", "magnetic_field"))
         sensor = m.get("sensor", str)
         if sensor not in sensors:
             raise m.error(f"'{sensor}' is not a sensor of this scenario", "sensor",
                           expected="one of " + ", ".join(sensors) if sensors else "a sensor under 'sensors'",
                           hint=close_match(sensor, sensors))
         entry = {"type": mtype, "sensor": sensor}
-        if mtype == "gnss_position":
+        if mtype == "magnetic_field":
+            if sensors[sensor] != "magnetometer":
+                raise m.error(f"'{sensor}' is a {sensors[sensor]}", "sensor", expected="a magnetometer sensor",
+                              hint=close_match(sensor, [k for k, v in sensors.items() if v == "magnetometer"]))
+            entry["sigma_T"] = m.get("sigma_uT", float, exclusive_minimum=0.0) * 1e-6
+            entry["calibrate_from_s"] = m.get("calibrate_from_s", float, 0.0, minimum=0.0)
+            entry["calibrate_until_s"] = m.get("calibrate_until_s", float,
+                                               exclusive_minimum=entry["calibrate_from_s"])
+            entry["date"] = m.get("date", str, "2025-01-01")
+        elif mtype == "landmark":
+            if sensors[sensor] != "camera":
+                raise m.error(f"'{sensor}' is a {sensors[sensor]}", "sensor", expected="a camera sensor",
+                              hint=close_match(sensor, [k for k, v in sensors.items() if v == "camera"]))
+            entry["sigma_m"] = m.get("sigma_m", float, exclusive_minimum=0.0)
+            entry["ratio"] = m.get("ratio", float, 0.0, minimum=0.0)
+        elif mtype == "gnss_position":
             entry["sigma_m"] = _vec(m, "sigma_m")
         elif mtype == "gnss_horizontal":
             entry["sigma_m"] = _vec(m, "sigma_m")[:2]
@@ -299,7 +319,7 @@ def _height_params(node: Node, sensors: dict) -> dict:
 
 
 def _models(entries: list) -> list:
-    from navsim.estimators.measurements import GnssHorizontal
+    from navsim.estimators.measurements import GnssHorizontal, LandmarkFix, MagneticField
     models = []
     for m in entries:
         if m["type"] == "gnss_position":
@@ -308,6 +328,11 @@ def _models(entries: list) -> list:
             models.append(GnssHorizontal(m["sensor"], np.array(m["sigma_m"])))
         elif m["type"] == "velocity":
             models.append(Velocity(m["sensor"], np.array(m["sigma_mps"]), field=m["field"]))
+        elif m["type"] == "landmark":
+            models.append(LandmarkFix(m["sensor"], m["sigma_m"], m["ratio"]))
+        elif m["type"] == "magnetic_field":
+            models.append(MagneticField(m["sensor"], m["sigma_T"], m["calibrate_until_s"], m["date"],
+                                        m["calibrate_from_s"]))
         else:
             models.append(Height(m["sensor"], m["sigma_m"], field=m["field"],
                                  use_baro_state=m["baro_state"], offset_m=m["offset_m"]))

@@ -5,7 +5,8 @@ one is inside the field of view (``half_fov`` from the boresight) and within ``m
 camera yields a position fix of the aircraft with noise of std ``noise + noise_ratio * range``
 per NED axis (the nearest visible landmark is used). Values: ``lat_rad``, ``lon_rad``, ``h_m``
 ``(B, M)``, ``landmark`` ``(B, M)`` (index, -1 when none); ``valid`` where a landmark was seen.
-``errors['pos_error_n_m']`` is the fix error (NED, m).
+``errors['pos_error_n_m']`` is the fix error (NED, m), ``errors['range_m']`` ``(M,)`` the range to
+the landmark seen (NaN when none); ``meta['landmarks']`` the anchors' coordinates.
 """
 
 from __future__ import annotations
@@ -45,5 +46,7 @@ def emulate_camera(truth, spec: CameraSpec, seed: int, runs, faults=(), name: st
                       values={"lat_rad": lat + err[..., 0] / (r_m + h),
                               "lon_rad": lon + err[..., 1] / ((r_n + h) * np.cos(lat)),
                               "h_m": h - err[..., 2], "landmark": np.broadcast_to(landmark, (B, M)).copy()},
-                      valid=valid, errors={"pos_error_n_m": err},
-                      meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed})
+                      valid=valid, errors={"pos_error_n_m": err,
+                                           "range_m": np.where(landmark >= 0, best_range, np.nan)},
+                      meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed,
+                            "landmarks": [tuple(map(float, lm)) for lm in spec.landmarks]})

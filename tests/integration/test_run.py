@@ -129,7 +129,8 @@ def test_interrupted_run_keeps_what_finished(short, tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("name", ["p0_bd_sins_ads", "p0_two_step", "p2_sea_height", "p3_sins_gps",
-                                  "p1_emi_powerline", "p1_federated", "p1_return_to_land"])
+                                  "p1_emi_powerline", "p1_federated", "p1_return_to_land",
+                                  "p1_gnss_denied_landmarks"])
 def test_shipped_scenarios_run_with_few_runs(name, repo_root, tmp_path, monkeypatch):
     monkeypatch.setenv("NAVSIM_CACHE", str(tmp_path / "cache"))
     out = tmp_path / name
