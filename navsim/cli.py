@@ -138,6 +138,9 @@ def cmd_run(args) -> int:
                "interrupted": result.interrupted, "estimators": {}}
     for label, h in result.histories.items():
         metrics["estimators"][label] = score(h, scenario.settle_s, scenario.windows)
+    if result.calibration:
+        from navsim.metrics import calibration_score
+        metrics["calibration"] = {name: calibration_score(c) for name, c in result.calibration.items()}
     wall = time.perf_counter() - t0
     metrics["wall_s"] = wall
     record = {"scenario": str(args.scenario), "runs": runs, "runs_done": int(len(result.runs)),

@@ -211,3 +211,29 @@ def field_model_n_T(lat_rad, lon_rad, h_m, date: str) -> np.ndarray:
     cells, inverse = np.unique(key, axis=0, return_inverse=True)
     values = np.array([wmm_field_n_T(float(a), float(b), float(c), date) for a, b, c in cells])
     return values[np.asarray(inverse).reshape(-1)]
+
+
+def calibration_history(truth, data, noise_T: float, forgetting: float = 1.0, every_s: float = 1.0) -> dict:
+    """The online fit of a magnetometer's :class:`~navsim.sensors.base.SensorData` (the fit
+    the ``mag_heading`` measurement runs, scale from the field model at the start), scored
+    every ``every_s`` against the data's true errors.
+
+    Returns ``t_s`` ``(E,)``, ``turns`` ``(E,)`` (full turns of the true heading),
+    ``hard_iron_err`` and ``soft_iron_err`` ``(B, E)`` (:func:`calibration_errors`, fractions)."""
+    field0 = field_model_n_T(truth.lat_rad[:1], truth.lon_rad[:1], truth.h_m[:1], data.meta.get("date", "2025-01-01"))
+    B = data.valid.shape[0]
+    fit = EllipsoidRLS(np.full(B, np.linalg.norm(field0)), noise_T, forgetting)
+    t_s = np.arange(0.0, data.t_s[-1] + 1e-9, every_s)
+    ends = np.searchsorted(data.t_s, t_s + 1e-9)
+    mag, start = data.values["mag_b_T"], 0
+    hard_true, soft_true = data.errors["hard_iron_T"][:, 0], data.errors["soft_iron"]
+    field_true = np.linalg.norm(data.errors["field_n_T"], axis=-1)
+    hard_err, soft_err = np.full((B, len(t_s)), np.nan), np.full((B, len(t_s)), np.nan)
+    for e, end in enumerate(ends):
+        fit.update(mag[:, start:end], data.valid[:, start:end])
+        start = end
+        hard, soft, _ = fit.estimate()
+        hard_err[:, e], soft_err[:, e] = calibration_errors(hard, soft, hard_true, soft_true,
+                                                            field_true[max(end - 1, 0)])
+    yaw = np.interp(t_s, truth.t_s, np.unwrap(truth.euler_rad[:, 2]))
+    return {"t_s": t_s, "turns": turns(yaw), "hard_iron_err": hard_err, "soft_iron_err": soft_err}

@@ -3,7 +3,8 @@ statistics (P2's Table 1 format), NEES and NIS against chi-square bands.
 
 The quantities (per run, per epoch) are the NED position error ``pos_m``, the velocity error
 ``vel_mps``, the attitude error ``att_deg`` and, for windows, ``north_m``, ``east_m``,
-``height_m`` (height error, up positive), ``speed_mps`` (horizontal speed error norm).
+``height_m`` (height error, up positive), ``speed_mps`` (horizontal speed error norm),
+``heading_deg`` (yaw error, estimate minus truth, ``-phi_D``).
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ def chi2_band(dim: int, runs: int, p: float = 0.95) -> tuple[float, float]:
 def window_quantities(h, good):
     pos = h.pos_err_m[good]
     return {"north_m": pos[..., 0], "east_m": pos[..., 1], "height_m": -pos[..., 2],
-            "speed_mps": np.linalg.norm(h.vel_err_mps[good][..., :2], axis=-1)}
+            "speed_mps": np.linalg.norm(h.vel_err_mps[good][..., :2], axis=-1),
+            "heading_deg": -np.degrees(h.att_err_rad[good][..., 2])}
 
 
 def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
@@ -129,3 +131,24 @@ def lookup(metrics: dict, path: str):
             return None
         node = node[part]
     return node
+
+
+def calibration_score(cal: dict, turns: float = 2.0) -> dict:
+    """A magnetometer calibration history (:func:`navsim.magcal.calibration_history`) scored
+    when the true heading has made ``turns`` full turns and at the end: hard-iron error in % of
+    the field magnitude and soft-iron error in % (relative Frobenius), mean, 95th percentile and
+    maximum over the runs."""
+    def stats(x):
+        x = 100.0 * x[np.isfinite(x)]
+        if not x.size:
+            return {"mean": None, "p95": None, "max": None}
+        return {"mean": float(np.mean(x)), "p95": float(np.percentile(x, 95)), "max": float(np.max(x))}
+    out = {"runs": int(cal["hard_iron_err"].shape[0]), "turns_total": float(cal["turns"][-1])}
+    reached = np.flatnonzero(cal["turns"] >= turns)
+    if reached.size:
+        k = int(reached[0])
+        out[f"after_{turns:g}_turns"] = {"t_s": float(cal["t_s"][k]), "hard_iron_pct": stats(cal["hard_iron_err"][:, k]),
+                                         "soft_iron_pct": stats(cal["soft_iron_err"][:, k])}
+    out["final"] = {"t_s": float(cal["t_s"][-1]), "hard_iron_pct": stats(cal["hard_iron_err"][:, -1]),
+                    "soft_iron_pct": stats(cal["soft_iron_err"][:, -1])}
+    return out

@@ -77,6 +77,8 @@ class RunResult:
     failed: dict = field(default_factory=dict)   #: run -> error message
     interrupted: bool = False
     truth_bias: dict = field(default_factory=dict)   #: gyro/accel true bias at epochs (B, E, 3)
+    #: magnetometer name -> its online calibration scored against the truth (navsim.magcal)
+    calibration: dict = field(default_factory=dict)
 
 
 def _chunk(args):
@@ -98,7 +100,22 @@ def _chunk(args):
     bias = {k: np.broadcast_to(imu.errors[k], (len(runs), max(imu.errors[k].shape[1], 1), 3))
             for k in ("gyro_bias", "accel_bias")}
     bias = {k: (v[:, idx] if v.shape[1] > 1 else np.repeat(v, len(idx), axis=1)) for k, v in bias.items()}
-    return list(runs), hist, bias
+    from navsim.magcal import calibration_history
+    calib = {name: calibration_history(truth, others[name], s["noise_uT"] * 1e-6, s["forgetting"])
+             for name, s in mag_calibrations(scenario).items()}
+    return list(runs), hist, bias, calib
+
+
+def mag_calibrations(scenario) -> dict:
+    """Magnetometer name -> the settings of the first ``mag_heading`` measurement reading it."""
+    out = {}
+    for e in scenario.estimators:
+        groups = [e.params.get("measurements", [])] + [loc["measurements"] for loc in
+                                                      e.params.get("federated", {}).get("locals", [])]
+        for m in (m for g in groups for m in g):
+            if m["type"] == "mag_heading":
+                out.setdefault(m["sensor"], m)
+    return out
 
 
 def _sum_cost(costs):
@@ -125,7 +142,9 @@ def _merge(parts):
             nis_dim=hs[0].nis_dim, diverged=cat("diverged"), gyro_bias=cat("gyro_bias"),
             accel_bias=cat("accel_bias"), cost=_sum_cost([h.cost for h in hs]))
     bias = {k: np.concatenate([p[2][k] for p in parts]) for k in parts[0][2]}
-    return runs, merged, bias
+    calib = {name: {k: v if k in ("t_s", "turns") else np.concatenate([p[3][name][k] for p in parts])
+                    for k, v in c.items()} for name, c in parts[0][3].items()}
+    return runs, merged, bias, calib
 
 
 def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: int, workers: int,
@@ -161,5 +180,5 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: i
         interrupted = True
     if not parts:
         return RunResult({}, np.array([], int), failed, interrupted)
-    done, hist, bias = _merge(parts)
-    return RunResult(hist, done, failed, interrupted, bias)
+    done, hist, bias, calib = _merge(parts)
+    return RunResult(hist, done, failed, interrupted, bias, calib)

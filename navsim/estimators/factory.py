@@ -15,6 +15,8 @@ Each entry: ``label``, ``type`` (a registered estimator) and its parameters. For
         - {type: gnss_position, sensor: bd, sigma_m: [8, 8, 8]}
         - {type: velocity, sensor: ads, sigma_mps: 1.0}
         - {type: height, sensor: ads, field: h_pressure_m, sigma_m: 3, baro_state: true}
+        - {type: mag_heading, sensor: mag, sigma_deg: 1.0, noise_uT: 0.2,   # P1: heading from the
+           forgetting: 1.0, min_turns: 2}         # magnetometer calibrated online (measurements.py)
 
 ``p2_dynamic_height`` takes the same keys plus P2's height channel (see
 :mod:`navsim.estimators.p2_height`)::
@@ -189,7 +191,8 @@ def _measurements(node: Node, sensors: dict) -> list:
     meas = []
     for j, item in enumerate(raw):
         m = Node(item, node.key(f"measurements[{j}]"), node.file)
-        mtype = m.get("type", str, choices=("gnss_position", "gnss_horizontal", "velocity", "height"))
+        mtype = m.get("type", str, choices=("gnss_position", "gnss_horizontal", "velocity", "height",
+                                            "mag_heading"))
         sensor = m.get("sensor", str)
         if sensor not in sensors:
             raise m.error(f"'{sensor}' is not a sensor of this scenario", "sensor",
@@ -203,6 +206,8 @@ def _measurements(node: Node, sensors: dict) -> list:
         elif mtype == "velocity":
             entry["sigma_mps"] = _vec(m, "sigma_mps")
             entry["field"] = m.get("field", str, "vel_n_mps")
+        elif mtype == "mag_heading":
+            entry.update(_mag_heading_params(m, sensors))
         else:
             entry["sigma_m"] = m.get("sigma_m", float, exclusive_minimum=0.0)
             entry["field"] = m.get("field", str, {"radar_altimeter": "h_agl_m", "baro": "h_baro_m",
@@ -212,6 +217,19 @@ def _measurements(node: Node, sensors: dict) -> list:
         m.done()
         meas.append(entry)
     return meas
+
+
+def _mag_heading_params(m: Node, sensors: dict) -> dict:
+    """``mag_heading``: the heading's ``sigma_deg``, the filter's model of the magnetometer
+    noise ``noise_uT`` (per axis), the calibration's ``forgetting`` and ``min_turns``."""
+    if sensors[m.data["sensor"]] != "magnetometer":
+        raise m.error(f"'{m.data['sensor']}' is not a magnetometer", "sensor",
+                      expected="a sensor of kind magnetometer",
+                      hint=close_match(m.data["sensor"], [k for k, v in sensors.items() if v == "magnetometer"]))
+    return {"sigma_deg": m.get("sigma_deg", float, exclusive_minimum=0.0),
+            "noise_uT": m.get("noise_uT", float, minimum=0.0),
+            "forgetting": m.get("forgetting", float, 1.0, exclusive_minimum=0.0, maximum=1.0),
+            "min_turns": m.get("min_turns", float, 2.0, minimum=0.0)}
 
 
 def _federated_params(node: Node, sensors: dict) -> dict:
@@ -299,7 +317,7 @@ def _height_params(node: Node, sensors: dict) -> dict:
 
 
 def _models(entries: list) -> list:
-    from navsim.estimators.measurements import GnssHorizontal
+    from navsim.estimators.measurements import GnssHorizontal, MagneticHeading
     models = []
     for m in entries:
         if m["type"] == "gnss_position":
@@ -308,6 +326,9 @@ def _models(entries: list) -> list:
             models.append(GnssHorizontal(m["sensor"], np.array(m["sigma_m"])))
         elif m["type"] == "velocity":
             models.append(Velocity(m["sensor"], np.array(m["sigma_mps"]), field=m["field"]))
+        elif m["type"] == "mag_heading":
+            models.append(MagneticHeading(m["sensor"], np.radians(m["sigma_deg"]), m["noise_uT"] * 1e-6,
+                                          forgetting=m["forgetting"], min_turns=m["min_turns"]))
         else:
             models.append(Height(m["sensor"], m["sigma_m"], field=m["field"],
                                  use_baro_state=m["baro_state"], offset_m=m["offset_m"]))

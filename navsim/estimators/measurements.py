@@ -103,3 +103,61 @@ class GnssHorizontal:
 
 
 MODELS["gnss_horizontal"] = GnssHorizontal
+
+
+@dataclass
+class MagneticHeading:
+    """INS minus magnetic heading, rad, from the magnetometer calibrated online (P1).
+
+    Every call feeds the magnetometer samples since the last one to a recursive least-squares
+    ellipsoid fit (:class:`navsim.magcal.EllipsoidRLS`, its noise model ``noise_T`` the
+    filter's own) and calibrates the current sample, ``m_c = S^-1 (m - b)``. Rotated to NED
+    with the INS attitude, ``v = C_nb m_c``, its declination ``atan2(v_E, v_N)`` minus the
+    declination of the filter's own field model (WMM at the INS position) is the measurement:
+    identical to the tilt-compensated magnetic heading (the field levelled with the INS roll
+    and pitch, plus the model declination) subtracted from the INS yaw. With
+    ``C_nb_est = (I - [phi x]) C_nb``, ``v = m_n + [m_n x] phi`` and::
+
+        z = (m_N m_D phi_N + m_E m_D phi_E) / H^2 - phi_D,   H^2 = m_N^2 + m_E^2
+
+    (roll and pitch errors enter through the inclination, as in the tilt compensation). The
+    measurement is used once the INS heading has turned ``min_turns`` full turns since the
+    start (the calibration manoeuvre) and the fit is an ellipsoid.
+    """
+
+    sensor: str
+    sigma_rad: float
+    noise_T: float                       #: the filter's model of the magnetometer noise, per axis
+    forgetting: float = 1.0
+    min_turns: float = 2.0
+    name: str = "mag_heading"
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        from navsim import magcal
+        B = nav.lat_rad.shape[0]
+        date = data.meta.get("date", "2025-01-01")
+        yaw = np.arctan2(nav.C_nb[:, 1, 0], nav.C_nb[:, 0, 0])
+        if getattr(self, "_fit", None) is None:
+            field = magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date)
+            self._fit = magcal.EllipsoidRLS(np.linalg.norm(field, axis=-1), self.noise_T, self.forgetting)
+            self._fed, self._turns, self._yaw = 0, np.zeros(B), yaw
+        mag = data.values["mag_b_T"]
+        self._fit.update(mag[:, self._fed:j + 1], data.valid[:, self._fed:j + 1])
+        self._fed = j + 1
+        self._turns += np.abs((yaw - self._yaw + np.pi) % (2 * np.pi) - np.pi) / (2 * np.pi)
+        self._yaw = yaw
+        hard, soft, ok = self._fit.estimate()
+        v = np.einsum("bij,bj->bi", nav.C_nb, magcal.calibrate(mag[:, j], hard, soft))
+        m_n = magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date)
+        z = (np.arctan2(v[:, 1], v[:, 0]) - np.arctan2(m_n[:, 1], m_n[:, 0]) + np.pi) % (2 * np.pi) - np.pi
+        valid = data.valid[:, j] & ok & (self._turns >= self.min_turns) & np.isfinite(z)
+        H = np.zeros((B, 1, layout.n))
+        a = layout.slice("att").start
+        h2 = m_n[:, 0] ** 2 + m_n[:, 1] ** 2
+        H[:, 0, a] = m_n[:, 0] * m_n[:, 2] / h2
+        H[:, 0, a + 1] = m_n[:, 1] * m_n[:, 2] / h2
+        H[:, 0, a + 2] = -1.0
+        return (np.where(valid, z, 0.0)[:, None], H, np.full((B, 1, 1), float(self.sigma_rad) ** 2), valid)
+
+
+MODELS["mag_heading"] = MagneticHeading
