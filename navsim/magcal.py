@@ -7,12 +7,16 @@ Model and parametrisation
     as the aircraft turns, ``C_bn m_n`` stays on a sphere of radius ``r = |m_n|`` and ``m`` on
     the ellipsoid ``(m - b)^T A (m - b) = r^2``, ``A = S^-T S^-1``. The fit alone gives the
     ellipsoid up to scale; the field model's magnitude ``r`` (WMM, the filter's own model) is
-    the scale reference. With ``u = m / r`` the ellipsoid is linear in nine parameters::
+    the scale reference. With ``u = m / r = (x, y, z)`` the quadric ``u^T Q u + 2 q^T u + k = 0``,
+    scaled so that ``trace Q = 3``, is linear in nine parameters::
 
-        phi(u)^T theta = 1,   phi = [x^2, y^2, z^2, 2xy, 2xz, 2yz, 2x, 2y, 2z]
+        -(x^2 + y^2 + z^2) = phi^T theta,
+        phi = [x^2 - z^2, y^2 - z^2, 2xy, 2xz, 2yz, 2x, 2y, 2z, 1]
 
-    ``Q = [[t0, t3, t4], [t3, t1, t5], [t4, t5, t2]]``, ``q = t6:9``: centre ``c = -Q^-1 q``,
-    ``A / r^2 = Q / (1 + q^T Q^-1 q)``, ``b = r c``.
+    ``Q = I + [[t0, t2, t3], [t2, t1, t4], [t3, t4, -t0 - t1]]``, ``q = t5:8``, ``k = t8``:
+    centre ``c = -Q^-1 q``, ``A / r^2 = Q / (c^T Q c - k)``, ``b = r c``. (The other common
+    normalisation, ``k = -1``, fails when the hard iron is as large as the field: the origin
+    then lies on the ellipsoid and ``k = 0``.)
 
 Estimator
     Recursive least squares in information form: the normal equations are accumulated sample
@@ -52,22 +56,31 @@ import itertools
 import numpy as np
 
 N_PARAMS = 9
-SPHERE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-#: exponents (x, y, z) of the regressor's monomials and their coefficients
-_EXP = np.array([[2, 0, 0], [0, 2, 0], [0, 0, 2], [1, 1, 0], [1, 0, 1], [0, 1, 1],
-                 [1, 0, 0], [0, 1, 0], [0, 0, 1]])
-_COEF = np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0])
-#: every monomial of degree <= 4 (the entries of phi phi^T and phi), and where each entry reads
+#: the monomials of degree <= 2 of (x, y, z) the regressors are written in: 1, x, y, z, x^2,
+#: y^2, z^2, xy, xz, yz
+_BASIS = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [2, 0, 0], [0, 2, 0], [0, 0, 2],
+                   [1, 1, 0], [1, 0, 1], [0, 1, 1]])
+#: rows: the nine regressors x^2 - z^2, y^2 - z^2, 2xy, 2xz, 2yz, 2x, 2y, 2z, 1 and the target
+#: -(x^2 + y^2 + z^2), as coefficients of the basis
+_G = np.zeros((N_PARAMS + 1, len(_BASIS)))
+for _row, _terms in enumerate([{4: 1, 6: -1}, {5: 1, 6: -1}, {7: 2}, {8: 2}, {9: 2}, {1: 2}, {2: 2}, {3: 2},
+                               {0: 1}, {4: -1, 5: -1, 6: -1}]):
+    for _col, _c in _terms.items():
+        _G[_row, _col] = _c
+#: the unit sphere: Q = I, q = 0, k = -1
+SPHERE = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0])
+#: every monomial of degree <= 4 (products of two basis monomials), and where each product reads
 _MONO = np.array([e for e in itertools.product(range(5), repeat=3) if sum(e) <= 4])
 _INDEX = {tuple(e): i for i, e in enumerate(_MONO)}
-_IDX_M = np.array([[_INDEX[tuple(a + b)] for b in _EXP] for a in _EXP])
-_IDX_ETA = np.array([_INDEX[tuple(a)] for a in _EXP])
+_IDX = np.array([[_INDEX[tuple(a + b)] for b in _BASIS] for a in _BASIS])
 
 
-def regressor(u: np.ndarray) -> np.ndarray:
-    """``phi(u)`` ``(..., 9)`` of normalised measurements ``u`` ``(..., 3)``."""
-    x, y, z = u[..., 0], u[..., 1], u[..., 2]
-    return np.stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, 2 * x, 2 * y, 2 * z], -1)
+def regressor(u: np.ndarray):
+    """Regressors ``phi`` ``(..., 9)`` and target ``y`` ``(...)`` of normalised measurements
+    ``u`` ``(..., 3)``: ``y = phi^T theta`` on the ellipsoid."""
+    basis = np.prod(u[..., None, :] ** _BASIS, axis=-1)
+    z = basis @ _G.T
+    return z[..., :N_PARAMS], z[..., N_PARAMS]
 
 
 def _hermite(x: np.ndarray, s2: np.ndarray) -> np.ndarray:
@@ -83,16 +96,24 @@ def monomials(u: np.ndarray, s2) -> np.ndarray:
     return h[..., 0, _MONO[:, 0]] * h[..., 1, _MONO[:, 1]] * h[..., 2, _MONO[:, 2]]
 
 
+def normal_equations(moments: np.ndarray):
+    """``sum phi phi^T`` ``(B, 9, 9)`` and ``sum phi y`` ``(B, 9)`` from the monomial sums."""
+    W = _G @ moments[:, _IDX] @ _G.T
+    return W[:, :N_PARAMS, :N_PARAMS], W[:, :N_PARAMS, N_PARAMS]
+
+
 def ellipsoid(theta: np.ndarray):
     """Centre ``c`` ``(B, 3)`` and shape ``A_n`` ``(B, 3, 3)`` (``(u - c)^T A_n (u - c) = 1``)
-    of parameters ``theta`` ``(B, 9)``; NaN where ``Q`` is singular."""
+    of parameters ``theta`` ``(B, 9)``: ``u^T Q u + 2 q^T u + k = 0`` with ``trace Q = 3``;
+    NaN where ``Q`` is singular."""
     t = theta
-    Q = np.stack([np.stack([t[:, 0], t[:, 3], t[:, 4]], -1), np.stack([t[:, 3], t[:, 1], t[:, 5]], -1),
-                  np.stack([t[:, 4], t[:, 5], t[:, 2]], -1)], -2)
+    Q = np.stack([np.stack([1 + t[:, 0], t[:, 2], t[:, 3]], -1),
+                  np.stack([t[:, 2], 1 + t[:, 1], t[:, 4]], -1),
+                  np.stack([t[:, 3], t[:, 4], 1 - t[:, 0] - t[:, 1]], -1)], -2)
     ok = np.abs(np.linalg.det(Q)) > 1e-12
-    c = -np.linalg.solve(np.where(ok[:, None, None], Q, np.eye(3)), t[:, 6:9, None])[..., 0]
+    c = -np.linalg.solve(np.where(ok[:, None, None], Q, np.eye(3)), t[:, 5:8, None])[..., 0]
     c[~ok] = np.nan
-    k = 1.0 - np.einsum("bi,bi->b", c, t[:, 6:9])          # 1 + q^T Q^-1 q
+    k = -np.einsum("bi,bi->b", c, t[:, 5:8]) - t[:, 8]          # c^T Q c - k
     return c, Q / k[:, None, None]
 
 
@@ -163,8 +184,7 @@ class EllipsoidRLS:
 
     def theta(self) -> np.ndarray:
         """The least-squares parameters ``(B, 9)``."""
-        M = self.moments[:, _IDX_M] * np.outer(_COEF, _COEF)
-        eta = self.moments[:, _IDX_ETA] * _COEF
+        M, eta = normal_equations(self.moments)
         lam0 = self.prior_weight * self.prior_info
         return np.linalg.solve(M + lam0 * np.eye(N_PARAMS), (eta + lam0 * SPHERE)[..., None])[..., 0]
 

@@ -147,17 +147,24 @@ class MagneticHeading:
         self._turns += np.abs((yaw - self._yaw + np.pi) % (2 * np.pi) - np.pi) / (2 * np.pi)
         self._yaw = yaw
         hard, soft, ok = self._fit.estimate()
-        v = np.einsum("bij,bj->bi", nav.C_nb, magcal.calibrate(mag[:, j], hard, soft))
         m_n = magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date)
-        z = (np.arctan2(v[:, 1], v[:, 0]) - np.arctan2(m_n[:, 1], m_n[:, 0]) + np.pi) % (2 * np.pi) - np.pi
+        z, h_att = magnetic_heading(nav.C_nb, magcal.calibrate(mag[:, j], hard, soft), m_n)
         valid = data.valid[:, j] & ok & (self._turns >= self.min_turns) & np.isfinite(z)
         H = np.zeros((B, 1, layout.n))
-        a = layout.slice("att").start
-        h2 = m_n[:, 0] ** 2 + m_n[:, 1] ** 2
-        H[:, 0, a] = m_n[:, 0] * m_n[:, 2] / h2
-        H[:, 0, a + 1] = m_n[:, 1] * m_n[:, 2] / h2
-        H[:, 0, a + 2] = -1.0
+        H[:, 0, layout.slice("att")] = h_att
         return (np.where(valid, z, 0.0)[:, None], H, np.full((B, 1, 1), float(self.sigma_rad) ** 2), valid)
+
+
+def magnetic_heading(C_nb: np.ndarray, mag_cal_b: np.ndarray, field_n: np.ndarray):
+    """INS minus magnetic heading ``z`` ``(B,)``, rad, and its row ``(B, 3)`` in the attitude
+    error ``phi`` (NED): the declination of ``C_nb mag_cal_b`` minus that of ``field_n`` (see
+    :class:`MagneticHeading`)."""
+    v = np.einsum("bij,bj->bi", C_nb, mag_cal_b)
+    z = (np.arctan2(v[:, 1], v[:, 0]) - np.arctan2(field_n[:, 1], field_n[:, 0]) + np.pi) % (2 * np.pi) - np.pi
+    h2 = field_n[:, 0] ** 2 + field_n[:, 1] ** 2
+    H = np.stack([field_n[:, 0] * field_n[:, 2] / h2, field_n[:, 1] * field_n[:, 2] / h2,
+                  -np.ones_like(h2)], -1)
+    return z, H
 
 
 MODELS["mag_heading"] = MagneticHeading
