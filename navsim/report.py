@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import textwrap
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -277,7 +278,8 @@ def calibration_figures(calibration: dict, histories: dict, metrics: dict, spans
             e = 100.0 * cal[key]
             for r in range(min(runs_plotted, e.shape[0])):
                 ax.plot(t, e[r], color="0.6", lw=0.5)
-            with np.errstate(all="ignore"):
+            with warnings.catch_warnings():          # epochs where no run has an ellipsoid yet
+                warnings.simplefilter("ignore", RuntimeWarning)
                 ax.plot(t, np.nanmean(e, 0), color="tab:blue", lw=1.6, label="mean over runs")
                 ax.plot(t, np.nanpercentile(e, 95, axis=0), color="tab:red", lw=1.2, label="95th percentile")
             ax.axhline(2.0, color="k", ls="--", lw=0.8, label="2 % (acceptance)")
