@@ -187,6 +187,13 @@ def cmd_run(args) -> int:
                 ref_rows.append([label, path, fmt(paper), fmt(ours)])
         print(f"\npublished ({scenario.reference['source']}) versus ours:")
         print(_table(["estimator", "metric", "paper", "ours"], ref_rows))
+    for name, c in metrics.get("calibration", {}).items():
+        for when, v in ((k, c[k]) for k in ("after_2_turns", "final") if k in c):
+            pct = lambda d: "/".join("-" if d[q] is None else f"{d[q]:.2f}" for q in ("mean", "p95", "max"))
+            print(f"\nmagnetometer '{name}' calibration, {when.replace('_', ' ')} ({v['t_s']:.0f} s), "
+                  f"mean/p95/max: hard iron {pct(v['hard_iron_pct'])} % of |m|, soft iron {pct(v['soft_iron_pct'])} %",
+                  end="")
+        print()
     note = " (interrupted: partial results)" if result.interrupted else ""
     if result.failed:
         note += f"; {len(result.failed)} run(s) failed: see run.json"

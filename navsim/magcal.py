@@ -221,13 +221,15 @@ def turns(yaw_rad: np.ndarray) -> np.ndarray:
     return np.concatenate([np.zeros_like(d[..., :1]), np.cumsum(d, axis=-1)], -1) / (2 * np.pi)
 
 
-def field_model_n_T(lat_rad, lon_rad, h_m, date: str) -> np.ndarray:
+def field_model_n_T(lat_rad, lon_rad, h_m, date: str, grid: bool = True) -> np.ndarray:
     """The filter's own field model: WMM (north, east, down), tesla, ``(B, 3)`` at the given
     (estimated) positions, evaluated on a 0.01 deg, 100 m grid (the field changes by a few nT
-    per km); each run's value depends on its own position only."""
+    per km) or, with ``grid=False``, at the positions themselves (one evaluation per run: for
+    the calibration's scale reference, once); each run's value depends on its own position
+    only."""
     from navsim.sensors.magnetometer import wmm_field_n_T
-    key = np.stack([np.round(np.degrees(lat_rad), 2), np.round(np.degrees(lon_rad), 2),
-                    np.round(np.asarray(h_m, float), -2)], -1)
+    lat, lon, h = np.degrees(lat_rad), np.degrees(lon_rad), np.asarray(h_m, float)
+    key = np.stack([np.round(lat, 2), np.round(lon, 2), np.round(h, -2)] if grid else [lat, lon, h], -1)
     cells, inverse = np.unique(key, axis=0, return_inverse=True)
     values = np.array([wmm_field_n_T(float(a), float(b), float(c), date) for a, b, c in cells])
     return values[np.asarray(inverse).reshape(-1)]
@@ -240,7 +242,8 @@ def calibration_history(truth, data, noise_T: float, forgetting: float = 1.0, ev
 
     Returns ``t_s`` ``(E,)``, ``turns`` ``(E,)`` (full turns of the true heading),
     ``hard_iron_err`` and ``soft_iron_err`` ``(B, E)`` (:func:`calibration_errors`, fractions)."""
-    field0 = field_model_n_T(truth.lat_rad[:1], truth.lon_rad[:1], truth.h_m[:1], data.meta.get("date", "2025-01-01"))
+    field0 = field_model_n_T(truth.lat_rad[:1], truth.lon_rad[:1], truth.h_m[:1], data.meta.get("date", "2025-01-01"),
+                             grid=False)
     B = data.valid.shape[0]
     fit = EllipsoidRLS(np.full(B, np.linalg.norm(field0)), noise_T, forgetting)
     t_s = np.arange(0.0, data.t_s[-1] + 1e-9, every_s)

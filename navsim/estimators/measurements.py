@@ -8,6 +8,7 @@ state (estimate minus truth) and ``v ~ N(0, R)``. Each model knows which sensor 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,14 +132,15 @@ class MagneticHeading:
     forgetting: float = 1.0
     min_turns: float = 2.0
     name: str = "mag_heading"
+    _fit: object = dataclasses.field(default=None, init=False, repr=False)     #: the RLS fit, from the first call
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         from navsim import magcal
         B = nav.lat_rad.shape[0]
         date = data.meta.get("date", "2025-01-01")
         yaw = np.arctan2(nav.C_nb[:, 1, 0], nav.C_nb[:, 0, 0])
-        if getattr(self, "_fit", None) is None:
-            field = magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date)
+        if self._fit is None:
+            field = magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date, grid=False)
             self._fit = magcal.EllipsoidRLS(np.linalg.norm(field, axis=-1), self.noise_T, self.forgetting)
             self._fed, self._turns, self._yaw = 0, np.zeros(B), yaw
         mag = data.values["mag_b_T"]
