@@ -149,12 +149,12 @@ def cmd_run(args) -> int:
         metrics["estimators"][label] = score(h, scenario.settle_s, scenario.windows)
         if sightings and h.sigma is not None:
             metrics["estimators"][label]["landmarks"] = sighting_metrics(h, sightings)
-        if h.calibration:
-            from navsim.metrics import calibration_metrics
-            metrics["estimators"][label]["calibration"] = calibration_metrics(h, result.truth_bias)
     if loop is not None:
         from navsim.metrics import closed_loop_metrics
         metrics["closed_loop"] = closed_loop_metrics(loop, reference, scenario.closed_loop, result.histories)
+    if result.calibration:
+        from navsim.metrics import calibration_score
+        metrics["calibration"] = {name: calibration_score(c) for name, c in result.calibration.items()}
     wall = time.perf_counter() - t0
     metrics["wall_s"] = wall
     record = {"scenario": str(args.scenario), "runs": runs, "runs_done": int(len(result.runs)),
@@ -193,9 +193,7 @@ def cmd_run(args) -> int:
                      str(m["diverged_runs"])])
     print(_table(["estimator", "RMS pos N E D m", "RMS vel m/s", "RMS att deg", "NEES", "in band %",
                   "converged s", "ms/run", "diverged"], rows))
-    from navsim.report import calibration_lines, closed_loop_lines, sighting_lines
-    if any(m.get("calibration") for m in metrics["estimators"].values()):
-        print("\n".join(calibration_lines(metrics)[1:]))
+    from navsim.report import closed_loop_lines, sighting_lines
     if loop is not None:
         print("\n".join(closed_loop_lines(metrics["closed_loop"])[1:]))
     if sightings:
@@ -210,6 +208,13 @@ def cmd_run(args) -> int:
                 ref_rows.append([label, path, fmt(paper), fmt(ours)])
         print(f"\npublished ({scenario.reference['source']}) versus ours:")
         print(_table(["estimator", "metric", "paper", "ours"], ref_rows))
+    for name, c in metrics.get("calibration", {}).items():
+        for when, v in ((k, c[k]) for k in ("after_2_turns", "final") if k in c):
+            pct = lambda d: "/".join("-" if d[q] is None else f"{d[q]:.2f}" for q in ("mean", "p95", "max"))
+            print(f"\nmagnetometer '{name}' calibration, {when.replace('_', ' ')} ({v['t_s']:.0f} s), "
+                  f"mean/p95/max: hard iron {pct(v['hard_iron_pct'])} % of |m|, soft iron {pct(v['soft_iron_pct'])} %",
+                  end="")
+        print()
     note = " (interrupted: partial results)" if result.interrupted else ""
     if result.failed:
         note += f"; {len(result.failed)} run(s) failed: see run.json"

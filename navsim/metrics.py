@@ -3,7 +3,8 @@ statistics (P2's Table 1 format), NEES and NIS against chi-square bands.
 
 The quantities (per run, per epoch) are the NED position error ``pos_m``, the velocity error
 ``vel_mps``, the attitude error ``att_deg`` and, for windows, ``north_m``, ``east_m``,
-``height_m`` (height error, up positive), ``speed_mps`` (horizontal speed error norm).
+``height_m`` (height error, up positive), ``speed_mps`` (horizontal speed error norm),
+``heading_deg`` (yaw error, estimate minus truth, ``-phi_D``).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ def window_quantities(h, good):
     pos = h.pos_err_m[good]
     return {"north_m": pos[..., 0], "east_m": pos[..., 1], "height_m": -pos[..., 2],
             "speed_mps": np.linalg.norm(h.vel_err_mps[good][..., :2], axis=-1),
-            "heading_deg": np.degrees(h.att_err_rad[good][..., 2])}
+            "heading_deg": -np.degrees(h.att_err_rad[good][..., 2])}
 
 
 def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
@@ -235,24 +236,22 @@ def sighting_metrics(h, spans, good=None) -> dict:
             "sightings": per}
 
 
-def calibration_metrics(h, truth_bias: dict) -> dict:
-    """Online sensor calibrations of an estimator against the truth, at their last epoch (the
-    end of the calibration): hard-iron error in % of the field magnitude and soft-iron error in %
-    (Frobenius, relative), mean, 95th percentile and maximum over the runs; and against time
-    (mean and maximum) for the plots."""
-    from navsim.magcal import errors
-    out = {}
-    for sensor, c in h.calibration.items():
-        keys = [f"{sensor}.hard_iron_T", f"{sensor}.soft_iron", f"{sensor}.field_T"]
-        if not all(k in truth_bias for k in keys):
-            continue
-        hard_t, soft_t, field = (truth_bias[k] for k in keys)
-        hard, soft = errors(c["hard_iron_T"], c["soft_iron"], hard_t[:, None], soft_t[:, None], field[:, None])
-        stats = lambda x: {"mean": float(np.mean(x)), "p95": float(np.percentile(x, 95)), "max": float(np.max(x))}
-        out[sensor] = {"t_s": float(c["t_s"][-1]), "hard_iron_pct": stats(100 * hard[:, -1]),
-                       "soft_iron_pct": stats(100 * soft[:, -1]),
-                       "history": {"t_s": c["t_s"].tolist(), "hard_iron_pct_mean": (100 * hard.mean(0)).tolist(),
-                                   "hard_iron_pct_max": (100 * hard.max(0)).tolist(),
-                                   "soft_iron_pct_mean": (100 * soft.mean(0)).tolist(),
-                                   "soft_iron_pct_max": (100 * soft.max(0)).tolist()}}
+def calibration_score(cal: dict, turns: float = 2.0) -> dict:
+    """A magnetometer calibration history (:func:`navsim.magcal.calibration_history`) scored
+    when the true heading has made ``turns`` full turns and at the end: hard-iron error in % of
+    the field magnitude and soft-iron error in % (relative Frobenius), mean, 95th percentile and
+    maximum over the runs."""
+    def stats(x):
+        x = 100.0 * x[np.isfinite(x)]
+        if not x.size:
+            return {"mean": None, "p95": None, "max": None}
+        return {"mean": float(np.mean(x)), "p95": float(np.percentile(x, 95)), "max": float(np.max(x))}
+    out = {"runs": int(cal["hard_iron_err"].shape[0]), "turns_total": float(cal["turns"][-1])}
+    reached = np.flatnonzero(cal["turns"] >= turns)
+    if reached.size:
+        k = int(reached[0])
+        out[f"after_{turns:g}_turns"] = {"t_s": float(cal["t_s"][k]), "hard_iron_pct": stats(cal["hard_iron_err"][:, k]),
+                                         "soft_iron_pct": stats(cal["soft_iron_err"][:, k])}
+    out["final"] = {"t_s": float(cal["t_s"][-1]), "hard_iron_pct": stats(cal["hard_iron_err"][:, -1]),
+                    "soft_iron_pct": stats(cal["soft_iron_err"][:, -1])}
     return out

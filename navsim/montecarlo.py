@@ -94,8 +94,6 @@ class EstimatorHistory:
     #: CPU seconds spent in ``propagate`` and in the epochs (predict + corrections), summed over
     #: the batches, and the number of runs and filter epochs they covered
     cost: dict | None = None
-    #: online sensor calibrations, sensor -> {t_s (E_c,), hard_iron_T (B, E_c, 3), soft_iron (B, E_c, 3, 3)}
-    calibration: dict = field(default_factory=dict)
 
 
 def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialErrors, seed: int,
@@ -190,6 +188,4 @@ class _Recorder:
                 np.isfinite(stack(self.pos)), axis=(1, 2)),
             gyro_bias=stack(self.bg) if self.bg else None, accel_bias=stack(self.ba) if self.ba else None,
             cost={"propagate_s": self.propagate_s, "epoch_s": self.epoch_s, "runs": len(self.pos[0]),
-                  "epochs": E - 1, "batches": 1},
-            calibration={k.split(":", 1)[1]: v for k, v in est.solution().extra.items()
-                         if k.startswith("calibration:")})
+                  "epochs": E - 1, "batches": 1})

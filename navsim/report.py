@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import textwrap
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -78,7 +79,6 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
                           f"{qs['nees']['fraction_inside'] * 100:.0f} % of the epochs inside the 95 % band"]
     lines += closed_loop_lines(metrics.get("closed_loop"))
     lines += sighting_lines(metrics)
-    lines += calibration_lines(metrics)
     if scenario.reference:
         lines += ["", f"published ({scenario.reference['source']}) versus ours:"]
         if scenario.reference.get("note"):
@@ -128,52 +128,6 @@ def landmark_figure(histories: dict, metrics: dict, sightings, runs_plotted: int
     axes[0].set_title("landmark sightings (green): the error drifts between anchors and returns after each")
     fig.tight_layout()
     return [("landmarks", fig)]
-
-
-def calibration_lines(metrics: dict) -> list[str]:
-    """Online magnetometer calibrations at their end (mean / 95th percentile / worst run)."""
-    rows = [[label, sensor, f"{c['t_s']:.0f}",
-             " / ".join(f"{c['hard_iron_pct'][k]:.3g}" for k in ("mean", "p95", "max")),
-             " / ".join(f"{c['soft_iron_pct'][k]:.3g}" for k in ("mean", "p95", "max"))]
-            for label, m in metrics["estimators"].items() for sensor, c in m.get("calibration", {}).items()]
-    if not rows:
-        return []
-    return ["", "magnetometer calibration when frozen (mean / 95th percentile / worst run):", ""] + \
-        _table_lines(["estimator", "sensor", "at s", "hard iron % of field", "soft iron % Frobenius"], rows)
-
-
-def calibration_figure(histories: dict, metrics: dict, spans=()):
-    """Magnetometer calibration errors against time (estimators that calibrate online) and the
-    heading error of every estimator (Monte Carlo RMS), windows shaded."""
-    cals = [(label, sensor, c) for label, m in metrics["estimators"].items()
-            for sensor, c in m.get("calibration", {}).items()]
-    if not cals:
-        return []
-    plt = _plt()
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(10, 7.5))
-    for label, sensor, c in cals:
-        hist = c["history"]
-        for key, color in (("hard_iron", "tab:red"), ("soft_iron", "tab:blue")):
-            ax.plot(hist["t_s"], hist[f"{key}_pct_mean"], color=color, label=f"{label} ({sensor}): {key} mean")
-            ax.plot(hist["t_s"], hist[f"{key}_pct_max"], color=color, ls=":", label=f"{key} worst run")
-        ax.axvline(c["t_s"], color="k", lw=1)
-        ax.text(c["t_s"], 0.02, "calibration frozen ", transform=ax.get_xaxis_transform(), fontsize=7,
-                va="bottom", ha="right")
-    ax.axhline(2.0, color="g", lw=1, label="2 %")
-    ax.set(yscale="log", ylabel="error, %", xlabel="time, s",
-           title="hard iron (% of the field) and soft iron (% Frobenius) against time")
-    ax.legend(fontsize=7, loc="center left", ncol=2)
-    ax.grid(alpha=0.3)
-    for label, h in histories.items():
-        good = ~np.asarray(h.diverged, bool)
-        e = np.degrees(h.att_err_rad[good][..., 2])
-        bx.plot(h.t_s, np.sqrt(np.nanmean(e ** 2, axis=0)), label=label)
-    _shade(bx, spans, label=True)
-    bx.set(yscale="log", ylabel="heading error RMS, deg", xlabel="time, s")
-    bx.legend(fontsize=7)
-    bx.grid(alpha=0.3)
-    fig.tight_layout()
-    return [("calibration", fig)]
 
 
 def sighting_lines(metrics: dict) -> list[str]:
@@ -451,6 +405,65 @@ def bias_figure(histories: dict, truth_bias: dict, runs_plotted: int = 3):
     return [("biases", fig)]
 
 
+def calibration_figures(calibration: dict, histories: dict, metrics: dict, spans=(), runs_plotted: int = 3):
+    """Per calibrated magnetometer: hard- and soft-iron errors against time (mean and 95th
+    percentile over the runs, a few runs thin) with the mark of two full turns and the 2 %
+    line, and the heading error of each estimator (Monte Carlo RMS) against time."""
+    plt = _plt()
+    colors = plt.cm.tab10(np.arange(10))
+    figs = []
+    for name, cal in calibration.items():
+        fig, axs = plt.subplots(3, 1, figsize=(10, 11), sharex=True, gridspec_kw={"height_ratios": [3, 3, 3]})
+        t = cal["t_s"]
+        mark = np.flatnonzero(cal["turns"] >= 2.0)
+        t2 = t[mark[0]] if mark.size else None
+        for ax, key, title in ((axs[0], "hard_iron_err", "hard-iron error, % of |m|"),
+                               (axs[1], "soft_iron_err", "soft-iron error, % (Frobenius)")):
+            e = 100.0 * cal[key]
+            for r in range(min(runs_plotted, e.shape[0])):
+                ax.plot(t, e[r], color="0.6", lw=0.5)
+            with warnings.catch_warnings():          # epochs where no run has an ellipsoid yet
+                warnings.simplefilter("ignore", RuntimeWarning)
+                ax.plot(t, np.nanmean(e, 0), color="tab:blue", lw=1.6, label="mean over runs")
+                ax.plot(t, np.nanpercentile(e, 95, axis=0), color="tab:red", lw=1.2, label="95th percentile")
+            ax.axhline(2.0, color="k", ls="--", lw=0.8, label="2 % (acceptance)")
+            ax.set_yscale("log")
+            ax.set_ylim(0.05, 200)
+            ax.set_ylabel(title, fontsize=8)
+            ax.grid(alpha=0.3, which="both")
+            ax2 = ax.twinx()
+            ax2.plot(t, cal["turns"], color="tab:green", lw=0.8)
+            ax2.set_ylabel("full turns (true heading)", fontsize=7, color="tab:green")
+        score = metrics.get("calibration", {}).get(name, {}).get("after_2_turns")
+        if score:
+            h, s_ = score["hard_iron_pct"], score["soft_iron_pct"]
+            axs[0].set_title(f"after two full turns ({score['t_s']:.0f} s): hard iron {h['mean']:.2f} / "
+                             f"{h['p95']:.2f} / {h['max']:.2f} %, soft iron {s_['mean']:.2f} / {s_['p95']:.2f} / "
+                             f"{s_['max']:.2f} % (mean / 95th percentile / max)", fontsize=8)
+        for c, (label, hist) in enumerate(histories.items()):
+            good = ~np.asarray(hist.diverged, bool)
+            if good.any():
+                rms = np.sqrt(np.mean(np.degrees(hist.att_err_rad[good][..., 2]) ** 2, axis=0))
+                axs[2].plot(hist.t_s, rms, color=colors[c % 10], lw=1.4, label=f"{label}: MC RMS")
+        axs[2].set_ylabel("heading error, deg (RMS over runs)", fontsize=8)
+        axs[2].set_yscale("log")
+        axs[2].grid(alpha=0.3, which="both")
+        axs[2].legend(fontsize=7, loc="upper right")
+        for j, ax in enumerate(axs):
+            _shade(ax, spans, label=j == 0)
+            if t2 is not None:
+                ax.axvline(t2, color="tab:green", lw=1.0, ls=":")
+        if t2 is not None:
+            axs[1].text(t2, 1.0, " two full turns", transform=axs[1].get_xaxis_transform(), fontsize=7,
+                        va="top", color="tab:green")
+        axs[0].legend(fontsize=7, loc="upper right")
+        axs[-1].set_xlabel("time, s")
+        fig.suptitle(f"Magnetometer '{name}': online calibration (RLS ellipsoid fit) and heading error")
+        fig.tight_layout()
+        figs.append((f"calibration_{name}", fig))
+    return figs
+
+
 def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict,
                  loop: dict | None = None, reference=None, sightings=()) -> list[Path]:
     """Write the PNGs and ``report.pdf`` into ``out``; returns the files written. ``loop`` and
@@ -477,9 +490,9 @@ def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict
         pages += error_figures(result.histories, scenario.settle_s, runs_plotted, spans)
         pages += height_figure(result.histories, scenario)
         pages += landmark_figure(result.histories, metrics, sightings, runs_plotted)
-        pages += calibration_figure(result.histories, metrics, scenario.windows)
         pages += consistency_figure(result.histories, spans)
         pages += bias_figure(result.histories, result.truth_bias)
+        pages += calibration_figures(result.calibration, result.histories, metrics, scenario.windows)
     files = []
     fmts = scenario.report.get("formats", ["pdf", "png"])
     pdf = PdfPages(out / "report.pdf") if "pdf" in fmts else None

@@ -77,6 +77,8 @@ class RunResult:
     failed: dict = field(default_factory=dict)   #: run -> error message
     interrupted: bool = False
     truth_bias: dict = field(default_factory=dict)   #: gyro/accel true bias at epochs (B, E, 3)
+    #: magnetometer name -> its online calibration scored against the truth (navsim.magcal)
+    calibration: dict = field(default_factory=dict)
 
 
 def _chunk(args):
@@ -98,12 +100,22 @@ def _chunk(args):
     bias = {k: np.broadcast_to(imu.errors[k], (len(runs), max(imu.errors[k].shape[1], 1), 3))
             for k in ("gyro_bias", "accel_bias")}
     bias = {k: (v[:, idx] if v.shape[1] > 1 else np.repeat(v, len(idx), axis=1)) for k, v in bias.items()}
-    for name, data in others.items():             # magnetometers: the true hard and soft iron
-        if data.kind == "magnetometer":
-            bias[f"{name}.hard_iron_T"] = np.asarray(data.errors["hard_iron_T"])[:, 0]
-            bias[f"{name}.soft_iron"] = np.asarray(data.errors["soft_iron"])
-            bias[f"{name}.field_T"] = np.full(len(runs), np.linalg.norm(data.errors["field_n_T"], axis=-1).mean())
-    return list(runs), hist, bias
+    from navsim.magcal import calibration_history
+    calib = {name: calibration_history(truth, others[name], s["noise_uT"] * 1e-6, s["forgetting"])
+             for name, s in mag_calibrations(scenario).items()}
+    return list(runs), hist, bias, calib
+
+
+def mag_calibrations(scenario) -> dict:
+    """Magnetometer name -> the settings of the first ``mag_heading`` measurement reading it."""
+    out = {}
+    for e in scenario.estimators:
+        groups = [e.params.get("measurements", [])] + [loc["measurements"] for loc in
+                                                      e.params.get("federated", {}).get("locals", [])]
+        for m in (m for g in groups for m in g):
+            if m["type"] == "mag_heading":
+                out.setdefault(m["sensor"], m)
+    return out
 
 
 def _sum_cost(costs):
@@ -128,12 +140,11 @@ def _merge(parts):
             pos_err_m=cat("pos_err_m"), sigma=cat("sigma"), nees=cat("nees"),
             nis={k: np.concatenate([h.nis[k] for h in hs]) for k in hs[0].nis},
             nis_dim=hs[0].nis_dim, diverged=cat("diverged"), gyro_bias=cat("gyro_bias"),
-            accel_bias=cat("accel_bias"), cost=_sum_cost([h.cost for h in hs]),
-            calibration={s: {"t_s": c["t_s"], **{k: np.concatenate([h.calibration[s][k] for h in hs])
-                                                 for k in c if k != "t_s"}}
-                         for s, c in hs[0].calibration.items()})
+            accel_bias=cat("accel_bias"), cost=_sum_cost([h.cost for h in hs]))
     bias = {k: np.concatenate([p[2][k] for p in parts]) for k in parts[0][2]}
-    return runs, merged, bias
+    calib = {name: {k: v if k in ("t_s", "turns") else np.concatenate([p[3][name][k] for p in parts])
+                    for k, v in c.items()} for name, c in parts[0][3].items()}
+    return runs, merged, bias, calib
 
 
 def run_chunks(fn, chunks, make_args, workers: int, progress=None):
@@ -179,8 +190,8 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: i
         workers, progress)
     if not parts:
         return RunResult({}, np.array([], int), failed, interrupted)
-    done, hist, bias = _merge(parts)
-    return RunResult(hist, done, failed, interrupted, bias)
+    done, hist, bias, calib = _merge(parts)
+    return RunResult(hist, done, failed, interrupted, bias, calib)
 
 
 # --- navigation in the loop ---------------------------------------------------------------------
@@ -239,7 +250,7 @@ def run_closed_loop(scenario, runs: int, seed: int, workers: int, progress=None)
     parts = [_pad_part(p, t_full, longest[3]["path_t_s"]) for p in parts]
     for p in parts:
         failed.update(p[4])
-    done, hist, bias = _merge([p[:3] for p in parts])
+    done, hist, bias, _ = _merge([(*p[:3], {}) for p in parts])
     order = sorted(parts, key=lambda p: p[0][0])
     extra = {k: np.concatenate([p[3][k] for p in order]) for k in order[0][3] if k != "path_t_s"}
     extra["path_t_s"] = longest[3]["path_t_s"]

@@ -63,13 +63,13 @@ def scenario_schema() -> dict:
                    "off": {"oneOf": [{"const": "all"}, {"type": "array", "items": {"type": "string"}}]},
                    "faults": {"type": "array", "items": fault}}, ["model"])
     measurement = _obj({"type": {"enum": ["gnss_position", "gnss_horizontal", "velocity", "height", "landmark",
-                                          "magnetic_field"]},
+                                          "mag_heading"]},
                         "sensor": {"type": "string"}, "ratio": {"type": "number", "minimum": 0},
-                        "sigma_uT": POS, "calibrate_until_s": {"type": "number", "minimum": 0},
-                        "calibrate_from_s": {"type": "number", "minimum": 0},
-                        "date": {"type": "string"},
                         "sigma_m": VEC3, "sigma_mps": VEC3, "field": {"type": "string"},
-                        "baro_state": {"type": "boolean"}, "offset_m": NUM}, ["type", "sensor"])
+                        "baro_state": {"type": "boolean"}, "offset_m": NUM,
+                        "sigma_deg": POS, "noise_uT": {"type": "number", "minimum": 0},
+                        "forgetting": {"type": "number", "exclusiveMinimum": 0, "maximum": 1},
+                        "min_turns": {"type": "number", "minimum": 0}}, ["type", "sensor"])
     estimator = {"type": "object", "required": ["label", "type"],
                  "properties": {"label": {"type": "string"}, "type": {"type": "string"},
                                 "states": {"oneOf": [{"enum": list(PRESETS)},

@@ -116,14 +116,9 @@ class ErrorStateKF:
 
     def solution(self) -> Solution:
         idx = np.r_[self.layout.slice("att"), self.layout.slice("vel"), self.layout.slice("pos")]
-        extra = {"P": self.P, "diverged": self.diverged}
-        for m in self.measurements:              # online sensor calibrations (magnetometer)
-            record = m.calibration_record() if hasattr(m, "calibration_record") else {}
-            if record:
-                extra[f"calibration:{m.sensor}"] = record
         return Solution(nav=self.sd.state, P_nav=self.P[:, idx][:, :, idx],
                         gyro_bias=self.b_gyro + self.m_gyro, accel_bias=self.b_accel + self.m_accel,
-                        extra=extra)
+                        extra={"P": self.P, "diverged": self.diverged})
 
     # --- filter steps -------------------------------------------------------------------------
     def _transition(self):

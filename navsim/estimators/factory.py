@@ -16,9 +16,8 @@ Each entry: ``label``, ``type`` (a registered estimator) and its parameters. For
         - {type: velocity, sensor: ads, sigma_mps: 1.0}
         - {type: height, sensor: ads, field: h_pressure_m, sigma_m: 3, baro_state: true}
         - {type: landmark, sensor: camera, sigma_m: 3, ratio: 0.01}   # P1: std 3 m + 1 % of range
-        - {type: magnetic_field, sensor: mag, sigma_uT: 1.0, calibrate_from_s: 100,
-           calibrate_until_s: 150}       # P1: RLS calibration in the calibration turns,
-                                         # field-vector aiding after
+        - {type: mag_heading, sensor: mag, sigma_deg: 1.0, noise_uT: 0.2,   # P1: heading from the
+           forgetting: 1.0, min_turns: 2}         # magnetometer calibrated online (measurements.py)
 
 ``p2_dynamic_height`` takes the same keys plus P2's height channel (see
 :mod:`navsim.estimators.p2_height`)::
@@ -194,23 +193,14 @@ def _measurements(node: Node, sensors: dict) -> list:
     for j, item in enumerate(raw):
         m = Node(item, node.key(f"measurements[{j}]"), node.file)
         mtype = m.get("type", str, choices=("gnss_position", "gnss_horizontal", "velocity", "height",
-                                            "landmark", "magnetic_field"))
+                                            "landmark", "mag_heading"))
         sensor = m.get("sensor", str)
         if sensor not in sensors:
             raise m.error(f"'{sensor}' is not a sensor of this scenario", "sensor",
                           expected="one of " + ", ".join(sensors) if sensors else "a sensor under 'sensors'",
                           hint=close_match(sensor, sensors))
         entry = {"type": mtype, "sensor": sensor}
-        if mtype == "magnetic_field":
-            if sensors[sensor] != "magnetometer":
-                raise m.error(f"'{sensor}' is a {sensors[sensor]}", "sensor", expected="a magnetometer sensor",
-                              hint=close_match(sensor, [k for k, v in sensors.items() if v == "magnetometer"]))
-            entry["sigma_T"] = m.get("sigma_uT", float, exclusive_minimum=0.0) * 1e-6
-            entry["calibrate_from_s"] = m.get("calibrate_from_s", float, 0.0, minimum=0.0)
-            entry["calibrate_until_s"] = m.get("calibrate_until_s", float,
-                                               exclusive_minimum=entry["calibrate_from_s"])
-            entry["date"] = m.get("date", str, "2025-01-01")
-        elif mtype == "landmark":
+        if mtype == "landmark":
             if sensors[sensor] != "camera":
                 raise m.error(f"'{sensor}' is a {sensors[sensor]}", "sensor", expected="a camera sensor",
                               hint=close_match(sensor, [k for k, v in sensors.items() if v == "camera"]))
@@ -223,6 +213,8 @@ def _measurements(node: Node, sensors: dict) -> list:
         elif mtype == "velocity":
             entry["sigma_mps"] = _vec(m, "sigma_mps")
             entry["field"] = m.get("field", str, "vel_n_mps")
+        elif mtype == "mag_heading":
+            entry.update(_mag_heading_params(m, sensors))
         else:
             entry["sigma_m"] = m.get("sigma_m", float, exclusive_minimum=0.0)
             entry["field"] = m.get("field", str, {"radar_altimeter": "h_agl_m", "baro": "h_baro_m",
@@ -232,6 +224,19 @@ def _measurements(node: Node, sensors: dict) -> list:
         m.done()
         meas.append(entry)
     return meas
+
+
+def _mag_heading_params(m: Node, sensors: dict) -> dict:
+    """``mag_heading``: the heading's ``sigma_deg``, the filter's model of the magnetometer
+    noise ``noise_uT`` (per axis), the calibration's ``forgetting`` and ``min_turns``."""
+    if sensors[m.data["sensor"]] != "magnetometer":
+        raise m.error(f"'{m.data['sensor']}' is not a magnetometer", "sensor",
+                      expected="a sensor of kind magnetometer",
+                      hint=close_match(m.data["sensor"], [k for k, v in sensors.items() if v == "magnetometer"]))
+    return {"sigma_deg": m.get("sigma_deg", float, exclusive_minimum=0.0),
+            "noise_uT": m.get("noise_uT", float, minimum=0.0),
+            "forgetting": m.get("forgetting", float, 1.0, exclusive_minimum=0.0, maximum=1.0),
+            "min_turns": m.get("min_turns", float, 2.0, minimum=0.0)}
 
 
 def _federated_params(node: Node, sensors: dict) -> dict:
@@ -319,7 +324,7 @@ def _height_params(node: Node, sensors: dict) -> dict:
 
 
 def _models(entries: list) -> list:
-    from navsim.estimators.measurements import GnssHorizontal, LandmarkFix, MagneticField
+    from navsim.estimators.measurements import GnssHorizontal, LandmarkFix, MagneticHeading
     models = []
     for m in entries:
         if m["type"] == "gnss_position":
@@ -330,9 +335,9 @@ def _models(entries: list) -> list:
             models.append(Velocity(m["sensor"], np.array(m["sigma_mps"]), field=m["field"]))
         elif m["type"] == "landmark":
             models.append(LandmarkFix(m["sensor"], m["sigma_m"], m["ratio"]))
-        elif m["type"] == "magnetic_field":
-            models.append(MagneticField(m["sensor"], m["sigma_T"], m["calibrate_until_s"], m["date"],
-                                        m["calibrate_from_s"]))
+        elif m["type"] == "mag_heading":
+            models.append(MagneticHeading(m["sensor"], np.radians(m["sigma_deg"]), m["noise_uT"] * 1e-6,
+                                          forgetting=m["forgetting"], min_turns=m["min_turns"]))
         else:
             models.append(Height(m["sensor"], m["sigma_m"], field=m["field"],
                                  use_baro_state=m["baro_state"], offset_m=m["offset_m"]))

@@ -8,6 +8,7 @@ state (estimate minus truth) and ``v ~ N(0, R)``. Each model knows which sensor 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -136,70 +137,66 @@ MODELS["landmark"] = LandmarkFix
 
 
 @dataclass
-class MagneticField:
-    """INS-predicted minus calibrated magnetometer field, body axes, tesla (P1: the calibrated
-    magnetometer corrects the attitude, the heading above all).
+class MagneticHeading:
+    """INS minus magnetic heading, rad, from the magnetometer calibrated online (P1).
 
-    From ``calibrate_from_s`` (once the filter has its heading) until ``calibrate_until_s`` (the
-    calibration turns) the model only calibrates the sensor, online, by recursive least
-    squares on the INS attitude and the World Magnetic Model field at the INS position
-    (:class:`navsim.magcal.AttitudeRLS`; the filter should then have GNSS and turns), and makes
-    no correction; then it freezes the calibration and measures
-    ``z = C_bn m_n - S^-1 (m - b)``, ``H = -C_bn [m_n x]`` on the attitude error (the component
-    along the field carries no information). ``date`` is the WMM epoch the filter assumes."""
+    Every call feeds the magnetometer samples since the last one to a recursive least-squares
+    ellipsoid fit (:class:`navsim.magcal.EllipsoidRLS`, its noise model ``noise_T`` the
+    filter's own) and calibrates the current sample, ``m_c = S^-1 (m - b)``. Rotated to NED
+    with the INS attitude, ``v = C_nb m_c``, its declination ``atan2(v_E, v_N)`` minus the
+    declination of the filter's own field model (WMM at the INS position) is the measurement:
+    identical to the tilt-compensated magnetic heading (the field levelled with the INS roll
+    and pitch, plus the model declination) subtracted from the INS yaw. With
+    ``C_nb_est = (I - [phi x]) C_nb``, ``v = m_n + [m_n x] phi`` and::
+
+        z = (m_N m_D phi_N + m_E m_D phi_E) / H^2 - phi_D,   H^2 = m_N^2 + m_E^2
+
+    (roll and pitch errors enter through the inclination, as in the tilt compensation). The
+    measurement is used once the INS heading has turned ``min_turns`` full turns since the
+    start (the calibration manoeuvre) and the fit is an ellipsoid.
+    """
 
     sensor: str
-    sigma_T: float
-    calibrate_until_s: float
-    date: str = "2025-01-01"
-    calibrate_from_s: float = 0.0
-    name: str = "magnetic_field"
-
-    def __post_init__(self):
-        self._rls = self._frozen = None
-        self.record = {"t_s": [], "hard_iron_T": [], "soft_iron": []}
-
-    def field_n_T(self, nav: NavState) -> np.ndarray:
-        """WMM field at each run's INS position (rounded to 0.01 deg and 100 m, cached)."""
-        from navsim.sensors.magnetometer import wmm_field_n_T
-        lat, lon = np.round(np.degrees(nav.lat_rad), 2), np.round(np.degrees(nav.lon_rad), 2)
-        h = np.round(nav.h_m, -2)
-        return np.array([wmm_field_n_T(float(a), float(b), float(c), self.date) for a, b, c in zip(lat, lon, h)])
+    sigma_rad: float
+    noise_T: float                       #: the filter's model of the magnetometer noise, per axis
+    forgetting: float = 1.0
+    min_turns: float = 2.0
+    name: str = "mag_heading"
+    _fit: object = dataclasses.field(default=None, init=False, repr=False)     #: the RLS fit, from the first call
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
-        from navsim.magcal import AttitudeRLS, calibrate
-        from navsim.strapdown import skew
+        from navsim import magcal
         B = nav.lat_rad.shape[0]
-        m = data.values["mag_b_T"][:, j]
-        valid = data.valid[:, j]
-        m_n = self.field_n_T(nav)
-        C_bn = np.swapaxes(nav.C_nb, 1, 2)
-        pred = np.einsum("bij,bj->bi", C_bn, m_n)
-        H = np.zeros((B, 3, layout.n))
-        R = np.broadcast_to(np.eye(3) * self.sigma_T ** 2, (B, 3, 3)).copy()
-        if self._rls is None:
-            self._rls = AttitudeRLS(B)
-        if data.t_s[j] <= self.calibrate_until_s + 1e-9:
-            self._rls.update(m, pred, valid & (data.t_s[j] >= self.calibrate_from_s - 1e-9))
-            b, S = self._rls.estimate()
-            self.record["t_s"].append(float(data.t_s[j]))
-            self.record["hard_iron_T"].append(b)
-            self.record["soft_iron"].append(S)
-            return np.zeros((B, 3)), H, R, np.zeros(B, bool)
-        if self._frozen is None:
-            self._frozen = self._rls.estimate()
-        z = pred - calibrate(m, *self._frozen)
-        H[:, :, layout.slice("att")] = -C_bn @ skew(m_n)
-        return z, H, R, valid
-
-    def calibration_record(self) -> dict:
-        """The calibration against time: ``t_s`` ``(E,)``, ``hard_iron_T`` ``(B, E, 3)``,
-        ``soft_iron`` ``(B, E, 3, 3)``."""
-        r = self.record
-        if not r["t_s"]:
-            return {}
-        return {"t_s": np.array(r["t_s"]), "hard_iron_T": np.stack(r["hard_iron_T"], 1),
-                "soft_iron": np.stack(r["soft_iron"], 1)}
+        date = data.meta.get("date", "2025-01-01")
+        yaw = np.arctan2(nav.C_nb[:, 1, 0], nav.C_nb[:, 0, 0])
+        if self._fit is None:
+            field = magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date, grid=False)
+            self._fit = magcal.EllipsoidRLS(np.linalg.norm(field, axis=-1), self.noise_T, self.forgetting)
+            self._fed, self._turns, self._yaw = 0, np.zeros(B), yaw
+        mag = data.values["mag_b_T"]
+        self._fit.update(mag[:, self._fed:j + 1], data.valid[:, self._fed:j + 1])
+        self._fed = j + 1
+        self._turns += np.abs((yaw - self._yaw + np.pi) % (2 * np.pi) - np.pi) / (2 * np.pi)
+        self._yaw = yaw
+        hard, soft, ok = self._fit.estimate()
+        m_n = magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date)
+        z, h_att = magnetic_heading(nav.C_nb, magcal.calibrate(mag[:, j], hard, soft), m_n)
+        valid = data.valid[:, j] & ok & (self._turns >= self.min_turns) & np.isfinite(z)
+        H = np.zeros((B, 1, layout.n))
+        H[:, 0, layout.slice("att")] = h_att
+        return (np.where(valid, z, 0.0)[:, None], H, np.full((B, 1, 1), float(self.sigma_rad) ** 2), valid)
 
 
-MODELS["magnetic_field"] = MagneticField
+def magnetic_heading(C_nb: np.ndarray, mag_cal_b: np.ndarray, field_n: np.ndarray):
+    """INS minus magnetic heading ``z`` ``(B,)``, rad, and its row ``(B, 3)`` in the attitude
+    error ``phi`` (NED): the declination of ``C_nb mag_cal_b`` minus that of ``field_n`` (see
+    :class:`MagneticHeading`)."""
+    v = np.einsum("bij,bj->bi", C_nb, mag_cal_b)
+    z = (np.arctan2(v[:, 1], v[:, 0]) - np.arctan2(field_n[:, 1], field_n[:, 0]) + np.pi) % (2 * np.pi) - np.pi
+    h2 = field_n[:, 0] ** 2 + field_n[:, 1] ** 2
+    H = np.stack([field_n[:, 0] * field_n[:, 2] / h2, field_n[:, 1] * field_n[:, 2] / h2,
+                  -np.ones_like(h2)], -1)
+    return z, H
+
+
+MODELS["mag_heading"] = MagneticHeading

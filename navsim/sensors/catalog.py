@@ -214,9 +214,12 @@ def _read_fields(data: dict, table: dict, file, path, typ) -> dict:
 
 
 def _value(value, dim, shape, key, previous):
-    if shape == "33":                  # a matrix of plain numbers (soft iron)
-        m = np.asarray(value, float) if isinstance(value, list) else None
-        if m is None or m.shape != (3, 3):
+    if shape == "33":                # a dimensionless matrix: plain numbers, no unit
+        ok = isinstance(value, list) and len(value) == 3 and all(
+            isinstance(row, list) and len(row) == 3 and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in row) for row in value)
+        m = np.asarray(value, float) if ok else None
+        if m is None or not np.all(np.isfinite(m)):
             raise UnitError("expected a 3x3 matrix (list of three rows)")
         return m
     v = to_si(value, dim)

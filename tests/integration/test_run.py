@@ -177,6 +177,16 @@ CORPUS = [
     (lambda s: s.replace("initial_errors: {pos_m: [5, 5, 3]", "initial_errors: {pos_m: [5, 5, -3]"), "initial_errors.pos_m", "non-negative"),
     (lambda s: s.replace("sensors:\n  imu: {model: p3_imu}\n", "sensors:\n"), "sensors", "exactly one sensor of kind imu"),
     (lambda s: s.replace("environment", "x") + "environment: {wind: {force: 13}}\n", "environment.wind.force", "one of 0"),
+    (lambda s: s.replace("{type: velocity, sensor: gps, sigma_mps: 0.05}",
+                         "{type: mag_heading, sensor: gps, sigma_deg: 1, noise_uT: 0.2}"),
+     "estimators[1].measurements[1].sensor", "not a magnetometer"),
+    (lambda s: s.replace("{type: velocity, sensor: gps, sigma_mps: 0.05}",
+                         "{type: mag_heading, sensor: mag, sigma_deg: 1, noise_uT: 0.2, forgetting: 1.5}")
+     .replace("sensors:\n  imu: {model: p3_imu}\n", "sensors:\n  imu: {model: p3_imu}\n  mag: {model: p1_magnetometer}\n"),
+     "estimators[1].measurements[1].forgetting", "<= 1.0"),
+    (lambda s: s.replace("{type: velocity, sensor: gps, sigma_mps: 0.05}", "{type: mag_heading, sensor: mag, sigma_deg: 1}")
+     .replace("sensors:\n  imu: {model: p3_imu}\n", "sensors:\n  imu: {model: p3_imu}\n  mag: {model: p1_magnetometer}\n"),
+     "estimators[1].measurements[1].noise_uT", "is missing"),
 ]
 
 
