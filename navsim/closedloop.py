@@ -11,9 +11,9 @@ P1's safety strategy (Jiang & Chen) is ``return_to_land``: when the watched GNSS
 had no fix for longer than ``lost_s``, the mission is abandoned and the aircraft flies, on the
 navigation solution with whatever aids remain, to the recovery point; when the solution says
 it is there (within ``acceptance_m`` along the leg), the parachute opens and the run's miss
-distance is the true horizontal distance to the recovery point. The aircraft is then flown on
-(straight and level) until every run has landed, so that every run's estimator is scored over
-the same time span::
+distance is the true horizontal distance to the recovery point. Each run is scored up to its
+own end (landing, end of the track, failure; :func:`end_records` blanks what follows), so what a
+run contributes does not depend on the runs it was batched with::
 
     closed_loop:
       fly_on: SINS/GNSS/baro           # an estimator label, or truth
@@ -23,7 +23,7 @@ the same time span::
         lost_s: 10                     # no fix for longer than this: abort the mission
         lat_deg: 30.5                  # the recovery point (or north_m / east_m from the start)
         lon_deg: 114.3
-        alt_m: 120                     # height of the way back (default: the height held)
+        alt_m: 120                     # height of the way back (default: the height commanded)
         acceptance_m: 0                # the parachute opens this far before the point (estimate)
         area_m: 150                    # a landing within this of the point reached the area
 
@@ -155,6 +155,7 @@ class LoopBatch:
     abort_t_s: np.ndarray        #: (B,) time the mission was abandoned (NaN: never)
     land_t_s: np.ndarray         #: (B,) time the parachute opened (NaN: never)
     fail_t_s: np.ndarray         #: (B,) time the flight failed (NaN: never)
+    end_t_s: np.ndarray          #: (B,) time the run ended: landed, track flown, failed (NaN: time limit)
     miss_m: np.ndarray           #: (B,) true horizontal distance of the landing to the point
     miss_est_m: np.ndarray       #: (B,) the same, of the navigation solution
     landing_n_m: np.ndarray      #: (B, 2) true north, east of the landing from the track start
@@ -179,6 +180,12 @@ def _sensor_streams(scenario, seed, runs, dt, n):
     return imu_cfg, imu, others
 
 
+def _matvec(M: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``M @ v`` for stacks ``(B, 3, 3)``, ``(B, 3)`` with the same operations whatever ``B``
+    (einsum may pick another summation path for another batch size)."""
+    return M[:, :, 0] * v[:, None, 0] + M[:, :, 1] * v[:, None, 1] + M[:, :, 2] * v[:, None, 2]
+
+
 def _fill(data, j: int, rows: np.ndarray) -> None:
     """Sample ``j`` of a sensor from the runs' true state ``rows`` plus the run's own error."""
     from navsim import earth
@@ -200,14 +207,16 @@ def _fill(data, j: int, rows: np.ndarray) -> None:
 
 def _guidance(nav, craft0) -> tuple:
     """North, east, height, course, ground speed, climb rate, roll, pitch of a NavState, as
-    lists (one value per run)."""
-    vel = nav.vel_n_mps
+    lists (one value per run). The angles are taken run by run with :mod:`math`: numpy's
+    vectorised transcendental functions may round differently for another batch size."""
+    vel = nav.vel_n_mps.tolist()
     C = nav.C_nb
+    c20, c21, c22 = C[:, 2, 0].tolist(), C[:, 2, 1].tolist(), C[:, 2, 2].tolist()
     return (((nav.lat_rad - craft0.lat0) * craft0.k_north).tolist(),
             ((nav.lon_rad - craft0.lon0) * craft0.k_east).tolist(), nav.h_m.tolist(),
-            np.arctan2(vel[:, 1], vel[:, 0]).tolist(), np.hypot(vel[:, 0], vel[:, 1]).tolist(),
-            (-vel[:, 2]).tolist(), np.arctan2(C[:, 2, 1], C[:, 2, 2]).tolist(),
-            (-np.arcsin(np.clip(C[:, 2, 0], -1.0, 1.0))).tolist())
+            [math.atan2(v[1], v[0]) for v in vel], [math.hypot(v[0], v[1]) for v in vel],
+            [-v[2] for v in vel], [math.atan2(a, b) for a, b in zip(c21, c22)],
+            [-math.asin(min(max(a, -1.0), 1.0)) for a in c20])
 
 
 def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: bool = False,
@@ -260,6 +269,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
     abort_t = np.full(B, np.nan)
     land_t = np.full(B, np.nan)
     fail_t = np.full(B, np.nan)
+    end_t = np.full(B, np.nan)
     landing = np.full((B, 2), np.nan)
     landing_est = np.full((B, 2), np.nan)
     last_fix = np.zeros(B)
@@ -272,8 +282,8 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
         if k > 0:
             view = _StepTruth(rows)
             dth, dv = inc.update(view.omega_ib_b_rps, view.f_b_mps2)
-            dth = np.einsum("bij,bj->bi", imu_err["gyro_matrix"], dth) + imu_err["gyro"][:, k]
-            dv = np.einsum("bij,bj->bi", imu_err["accel_matrix"], dv) + imu_err["accel"][:, k]
+            dth = _matvec(imu_err["gyro_matrix"], dth) + imu_err["gyro"][:, k]
+            dv = _matvec(imu_err["accel_matrix"], dv) + imu_err["accel"][:, k]
             dth = quantize_increment(dth, imu_cfg.spec.gyro, dt)
             dv = quantize_increment(dv, imu_cfg.spec.accel, dt)
             for data in sensors.values():
@@ -328,6 +338,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
                 if not runner.finished:
                     runner.update(s, dt)
                     if runner.finished:
+                        end_t[b] = t
                         if status[b] == "aborted":
                             status[b], land_t[b] = "landed", t
                             landing[b] = ((row[P.COL_LAT] - c0.lat0) * c0.k_north,
@@ -336,7 +347,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
                         else:
                             status[b] = "completed"
             except FlightError as exc:
-                status[b], fail_t[b] = "failed", t
+                status[b], fail_t[b], end_t[b] = "failed", t, t
                 failed[runs[b]] = str(exc)
                 continue
             if kept is not None and b == 0:
@@ -368,18 +379,15 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
                                 {"aircraft": fc.aircraft, "rate_hz": fc.rate_hz, "track": fc.track.name,
                                  "start": "air", "closed_loop": True})
     return LoopBatch(histories=histories, outcome=outcome, failed=failed, abort_t_s=abort_t,
-                     land_t_s=land_t, fail_t_s=fail_t, miss_m=miss, miss_est_m=miss_est, landing_n_m=landing,
+                     land_t_s=land_t, fail_t_s=fail_t, end_t_s=end_t, miss_m=miss, miss_est_m=miss_est, landing_n_m=landing,
                      path_t_s=np.array(path_t), path_n_m=np.stack(paths, axis=1), point_n_m=point,
                      truth_bias=bias, truth=truth)
 
 
 def end_records(batch: LoopBatch, dt: float) -> None:
-    """Blank (NaN) every run's records after its own end (landing, failure, time limit), so
+    """Blank (NaN) every run's records after its own end (landing, end of the track, failure), so
     that what a run contributes does not depend on the runs it was batched with."""
-    end = np.where(np.isfinite(batch.land_t_s), batch.land_t_s, np.inf)
-    for r, reason in enumerate(batch.outcome):
-        if reason == "failed":
-            end[r] = batch.fail_t_s[r]
+    end = np.where(np.isfinite(batch.end_t_s), batch.end_t_s, np.inf)
     for h in batch.histories.values():
         after = h.t_s[None, :] > end[:, None] + 0.5 * dt            # (B, E)
         for name in ("att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "gyro_bias", "accel_bias"):

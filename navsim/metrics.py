@@ -56,9 +56,13 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
                   "att_deg": np.nanpercentile(np.abs(att), 99, axis=(0, 1)).tolist()}
     out["convergence_s"] = convergence_time(h.t_s, np.sqrt(np.nanmean(
         np.sum(h.pos_err_m[good] ** 2, axis=-1), axis=0)))
-    out["final"] = {"pos_m": _rms(h.pos_err_m[good][:, -1], 0).tolist(),
-                    "vel_mps": _rms(h.vel_err_mps[good][:, -1], 0).tolist(),
-                    "att_deg": _rms(np.degrees(h.att_err_rad[good][:, -1]), 0).tolist()}
+    # each run's last epoch (a closed-loop run's records end at its own landing)
+    finite = np.isfinite(h.pos_err_m[good][..., 0])
+    last = finite.shape[1] - 1 - np.argmax(finite[:, ::-1], axis=1)
+    rows = np.arange(len(last))
+    out["final"] = {"pos_m": _rms(h.pos_err_m[good][rows, last], 0).tolist(),
+                    "vel_mps": _rms(h.vel_err_mps[good][rows, last], 0).tolist(),
+                    "att_deg": _rms(np.degrees(h.att_err_rad[good][rows, last]), 0).tolist()}
     if h.cost is not None and h.cost["runs"]:
         c = h.cost
         out["cost"] = {"ms_per_run": (c["propagate_s"] + c["epoch_s"]) / c["runs"] * 1e3,
@@ -85,9 +89,13 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
         n = int(good.sum())
         lo, hi = chi2_band(9, n)
         mean_all = np.nanmean(h.nees[good], axis=0)
-        mean = mean_all[after & (h.t_s > 0)]
+        sel = after & (h.t_s > 0)
+        mean = mean_all[sel]
+        # the band of each epoch's own number of runs (closed-loop runs end at their landing)
+        count = np.maximum(np.sum(np.isfinite(h.nees[good][:, sel]), axis=0), 1)
+        lo_e, hi_e = chi2.ppf(0.025, 9 * count) / count, chi2.ppf(0.975, 9 * count) / count
         out["nees"] = {"average": float(np.nanmean(mean)), "band": [lo, hi],
-                       "fraction_inside": float(np.mean((mean > lo) & (mean < hi))), "dim": 9,
+                       "fraction_inside": float(np.mean((mean > lo_e) & (mean < hi_e))), "dim": 9,
                        "average_from_start": float(np.nanmean(mean_all[1:]))}
         out["nis"] = {}
         for key, nis in h.nis.items():
@@ -222,7 +230,7 @@ def sighting_metrics(h, spans, good=None) -> dict:
         k = int(np.clip(np.searchsorted(h.t_s, b - 1e-6), 0, len(h.t_s) - 1))
         k0 = int(np.clip(np.searchsorted(h.t_s, a - 1e-6) - 1, 0, len(h.t_s) - 1))
         e = h.pos_err_m[good][:, k, :2]
-        ratio = np.abs(e) / sigma
+        ratio = np.abs(e) / max(sigma, 1e-9)
         inside.append(ratio <= 3.0)
         before.append(float(np.sqrt(np.mean(np.sum(h.pos_err_m[good][:, k0, :2] ** 2, -1)))))
         per.append({"name": name, "t_s": float(h.t_s[k]), "sigma_m": sigma,

@@ -38,6 +38,14 @@ def _table_lines(headers, rows):
     return out
 
 
+def _nanmean(x):
+    """Mean over the runs (axis 0) of what they have: a closed-loop run's records end at its
+    landing (NaN after it)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmean(x, axis=0)
+
+
 def _fmt(v):
     if v is None:
         return "-"
@@ -108,7 +116,7 @@ def landmark_figure(histories: dict, metrics: dict, sightings, runs_plotted: int
             e = h.pos_err_m[good][..., j]
             for r in range(min(runs_plotted, e.shape[0])):
                 ax.plot(h.t_s, e[r], lw=0.5, alpha=0.6)
-            ax.plot(h.t_s, np.sqrt(np.mean(e ** 2, axis=0)), "k", lw=1.2, label=f"{label}: MC RMS")
+            ax.plot(h.t_s, np.sqrt(_nanmean(e ** 2)), "k", lw=1.2, label=f"{label}: MC RMS")
         ratio = [s["max_ratio"] for s in metrics["estimators"][label]["landmarks"]["sightings"]]
         axes[2].plot([s[2] for s in sightings], ratio, "o", ms=3, label=f"{label}: worst run")
     for ax in axes:
@@ -258,8 +266,8 @@ def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5, spans
             sig = None
             if h.sigma is not None:
                 s = {"pos": h.sigma[..., 6:9], "vel": h.sigma[..., 3:6], "att": np.degrees(h.sigma[..., 0:3])}[key]
-                sig = np.sqrt(np.mean(s[good] ** 2, axis=0))
-            rms = np.sqrt(np.mean(err ** 2, axis=0))
+                sig = np.sqrt(_nanmean(s[good] ** 2))
+            rms = np.sqrt(_nanmean(err ** 2))
             for j, ax in enumerate(axs):
                 for r in range(min(runs_plotted, err.shape[0])):
                     ax.plot(h.t_s, err[r, :, j], color=colors[c % 10], lw=0.4, alpha=0.35)
@@ -348,7 +356,7 @@ def height_figure(histories: dict, scenario, runs_plotted: int = 3):
             dh = -h.pos_err_m[good][..., 2]
             for r in range(min(runs_plotted, dh.shape[0])):
                 ax.plot(h.t_s, dh[r], color=colors[c % 10], lw=0.5, alpha=0.5)
-            ax.plot(h.t_s, np.sqrt(np.mean(dh ** 2, axis=0)), color=colors[c % 10], lw=1.6,
+            ax.plot(h.t_s, np.sqrt(_nanmean(dh ** 2)), color=colors[c % 10], lw=1.6,
                     label=f"{label}: RMS over runs")
         for name, f in faults:
             ax.axvspan(f.start_s, min(f.end_s, histories[next(iter(histories))].t_s[-1]), color="tab:red",
@@ -443,7 +451,7 @@ def calibration_figures(calibration: dict, histories: dict, metrics: dict, spans
         for c, (label, hist) in enumerate(histories.items()):
             good = ~np.asarray(hist.diverged, bool)
             if good.any():
-                rms = np.sqrt(np.mean(np.degrees(hist.att_err_rad[good][..., 2]) ** 2, axis=0))
+                rms = np.sqrt(_nanmean(np.degrees(hist.att_err_rad[good][..., 2]) ** 2))
                 axs[2].plot(hist.t_s, rms, color=colors[c % 10], lw=1.4, label=f"{label}: MC RMS")
         axs[2].set_ylabel("heading error, deg (RMS over runs)", fontsize=8)
         axs[2].set_yscale("log")
@@ -482,7 +490,8 @@ def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict
     if len(text) > 120:
         text = text[:118] + ["...", "(the whole file: scenario.resolved.yaml)"]
     pages.append(("scenario", _text_page("resolved scenario", text)))
-    pages += [(f"flight_{n}", f) for n, f in flight_figures(truth)]
+    if truth is not None:
+        pages += [(f"flight_{n}", f) for n, f in flight_figures(truth)]
     if loop:
         pages += closed_loop_figures(loop, reference, scenario)
     if result.histories:

@@ -205,7 +205,7 @@ def _closed_chunk(args):
     b = fly_batch(scenario, seed, runs)
     end_records(b, 1.0 / scenario.flight.rate_hz)
     extra = {"outcome": np.array(b.outcome), "abort_t_s": b.abort_t_s, "land_t_s": b.land_t_s,
-             "fail_t_s": b.fail_t_s, "miss_m": b.miss_m, "miss_est_m": b.miss_est_m,
+             "fail_t_s": b.fail_t_s, "end_t_s": b.end_t_s, "miss_m": b.miss_m, "miss_est_m": b.miss_est_m,
              "landing_n_m": b.landing_n_m, "path_t_s": b.path_t_s, "path_n_m": b.path_n_m}
     return list(runs), b.histories, b.truth_bias, extra, b.failed
 

@@ -105,7 +105,7 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
             raise ScenarioError(f"has {len(imu)} IMUs", file=file, key="sensors",
                                 expected="exactly one sensor of kind imu when estimators are given")
     initial = _initial(node.child("initial_errors", None))
-    duration = _duration(node, file)
+    duration = nominal_s = _duration(node, file)
     if node.data.get("closed_loop") is not None:
         duration = math.inf           # each run's flight ends where its navigation takes it
     settle_s, windows = 0.0, ()
@@ -137,7 +137,7 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
             raise cl_node.error("needs estimators", "fly_on", expected="an estimators list to fly on")
         from navsim.closedloop import parse_closed_loop
         closed_loop = parse_closed_loop(cl_node, [e.label for e in estimators], sensors, track,
-                                        duration, rate_hz)
+                                        nominal_s, rate_hz)
     node.done()
     config = FlightConfig(track=track, environment=environment, aircraft=aircraft, rate_hz=rate_hz)
     return Scenario(name=name, description=description, flight=config,

@@ -156,7 +156,7 @@ def _truth_increments(truth, step: int):
     if truth.meta.get("integrator", "ab3") == "ab3":
         k = np.arange(1, N - 1)                             # interval ending j = k + 1
         f_km1 = f1[k - 1]                                   # f_{k-1} in body k
-        g = np.concatenate([fb[:1], f1])                    # f_{m} in body m+1, f_{-1} = f_0
+        g = np.concatenate([fb[:1], f1])                    # g[m] = f_{m-1} in body m, g[0] = f_0
         f_km2 = np.einsum("nij,nj->ni", R[k], g[k - 1])     # f_{k-2} in body k
         dv_c[k + 1] = dt * (23 * fb[k] - 16 * f_km1 + 5 * f_km2) / 12.0
     if step > 1:                                            # compose sub-steps into IMU intervals
