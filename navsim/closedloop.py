@@ -46,6 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navsim import atmosphere, earth
 from navsim.config import Node, close_match
 from navsim.errors import FlightError, ScenarioError
 from navsim.flight import properties as P
@@ -188,7 +189,6 @@ def _matvec(M: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def _fill(data, j: int, rows: np.ndarray) -> None:
     """Sample ``j`` of a sensor from the runs' true state ``rows`` plus the run's own error."""
-    from navsim import earth
     lat, lon, h = rows[:, P.COL_LAT], rows[:, P.COL_LON], rows[:, P.COL_H]
     v = data.values
     if data.kind == "gnss":
@@ -200,7 +200,6 @@ def _fill(data, j: int, rows: np.ndarray) -> None:
         if "vel_n_mps" in v:
             v["vel_n_mps"][:, j] = rows[:, P.COL_VN:P.COL_VD + 1] + data.errors["vel_error_n_mps"][:, j]
     elif data.kind == "baro":
-        from navsim import atmosphere
         v["h_baro_m"][:, j] = h + data.errors["h_error_m"][:, j]
         v["p_static_pa"][:, j] = atmosphere.pressure(v["h_baro_m"][:, j])
 
