@@ -142,6 +142,7 @@ class _StepTruth:
         self.h_m = one(r[:, P.COL_H])
         self.vel_n_mps = one(r[:, P.COL_VN:P.COL_VD + 1])
         self.quat_nb = one(quat_from_euler(r[:, P.COL_ROLL], r[:, P.COL_PITCH], r[:, P.COL_YAW]))
+        self.euler_rad = one(r[:, [P.COL_ROLL, P.COL_PITCH, P.COL_YAW]])
         self.omega_ib_b_rps = r[:, P.COL_PI:P.COL_RI + 1]
         self.f_b_mps2 = r[:, P.COL_FX:P.COL_FZ + 1] / r[:, P.COL_MASS:P.COL_MASS + 1]
 

@@ -17,7 +17,7 @@ import numpy as np
 from navsim import earth
 from navsim.sensors.base import run_generators
 from navsim.strapdown import NavState, rotation, state_from_truth
-from navsim.transform import dcm_from_quat
+from navsim.transform import dcm_from_quat, euler_from_dcm, wrap_angle
 
 ARCSEC = math.pi / 180 / 3600
 
@@ -94,6 +94,10 @@ class EstimatorHistory:
     #: CPU seconds spent in ``propagate`` and in the epochs (predict + corrections), summed over
     #: the batches, and the number of runs and filter epochs they covered
     cost: dict | None = None
+    #: (B, E, 3) roll, pitch, yaw of the solution minus the truth's, wrapped to [-pi, pi)
+    euler_err_rad: np.ndarray | None = None
+    #: per run, the estimator's reset events ``(t_s, cause)`` (P4's divergence monitor), or None
+    resets: list | None = None
 
 
 def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialErrors, seed: int,
@@ -141,6 +145,7 @@ class _Recorder:
     def __init__(self, label):
         self.label = label
         self.t, self.att, self.vel, self.pos, self.sig, self.nees = [], [], [], [], [], []
+        self.euler = []
         self.bg, self.ba = [], []
         self.nis: dict = {}
         self.nis_dim: dict = {}
@@ -151,6 +156,7 @@ class _Recorder:
         phi, dv, pos_m, pos_filter = nav_errors(sol.nav, truth, k)
         self.t.append(t)
         self.att.append(phi)
+        self.euler.append(wrap_angle(euler_from_dcm(sol.nav.C_nb) - truth.euler_rad[k]))
         self.vel.append(dv)
         self.pos.append(pos_m)
         if sol.gyro_bias is not None:
@@ -188,4 +194,9 @@ class _Recorder:
                 np.isfinite(stack(self.pos)), axis=(1, 2)),
             gyro_bias=stack(self.bg) if self.bg else None, accel_bias=stack(self.ba) if self.ba else None,
             cost={"propagate_s": self.propagate_s, "epoch_s": self.epoch_s, "runs": len(self.pos[0]),
-                  "epochs": E - 1, "batches": 1})
+                  "epochs": E - 1, "batches": 1},
+            euler_err_rad=stack(self.euler), resets=_copy_resets(est.solution().extra.get("resets")))
+
+
+def _copy_resets(resets):
+    return None if resets is None else [list(r) for r in resets]

@@ -140,7 +140,8 @@ def _merge(parts):
             pos_err_m=cat("pos_err_m"), sigma=cat("sigma"), nees=cat("nees"),
             nis={k: np.concatenate([h.nis[k] for h in hs]) for k in hs[0].nis},
             nis_dim=hs[0].nis_dim, diverged=cat("diverged"), gyro_bias=cat("gyro_bias"),
-            accel_bias=cat("accel_bias"), cost=_sum_cost([h.cost for h in hs]))
+            accel_bias=cat("accel_bias"), cost=_sum_cost([h.cost for h in hs]), euler_err_rad=cat("euler_err_rad"),
+            resets=None if hs[0].resets is None else [r for h in hs for r in h.resets])
     bias = {k: np.concatenate([p[2][k] for p in parts]) for k in parts[0][2]}
     calib = {name: {k: v if k in ("t_s", "turns") else np.concatenate([p[3][name][k] for p in parts])
                     for k, v in c.items()} for name, c in parts[0][3].items()}
@@ -223,7 +224,8 @@ def _pad_part(part, t_full, path_t_full):
     runs, hist, bias, extra, failed = part
     E = len(t_full)
     for h in hist.values():
-        for name in ("att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "nees", "gyro_bias", "accel_bias"):
+        for name in ("att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "nees", "gyro_bias", "accel_bias",
+                     "euler_err_rad"):
             setattr(h, name, _pad(getattr(h, name), E))
         h.nis = {k: _pad(v, E) for k, v in h.nis.items()}
         h.t_s = t_full

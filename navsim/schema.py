@@ -40,10 +40,10 @@ def scenario_schema() -> dict:
     from navsim.estimators.error_model import BLOCK_SIZES, PRESETS
     from navsim.sensors.base import FAULT_TYPES
     from navsim.sensors.catalog import available
-    start = _obj({"type": {"enum": ["air", "launch"]}, "lat_deg": NUM, "lon_deg": NUM, "alt_m": NUM,
-                  "speed_mps": POS, "heading_deg": NUM, "pitch_deg": NUM, "launcher_height_m": POS,
+    start = _obj({"type": {"enum": ["air", "launch", "ground"]}, "lat_deg": NUM, "lon_deg": NUM, "alt_m": NUM,
+                  "speed_mps": POS, "heading_deg": NUM, "pitch_deg": NUM, "roll_deg": NUM, "launcher_height_m": POS,
                   "booster_thrust_n": NUM, "booster_time_s": NUM},
-                 ["lat_deg", "lon_deg", "alt_m", "speed_mps"])
+                 ["lat_deg", "lon_deg", "alt_m"])
     track = {"oneOf": [{"type": "string", "description": "a shipped track: p0, p3, p2_sea"},
                        _obj({"name": {"type": "string"}, "description": {"type": "string"}, "start": start,
                              "segments": {"type": "array", "minItems": 1,
@@ -58,7 +58,9 @@ def scenario_schema() -> dict:
         "surface_m": NUM})
     fault = _obj({"type": {"enum": list(FAULT_TYPES)}, "start_s": NUM, "end_s": NUM,
                   "value_m": {"oneOf": [NUM, {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3}]},
-                  "factor": NUM, "source": {"type": "array"}, "radius_m": POS, "lost_m": NUM}, ["type"])
+                  "factor": NUM, "source": {"type": "array"}, "radius_m": POS, "lost_m": NUM,
+                  "hard_iron_uT": {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3},
+                  "ramp_s": {"type": "number", "minimum": 0}}, ["type"])
     sensor = _obj({"model": {"enum": sorted(available())}, "override": {"type": "object"},
                    "off": {"oneOf": [{"const": "all"}, {"type": "array", "items": {"type": "string"}}]},
                    "faults": {"type": "array", "items": fault}}, ["model"])
@@ -76,8 +78,14 @@ def scenario_schema() -> dict:
                                                      {"type": "array", "items": {"enum": list(BLOCK_SIZES)}}]},
                                 "period_s": POS, "discretization": {"enum": ["series", "van_loan"]},
                                 "series_order": {"type": "integer", "minimum": 1},
-                                "noise": _obj({"imu": {"type": "string"}, "override": {"type": "object"}}, ["imu"]),
-                                "baro": _obj({"sigma_m": POS, "tau_s": POS}),
+                                "noise": {"oneOf": [
+                                    _obj({"imu": {"type": "string"}, "override": {"type": "object"}}, ["imu"]),
+                                    _obj({k: {"type": "number", "minimum": 0} for k in (
+                                        "gyro_rad_s_rthz", "accel_mps2_rthz", "gyro_bias_walk", "accel_bias_walk",
+                                        "mag_bias_walk_uT", "field_walk_uT", "quat_stab")})]},
+                                "baro": {"oneOf": [_obj({"sigma_m": POS, "tau_s": POS}),
+                                                   {"type": "string", "description": "cpf_ekf: the baro sensor"}]},
+                                **_attitude_keys(),
                                 "measurements": {"type": "array", "items": measurement},
                                 "height": {"type": "object", "description": "p2_dynamic_height: sensors "
                                            "gps, radar, baro and the fusion's numbers"},
@@ -134,3 +142,17 @@ def scenario_schema() -> dict:
 
 def schema_text() -> str:
     return json.dumps(scenario_schema(), indent=2) + "\n"
+
+
+def _attitude_keys() -> dict:
+    """Keys of P4's ``cpf`` / ``cpf_ekf`` entries (see navsim.estimators.attitude_config)."""
+    from navsim.estimators.attitude_config import CPF_GAINS, INITIAL_KEYS, SIGMA_KEYS
+    nonneg = {"type": "number", "minimum": 0}
+    return {"mag": {"type": "string"}, "gnss": {"type": "string"}, "imu": {"type": "string"},
+            "field_uT": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
+            "sigma": _obj({k: nonneg for k in SIGMA_KEYS}), "initial": _obj({k: nonneg for k in INITIAL_KEYS}),
+            "reset_sigma": _obj({k: nonneg for k in INITIAL_KEYS}),
+            "monitor": {"enum": ["cpf", "innovation", "none"]}, "threshold_rad2": {"type": "number", "exclusiveMinimum": 0},
+            "cycles": {"type": "integer", "minimum": 1}, "innovation_ratio": {"type": "number", "minimum": 1},
+            "cpf_trust_s": {"type": "number", "exclusiveMinimum": 0},
+            "cpf": _obj({k: nonneg for k in CPF_GAINS})}

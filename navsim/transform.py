@@ -39,6 +39,14 @@ def dcm_from_quat(quat):
     ], axis=-2)
 
 
+def euler_from_dcm(C_nb):
+    """Roll, pitch, yaw (rad) ``(..., 3)`` from ``C_nb`` ``(..., 3, 3)``."""
+    C = np.asarray(C_nb, float)
+    return np.stack([np.arctan2(C[..., 2, 1], C[..., 2, 2]),
+                     np.arcsin(np.clip(-C[..., 2, 0], -1.0, 1.0)),
+                     np.arctan2(C[..., 1, 0], C[..., 0, 0])], axis=-1)
+
+
 def dcm_from_euler(roll, pitch, yaw):
     """``C_nb`` ``(..., 3, 3)`` from roll, pitch, yaw (rad)."""
     return dcm_from_quat(quat_from_euler(roll, pitch, yaw))

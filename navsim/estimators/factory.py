@@ -38,6 +38,22 @@ sensors: [gps]}`` and ``fuzzy_adaptive`` (P1) ``fuzzy: {window: 3, sensors: [gps
 rules: [[1, 1], [2, 4], [3, 9], [5, 25], [10, 100]]}`` (see their modules); ``sensors`` lists
 the sensors whose R is adapted (default: all).
 
+``cpf_ekf`` and ``cpf`` (P4) take their sensors by name and the filter's own IMU model from the
+catalog (see :mod:`navsim.estimators.attitude_config`)::
+
+    - label: CPF-EKF
+      type: cpf_ekf
+      mag: mag                 # magnetometer; gnss: GNSS (velocity + position); baro: barometer
+      gnss: gps
+      baro: baro
+      imu: mpu6050             # the filter's IMU noise model (vibration as white noise)
+      period_s: 0.1
+      sigma: {mag_uT: 0.5, gnss_pos_m: 2, gnss_vel_mps: 0.1, baro_m: 1}
+      initial: {mag_bias_uT: 5, field_uT: 0.5}
+      monitor: cpf             # cpf (P4), innovation (nu^T nu > r tr(S)) or none
+      threshold_rad2: 0.27416  # P4's N; cycles: 3; innovation_ratio: 3
+      cpf: {kp_acc: 0.2, kp_mag: 0.2, ki: 0.002, mag_gate: 0.15}
+
 Other registered types (third-party) get their parameters as keyword arguments.
 """
 
@@ -104,6 +120,9 @@ def parse_estimators(data, sensors: dict, file: str | None = None, path: str = "
             params["adaptive"] = _adaptive_params(node, kind, sensors)
         elif kind == "sins":
             params = {"period_s": node.get("period_s", float, 1.0, exclusive_minimum=0.0)}
+        elif kind in ("cpf", "cpf_ekf"):
+            from navsim.estimators.attitude_config import attitude_params
+            params = attitude_params(node, kind, sensors)
         else:
             params = {k: v for k, v in node.data.items() if k not in ("label", "type")}
             node._seen.update(params)
@@ -352,6 +371,9 @@ def build(config: EstimatorConfig):
     if config.type == "sins":
         from navsim.estimators.sins import FreeInertial
         return FreeInertial(**config.params)
+    if config.type in ("cpf", "cpf_ekf"):
+        from navsim.estimators.attitude_config import build_attitude
+        return build_attitude(config.type, config.params)
     if config.type not in ESKF_FAMILY:
         return base.get(config.type)(**config.params)
     from navsim.estimators.eskf import ErrorStateKF

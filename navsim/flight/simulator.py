@@ -161,6 +161,8 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
     """
     if isinstance(config, Track):
         config = FlightConfig(track=config)
+    if config.track.start.type == "ground":
+        return _parked(config)
     craft = Aircraft(config)
     track, io, ap, runner, dt = config.track, craft.io, craft.ap, craft.runner, craft.dt
     start = track.start
@@ -235,6 +237,20 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
         raise
     rows, seg = rec.arrays()
     return _make_truth(rows, seg, dt, track, config)
+
+
+def _parked(config: FlightConfig) -> Truth:
+    """The truth of a vehicle parked for the track's ``hold`` segments (no flight dynamics)."""
+    track, start = config.track, config.track.start
+    duration = sum(s["time_s"] for s in track.segments)
+    truth = Truth.static(duration, config.rate_hz, start.lat_deg, start.lon_deg, start.alt_m,
+                         start.heading_deg, h_agl_m=0.0, roll_deg=start.roll_deg,
+                         pitch_deg=start.pitch_deg)
+    ends = np.cumsum([s["time_s"] for s in track.segments])
+    truth.segment = np.minimum(np.searchsorted(ends, truth.t_s - 1e-9), len(ends) - 1).astype(np.int16)
+    truth.segment_labels = [s.label for s in track.segments]
+    truth.meta.update({"aircraft": config.aircraft, "track": track.name, "start": "ground"})
+    return truth
 
 
 def _make_truth(rows, seg, dt, track, config) -> Truth:

@@ -14,7 +14,10 @@ A track is a mapping::
       - {type: goto, north_m: 500, east_m: 1200}
 
 ``start.type: launch`` starts on a launcher instead (P2's rocket-assisted launch at 14 deg
-pitch). Every segment may carry a ``label`` (shown on plots) and ``speed_mps`` (a new airspeed
+pitch). ``start.type: ground`` parks the vehicle on the ground (P4's static test): heading
+``heading_deg``, the ground's slope as ``roll_deg``/``pitch_deg``, and only ``hold`` segments
+(``{type: hold, time_s: 360}``); no flight dynamics are run, the truth is the vehicle at rest on
+the rotating Earth (:meth:`navsim.flight.truth.Truth.static`). Every segment may carry a ``label`` (shown on plots) and ``speed_mps`` (a new airspeed
 target, reached at 0.5 m/s^2). Heights are geodetic (above the WGS-84 ellipsoid, which is also
 JSBSim's sea level). Shipped tracks are referred to by name: ``p0``, ``p3``, ``p2_sea``.
 """
@@ -36,6 +39,8 @@ class Start:
     """How the flight starts.
 
     ``type: air``: trimmed level flight at ``alt_m``, ``speed_mps``, ``heading_deg``.
+    ``type: ground``: parked at ``alt_m`` (ground height), heading ``heading_deg``, tilted by the
+    ground's ``roll_deg`` and ``pitch_deg``; ``speed_mps`` is 0.
     ``type: launch``: on a launcher ``launcher_height_m`` above the surface at ``alt_m``
     (surface height), pitched ``pitch_deg``; a booster gives ``booster_thrust_n`` for
     ``booster_time_s`` while the motor is at full power, then the autopilot takes
@@ -52,6 +57,7 @@ class Start:
     launcher_height_m: float = 2.0
     booster_thrust_n: float = 120.0
     booster_time_s: float = 1.2
+    roll_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -90,6 +96,7 @@ SEGMENT_KEYS: dict[str, dict] = {
     "turn": {"by_deg": (float, _REQ, {}), "bank_deg": (float, None, dict(exclusive_minimum=0.0,
                                                                          maximum=45.0)),
              "rate_dps": (float, None, _POS)},
+    "hold": {"time_s": (float, _REQ, _POS)},
     "circle": {"radius_m": (float, _REQ, _POS), "laps": (float, None, _POS),
                "time_s": (float, None, _POS),
                "direction": (str, "right", dict(choices=("right", "left")))},
@@ -120,20 +127,31 @@ def parse_track(data, path: str = "track", file: str | None = None) -> Track:
                             expected="a list of segments",
                             hint="e.g. segments: [{type: straight, time_s: 60}]")
     segments = tuple(_parse_segment(item, f"{seg_key}[{i}]", file, i) for i, item in enumerate(raw))
+    for i, seg in enumerate(segments):
+        if (seg.type == "hold") != (start.type == "ground"):
+            raise ScenarioError(f"a '{seg.type}' segment after a '{start.type}' start", file=file,
+                                key=f"{seg_key}[{i}].type",
+                                expected="only 'hold' segments on the ground, and no 'hold' in flight",
+                                hint="a parked vehicle: start: {type: ground, ...}, segments: "
+                                     "[{type: hold, time_s: 360}]")
     node.done()
     return Track(name=name, start=start, segments=segments, description=description)
 
 
 def _parse_start(node: Node) -> Start:
-    kind = node.get("type", str, "air", choices=("air", "launch"))
+    kind = node.get("type", str, "air", choices=("air", "launch", "ground"))
+    ground = kind == "ground"
     values = dict(
         type=kind,
         lat_deg=node.get("lat_deg", float, minimum=-89.0, maximum=89.0),
         lon_deg=node.get("lon_deg", float, minimum=-180.0, maximum=180.0),
         alt_m=node.get("alt_m", float, minimum=-400.0, maximum=10000.0),
-        speed_mps=node.get("speed_mps", float, exclusive_minimum=0.0),
+        speed_mps=0.0 if ground else node.get("speed_mps", float, exclusive_minimum=0.0),
         heading_deg=node.get("heading_deg", float, 0.0),
     )
+    if ground:
+        values.update(roll_deg=node.get("roll_deg", float, 0.0, minimum=-30.0, maximum=30.0),
+                      pitch_deg=node.get("pitch_deg", float, 0.0, minimum=-30.0, maximum=30.0))
     if kind == "launch":
         values.update(
             pitch_deg=node.get("pitch_deg", float, 14.0, minimum=0.0, maximum=45.0),
@@ -222,6 +240,8 @@ def nominal_duration_s(track: Track) -> float:
             total += abs(math.radians(p["by_deg"])) / rate
         elif seg.type == "circle":
             total += p.get("time_s") or p["laps"] * 2 * math.pi * p["radius_m"] / speed
+        elif seg.type == "hold":
+            total += p["time_s"]
         else:
             total += 60.0
     return total

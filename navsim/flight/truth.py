@@ -120,15 +120,16 @@ class Truth:
     @classmethod
     def static(cls, duration_s: float, rate_hz: float = 100.0, lat_deg: float = 37.38,
                lon_deg: float = 117.97, h_m: float = 0.0, yaw_deg: float = 0.0,
-               h_agl_m=None) -> "Truth":
-        """A vehicle at rest on the rotating Earth, level, heading ``yaw_deg``: the specific
-        force is minus gravity, the inertial rate the Earth rate. ``h_agl_m`` (array or scalar)
-        overrides the height above the surface (for altimeter tests)."""
+               h_agl_m=None, roll_deg: float = 0.0, pitch_deg: float = 0.0) -> "Truth":
+        """A vehicle at rest on the rotating Earth, heading ``yaw_deg``, tilted by ``roll_deg``
+        and ``pitch_deg`` (default level): the specific force is minus gravity, the inertial rate
+        the Earth rate. ``h_agl_m`` (array or scalar) overrides the height above the surface (for
+        altimeter tests)."""
         from navsim import atmosphere, earth
         n = int(round(duration_s * rate_hz)) + 1
         lat, lon, yaw = np.radians(lat_deg), np.radians(lon_deg), np.radians(yaw_deg)
         ones = np.ones(n)
-        euler = np.column_stack([0 * ones, 0 * ones, yaw * ones])
+        euler = np.column_stack([np.radians(roll_deg) * ones, np.radians(pitch_deg) * ones, yaw * ones])
         quat = quat_from_euler(euler[:, 0], euler[:, 1], euler[:, 2])
         from navsim.transform import dcm_from_quat
         C_bn = dcm_from_quat(quat[0]).T

@@ -123,7 +123,7 @@ def sampling(truth, rate_hz: float, seed: int, runs, name: str) -> Sampling:
 
 # --- fault windows -------------------------------------------------------------------------------
 
-FAULT_TYPES = ("outage", "bias", "degraded", "interference")
+FAULT_TYPES = ("outage", "bias", "degraded", "interference", "disturbance")
 
 
 @dataclass(frozen=True)
@@ -133,7 +133,10 @@ class Fault:
     ``outage``: no output. ``bias``: ``value`` (m, or a NED vector in m for GNSS position) added
     exactly. ``degraded``: white noise times ``factor``. ``interference`` (GNSS, P1's power line):
     near ``source`` (list of ``[lat_deg, lon_deg, h_m]`` points, a polyline) the noise grows as
-    ``1 + (radius_m / d)^2`` and lock is lost within ``lost_m``.
+    ``1 + (radius_m / d)^2`` and lock is lost within ``lost_m``. ``disturbance``
+    (magnetometer, P4): a body-fixed field ``value`` (T, from ``hard_iron_uT``) that ramps in
+    over ``ramp_s`` from ``start_s`` and out over ``ramp_s`` from ``end_s`` (a magnetised payload,
+    a motor or pump current switched on).
     """
 
     type: str
@@ -144,6 +147,13 @@ class Fault:
     source: tuple = ()
     radius_m: float = 100.0
     lost_m: float = 30.0
+    ramp_s: float = 0.0
+
+    def ramp(self, t_s: np.ndarray) -> np.ndarray:
+        """0..1: how much of a ``disturbance`` is on at ``t_s``."""
+        r = max(self.ramp_s, 1e-9)
+        on = np.clip((t_s - self.start_s) / r, 0.0, 1.0)
+        return on * np.clip(1.0 - (t_s - self.end_s) / r, 0.0, 1.0)
 
     def active(self, t_s: np.ndarray) -> np.ndarray:
         return (t_s >= self.start_s) & (t_s < self.end_s)
@@ -177,6 +187,15 @@ def parse_faults(data, path: str, file: str | None = None, vector: bool = False)
                 kw["value"] = node.get("value_m", float)
         elif kind == "degraded":
             kw["factor"] = node.get("factor", float, minimum=1.0)
+        elif kind == "disturbance":
+            node._seen.add("hard_iron_uT")
+            raw = node.data.get("hard_iron_uT")
+            if not (isinstance(raw, list) and len(raw) == 3 and all(
+                    isinstance(x, (int, float)) and not isinstance(x, bool) for x in raw)):
+                raise node.error("is missing or not [x, y, z]", "hard_iron_uT",
+                                 expected="a body-axes field in microtesla, e.g. [12, -8, 5]")
+            kw["value"] = np.array(raw, float) * 1e-6
+            kw["ramp_s"] = node.get("ramp_s", float, 0.0, minimum=0.0)
         elif kind == "interference":
             node._seen.add("source")
             src = node.data.get("source")
@@ -192,8 +211,9 @@ def parse_faults(data, path: str, file: str | None = None, vector: bool = False)
 
 
 def check_faults(faults, kind: str, duration_s: float, name: str) -> None:
-    allowed = {"gnss": FAULT_TYPES, "radar_altimeter": ("outage", "bias", "degraded"),
-               "baro": ("outage", "bias", "degraded")}.get(kind, ("outage",))
+    allowed = {"gnss": ("outage", "bias", "degraded", "interference"), "radar_altimeter": ("outage", "bias", "degraded"),
+               "baro": ("outage", "bias", "degraded"),
+               "magnetometer": ("outage", "disturbance")}.get(kind, ("outage",))
     for i, f in enumerate(faults):
         if f.type not in allowed:
             raise ScenarioError(f"a {kind} cannot have a '{f.type}' fault", key=f"sensors.{name}.faults[{i}]",

@@ -4,7 +4,8 @@
 the WMM field (from the ``ahrs`` package's WMM coefficients) at the true position and the spec's
 date, ``S`` the soft-iron matrix (fixed plus a random deviation per run) and ``b`` the hard-iron
 offset (fixed plus random). ``errors``: ``hard_iron_T`` ``(B, 1, 3)``, ``soft_iron`` ``(B, 3, 3)``,
-``field_n_T`` ``(M, 3)``, the true Earth field.
+``field_n_T`` ``(M, 3)``, the true Earth field, ``disturbance_T`` ``(M, 3)`` the body-fixed
+field of ``disturbance`` faults (P4's magnetic disturbance).
 """
 
 from __future__ import annotations
@@ -54,10 +55,16 @@ def emulate_magnetometer(truth, spec: MagnetometerSpec, seed: int, runs, faults=
     if np.any(spec.hard_iron_sigma):
         hard += (normals(gens, (3,)) * spec.hard_iron_sigma)[:, None, :]
     out = np.einsum("bij,nj->bni", soft, m_b) + hard
+    disturbance = np.zeros((M, 3))
+    for f in faults:
+        if f.type == "disturbance":
+            disturbance += f.ramp(t)[:, None] * f.value
+    out += disturbance
     if np.any(spec.noise):
         out += normals(gens, (M, 3)) * spec.noise
     valid = np.ones((B, M), bool)
     apply_outages(valid, t, faults)
     return SensorData(name=name, kind="magnetometer", t_s=t, values={"mag_b_T": out}, valid=valid,
-                      errors={"hard_iron_T": hard, "soft_iron": soft, "field_n_T": m_n},
+                      errors={"hard_iron_T": hard, "soft_iron": soft, "field_n_T": m_n,
+                              "disturbance_T": disturbance},
                       meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed, "date": spec.date})

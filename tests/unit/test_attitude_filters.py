@@ -1,0 +1,187 @@
+"""P4's attitude filters: quaternion kinematics, Jacobians against finite differences, the
+quaternion normalisation, the divergence monitor and its angle wrapping, batch = single runs."""
+
+import numpy as np
+import pytest
+
+from navsim.estimators.attitude import dcm_homogeneous, euler_distance2, rk4_step
+from navsim.estimators.cpf import ComplementaryFilter
+from navsim.estimators.cpf_ekf import AZ, MB, ME, N_STATES, Q, WB, CpfEkf, dcm_times_vec_jacobian
+from navsim.flight.truth import Truth
+from navsim.montecarlo import InitialErrors, run_batch
+from navsim.sensors.catalog import load_spec
+from navsim.sensors.gnss import emulate_gnss
+from navsim.sensors.imu import emulate_imu
+from navsim.sensors.magnetometer import emulate_magnetometer
+from navsim.strapdown import NavState
+from navsim.transform import dcm_from_quat, quat_from_euler, quat_from_rotvec, quat_multiply
+
+
+def _unit(rng, B):
+    q = rng.normal(size=(B, 4))
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def test_rk4_quaternion_step_matches_the_exact_rotation():
+    rng = np.random.default_rng(1)
+    q = _unit(rng, 3)
+    w = rng.normal(size=(3, 3)) * 2.0            # up to ~5 rad/s
+    for dt in (0.02, 0.01):
+        exact = quat_multiply(q, quat_from_rotvec(w * dt))
+        err = np.abs(rk4_step(q, w, dt) - exact).max()
+        assert err < 5e-6 * (dt / 0.02) ** 4      # fourth order: 16 x smaller at half the step
+    assert np.abs(rk4_step(q, w, 0.01) - quat_multiply(q, quat_from_rotvec(w * 0.01))).max() > 0
+
+
+@pytest.mark.parametrize("transpose", [False, True])
+def test_rotation_jacobian_against_finite_differences(transpose):
+    rng = np.random.default_rng(2)
+    q, f = _unit(rng, 4), rng.normal(size=(4, 3)) * 10
+
+    def g(qq):        # C(q) f, C in the homogeneous form the filter uses (= dcm_from_quat on |q| = 1)
+        return np.einsum("bji,bj->bi" if transpose else "bij,bj->bi", dcm_homogeneous(qq), f)
+
+    assert np.abs(dcm_homogeneous(q) - dcm_from_quat(q)).max() < 1e-15
+
+    num = np.stack([(g(q + e) - g(q - e)) / 2e-6 for e in np.eye(4) * 1e-6], -1)
+    assert np.abs(dcm_times_vec_jacobian(q, f, transpose) - num).max() < 1e-7
+
+
+def _ekf(B=2, **kw):
+    est = CpfEkf(mag="mag", gnss=None, field_n_T=[21e-6, -3e-6, 45e-6], **kw)
+    nav = NavState(np.full(B, 0.7), np.full(B, 2.1), np.full(B, 200.0), np.zeros((B, 3)),
+                   dcm_from_quat(quat_from_euler(np.full(B, 0.1), np.full(B, -0.2), np.full(B, 1.0))))
+    est.initialize(nav, {"att": np.radians([1, 1, 2]), "vel": np.full(3, 0.1), "pos": np.array([1e-6, 1e-6, 2.0])})
+    est.field_ref = np.broadcast_to(np.array([21.0, -3.0, 45.0]), (B, 3)).copy()
+    est.x[:, ME] = est.field_ref
+    est.field_ready = True
+    return est
+
+
+def test_magnetometer_model_jacobian_against_finite_differences():
+    est = _ekf()
+    rng = np.random.default_rng(3)
+    est.x[:, MB] = rng.normal(size=(2, 3))
+    est.x[:, Q] = _unit(rng, 2)
+    h0, H = est._mag_model()
+    num = np.zeros_like(H)
+    x0 = est.x.copy()
+    for k in range(N_STATES):
+        e = np.zeros(N_STATES)
+        e[k] = 1e-6
+        est.x = x0 + e
+        hp, _ = est._mag_model()
+        est.x = x0 - e
+        hm, _ = est._mag_model()
+        num[:, :, k] = (hp - hm) / 2e-6
+    assert np.abs(H - num).max() < 1e-6
+
+
+def test_a_correction_keeps_the_quaternion_unit_and_its_covariance_tangent():
+    est = _ekf()
+    from navsim.sensors.base import SensorData
+    m = np.array([[[25e-6, 2e-6, 40e-6]]]).repeat(2, 0)
+    data = SensorData("mag", "magnetometer", np.array([0.1]), {"mag_b_T": m}, np.ones((2, 1), bool))
+    est._correct_mag(0.1, data, 0)
+    q = est.x[:, Q]
+    assert np.allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-15)
+    assert np.abs(np.einsum("bij,bj->bi", est.P[:, Q, Q], q)).max() < 1e-15 * np.abs(est.P[:, Q, Q]).max() + 1e-18
+    assert np.all(np.linalg.eigvalsh(est.P) > -1e-15)
+
+
+def test_divergence_distance_wraps_the_yaw():
+    a = np.radians([[0.0, 0.0, 179.0]])
+    b = np.radians([[0.0, 0.0, -179.0]])
+    assert euler_distance2(a, b)[0] == pytest.approx(np.radians(2.0) ** 2, rel=1e-9)
+    # P4's threshold: about 30 deg in total
+    assert np.degrees(np.sqrt(0.27416)) == pytest.approx(30.0, abs=0.01)
+
+
+def _static_case(runs, seconds=60.0):
+    """P4's sensors at rest, motors off, calibrated as in p4_static (accelerometer 0.5 mg,
+    0.1 mrad; magnetometer 0.05 uT hard iron, 0.1 % soft iron)."""
+    truth = Truth.static(seconds, 100.0, 43.88, 125.35, 220.0, 63.0, roll_deg=0.4, pitch_deg=-0.3)
+    spec = load_spec("mpu6050", {"accel": {"bias_sigma": "0.5 mg", "misalignment_sigma": "0.1 mrad"}},
+                     ("vibration",))
+    imu = emulate_imu(truth, spec, 7, runs, keep_rates=False)
+    mag = load_spec("lsm303d", {"hard_iron_sigma": "0.05 uT", "soft_iron_sigma": 0.001})
+    sensors = {"mag": emulate_magnetometer(truth, mag, 7, runs, name="mag"),
+               "gps": emulate_gnss(truth, load_spec("neo_m8n"), 7, runs, name="gps")}
+    initial = InitialErrors(np.full(3, 2.0), np.full(3, 0.05), np.radians([1.0, 1.0, 2.0]))
+    return truth, imu, sensors, initial
+
+
+def _monitored():
+    return CpfEkf(mag="mag", gnss="gps", monitor="cpf", initial={"mag_bias_uT": 0.05},
+                  noise={"accel_mps2_rthz": 0.004, "gyro_rad_s_rthz": 1e-4})
+
+
+def test_a_batch_of_three_equals_three_single_runs():
+    truth, imu, sensors, initial = _static_case(range(3), 20.0)
+    batch = run_batch(truth, imu, sensors, {"ekf": _monitored()}, initial, 7, range(3))["ekf"]
+    for i in range(3):
+        one = run_batch(truth, imu.run(i), {k: v.run(i) for k, v in sensors.items()}, {"ekf": _monitored()},
+                        initial, 7, [i])["ekf"]
+        assert np.array_equal(one.att_err_rad[0], batch.att_err_rad[i])
+        assert np.array_equal(one.sigma[0], batch.sigma[i])
+
+
+def test_the_cpf_monitor_resets_a_diverged_ekf_to_the_cpf_attitude():
+    """An EKF knocked 40 deg off in yaw (the CPF beside it is not) is reset after exactly
+    ``cycles`` epochs; without the monitor it is not. The CPF test runs on GNSS alone (the CPF
+    is trusted for ``cpf_trust_s`` after its start). The innovation test sees the knock only at
+    the first magnetometer epoch: the first sequential update already leaves the EKF with a
+    wrong state that explains the data (25 deg of yaw, -7 deg of pitch, the rest in the
+    magnetometer bias: NIS 170, 32, 8, 3) -- the weakness P4's CPF comparison does not have;
+    so it is tested with ``cycles=1``."""
+    truth, imu, all_sensors, initial = _static_case([0], 10.0)
+    for monitor, expect in (("cpf", 1), ("none", 0), ("innovation", 1)):
+        sensors = all_sensors if monitor == "innovation" else {"gps": all_sensors["gps"]}
+        est = CpfEkf(mag="mag", gnss="gps", monitor=monitor, initial={"mag_bias_uT": 0.5},
+                     cycles=1 if monitor == "innovation" else 3)
+        est.initialize(*_start(truth, initial))
+        est.x[:, Q] = quat_multiply(quat_from_rotvec(np.radians([[0, 0, 40.0]])), est.x[:, Q])
+        dth, dv = imu.values["dtheta_b_rad"], imu.values["dv_b_mps"]
+        dt = imu.meta["dt_s"]
+        for i in range(1, 26):
+            est.propagate(dth[:, i], dv[:, i], dt)
+            if i % 5 == 0:
+                est.epoch(imu.t_s[i], sensors)
+        resets = est.solution().extra["resets"][0]
+        assert len(resets) == expect, monitor
+        if monitor == "cpf":
+            # the test fires at the epochs 0.1, 0.2, 0.3 s: reset at the third, to the CPF
+            assert resets[0] == (pytest.approx(0.3), "cpf")
+            assert est.distance2[0] < np.radians(0.5) ** 2     # 0.2 s later: still together
+        if monitor == "innovation":
+            assert resets[0] == (pytest.approx(0.1), "innovation")
+
+
+def _start(truth, initial):
+    from navsim.montecarlo import perturbed_start
+    nav0 = perturbed_start(truth, initial.draw(7, [0]), 0)
+    return nav0, initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0])
+
+
+def test_static_attitude_converges_and_is_consistent():
+    """Level from the GNSS velocity at rest: after 40 s the tilt error of 8 runs is inside the
+    covariance, rms(e / sigma) < 1.5 (the unmodelled x/y accelerometer bias makes it a little
+    larger than 1), and at the calibrated accelerometer's floor."""
+    truth, imu, sensors, initial = _static_case(range(8), 60.0)
+    h = run_batch(truth, imu, sensors, {"ekf": _monitored()}, initial, 7, range(8))["ekf"]
+    late = h.t_s > 40.0
+    ratio = h.att_err_rad[:, late] / h.sigma[:, late, :3]
+    assert np.sqrt(np.mean(ratio[..., :2] ** 2)) < 1.5
+    # the floor, (0.5 mg bias + 0.1 mrad misalignment) / g = 0.029 + 0.006 deg per axis, and the
+    # filter's own 0.027 deg: all within 3 sigma
+    assert np.degrees(np.abs(h.euler_err_rad[:, late, :2])).max() < 3 * np.hypot(0.029 + 0.006, 0.027)
+
+
+def test_the_complementary_filter_levels_itself():
+    truth, imu, sensors, initial = _static_case(range(4), 60.0)
+    h = run_batch(truth, imu, sensors, {"cpf": ComplementaryFilter(mag="mag", gnss="gps")}, initial, 7,
+                  range(4))["cpf"]
+    late = h.t_s > 40.0
+    # tilt within 0.3 deg (the gyro's 1 deg/s bias is integrated out by the PI correction)
+    assert np.degrees(np.abs(h.euler_err_rad[:, late, :2])).max() < 0.3
+    assert np.all(np.isfinite(h.euler_err_rad))
