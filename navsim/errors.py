@@ -65,3 +65,9 @@ class LogError(NavsimError):
         self.file, self.detail, self.hint = file, message, hint
         text = f"{file or '<log>'}: {message}"
         super().__init__(text + (f"\n  hint: {hint}" if hint else ""))
+
+
+class UsageError(NavsimError):
+    """A command line that cannot be served: an unknown estimator, a parameter it does not take."""
+
+    exit_code = 2
