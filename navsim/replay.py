@@ -229,9 +229,12 @@ def _position(topics, notes) -> tuple:
     """Origin of PX4's local frame (lat, lon rad) and the first height, when global."""
     lp = topics.get("vehicle_local_position")
     lat = lon = h = None
-    if lp is not None and "ref_lat" in lp and np.any(np.asarray(lp.get("xy_global", [0]), bool)):
-        k = int(np.argmax(np.asarray(lp["xy_global"], bool)))
-        lat, lon = math.radians(float(lp["ref_lat"][k])), math.radians(float(lp["ref_lon"][k]))
+    if lp is not None and {"ref_lat", "ref_lon", "xy_global"} <= set(lp):
+        la, lo = np.asarray(lp["ref_lat"], float), np.asarray(lp["ref_lon"], float)
+        ok = (np.asarray(lp["xy_global"], bool) & (np.abs(la) <= 90) & (np.abs(lo) <= 180)
+              & ((la != 0) | (lo != 0)))          # 0, 0: PX4 had no reference yet
+        if np.any(ok):
+            lat, lon = math.radians(float(np.median(la[ok]))), math.radians(float(np.median(lo[ok])))
     if lp is not None and "ref_alt" in lp and np.any(np.asarray(lp.get("z_global", [0]), bool)):
         k = int(np.argmax(np.asarray(lp["z_global"], bool)))
         h = float(lp["ref_alt"][k]) - float(lp["z"][k])
@@ -251,8 +254,8 @@ def _imu_gaps(t_s: np.ndarray, path, allow_damaged: bool, notes: list) -> list:
     gaps = [(float(t_s[i]), float(dt[i])) for i in idx]
     if gaps:
         notes.append(f"{len(gaps)} IMU gap(s) over {GAP_WARN_PERIODS} periods (longest "
-                     f"{max(g for _, g in gaps) * 1e3:.0f} ms at t = {max(gaps, key=lambda x: x[1])[0]:.2f} s, "
-                     "logger dropouts): bridged with the next sample's rates")
+                     f"{max(g for _, g in gaps) * 1e3:.0f} ms at t = {max(gaps, key=lambda x: x[1])[0]:.2f} s): "
+                     "bridged with the next sample's rates")
     long = [g for g in gaps if g[1] > GAP_MAX_S]
     if long and not allow_damaged:
         raise LogError(f"sensor_combined has a {long[0][1]:.2f} s gap at t = {long[0][0]:.2f} s "

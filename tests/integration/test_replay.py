@@ -59,7 +59,7 @@ def test_coarse_alignment_agrees_with_px4_first_attitude(log):
     assert a.field_n_T[1] == 0.0                   # declination 0
 
 
-def test_free_inertial_replay_drifts_as_its_gyro_bias(log_path, tmp_path, capsys):
+def test_cli_replay_writes_metrics_plot_and_report(log_path, tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["replay", str(log_path), "--estimator", "sins", "--out", str(out)]) == 0
     for name in ("metrics.json", "attitude.png", "replay.pdf"):

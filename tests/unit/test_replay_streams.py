@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from navsim.errors import LogError
-from navsim.replay import check_structure, imu_increments, on_grid, require
+from navsim.replay import _position, check_structure, imu_increments, on_grid, require
 
 
 def _jittered(n=2000, rate=250.0, seed=4):
@@ -60,3 +60,13 @@ def test_structure_check_finds_a_cut_message():
     assert check_structure(header + msg + msg) is None
     assert "is truncated" in check_structure(header + msg + msg[:6])
     assert "not a ULog" in check_structure(b"hello world" * 3)
+
+
+def test_position_only_from_a_valid_global_reference():
+    lp = {"ref_lat": [0.0, 47.4, 47.4, 1e9], "ref_lon": [0.0, 8.5, 8.5, 3.0], "xy_global": [1, 1, 1, 1],
+          "ref_alt": [0.0, 400.0, 400.0, 0.0], "z": [-2.0, -2.0, -2.0, -2.0], "z_global": [0, 1, 1, 1]}
+    notes = []
+    lat, lon, h = _position({"vehicle_local_position": lp}, notes)
+    assert np.degrees([lat, lon]).round(6).tolist() == [47.4, 8.5] and h == 402.0 and notes == []
+    lat, lon, h = _position({"vehicle_local_position": {**lp, "xy_global": [0, 0, 0, 0]}}, notes)
+    assert lat is None and "no global position" in notes[0]
