@@ -53,3 +53,21 @@ class FlightError(NavsimError):
             where.append(f"t = {time_s:.2f} s")
         prefix = "flight failed" + (" in " + ", ".join(where) if where else "")
         super().__init__(f"{prefix}: {reason}")
+
+
+class LogError(NavsimError):
+    """A flight log that cannot be replayed (missing, truncated, corrupt, lacking a topic or a
+    field, too short): names the file, what is missing and a hint."""
+
+    exit_code = 2
+
+    def __init__(self, message: str, *, file: str | None = None, hint: str | None = None):
+        self.file, self.detail, self.hint = file, message, hint
+        text = f"{file or '<log>'}: {message}"
+        super().__init__(text + (f"\n  hint: {hint}" if hint else ""))
+
+
+class UsageError(NavsimError):
+    """A command line that cannot be served: an unknown estimator, a parameter it does not take."""
+
+    exit_code = 2

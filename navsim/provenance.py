@@ -11,7 +11,7 @@ from pathlib import Path
 
 import navsim
 
-PACKAGES = ("numpy", "scipy", "jsbsim", "matplotlib", "pyyaml", "tqdm")
+PACKAGES = ("numpy", "scipy", "jsbsim", "matplotlib", "pyyaml", "tqdm", "pyulog")
 
 
 def git_revision() -> str | None:

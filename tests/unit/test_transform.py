@@ -12,6 +12,7 @@ def test_euler_quat_dcm_agree_with_scipy():
     ref = Rotation.from_euler("ZYX", eul[:, ::-1])
     np.testing.assert_allclose(tf.dcm_from_quat(q), ref.as_matrix(), atol=1e-12)
     np.testing.assert_allclose(tf.euler_from_quat(q), eul, atol=1e-9)
+    np.testing.assert_allclose(tf.euler_from_dcm(tf.dcm_from_quat(q)), eul, atol=1e-9)
 
 
 def test_quat_multiply_composes_rotations():
