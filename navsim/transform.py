@@ -78,11 +78,3 @@ def wrap_angle(angle):
     """Wrap an angle to [-pi, pi)."""
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
-
-def euler_from_dcm(C_nb):
-    """Roll, pitch, yaw (rad, z-y-x) from ``C_nb`` ``(..., 3, 3)``; returns ``(..., 3)``."""
-    C = np.asarray(C_nb, float)
-    roll = np.arctan2(C[..., 2, 1], C[..., 2, 2])
-    pitch = -np.arcsin(np.clip(C[..., 2, 0], -1.0, 1.0))
-    yaw = np.arctan2(C[..., 1, 0], C[..., 0, 0])
-    return np.stack([roll, pitch, yaw], axis=-1)
