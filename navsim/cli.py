@@ -178,6 +178,8 @@ def cmd_run(args) -> int:
                            f"{key}.diverged": h.diverged})
             if h.sigma is not None:
                 arrays.update({f"{key}.sigma": h.sigma, f"{key}.nees": h.nees})
+            if h.euler_err_rad is not None:
+                arrays[f"{key}.euler_err_rad"] = h.euler_err_rad
         if loop:
             arrays.update({f"closed_loop.{k}": np.asarray(v) for k, v in loop.items()})
         np.savez_compressed(out / "runs.npz", **arrays)
@@ -199,6 +201,10 @@ def cmd_run(args) -> int:
         print("\n".join(closed_loop_lines(metrics["closed_loop"])[1:]))
     if sightings:
         print("\n".join(sighting_lines(metrics)[1:]))
+    from navsim.report_attitude import attitude_lines
+    att_lines = attitude_lines(metrics, lambda h, r: _table(h, r).splitlines())
+    if att_lines:
+        print("\n".join(att_lines[1:]))
     if scenario.reference:
         from navsim.metrics import lookup
         ref_rows = []

@@ -26,9 +26,13 @@ def chi2_band(dim: int, runs: int, p: float = 0.95) -> tuple[float, float]:
 
 def window_quantities(h, good):
     pos = h.pos_err_m[good]
-    return {"north_m": pos[..., 0], "east_m": pos[..., 1], "height_m": -pos[..., 2],
-            "speed_mps": np.linalg.norm(h.vel_err_mps[good][..., :2], axis=-1),
-            "heading_deg": -np.degrees(h.att_err_rad[good][..., 2])}
+    out = {"north_m": pos[..., 0], "east_m": pos[..., 1], "height_m": -pos[..., 2],
+           "speed_mps": np.linalg.norm(h.vel_err_mps[good][..., :2], axis=-1),
+           "heading_deg": -np.degrees(h.att_err_rad[good][..., 2])}
+    if getattr(h, "euler_err_rad", None) is not None:
+        e = np.degrees(h.euler_err_rad[good])
+        out.update(roll_deg=e[..., 0], pitch_deg=e[..., 1], yaw_deg=e[..., 2])
+    return out
 
 
 def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
@@ -63,6 +67,12 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
     out["final"] = {"pos_m": _rms(h.pos_err_m[good][rows, last], 0).tolist(),
                     "vel_mps": _rms(h.vel_err_mps[good][rows, last], 0).tolist(),
                     "att_deg": _rms(np.degrees(h.att_err_rad[good][rows, last]), 0).tolist()}
+    if getattr(h, "euler_err_rad", None) is not None:
+        from navsim.report_attitude import attitude_metrics
+        out["attitude"] = attitude_metrics(h.euler_err_rad[good][:, after])
+    if getattr(h, "resets", None) is not None:
+        from navsim.report_attitude import reset_metrics
+        out["resets"] = reset_metrics(h.resets)
     if h.cost is not None and h.cost["runs"]:
         c = h.cost
         out["cost"] = {"ms_per_run": (c["propagate_s"] + c["epoch_s"]) / c["runs"] * 1e3,
@@ -75,7 +85,8 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
         m = (h.t_s >= a) & (h.t_s <= b)
         out["windows"][name] = {
             key: {"max_pos": float(np.nanmax(v[:, m])), "max_neg": float(np.nanmin(v[:, m])),
-                  "std": float(np.nanstd(v[:, m])), "rms": float(_rms(v[:, m], (0, 1)))}
+                  "std": float(np.nanstd(v[:, m])), "rms": float(_rms(v[:, m], (0, 1))),
+                  "p95_abs": float(np.nanpercentile(np.abs(v[:, m]), 95))}
             for key, v in q.items()} if m.any() else {}
         if m.any():
             out["windows"][name]["horizontal_m"] = {"rms": float(_rms(np.hypot(*np.moveaxis(

@@ -87,6 +87,8 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
                           f"{qs['nees']['fraction_inside'] * 100:.0f} % of the epochs inside the 95 % band"]
     lines += closed_loop_lines(metrics.get("closed_loop"))
     lines += sighting_lines(metrics)
+    from navsim.report_attitude import attitude_lines
+    lines += attitude_lines(metrics, _table_lines)
     if scenario.reference:
         lines += ["", f"published ({scenario.reference['source']}) versus ours:"]
         if scenario.reference.get("note"):
@@ -499,6 +501,8 @@ def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict
         pages += error_figures(result.histories, scenario.settle_s, runs_plotted, spans)
         pages += height_figure(result.histories, scenario)
         pages += landmark_figure(result.histories, metrics, sightings, runs_plotted)
+        from navsim.report_attitude import attitude_figure
+        pages += attitude_figure(result.histories, scenario.settle_s, runs_plotted, spans)
         pages += consistency_figure(result.histories, spans)
         pages += bias_figure(result.histories, result.truth_bias)
         pages += calibration_figures(result.calibration, result.histories, metrics, scenario.windows)

@@ -24,6 +24,7 @@ def attitude_metrics(euler_err_rad: np.ndarray) -> dict:
 def reset_metrics(resets: list) -> dict:
     """The divergence monitor's resets: count, runs reset, per-run times (s) and causes."""
     return {"count": int(sum(len(r) for r in resets)), "runs_with_reset": int(sum(bool(r) for r in resets)),
+            "mean_per_run": float(np.mean([len(r) for r in resets])) if resets else 0.0,
             "times_s": [[round(float(t), 2) for t, _ in r] for r in resets],
             "causes": sorted({c for r in resets for _, c in r})}
 

@@ -217,10 +217,11 @@ def _reference(node, labels, windows):
         for path, value in m.data.items():
             m._seen.add(path)
             head = str(path).split(".")[0]
-            if head not in ("rms", "final", "max_abs", "p99", "windows"):
+            heads = ("rms", "final", "max_abs", "p99", "windows", "attitude", "resets")
+            if head not in heads:
                 raise m.error(f"'{path}' is not a metric", str(path),
-                              expected="rms.*, final.*, max_abs.*, p99.* or windows.<name>.*",
-                              hint=close_match(head, ("rms", "final", "max_abs", "p99", "windows")))
+                              expected="rms.*, final.*, max_abs.*, p99.*, attitude.*, resets.* or windows.<name>.*",
+                              hint=close_match(head, heads))
             if head == "windows":
                 wname = str(path).split(".")[1] if "." in str(path) else ""
                 if wname not in [w[0] for w in windows]:

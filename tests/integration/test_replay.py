@@ -174,3 +174,16 @@ def test_cli_usage_errors_exit_2(log_path, tmp_path):
                  "--out", str(tmp_path)]) == 2
     proc = subprocess.run([sys.executable, "-m", "navsim", "replay", "--help"], capture_output=True, text=True)
     assert proc.returncode == 0 and "--settle" in proc.stdout and "--set" in proc.stdout
+
+
+@pytest.mark.parametrize("estimator, bounds", [("cpf_ekf", (2.0, 2.0, 5.0)), ("cpf", (2.0, 2.0, 5.0))])
+def test_p4_attitude_estimators_follow_px4_on_the_real_log(log, estimator, bounds):
+    """The issue's acceptance: RMS difference from PX4's attitude under 2 deg in roll and pitch,
+    5 deg in yaw, after the 10 s settling (measured: cpf_ekf 0.91/1.14/0.55 deg -- slower to
+    re-level after the hand tilting than PX4's complementary filter, as it levels on a zero
+    horizontal velocity of 1 m/s sigma without GNSS; cpf 0.02/0.03/0.45 deg). No reset."""
+    from navsim.replay import replay_metrics
+    m = replay_metrics(replay(log, estimator, imu_rate_hz=125.0))
+    rms = [m["attitude_diff_deg"][ax]["rms"] for ax in ("roll", "pitch", "yaw")]
+    assert np.all(np.array(rms) < bounds), rms
+    assert m["resets"] == []
