@@ -63,9 +63,9 @@ from __future__ import annotations
 import numpy as np
 
 from navsim.estimators import kalman
-from navsim.estimators.attitude import (UT, LocalFrame, dcm_homogeneous, euler_distance2, euler_of, normalize, omega_matrix,
-                                        psi, quat_of_dcm, reference_field_uT, rk4_step, rotate_n_to_b, sample,
-                                        xi)
+from navsim.estimators.attitude import (UT, LocalFrame, dcm_homogeneous, euler_distance2, euler_of,
+                                        normalize, omega_matrix, psi, quat_of_dcm, reference_field_uT,
+                                        rk4_step, rotate_b_to_n, rotate_n_to_b, sample, xi)
 from navsim.estimators.base import Innovation, Solution, register
 from navsim.estimators.cpf import ComplementaryCore
 from navsim.strapdown import NavState, cross, skew
@@ -190,9 +190,8 @@ class CpfEkf:
         f_b = dv_b / dt
         f_b[:, 2] -= x[:, AZ]
         q_new = rk4_step(q, w_b, dt)
-        C_mid = dcm_from_quat(normalize(q + q_new))
         v = x[:, V]
-        a_n = np.einsum("bij,bj->bi", C_mid, f_b) + self.frame.g_n - 2.0 * cross(self.frame.w_ie_n, v)
+        a_n = rotate_b_to_n(normalize(q + q_new), f_b) + self.frame.g_n - 2.0 * cross(self.frame.w_ie_n, v)
         v_new = v + a_n * dt
         x[:, S] += 0.5 * (v + v_new) * dt
         x[:, V] = v_new

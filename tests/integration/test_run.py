@@ -66,7 +66,7 @@ def test_run_writes_report_metrics_and_histories(short, tmp_path, capsys):
     kf, free = m["estimators"]["KF"], m["estimators"]["free SINS"]
     for key in ("rms", "final", "max_abs", "p99"):
         assert len(kf[key]["pos_m"]) == 3 and len(kf[key]["vel_mps"]) == 3 and len(kf[key]["att_deg"]) == 3
-    assert set(kf["windows"]["turn"]["height_m"]) == {"max_pos", "max_neg", "std", "rms"}
+    assert set(kf["windows"]["turn"]["height_m"]) == {"max_pos", "max_neg", "std", "rms", "p95_abs"}
     assert 0.0 <= kf["nees"]["fraction_inside"] <= 1.0 and kf["diverged_runs"] == 0
     assert "gnss_position:gps" in kf["nis"]
     assert max(kf["rms"]["pos_m"]) < max(free["rms"]["pos_m"])

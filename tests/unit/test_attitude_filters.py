@@ -185,3 +185,45 @@ def test_the_complementary_filter_levels_itself():
     # tilt within 0.3 deg (the gyro's 1 deg/s bias is integrated out by the PI correction)
     assert np.degrees(np.abs(h.euler_err_rad[:, late, :2])).max() < 0.3
     assert np.all(np.isfinite(h.euler_err_rad))
+
+
+def _p4_scenario(**estimator):
+    from pathlib import Path
+
+    from navsim.config import load_yaml
+    data = load_yaml(Path(__file__).resolve().parents[2] / "scenarios" / "p4_static.yaml")
+    data["estimators"] = [{"label": "x", "type": "cpf_ekf", "mag": "mag", "gnss": "gps", **estimator}]
+    return data
+
+
+@pytest.mark.parametrize("estimator, key, words", [
+    ({"mag": "gps"}, "estimators[0].mag", "'gps' is a gnss"),
+    ({"gnss": "nav"}, "estimators[0].gnss", "not a sensor of this scenario"),
+    ({"monitor": "cfp"}, "estimators[0].monitor", "cpf"),
+    ({"threshold_rad2": 0}, "estimators[0].threshold_rad2", ""),
+    ({"imu": "neo_m8n"}, "estimators[0].imu", "not an IMU"),
+    ({"sigma": {"mag_nT": 1}}, "estimators[0].sigma.mag_nT", ""),
+    ({"field_uT": [20, 0]}, "estimators[0].field_uT", "[north, east, down]"),
+])
+def test_malformed_attitude_estimators_are_named(assert_scenario_error, estimator, key, words):
+    assert_scenario_error(_p4_scenario(**estimator), key, words)
+
+
+def test_a_parked_track_takes_only_hold_segments(assert_scenario_error):
+    data = _p4_scenario()
+    data["track"]["segments"] = [{"type": "straight", "time_s": 10}]
+    assert_scenario_error(data, "track.segments[0].type", "only 'hold' segments on the ground")
+
+
+def test_the_magnetometer_disturbance_ramps_in_and_out():
+    from navsim.sensors.base import parse_faults
+    truth = Truth.static(100.0, 100.0, 43.88, 125.35, 220.0, 63.0)
+    (fault,) = parse_faults([{"type": "disturbance", "start_s": 20, "end_s": 60, "ramp_s": 10,
+                              "hard_iron_uT": [30, -25, 15]}], "f")
+    spec = load_spec("lsm303d", off="all")
+    clean = emulate_magnetometer(truth, spec, 1, [0], name="mag")
+    hit = emulate_magnetometer(truth, spec, 1, [0], faults=(fault,), name="mag")
+    d = (hit.values["mag_b_T"] - clean.values["mag_b_T"])[0] / 1e-6
+    t = hit.t_s
+    assert np.allclose(d[t < 20], 0) and np.allclose(d[(t >= 30) & (t <= 60)], [30, -25, 15])
+    assert np.allclose(d[np.isclose(t, 25)], [15, -12.5, 7.5]) and np.allclose(d[t >= 70], 0)
