@@ -87,8 +87,9 @@ def parse_closed_loop(node: Node, labels: list[str], sensors, track, duration_s:
     default_limit = (duration_s * 1.5 + 300.0) if math.isfinite(duration_s) else 3600.0
     limit = node.get("time_limit_s", float, default_limit, exclusive_minimum=0.0)
     if track.start.type != "air":
-        raise ScenarioError("starts on a launcher", file=node.file, key="track.start.type",
-                            expected="with closed_loop, an air start", hint="launches are flown open loop only")
+        what = "starts on a launcher" if track.start.type == "launch" else "is parked on the ground"
+        raise ScenarioError(what, file=node.file, key="track.start.type", expected="with closed_loop, an air start",
+                            hint="launches and parked vehicles are open loop only")
     imu = [c for c in sensors if c.kind == "imu"]
     for c in sensors:
         key = f"sensors.{c.name}"
@@ -390,7 +391,8 @@ def end_records(batch: LoopBatch, dt: float) -> None:
     end = np.where(np.isfinite(batch.end_t_s), batch.end_t_s, np.inf)
     for h in batch.histories.values():
         after = h.t_s[None, :] > end[:, None] + 0.5 * dt            # (B, E)
-        for name in ("att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "gyro_bias", "accel_bias"):
+        for name in ("att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "gyro_bias", "accel_bias",
+                     "euler_err_rad"):
             a = getattr(h, name)
             if a is not None:
                 a[after] = np.nan

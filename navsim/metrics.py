@@ -72,7 +72,7 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
         out["attitude"] = attitude_metrics(h.euler_err_rad[good][:, after])
     if getattr(h, "resets", None) is not None:
         from navsim.report_attitude import reset_metrics
-        out["resets"] = reset_metrics(h.resets)
+        out["resets"] = reset_metrics([r for r, g in zip(h.resets, good) if g])
     if h.cost is not None and h.cost["runs"]:
         c = h.cost
         out["cost"] = {"ms_per_run": (c["propagate_s"] + c["epoch_s"]) / c["runs"] * 1e3,

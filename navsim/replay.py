@@ -42,6 +42,8 @@ GAP_MAX_S = 0.5                   #: a longer gap is an error (the IMU cannot be
 MIN_DURATION_S = 5.0              #: the shortest IMU record replayed
 ALIGN_S = 1.0                     #: default length of the coarse-alignment window
 RECORD_S = 0.02                   #: the solution is compared with PX4's at 50 Hz
+#: without GNSS, an attitude EKF that takes it levels on a zero horizontal velocity of this sigma
+NO_GNSS_SIGMA_MPS = 1.0
 ALIGN_GYRO_MAX_RPS = 0.05         #: above this rate in the window the vehicle was not still
 #: 1-sigma of the coarse alignment: attitude about N, E, D (rad), velocity (m/s), position N, E, D
 #: (m): the accelerometer levels to ~1° (bias of ~0.1 m/s²), the magnetometer heading to ~5°
@@ -517,7 +519,8 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_ra
     sensors = sensor_streams(log, grid)
     align = coarse_alignment(log, align_s)
     defaults = {"mag": "mag", "baro": "baro" if "baro" in sensors else None, "gnss": None,
-                "field_n_T": [float(x) for x in align.field_n_T]}
+                "field_n_T": [float(x) for x in align.field_n_T],
+                "no_gnss_sigma_mps": NO_GNSS_SIGMA_MPS}
     est, kw = build_estimator(estimator, dict(params or {}), defaults)
     nav0, sigma0 = initial_state(log, align)
     est.initialize(nav0, {**sigma0, **est.noise_sigma0()} if hasattr(est, "noise_sigma0") else sigma0)

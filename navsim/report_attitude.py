@@ -1,5 +1,7 @@
 """Report pieces for attitude estimators (P4): roll, pitch and yaw errors with the divergence
-monitor's resets marked, and the attitude table of the summary page."""
+monitor's resets marked, and the attitude table of the summary page. Every estimator's
+``metrics.json`` has the ``attitude`` block (Euler errors are recorded for all); the table and
+the pages are for the estimators that report resets (``cpf_ekf``)."""
 
 from __future__ import annotations
 
@@ -34,7 +36,7 @@ def attitude_lines(metrics: dict, table) -> list[str]:
     rows = []
     for label, m in metrics["estimators"].items():
         a = m.get("attitude")
-        if not a:
+        if not a or "resets" not in m:          # the attitude estimators (every one has Euler errors)
             continue
         f = lambda v: "/".join(f"{x:.3g}" for x in v)
         r = m.get("resets")

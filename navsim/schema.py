@@ -44,6 +44,9 @@ def scenario_schema() -> dict:
                   "speed_mps": POS, "heading_deg": NUM, "pitch_deg": NUM, "roll_deg": NUM, "launcher_height_m": POS,
                   "booster_thrust_n": NUM, "booster_time_s": NUM},
                  ["lat_deg", "lon_deg", "alt_m"])
+    # a parked (ground) start has no speed; the others need one
+    start["if"] = {"properties": {"type": {"const": "ground"}}, "required": ["type"]}
+    start["else"] = {"required": ["speed_mps"]}
     track = {"oneOf": [{"type": "string", "description": "a shipped track: p0, p3, p2_sea"},
                        _obj({"name": {"type": "string"}, "description": {"type": "string"}, "start": start,
                              "segments": {"type": "array", "minItems": 1,

@@ -69,8 +69,13 @@ def attitude_params(node: Node, kind: str, sensors: dict) -> dict:
         if not (isinstance(field, list) and len(field) == 3 and all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in field)):
             raise node.error(f"is {field!r}", "field_uT", expected="[north, east, down] in microtesla")
+        if not any(field):
+            raise node.error(f"is {field!r}", "field_uT", expected="a non-zero field [north, east, down] in microtesla")
         p["field_n_T"] = [float(v) * 1e-6 for v in field]
     p["cpf"] = _floats(node, "cpf", CPF_GAINS)
+    for tau in ("accel_tau_s", "accel_ref_tau_s"):
+        if p["cpf"].get(tau) == 0.0:
+            raise node.error("is 0", f"cpf.{tau}", expected="a time constant > 0 s")
     if kind == "cpf":
         return p
     imu = node.get("imu", str, None)
@@ -120,21 +125,16 @@ def build_attitude(kind: str, params: dict):
     p = dict(params)
     if kind == "cpf":
         from navsim.estimators.cpf import ComplementaryFilter
-        return ComplementaryFilter(**{k: v for k, v in p.items() if k != "cpf"}, **p.get("cpf", {}))
+        return ComplementaryFilter(**p)
     from navsim.estimators.cpf_ekf import CpfEkf
     noise, initial = {}, {}
     if p.get("imu"):
         from navsim.sensors.catalog import load_spec
         noise, initial = imu_noise(load_spec(p["imu"]))
     noise.update(p.get("noise", {}))
-    user_initial = dict(p.get("initial", {}))
-    if "gyro_bias_dps" in user_initial:
-        user_initial["gyro_bias_rad_s"] = math.radians(user_initial.pop("gyro_bias_dps"))
-    initial.update(user_initial)
+    initial.update(p.get("initial", {}))          # gyro_bias_dps (if given) wins over the spec's
     sigma = {SIGMA_KEYS[k]: v for k, v in p.get("sigma", {}).items()}
     reset = dict(p.get("reset_sigma", {}))
-    if "gyro_bias_dps" in reset:
-        reset["gyro_bias_rad_s"] = math.radians(reset.pop("gyro_bias_dps"))
     return CpfEkf(mag=p["mag"], gnss=p.get("gnss"), baro=p.get("baro"), period_s=p["period_s"], noise=noise,
                   initial=initial, monitor=p.get("monitor", "cpf"), threshold_rad2=p.get("threshold_rad2", 0.27416),
                   cycles=p.get("cycles", 3), innovation_ratio=p.get("innovation_ratio", 3.0), cpf=p.get("cpf"),

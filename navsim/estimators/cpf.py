@@ -66,8 +66,9 @@ class ComplementaryCore:
         f_ref_n = self.a_n - self.frame.g_n
         f_ref_b = rotate_n_to_b(self.q, f_ref_n)
         nm, nr = np.linalg.norm(self.f_lp, axis=-1), np.linalg.norm(f_ref_b, axis=-1)
-        use = np.abs(nm - nr) <= self.acc_gate * np.linalg.norm(self.frame.g_n, axis=-1)
-        e_acc = cross(self.f_lp / nm[:, None], f_ref_b / nr[:, None]) * use[:, None]
+        use = (np.abs(nm - nr) <= self.acc_gate * np.linalg.norm(self.frame.g_n, axis=-1)) & (nm > 0) & (nr > 0)
+        safe = lambda n: np.where(use, n, 1.0)[:, None]          # free fall, a zeroed sample: no NaN
+        e_acc = np.where(use[:, None], cross(self.f_lp / safe(nm), f_ref_b / safe(nr)), 0.0)
         w = dtheta_b / dt - self.b - rotate_n_to_b(self.q, self.frame.w_ie_n)
         w = w + self.kp_acc * e_acc + self.kp_mag * self.e_mag
         self.b = self.b - self.ki * (e_acc + self.e_mag) * dt
@@ -130,8 +131,9 @@ class ComplementaryFilter:
         The magnetometer and GNSS sensors it reads (names in the scenario).
     period_s : float
         How often it takes the magnetometer and GNSS references (their rates: 10 Hz).
-    kp_acc, kp_mag, ki : float
-        Correction gains, rad/s per unit error (time constants ``1/kp``).
+    cpf : dict
+        Keyword arguments of :class:`ComplementaryCore`: the gains ``kp_acc``, ``kp_mag``, ``ki``
+        (rad/s per unit error; time constants ``1/kp``), the gates, ``course_min_speed_mps``.
     field_n_T : list of 3 or None
         The Earth field it assumes (NED, T); None: the WMM at the start.
 
@@ -140,10 +142,10 @@ class ComplementaryFilter:
     """
 
     def __init__(self, mag: str | None = "mag", gnss: str | None = None, baro: str | None = None,
-                 period_s: float = 0.1, field_n_T=None, **gains):
+                 period_s: float = 0.1, field_n_T=None, cpf: dict | None = None):
         self.mag, self.gnss, self.baro, self.period_s = mag, gnss, baro, period_s
         self.field_n_T = field_n_T
-        self.core = ComplementaryCore(**gains)
+        self.core = ComplementaryCore(**(cpf or {}))
 
     def initialize(self, nav0: NavState, sigma0: dict | None = None) -> None:
         self.frame = LocalFrame(nav0.lat_rad.copy(), nav0.lon_rad.copy(), nav0.h_m.copy())

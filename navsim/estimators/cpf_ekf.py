@@ -49,7 +49,7 @@ Divergence monitor (``monitor``):
   (with ``reset_sigma`` overriding the initial sigmas of the sensor states: a divergence says
   the magnetic model is wrong, so its uncertainty may be re-opened), the Earth-field state
   back to the reference field; velocity, position, the accelerometer and magnetometer bias
-  estimates are kept.
+  estimates are kept with their variances (their cross-covariances with the rest dropped).
 * ``innovation``: the classical test ``nu^T nu > r tr(H P H^T + R)`` on the three magnetometer
   innovations (P4 eq. 20, ``r = innovation_ratio``) for ``cycles`` consecutive magnetometer
   epochs, same reset;
@@ -74,6 +74,25 @@ from navsim.transform import dcm_from_quat
 N_STATES = 20
 Q, V, S, AZ, MB, WB, ME = slice(0, 4), slice(4, 7), slice(7, 10), 10, slice(11, 14), slice(14, 17), slice(17, 20)
 MONITORS = ("cpf", "innovation", "none")
+INITIAL_DEFAULTS = {"gyro_bias_rad_s": np.radians(1.0), "accel_z_bias_mps2": 0.2, "mag_bias_uT": 5.0,
+                    "field_uT": 0.05}
+
+
+def _dps(d: dict) -> dict:
+    """``gyro_bias_dps`` (datasheet unit) as ``gyro_bias_rad_s``."""
+    d = dict(d)
+    if "gyro_bias_dps" in d:
+        d["gyro_bias_rad_s"] = np.radians(d.pop("gyro_bias_dps"))
+    return d
+
+
+def _merge_known(what: str, defaults: dict, given: dict | None) -> dict:
+    """``defaults`` updated with ``given``; an unknown key is a ValueError naming the known ones."""
+    given = _dps(given or {})
+    unknown = sorted(set(given) - set(defaults))
+    if unknown:
+        raise ValueError(f"{what}: unknown key(s) {', '.join(unknown)} (known: {', '.join(defaults)})")
+    return {**defaults, **{k: float(v) for k, v in given.items()}}
 
 
 def dcm_times_vec_jacobian(q: np.ndarray, f: np.ndarray, transpose: bool = False) -> np.ndarray:
@@ -96,9 +115,9 @@ class CpfEkf:
     Parameters
     ----------
     mag, gnss, baro : str or None
-        The sensors it reads (names in the scenario); ``gnss=None`` (a log without GNSS): a zero
-        horizontal velocity with ``no_gnss_sigma_mps`` keeps the tilt observable, as PX4 does
-        without aiding.
+        The sensors it reads (names in the scenario). Without GNSS (a replayed log), a zero
+        horizontal velocity with ``no_gnss_sigma_mps`` (off unless given; ``navsim replay`` uses
+        1 m/s) keeps the tilt observable, as PX4 does without aiding.
     noise : dict
         The filter's own IMU model, 1-sigma densities: ``gyro_rad_s_rthz``, ``accel_mps2_rthz``
         (white, vibration included), ``gyro_bias_walk`` (rad/s/rt s), ``accel_bias_walk``
@@ -125,25 +144,26 @@ class CpfEkf:
     def __init__(self, mag: str | None = "mag", gnss: str | None = "gps", baro: str | None = None,
                  period_s: float = 0.1, noise: dict | None = None, initial: dict | None = None,
                  mag_sigma_uT: float = 0.5, gnss_pos_sigma_m: float = 2.0, gnss_vel_sigma_mps: float = 0.1,
-                 baro_sigma_m: float = 1.0, no_gnss_sigma_mps: float = 1.0, monitor: str = "cpf",
+                 baro_sigma_m: float = 1.0, no_gnss_sigma_mps: float | None = None, monitor: str = "cpf",
                  threshold_rad2: float = 0.27416, cycles: int = 3, innovation_ratio: float = 3.0,
                  cpf: dict | None = None, field_n_T=None, reset_sigma: dict | None = None,
                  cpf_trust_s: float = 30.0):
         if monitor not in MONITORS:
             raise ValueError(f"monitor '{monitor}': expected one of {', '.join(MONITORS)}")
         self.mag, self.gnss, self.baro, self.period_s = mag, gnss, baro, period_s
-        self.noise = {"gyro_rad_s_rthz": 1.5e-4, "accel_mps2_rthz": 0.4, "gyro_bias_walk": 1e-5,
-                      "accel_bias_walk": 1e-4, "mag_bias_walk_uT": 0.01, "field_walk_uT": 0.001,
-                      "quat_stab": 1e-5, **(noise or {})}
-        self.initial = {"gyro_bias_rad_s": np.radians(1.0), "accel_z_bias_mps2": 0.2, "mag_bias_uT": 5.0,
-                        "field_uT": 0.05, **(initial or {})}
+        self.noise = _merge_known("noise", {"gyro_rad_s_rthz": 1.5e-4, "accel_mps2_rthz": 0.4,
+                                            "gyro_bias_walk": 1e-5, "accel_bias_walk": 1e-4,
+                                            "mag_bias_walk_uT": 0.01, "field_walk_uT": 0.001,
+                                            "quat_stab": 1e-5}, noise)
+        self.initial = _merge_known("initial", dict(INITIAL_DEFAULTS), initial)
         self.mag_sigma_uT, self.baro_sigma_m = mag_sigma_uT, baro_sigma_m
         self.gnss_pos_sigma_m, self.gnss_vel_sigma_mps = gnss_pos_sigma_m, gnss_vel_sigma_mps
         self.no_gnss_sigma_mps = no_gnss_sigma_mps
         self.monitor, self.threshold_rad2, self.cycles = monitor, threshold_rad2, int(cycles)
         self.innovation_ratio, self.field_n_T = innovation_ratio, field_n_T
         self.cpf_gains = dict(cpf or {})
-        self.reset_sigma = dict(reset_sigma or {})
+        self.reset_sigma = {k: v for k, v in _merge_known("reset_sigma", dict(INITIAL_DEFAULTS),
+                                                          reset_sigma).items() if k in _dps(reset_sigma or {})}
         self.cpf_trust_s = cpf_trust_s
 
     # --- contract -----------------------------------------------------------------------------
@@ -219,6 +239,7 @@ class CpfEkf:
             trusted = t - self.cpf.heading_t <= self.cpf_trust_s
             self._count((self.distance2 > self.threshold_rad2) & trusted, t, "cpf")
         self.diverged |= ~(np.all(np.isfinite(self.x), -1) & np.all(np.isfinite(self.P), (-1, -2))
+                           & np.all(np.isfinite(self.cpf.q), -1)
                            & np.all(np.diagonal(self.P, axis1=1, axis2=2) >= -1e-12, -1))
         return out
 
@@ -323,7 +344,7 @@ class CpfEkf:
             if "vel_n_mps" in data.values:
                 rows, zs, rs = [4, 5, 6] + rows, [data.values["vel_n_mps"][:, j]] + zs, [self.gnss_vel_sigma_mps ** 2] * 3 + rs
             out.append(self._linear("gnss", self.gnss, t, rows, np.concatenate(zs, -1), rs, data.valid[:, j]))
-        elif self.gnss is None and mag_epoch:
+        elif self.gnss is None and mag_epoch and self.no_gnss_sigma_mps:
             # no GNSS at all (a replayed log): a zero horizontal velocity keeps the tilt observable
             out.append(self._linear("zero_velocity", "-", t, [4, 5], np.zeros((B, 2)),
                                     [self.no_gnss_sigma_mps ** 2] * 2, np.ones(B, bool)))
@@ -354,13 +375,14 @@ class CpfEkf:
         """Re-initialise the EKF of the runs ``hit`` from the CPF's attitude (P4)."""
         q = self.cpf.q
         self.x[hit, 0:4] = q[hit]
-        self.x[hit, 14:17] = self.cpf.b[hit]
+        self.x[hit, 14:17] = self.cpf.b[hit]            # its covariance re-initialised below
         if self.field_ready:
             self.x[hit, 17:20] = self.field_ref[hit]
         keep = self.P.copy()
         P0 = self._initial_P(self.x[:, Q], reset=True)
-        # the bias estimates are kept, with the uncertainty they had unless reset_sigma re-opens it
-        for blk, key in ((AZ, "accel_z_bias_mps2"), (MB, "mag_bias_uT"), (WB, "gyro_bias_rad_s")):
+        # the accelerometer and magnetometer bias estimates are kept, with the uncertainty they had
+        # unless reset_sigma re-opens it; the gyro bias, taken from the CPF, gets its initial sigma
+        for blk, key in ((AZ, "accel_z_bias_mps2"), (MB, "mag_bias_uT")):
             if key not in self.reset_sigma:
                 P0[:, blk, blk] = keep[:, blk, blk]
         P0[:, V, V], P0[:, S, S] = keep[:, V, V], keep[:, S, S]

@@ -135,7 +135,7 @@ class Fault:
     near ``source`` (list of ``[lat_deg, lon_deg, h_m]`` points, a polyline) the noise grows as
     ``1 + (radius_m / d)^2`` and lock is lost within ``lost_m``. ``disturbance``
     (magnetometer, P4): a body-fixed field ``value`` (T, from ``hard_iron_uT``) that ramps in
-    over ``ramp_s`` from ``start_s`` and out over ``ramp_s`` from ``end_s`` (a magnetised payload,
+    over ``ramp_s`` from ``start_s`` and out over ``ramp_s`` after ``end_s`` (a magnetised payload,
     a motor or pump current switched on).
     """
 
@@ -150,10 +150,13 @@ class Fault:
     ramp_s: float = 0.0
 
     def ramp(self, t_s: np.ndarray) -> np.ndarray:
-        """0..1: how much of a ``disturbance`` is on at ``t_s``."""
-        r = max(self.ramp_s, 1e-9)
-        on = np.clip((t_s - self.start_s) / r, 0.0, 1.0)
-        return on * np.clip(1.0 - (t_s - self.end_s) / r, 0.0, 1.0)
+        """0..1: how much of a ``disturbance`` is on at ``t_s``: fully on over ``[start_s +
+        ramp_s, end_s)``, ramping in from ``start_s`` and out until ``end_s + ramp_s``
+        (``ramp_s = 0``: exactly the window ``[start_s, end_s)``)."""
+        if self.ramp_s <= 0.0:
+            return self.active(t_s).astype(float)
+        on = np.clip((t_s - self.start_s) / self.ramp_s, 0.0, 1.0)
+        return on * np.clip(1.0 - (t_s - self.end_s) / self.ramp_s, 0.0, 1.0)
 
     def active(self, t_s: np.ndarray) -> np.ndarray:
         return (t_s >= self.start_s) & (t_s < self.end_s)

@@ -4,7 +4,7 @@ quaternion normalisation, the divergence monitor and its angle wrapping, batch =
 import numpy as np
 import pytest
 
-from navsim.estimators.attitude import dcm_homogeneous, euler_distance2, rk4_step
+from navsim.estimators.attitude import dcm_homogeneous, euler_distance2, euler_of, rk4_step
 from navsim.estimators.cpf import ComplementaryFilter
 from navsim.estimators.cpf_ekf import AZ, MB, ME, N_STATES, Q, WB, CpfEkf, dcm_times_vec_jacobian
 from navsim.flight.truth import Truth
@@ -30,7 +30,19 @@ def test_rk4_quaternion_step_matches_the_exact_rotation():
         exact = quat_multiply(q, quat_from_rotvec(w * dt))
         err = np.abs(rk4_step(q, w, dt) - exact).max()
         assert err < 5e-6 * (dt / 0.02) ** 4      # fourth order: 16 x smaller at half the step
-    assert np.abs(rk4_step(q, w, 0.01) - quat_multiply(q, quat_from_rotvec(w * 0.01))).max() > 0
+
+
+def test_rk4_closed_form_equals_the_four_stages():
+    from navsim.estimators.attitude import normalize, omega_matrix
+    rng = np.random.default_rng(4)
+    q, w, dt = _unit(rng, 5), rng.normal(size=(5, 3)), 0.02
+    A = 0.5 * dt * omega_matrix(w)
+    k1 = np.einsum("bij,bj->bi", A, q)
+    k2 = np.einsum("bij,bj->bi", A, q + 0.5 * k1)
+    k3 = np.einsum("bij,bj->bi", A, q + 0.5 * k2)
+    k4 = np.einsum("bij,bj->bi", A, q + k3)
+    stages = normalize(q + (k1 + 2 * k2 + 2 * k3 + k4) / 6)
+    assert np.abs(rk4_step(q, w, dt) - stages).max() < 1e-15
 
 
 @pytest.mark.parametrize("transpose", [False, True])
@@ -90,11 +102,9 @@ def test_a_correction_keeps_the_quaternion_unit_and_its_covariance_tangent():
 
 
 def test_divergence_distance_wraps_the_yaw():
-    a = np.radians([[0.0, 0.0, 179.0]])
-    b = np.radians([[0.0, 0.0, -179.0]])
-    assert euler_distance2(a, b)[0] == pytest.approx(np.radians(2.0) ** 2, rel=1e-9)
-    # P4's threshold: about 30 deg in total
-    assert np.degrees(np.sqrt(0.27416)) == pytest.approx(30.0, abs=0.01)
+    a = np.radians([[0.0, 0.0, 179.0], [1.0, -2.0, -90.0]])
+    b = np.radians([[0.0, 0.0, -179.0], [-1.0, 1.0, 90.0]])
+    assert euler_distance2(a, b) == pytest.approx(np.radians([2.0, np.sqrt(4 + 9 + 180 ** 2)]) ** 2, rel=1e-9)
 
 
 def _static_case(runs, seconds=60.0):
@@ -117,13 +127,31 @@ def _monitored():
 
 
 def test_a_batch_of_three_equals_three_single_runs():
+    """Bit for bit, with one run reset by the monitor (GNSS only, so the EKF keeps its knock)."""
     truth, imu, sensors, initial = _static_case(range(3), 20.0)
-    batch = run_batch(truth, imu, sensors, {"ekf": _monitored()}, initial, 7, range(3))["ekf"]
+    sensors = {"gps": sensors["gps"]}
+
+    def run(runs, imu, sensors):
+        est = CpfEkf(mag="mag", gnss="gps", monitor="cpf", noise={"accel_mps2_rthz": 0.004})
+        from navsim.montecarlo import perturbed_start
+        nav0 = perturbed_start(truth, initial.draw(7, runs), 0)
+        est.initialize(nav0, initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0]))
+        hit = np.asarray(list(runs)) == 1
+        est.x[hit, 0:4] = quat_multiply(quat_from_rotvec(np.radians([[0, 0, 40.0]])), est.x[hit, 0:4])
+        dth, dv, dt = imu.values["dtheta_b_rad"], imu.values["dv_b_mps"], imu.meta["dt_s"]
+        for i in range(1, dth.shape[1]):
+            est.propagate(dth[:, i], dv[:, i], dt)
+            if i % 5 == 0:
+                est.epoch(imu.t_s[i], sensors)
+        return est
+
+    batch = run(range(3), imu, sensors)
+    assert [len(r) for r in batch.resets] == [0, 1, 0]
     for i in range(3):
-        one = run_batch(truth, imu.run(i), {k: v.run(i) for k, v in sensors.items()}, {"ekf": _monitored()},
-                        initial, 7, [i])["ekf"]
-        assert np.array_equal(one.att_err_rad[0], batch.att_err_rad[i])
-        assert np.array_equal(one.sigma[0], batch.sigma[i])
+        one = run([i], imu.run(i), {k: v.run(i) for k, v in sensors.items()})
+        assert np.array_equal(one.x[0], batch.x[i]) and np.array_equal(one.P[0], batch.P[i])
+        assert one.resets[0] == batch.resets[i]
+        assert np.array_equal(one.cpf.q[0], batch.cpf.q[i])
 
 
 def test_the_cpf_monitor_resets_a_diverged_ekf_to_the_cpf_attitude():
@@ -155,6 +183,17 @@ def test_the_cpf_monitor_resets_a_diverged_ekf_to_the_cpf_attitude():
             assert est.distance2[0] < np.radians(0.5) ** 2     # 0.2 s later: still together
         if monitor == "innovation":
             assert resets[0] == (pytest.approx(0.1), "innovation")
+    # the innovation test's weakness: without the monitor, three updates explain the knock away
+    est = CpfEkf(mag="mag", gnss="gps", monitor="none", initial={"mag_bias_uT": 0.5})
+    est.initialize(*_start(truth, initial))
+    est.x[:, Q] = quat_multiply(quat_from_rotvec(np.radians([[0, 0, 40.0]])), est.x[:, Q])
+    nis = []
+    for i in range(1, 26):
+        est.propagate(imu.values["dtheta_b_rad"][:, i], imu.values["dv_b_mps"][:, i], imu.meta["dt_s"])
+        if i % 5 == 0:
+            nis += [inn.nis[0] for inn in est.epoch(imu.t_s[i], all_sensors) if inn.measurement == "mag"]
+    off_deg = np.degrees(np.sqrt(euler_distance2(euler_of(est.x[:, Q]), truth.euler_rad[:1])))[0]
+    assert nis[0] > 50 and nis[3] < 10 and off_deg > 15, (nis, off_deg)
 
 
 def _start(truth, initial):
