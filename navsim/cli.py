@@ -343,7 +343,7 @@ def cmd_replay(args) -> int:
                         align_s=args.align, progress=update)
     finally:
         bar.close()
-    out = Path(args.out) if args.out else Path("reports") / f"replay_{Path(args.log).stem}_{name}"
+    out = Path(args.out) if args.out else Path("reports") / f"replay_{Path(args.log).name.split('.')[0]}_{name}"
     out.mkdir(parents=True, exist_ok=True)
     metrics = replay_metrics(result)
     record = provenance()
@@ -441,7 +441,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "its roll, pitch and yaw with PX4's own vehicle_attitude; write "
                        "metrics.json, attitude.png and replay.pdf, print the differences. Exit 2 "
                        "for a log that cannot be replayed.")
-    p.add_argument("log", help="PX4 .ulg file (example: tests/data/px4_quad_real_69s.ulg)")
+    p.add_argument("log", help="PX4 .ulg file (example: tests/data/px4_quad_real_69s.ulg.gz)")
     p.add_argument("--estimator", help=f"registered estimator (default {DEFAULT_REPLAY_ESTIMATOR})")
     p.add_argument("--out", help="output folder (default reports/replay_<log>_<estimator>)")
     p.add_argument("--settle", type=float, default=10.0,

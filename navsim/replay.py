@@ -21,10 +21,13 @@ and a hint; what the replay works around (dropped samples, no baro, no position)
 
 from __future__ import annotations
 
+import gzip
 import inspect
+import io
 import math
 import struct
 import time
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -52,7 +55,7 @@ ALIGN_SIGMA = {"att_rad": np.radians([1.0, 1.0, 5.0]), "vel_mps": np.array([0.3,
                "pos_m": np.array([10.0, 10.0, 5.0])}
 _ULOG_MAGIC = b"ULog\x01\x12\x35"
 _ULOG_TYPES = frozenset(b"BFIMPQARDLCSO")
-_HINT_LOG = ("replay a complete PX4 ULog (the shipped example: tests/data/px4_quad_real_69s.ulg); "
+_HINT_LOG = ("replay a complete PX4 ULog (the shipped example: tests/data/px4_quad_real_69s.ulg.gz); "
              "--allow-damaged replays what a truncated or corrupt log still holds")
 
 
@@ -125,11 +128,17 @@ def _read_ulog(path: Path, allow_damaged: bool, notes: list):
     from pyulog.core import ULogException
     if not path.is_file():
         raise LogError("no such file", file=str(path), hint=_HINT_LOG)
-    problem = check_structure(path.read_bytes())
+    data = path.read_bytes()
+    if data[:2] == b"\x1f\x8b":                      # a gzip-compressed log (.ulg.gz)
+        try:
+            data = gzip.decompress(data)
+        except (OSError, EOFError, zlib.error) as exc:
+            raise LogError(f"cannot be decompressed ({exc})", file=str(path), hint=_HINT_LOG) from exc
+    problem = check_structure(data)
     if problem and (not allow_damaged or problem.startswith("is not")):
         raise LogError(problem, file=str(path), hint=_HINT_LOG)
     try:
-        ulog = ULog(str(path))
+        ulog = ULog(io.BytesIO(data))
     except (ULogException, ValueError, IndexError, struct.error, UnicodeDecodeError) as exc:
         raise LogError(f"cannot be read as a ULog ({exc})", file=str(path), hint=_HINT_LOG) from exc
     if ulog.file_corruption and not allow_damaged:

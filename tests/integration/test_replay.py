@@ -1,6 +1,7 @@
-"""``navsim replay`` on the shipped real PX4 log (tests/data/px4_quad_real_69s.ulg): loading,
+"""``navsim replay`` on the shipped real PX4 log (tests/data/px4_quad_real_69s.ulg.gz): loading,
 alignment, an end-to-end free-inertial replay, the estimator interface, the errors."""
 
+import gzip
 import json
 import math
 import subprocess
@@ -17,7 +18,7 @@ from navsim.replay import coarse_alignment, load_ulog, px4_euler_at, replay
 
 @pytest.fixture(scope="module")
 def log_path(repo_root):
-    return repo_root / "tests" / "data" / "px4_quad_real_69s.ulg"
+    return repo_root / "tests" / "data" / "px4_quad_real_69s.ulg.gz"
 
 
 @pytest.fixture(scope="module")
@@ -136,7 +137,7 @@ def test_attitude_estimator_gets_sensor_names_field_and_resets(log_path, tmp_pat
     ("corrupt", [], ["is corrupt"]),
 ])
 def test_unreplayable_logs_exit_2_naming_the_problem(log_path, tmp_path, capsys, make, args, words):
-    raw = log_path.read_bytes()
+    raw = gzip.decompress(log_path.read_bytes())          # the shipped log is gzip-compressed
     path = tmp_path / "nowhere.ulg"
     if make == "truncate":
         path.write_bytes(raw[: int(0.3 * len(raw))])
