@@ -17,7 +17,7 @@ import numpy as np
 
 from navsim import earth
 from navsim.strapdown import NavState, cross
-from navsim.transform import dcm_from_quat, euler_from_quat, quat_multiply
+from navsim.transform import dcm_from_quat, quat_multiply
 
 UT = 1e-6       #: tesla per microtesla (the filters keep the magnetic field in uT)
 
@@ -88,10 +88,6 @@ def quat_of_dcm(C: np.ndarray) -> np.ndarray:
     return q * np.where(q[..., :1] < 0, -1.0, 1.0)
 
 
-def euler_of(q: np.ndarray) -> np.ndarray:
-    return euler_from_quat(q)
-
-
 def euler_distance2(e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
     """P4's eq. 21: ``(roll1-roll2)^2 + (pitch1-pitch2)^2 + (yaw1-yaw2)^2``, rad^2, each
     difference wrapped to [-pi, pi) (a yaw of 179 deg and one of -179 deg are 2 deg apart)."""
@@ -154,10 +150,6 @@ def reference_field_uT(frame: LocalFrame, mag_data, field_n_T=None) -> np.ndarra
     return np.asarray(f) / UT
 
 
-def conj(q: np.ndarray) -> np.ndarray:
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
 def rotate_b_to_n(q: np.ndarray, v_b: np.ndarray) -> np.ndarray:
     """``C_nb v_b`` for unit ``q_nb``, as ``v + 2 w (u x v) + 2 u x (u x v)`` (no matrix)."""
     w, u = q[:, :1], q[:, 1:]
@@ -172,6 +164,6 @@ def rotate_n_to_b(q: np.ndarray, v_n: np.ndarray) -> np.ndarray:
     return v_n + w * t + cross(u, t)
 
 
-__all__ = ["UT", "LocalFrame", "conj", "euler_distance2", "euler_of", "normalize", "omega_matrix", "psi",
+__all__ = ["UT", "LocalFrame", "euler_distance2", "normalize", "omega_matrix", "psi",
            "quat_multiply", "quat_of_dcm", "reference_field_uT", "rk4_step", "rotate_b_to_n", "rotate_n_to_b",
            "sample", "xi"]

@@ -27,11 +27,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from navsim.estimators.attitude import (LocalFrame, euler_of, quat_of_dcm, reference_field_uT, rk4_step,
+from navsim.estimators.attitude import (LocalFrame, quat_of_dcm, reference_field_uT, rk4_step,
                                         rotate_n_to_b, sample, UT)
 from navsim.estimators.base import Innovation, Solution, register
 from navsim.strapdown import NavState, cross
-from navsim.transform import dcm_from_quat
+from navsim.transform import dcm_from_quat, euler_from_quat
 
 
 class ComplementaryCore:
@@ -111,14 +111,14 @@ class ComplementaryCore:
     def _course_yaw(self, vel_n: np.ndarray, ok: np.ndarray) -> None:
         """Heading error from the GNSS course where the ground speed is high enough."""
         self.on_course = ok & (np.hypot(vel_n[:, 0], vel_n[:, 1]) > self.course_min_speed_mps)
-        yaw = euler_of(self.q)[:, 2]
+        yaw = euler_from_quat(self.q)[:, 2]
         d = (yaw - np.arctan2(vel_n[:, 1], vel_n[:, 0]) + np.pi) % (2 * np.pi) - np.pi
         e_n = np.zeros_like(vel_n)
         e_n[:, 2] = -d
         self.e_mag = np.where(self.on_course[:, None], rotate_n_to_b(self.q, e_n), self.e_mag)
 
     def euler(self) -> np.ndarray:
-        return euler_of(self.q)
+        return euler_from_quat(self.q)
 
 
 @register("cpf")

@@ -63,13 +63,13 @@ from __future__ import annotations
 import numpy as np
 
 from navsim.estimators import kalman
-from navsim.estimators.attitude import (UT, LocalFrame, dcm_homogeneous, euler_distance2, euler_of,
+from navsim.estimators.attitude import (UT, LocalFrame, dcm_homogeneous, euler_distance2,
                                         normalize, omega_matrix, psi, quat_of_dcm, reference_field_uT,
                                         rk4_step, rotate_b_to_n, rotate_n_to_b, sample, xi)
 from navsim.estimators.base import Innovation, Solution, register
 from navsim.estimators.cpf import ComplementaryCore
 from navsim.strapdown import NavState, cross, skew
-from navsim.transform import dcm_from_quat
+from navsim.transform import dcm_from_quat, euler_from_quat
 
 N_STATES = 20
 Q, V, S, AZ, MB, WB, ME = slice(0, 4), slice(4, 7), slice(7, 10), 10, slice(11, 14), slice(14, 17), slice(17, 20)
@@ -235,7 +235,7 @@ class CpfEkf:
         out += self._correct_linear(t, sensors, t_prev, mag_data is not None)
         self.cpf.aid(t, sensors, self.mag, self.gnss, self.field_n_T, t_prev)
         if self.monitor == "cpf":
-            self.distance2 = euler_distance2(euler_of(self.x[:, Q]), self.cpf.euler())
+            self.distance2 = euler_distance2(euler_from_quat(self.x[:, Q]), self.cpf.euler())
             trusted = t - self.cpf.heading_t <= self.cpf_trust_s
             self._count((self.distance2 > self.threshold_rad2) & trusted, t, "cpf")
         self.diverged |= ~(np.all(np.isfinite(self.x), -1) & np.all(np.isfinite(self.P), (-1, -2))
@@ -299,7 +299,7 @@ class CpfEkf:
         self.x[:, Q] = u
         self.P = kalman.symmetrize(J @ self.P @ np.swapaxes(J, -1, -2))
 
-    def _mag_model(self, axis: int | None = None):
+    def _mag_model(self):
         """``h = C_bn M + m_bias`` (uT) and its Jacobian ``(B, 3, 20)``."""
         x = self.x
         q, M = x[:, Q], x[:, ME]

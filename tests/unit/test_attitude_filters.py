@@ -4,7 +4,7 @@ quaternion normalisation, the divergence monitor and its angle wrapping, batch =
 import numpy as np
 import pytest
 
-from navsim.estimators.attitude import dcm_homogeneous, euler_distance2, euler_of, rk4_step
+from navsim.estimators.attitude import dcm_homogeneous, euler_distance2, rk4_step
 from navsim.estimators.cpf import ComplementaryFilter
 from navsim.estimators.cpf_ekf import AZ, MB, ME, N_STATES, Q, WB, CpfEkf, dcm_times_vec_jacobian
 from navsim.flight.truth import Truth
@@ -14,7 +14,7 @@ from navsim.sensors.gnss import emulate_gnss
 from navsim.sensors.imu import emulate_imu
 from navsim.sensors.magnetometer import emulate_magnetometer
 from navsim.strapdown import NavState
-from navsim.transform import dcm_from_quat, quat_from_euler, quat_from_rotvec, quat_multiply
+from navsim.transform import dcm_from_quat, euler_from_quat, quat_from_euler, quat_from_rotvec, quat_multiply
 
 
 def _unit(rng, B):
@@ -192,7 +192,7 @@ def test_the_cpf_monitor_resets_a_diverged_ekf_to_the_cpf_attitude():
         est.propagate(imu.values["dtheta_b_rad"][:, i], imu.values["dv_b_mps"][:, i], imu.meta["dt_s"])
         if i % 5 == 0:
             nis += [inn.nis[0] for inn in est.epoch(imu.t_s[i], all_sensors) if inn.measurement == "mag"]
-    off_deg = np.degrees(np.sqrt(euler_distance2(euler_of(est.x[:, Q]), truth.euler_rad[:1])))[0]
+    off_deg = np.degrees(np.sqrt(euler_distance2(euler_from_quat(est.x[:, Q]), truth.euler_rad[:1])))[0]
     assert nis[0] > 50 and nis[3] < 10 and off_deg > 15, (nis, off_deg)
 
 
