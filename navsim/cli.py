@@ -110,7 +110,8 @@ def cmd_run(args) -> int:
     from navsim.metrics import score
     from navsim.provenance import provenance
     from navsim.report import write_report
-    from navsim.runner import cached_flight, flight_key, run_closed_loop, run_monte_carlo
+    from navsim.errors import UsageError
+    from navsim.runner import cached_flight, chunk_ranges, flight_key, run_closed_loop, run_monte_carlo
     from navsim.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
@@ -126,6 +127,9 @@ def cmd_run(args) -> int:
     from tqdm import tqdm
     loop = reference = None
     if scenario.closed_loop is not None:
+        if args.executor != "local" or args.resume:
+            raise UsageError("closed-loop scenarios run on the local executor only, without --resume "
+                             "(drop --executor dask and --resume)")
         cached = False
         with tqdm(total=runs, desc=f"{runs} runs, navigation in the loop", unit="run", disable=None) as pbar:
             result, loop, reference = run_closed_loop(scenario, runs, seed, workers, progress=pbar.update)
@@ -139,8 +143,13 @@ def cmd_run(args) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return exc.exit_code
         bar.close()
-        with tqdm(total=runs, desc=f"{runs} runs", unit="run", disable=None) as pbar:
-            result = run_monte_carlo(scenario, truth, truth_path, runs, seed, workers, progress=pbar.update)
+        store = open_store(out, scenario, seed, runs, args.chunk_runs, args.resume)
+        todo = sum(len(ch) for ch in store.missing(chunk_ranges(runs, store.key["chunk_runs"])))
+        with tqdm(total=todo, desc=f"{runs} runs" + (f", {todo} left" if args.resume else ""), unit="run",
+                  disable=None) as pbar:
+            result = run_monte_carlo(scenario, truth, truth_path, runs, seed, workers, progress=pbar.update,
+                                     chunk_runs=store.key["chunk_runs"], store=store, executor=args.executor,
+                                     scheduler=args.scheduler)
     metrics = {"scenario": scenario.name, "runs": runs, "runs_done": int(len(result.runs)),
                "seed": seed, "failed_runs": {str(k): v for k, v in result.failed.items()},
                "interrupted": result.interrupted, "estimators": {}}
@@ -161,7 +170,10 @@ def cmd_run(args) -> int:
     record = {"scenario": str(args.scenario), "runs": runs, "runs_done": int(len(result.runs)),
               "seed": seed, "workers": workers, "failed_runs": result.failed,
               "interrupted": result.interrupted, "flight_cached": cached,
-              "flight_key": flight_key(scenario.flight), "wall_s": wall, **provenance()}
+              "flight_key": flight_key(scenario.flight), "wall_s": wall, "executor": args.executor,
+              "scheduler": args.scheduler, "resumed": bool(args.resume), **provenance()}
+    if scenario.closed_loop is None:
+        record.update(chunk_runs=store.key["chunk_runs"], failed_chunks=store.failed)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
     resolved = dict(scenario.raw)
     resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": runs, "seed": seed, "workers": workers}
@@ -230,6 +242,19 @@ def cmd_run(args) -> int:
     return 130 if result.interrupted else 0
 
 
+def open_store(out: Path, scenario, seed: int, runs: int, chunk_runs: int | None, resume: bool):
+    """The chunk store of a run in ``out/chunks``; resuming, the chunk size defaults to the
+    stored run's."""
+    import navsim.runner
+    from navsim.chunkstore import ChunkStore, scenario_hash
+    folder = out / "chunks"
+    if chunk_runs is None:
+        index = ChunkStore.read_index(folder) if resume else None
+        chunk_runs = index.get("chunk_runs") if index else navsim.runner.CHUNK_RUNS
+    key = {"scenario_hash": scenario_hash(scenario), "seed": seed, "runs": runs, "chunk_runs": chunk_runs}
+    return ChunkStore(folder, key, resume=resume)
+
+
 def cmd_sensors(args) -> int:
     from navsim.runner import cached_flight
     from navsim.sensors import emulate
@@ -273,7 +298,8 @@ def cmd_sweep(args) -> int:
     out = Path(args.out) if args.out else Path("reports") / Path(args.sweep).stem
     out.mkdir(parents=True, exist_ok=True)
     with tqdm(total=len(points), desc="sweep points", disable=None) as bar:
-        rows, metric = run_sweep(args.sweep, args.workers, out, progress=bar.update)
+        rows, metric = run_sweep(args.sweep, args.workers, out, progress=bar.update,
+                                 executor=args.executor, scheduler=args.scheduler)
     labels = list(rows[0][1]) if rows else []
     table = [[", ".join(f"{k}={v}" for k, v in p.items())] + [f"{vals.get(lb, float('nan')):.4g}"
              if vals.get(lb) is not None else "-" for lb in labels] for p, vals in rows]
@@ -391,6 +417,15 @@ def cmd_list(args) -> int:
     return 0
 
 
+def _executor_options(p) -> None:
+    p.add_argument("--executor", choices=("local", "dask"), default="local",
+                   help="where the chunks of runs go: a process pool here (local, default) or Dask "
+                   "distributed tasks (dask; needs pip install 'navsim[dask]')")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="with --executor dask: a running scheduler (tcp://host:8786); without it a "
+                   "LocalCluster of --workers processes is started")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="navsim", description="UAV integrated-navigation testbed: JSBSim flights, sensor "
@@ -414,6 +449,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, help="seed (default: montecarlo.seed)")
     p.add_argument("--workers", type=int, help="worker processes (default: montecarlo.workers)")
     p.add_argument("--out", help="output folder (default reports/<name>)")
+    _executor_options(p)
+    p.add_argument("--chunk-runs", type=int, metavar="N",
+                   help="runs per chunk, the unit of work streamed to <out>/chunks (default 250; "
+                   "the numbers do not depend on it)")
+    p.add_argument("--resume", action="store_true",
+                   help="complete an interrupted run in --out: run only the chunks missing from "
+                   "<out>/chunks (same scenario, seed and runs, else exit 2)")
     p.set_defaults(func=cmd_run)
     p = sub.add_parser("sensors", help="emulate a scenario's sensors and plot them against the truth",
                        description="Fly the scenario's track, emulate its sensors for the Monte "
@@ -434,6 +476,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("sweep", help="sweep YAML file")
     p.add_argument("--workers", type=int, help="worker processes (default: the scenario's)")
     p.add_argument("--out", help="output folder (default reports/<sweep name>)")
+    _executor_options(p)
     p.set_defaults(func=cmd_sweep)
     p = sub.add_parser("replay", help="replay a real PX4 flight log through an estimator",
                        description="Read a PX4 ULog (pyulog), feed its IMU, magnetometer and baro "

@@ -148,18 +148,22 @@ def _merge(parts):
     return runs, merged, bias, calib
 
 
-def run_chunks(fn, chunks, make_args, workers: int, progress=None):
+def run_chunks(fn, chunks, make_args, workers: int, progress=None, on_part=None):
     """Run ``fn(make_args(chunk, in_worker))`` for each chunk of run indices, in this process or
     a pool of ``workers``; a chunk that raises marks its runs as failed and the others complete;
-    Ctrl-C keeps what finished. Returns ``(parts, failed, interrupted)``."""
+    Ctrl-C keeps what finished. Returns ``(parts, failed, interrupted)``; with ``on_part``, each
+    finished part is handed to ``on_part(part)`` as it arrives instead of being kept in ``parts``."""
     parts, failed, interrupted = [], {}, False
+    keep = on_part or parts.append
     try:
         if workers <= 1:
             for ch in chunks:
                 try:
-                    parts.append(fn(make_args(ch, False)))
+                    part = fn(make_args(ch, False))
                 except Exception as exc:  # a failing chunk must not lose the others
                     failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
+                else:
+                    keep(part)
                 if progress:
                     progress(len(ch))
         else:
@@ -169,9 +173,11 @@ def run_chunks(fn, chunks, make_args, workers: int, progress=None):
                     for fut in as_completed(futures):
                         ch = futures[fut]
                         try:
-                            parts.append(fut.result())
+                            part = fut.result()
                         except Exception as exc:
                             failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
+                        else:
+                            keep(part)
                         if progress:
                             progress(len(ch))
                 except KeyboardInterrupt:
@@ -182,13 +188,58 @@ def run_chunks(fn, chunks, make_args, workers: int, progress=None):
     return parts, failed, interrupted
 
 
+def chunk_ranges(runs: int, size: int) -> list[range]:
+    """Runs ``0 .. runs-1`` cut into chunks of ``size``."""
+    if size < 1:
+        from navsim.errors import UsageError
+        raise UsageError(f"chunk size must be at least 1, not {size}")
+    return [range(a, min(a + size, runs)) for a in range(0, runs, size)]
+
+
+def _chunk_failures(chunks, failed: dict) -> dict:
+    """Chunk name -> error message of the chunks whose runs failed."""
+    from navsim.chunkstore import chunk_name
+    return {chunk_name(ch): failed[ch[0]] for ch in chunks if ch[0] in failed}
+
+
 def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: int, workers: int,
-                    progress=None) -> RunResult:
-    """All runs of ``scenario`` on ``truth``, in chunks of :data:`CHUNK_RUNS`."""
-    chunks = [range(a, min(a + CHUNK_RUNS, runs)) for a in range(0, runs, CHUNK_RUNS)]
-    parts, failed, interrupted = run_chunks(
-        _chunk, chunks, lambda ch, remote: (str(truth_path) if remote else truth, scenario, seed, ch),
-        workers, progress)
+                    progress=None, *, chunk_runs: int | None = None, store=None, executor: str = "local",
+                    scheduler: str | None = None) -> RunResult:
+    """All runs of ``scenario`` on ``truth``, in chunks of ``chunk_runs`` (default :data:`CHUNK_RUNS`).
+
+    Parameters
+    ----------
+    scenario, truth, truth_path, runs, seed, workers, progress
+        The scenario, its flight (in memory and its cached ``.npz``), the number of runs, the
+        seed, the worker processes and a callback ``progress(runs_finished)``.
+    chunk_runs : int, optional
+        Runs per chunk; the numbers do not depend on it.
+    store : navsim.chunkstore.ChunkStore, optional
+        Streams each finished chunk to disk; only the chunks it lacks are run (resume) and the
+        result is rebuilt from the stored chunks.
+    executor : {"local", "dask"}
+        A process pool on this machine, or Dask distributed (:mod:`navsim.dask_executor`).
+    scheduler : str, optional
+        Dask scheduler address; without it a ``LocalCluster`` of ``workers`` processes.
+
+    Returns
+    -------
+    RunResult
+    """
+    chunks = chunk_ranges(runs, chunk_runs or CHUNK_RUNS)
+    pending = store.missing(chunks) if store is not None else chunks
+    on_part = store.add if store is not None else None
+    if executor == "dask":
+        from navsim.dask_executor import run_chunks_dask
+        parts, failed, interrupted = run_chunks_dask(
+            _chunk, pending, truth, truth_path, (scenario, seed), workers, scheduler, progress, on_part)
+    else:
+        parts, failed, interrupted = run_chunks(
+            _chunk, pending, lambda ch, remote: (str(truth_path) if remote else truth, scenario, seed, ch),
+            workers, progress, on_part)
+    if store is not None:
+        store.flag(_chunk_failures(pending, failed))
+        parts = store.parts()
     if not parts:
         return RunResult({}, np.array([], int), failed, interrupted)
     done, hist, bias, calib = _merge(parts)
@@ -242,7 +293,7 @@ def run_closed_loop(scenario, runs: int, seed: int, workers: int, progress=None)
     from navsim.closedloop import end_records, fly_batch
     reference = fly_batch(scenario, seed, [0], on_truth=True, keep_truth=True)
     end_records(reference, 1.0 / scenario.flight.rate_hz)
-    chunks = [range(a, min(a + CLOSED_CHUNK_RUNS, runs)) for a in range(0, runs, CLOSED_CHUNK_RUNS)]
+    chunks = chunk_ranges(runs, CLOSED_CHUNK_RUNS)
     parts, failed, interrupted = run_chunks(_closed_chunk, chunks, lambda ch, remote: (scenario, seed, ch),
                                             workers, progress)
     if not parts:

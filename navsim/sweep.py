@@ -81,8 +81,10 @@ def parse_sweep(path: str | Path):
     return base_path, runs, metric, points
 
 
-def run_sweep(path, workers: int | None = None, out: Path | None = None, progress=None):
-    """Run every point; returns the rows ``(point, {label: metric value})`` and the output dir."""
+def run_sweep(path, workers: int | None = None, out: Path | None = None, progress=None,
+              executor: str = "local", scheduler: str | None = None):
+    """Run every point (its runs on ``executor``, see :func:`navsim.runner.run_monte_carlo`);
+    returns the rows ``(point, {label: metric value})`` and the metric."""
     from navsim.metrics import lookup, score
     from navsim.runner import cached_flight, run_monte_carlo
     from navsim.scenario import parse_scenario
@@ -101,7 +103,8 @@ def run_sweep(path, workers: int | None = None, out: Path | None = None, progres
     for point, sc in zip(points, scenarios):
         truth, truth_path, _ = cached_flight(sc.flight)
         n = runs or sc.runs
-        res = run_monte_carlo(sc, truth, truth_path, n, sc.seed, workers or sc.workers)
+        res = run_monte_carlo(sc, truth, truth_path, n, sc.seed, workers or sc.workers,
+                              executor=executor, scheduler=scheduler)
         values = {}
         for label, h in res.histories.items():
             v = lookup(score(h, sc.settle_s, sc.windows), metric)

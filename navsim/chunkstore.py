@@ -1,0 +1,194 @@
+"""Streaming Monte Carlo results: each finished chunk of runs on disk as it completes.
+
+A :class:`ChunkStore` is a folder (``<out>/chunks`` for ``navsim run``) holding one
+``chunk_<first>-<last>.npz`` per finished chunk and an ``index.json`` that names the run it
+belongs to (scenario content hash, seed, runs, chunk size), the chunks done and the chunks that
+failed with their error. Chunk files and the index are written to a temporary name and renamed,
+so a run killed at any moment leaves a consistent folder that ``navsim run --resume`` completes.
+
+A chunk is the worker's part ``(runs, histories, truth_bias, calibration)``; every field of
+:class:`~navsim.montecarlo.EstimatorHistory` round-trips exactly: arrays are stored as they are
+(no pickle), the per-run reset events, the NIS names and dimensions and the cost go to a JSON
+string inside the same file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from navsim.errors import NavsimError
+
+INDEX = "index.json"
+_ARRAYS = ("t_s", "att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "nees", "diverged", "gyro_bias",
+           "accel_bias", "euler_err_rad")
+
+
+class ResumeError(NavsimError):
+    """An output folder that cannot be resumed: missing, or written for another run."""
+
+    exit_code = 2
+
+
+def scenario_hash(scenario) -> str:
+    """Hash of a scenario's content (without its ``montecarlo`` settings) and of its flight.
+
+    Parameters
+    ----------
+    scenario : navsim.scenario.Scenario
+        A parsed scenario.
+
+    Returns
+    -------
+    str
+        20 hex digits.
+    """
+    from navsim.runner import flight_key
+    raw = {k: v for k, v in scenario.raw.items() if k != "montecarlo"}
+    h = hashlib.sha256(json.dumps(raw, sort_keys=True, default=str).encode())
+    h.update(flight_key(scenario.flight).encode())
+    return h.hexdigest()[:20]
+
+
+def chunk_name(runs) -> str:
+    """``"<first>-<last>"`` of a chunk of run indices."""
+    runs = list(runs)
+    return f"{runs[0]}-{runs[-1]}"
+
+
+def _write_atomic(path: Path, write) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    write(tmp)
+    os.replace(tmp, path)
+
+
+def _savez(path: Path, arrays: dict) -> None:
+    with open(path, "wb") as f:
+        np.savez(f, **arrays)
+
+
+def part_arrays(part) -> dict:
+    """The arrays of a chunk part for :func:`numpy.savez`, with a JSON ``meta`` entry."""
+    runs, hist, bias, calib = part
+    arrays = {"runs": np.asarray(list(runs), dtype=np.int64)}
+    meta = {"labels": list(hist), "bias": list(bias), "calibration": {}, "histories": []}
+    for i, (label, h) in enumerate(hist.items()):
+        present = [name for name in _ARRAYS if getattr(h, name) is not None]
+        arrays.update({f"h{i}.{name}": getattr(h, name) for name in present})
+        arrays.update({f"h{i}.nis{j}": v for j, v in enumerate(h.nis.values())})
+        meta["histories"].append({
+            "arrays": present, "nis": list(h.nis), "nis_dim": h.nis_dim, "cost": h.cost,
+            "resets": h.resets})
+    arrays.update({f"bias.{k}": np.asarray(v) for k, v in bias.items()})
+    for i, (name, c) in enumerate(calib.items()):
+        meta["calibration"][name] = list(c)
+        arrays.update({f"c{i}.{k}": np.asarray(v) for k, v in c.items()})
+    arrays["meta"] = np.array(json.dumps(meta, default=float))
+    return arrays
+
+
+def part_from_arrays(data) -> tuple:
+    """The chunk part ``(runs, histories, truth_bias, calibration)`` stored by :func:`part_arrays`."""
+    from navsim.montecarlo import EstimatorHistory
+    meta = json.loads(str(data["meta"]))
+    hist = {}
+    for i, (label, m) in enumerate(zip(meta["labels"], meta["histories"])):
+        fields = {name: data[f"h{i}.{name}"] for name in m["arrays"]}
+        resets = m["resets"]
+        hist[label] = EstimatorHistory(
+            label=label, **{name: fields.get(name) for name in _ARRAYS},
+            nis={k: data[f"h{i}.nis{j}"] for j, k in enumerate(m["nis"])}, nis_dim=m["nis_dim"],
+            cost=m["cost"],
+            resets=None if resets is None else [[tuple(e) for e in run] for run in resets])
+    bias = {k: data[f"bias.{k}"] for k in meta["bias"]}
+    calib = {name: {k: data[f"c{i}.{k}"] for k in keys}
+             for i, (name, keys) in enumerate(meta["calibration"].items())}
+    return list(data["runs"].tolist()), hist, bias, calib
+
+
+class ChunkStore:
+    """The chunks of one Monte Carlo run in ``folder``, and its ``index.json``.
+
+    Parameters
+    ----------
+    folder : Path
+        Where the chunk files and the index live (created).
+    key : dict
+        What identifies the run: ``scenario_hash``, ``seed``, ``runs``, ``chunk_runs``.
+    resume : bool
+        Keep the chunks of an earlier, matching run (a :class:`ResumeError` if the folder holds
+        none or another run's); otherwise the folder's earlier chunks are removed.
+    """
+
+    def __init__(self, folder: Path, key: dict, resume: bool = False):
+        self.folder = Path(folder)
+        self.key = dict(key)
+        self.done: dict = {}         #: chunk name -> file name
+        self.failed: dict = {}       #: chunk name -> error message
+        if resume:
+            self._reopen()
+        else:
+            self._clear()
+        self._write_index()
+
+    @staticmethod
+    def read_index(folder: Path) -> dict | None:
+        """The index of ``folder``, or None when there is none."""
+        path = Path(folder) / INDEX
+        if not path.is_file():
+            return None
+        try:
+            return json.loads(path.read_text())
+        except ValueError as exc:
+            raise ResumeError(f"{path}: unreadable index ({exc})") from None
+
+    def _reopen(self) -> None:
+        index = self.read_index(self.folder)
+        if index is None:
+            raise ResumeError(f"nothing to resume in {self.folder}: no {INDEX} (run without --resume)")
+        diff = [f"{k} {index.get(k)!r} there, {v!r} now" for k, v in self.key.items() if index.get(k) != v]
+        if diff:
+            raise ResumeError(f"{self.folder} holds another run ({'; '.join(diff)}); resume it with the same "
+                              "scenario, seed, runs and chunk size, or run without --resume")
+        self.done = {name: file for name, file in index.get("chunks", {}).items()
+                     if (self.folder / file).is_file()}
+
+    def _clear(self) -> None:
+        self.folder.mkdir(parents=True, exist_ok=True)
+        for path in self.folder.glob("chunk_*.npz*"):
+            path.unlink()
+        (self.folder / INDEX).unlink(missing_ok=True)
+
+    def _write_index(self) -> None:
+        index = {**self.key, "chunks": self.done, "failed": self.failed}
+        _write_atomic(self.folder / INDEX, lambda p: p.write_text(json.dumps(index, indent=1)))
+
+    def missing(self, chunks: list) -> list:
+        """The chunks of ``chunks`` (ranges of run indices) not stored yet."""
+        return [ch for ch in chunks if chunk_name(ch) not in self.done]
+
+    def add(self, part) -> None:
+        """Store a finished chunk part and record it in the index."""
+        name = chunk_name(part[0])
+        file = f"chunk_{name}.npz"
+        _write_atomic(self.folder / file, lambda p: _savez(p, part_arrays(part)))
+        self.done[name] = file
+        self.failed.pop(name, None)
+        self._write_index()
+
+    def flag(self, failed_chunks: dict) -> None:
+        """Record chunks that failed (chunk name -> error message) in the index."""
+        self.failed.update(failed_chunks)
+        self._write_index()
+
+    def parts(self) -> list:
+        """Every stored chunk part, in run order."""
+        out = []
+        for name in sorted(self.done, key=lambda n: int(n.split("-")[0])):
+            with np.load(self.folder / self.done[name], allow_pickle=False) as data:
+                out.append(part_from_arrays(data))
+        return out

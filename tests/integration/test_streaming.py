@@ -1,0 +1,154 @@
+"""Streaming chunks to the output folder, ``--resume`` and the Dask executor: the numbers must
+equal the local executor's, bit for bit."""
+
+import json
+
+import numpy as np
+import pytest
+from test_run import run, short  # noqa: F401 (short is the fixture)
+
+from navsim.chunkstore import ChunkStore, part_arrays, part_from_arrays
+from navsim.cli import main
+from navsim.montecarlo import EstimatorHistory
+
+
+def need_distributed():
+    """Skip without Dask distributed, except in CI (``NAVSIM_REQUIRE_DASK=1``), where it fails."""
+    import os
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        if os.environ.get("NAVSIM_REQUIRE_DASK") == "1":
+            pytest.fail("NAVSIM_REQUIRE_DASK=1 but Dask distributed is not installed")
+        pytest.skip("the Dask tests need pip install -e '.[test,dask]'")
+
+
+def numbers(out):
+    """metrics.json without the wall times."""
+    m = json.loads((out / "metrics.json").read_text())
+    return {k: {q: v for q, v in e.items() if q != "cost"} for k, e in m["estimators"].items()}, m
+
+
+def assert_same_history(a: EstimatorHistory, b: EstimatorHistory, timed: bool = True):
+    """Every field equal; ``timed=False`` for two runs: the CPU seconds in ``cost`` differ."""
+    for name, va in vars(a).items():
+        vb = getattr(b, name)
+        if isinstance(va, np.ndarray):
+            assert va.dtype == vb.dtype and np.array_equal(va, vb, equal_nan=va.dtype.kind == "f"), name
+        elif name == "nis":
+            assert list(va) == list(vb) and all(np.array_equal(va[k], vb[k], equal_nan=True) for k in va)
+        elif name == "cost" and not timed:
+            assert {k: va[k] for k in ("runs", "epochs", "batches")} == {k: vb[k] for k in ("runs", "epochs", "batches")}
+        else:
+            assert va == vb, name
+
+
+def test_a_part_round_trips_every_field(tmp_path):
+    rng = np.random.default_rng(1)
+    h = EstimatorHistory(
+        label="CPF-EKF", t_s=np.arange(4.0), att_err_rad=rng.normal(size=(2, 4, 3)),
+        vel_err_mps=rng.normal(size=(2, 4, 3)), pos_err_m=rng.normal(size=(2, 4, 3)), sigma=None, nees=None,
+        nis={"mag_heading:mag": np.array([[np.nan, 1.0, 2.0, np.nan]] * 2), "baro:b": rng.random((2, 4))},
+        nis_dim={"mag_heading:mag": 1, "baro:b": 1}, diverged=np.array([False, True]),
+        cost={"propagate_s": 0.1, "epoch_s": 0.2, "runs": 2, "epochs": 3, "batches": 1},
+        euler_err_rad=rng.normal(size=(2, 4, 3)), resets=[[], [(1.5, "divergence"), (2.0, "innovation")]])
+    part = ([4, 5], {"CPF-EKF": h}, {"gyro_bias": rng.normal(size=(2, 4, 3))},
+            {"mag": {"t_s": np.arange(3.0), "turns": np.arange(3.0), "hard_iron_err": rng.random((2, 3))}})
+    np.savez(tmp_path / "p.npz", **part_arrays(part))
+    with np.load(tmp_path / "p.npz", allow_pickle=False) as data:
+        runs, hist, bias, calib = part_from_arrays(data)
+    assert runs == [4, 5]
+    assert_same_history(h, hist["CPF-EKF"])
+    assert np.array_equal(bias["gyro_bias"], part[2]["gyro_bias"])
+    assert all(np.array_equal(calib["mag"][k], v) for k, v in part[3]["mag"].items())
+
+
+def test_stored_chunks_equal_the_in_memory_histories(short, tmp_path):
+    from navsim.runner import cached_flight, run_monte_carlo
+    from navsim.scenario import load_scenario
+    sc = load_scenario(short)
+    truth, path, _ = cached_flight(sc.flight)
+    key = {"scenario_hash": "x", "seed": 4, "runs": 5, "chunk_runs": 2}
+    store = ChunkStore(tmp_path / "chunks", key)
+    memory = run_monte_carlo(sc, truth, path, 5, 4, 1, chunk_runs=2)
+    stored = run_monte_carlo(sc, truth, path, 5, 4, 1, chunk_runs=2, store=store)
+    assert sorted(p.name for p in (tmp_path / "chunks").iterdir()) == [
+        "chunk_0-1.npz", "chunk_2-3.npz", "chunk_4-4.npz", "index.json"]
+    assert list(stored.runs) == list(memory.runs) == [0, 1, 2, 3, 4]
+    for label in memory.histories:
+        assert_same_history(memory.histories[label], stored.histories[label], timed=False)
+    assert all(np.array_equal(memory.truth_bias[k], stored.truth_bias[k]) for k in memory.truth_bias)
+    index = json.loads((tmp_path / "chunks" / "index.json").read_text())
+    assert index["chunks"]["2-3"] == "chunk_2-3.npz" and index["failed"] == {} and index["seed"] == 4
+
+
+def test_resume_runs_only_the_missing_chunks_and_gives_the_same_metrics(short, tmp_path, monkeypatch):
+    import navsim.runner
+    assert run(short, tmp_path / "whole", "--chunk-runs", "2") == 0
+    real, calls, stop = navsim.runner._chunk, [], [True]
+
+    def interrupt(args):
+        calls.append(list(args[3])[0])
+        if calls[-1] == 4 and stop[0]:
+            raise KeyboardInterrupt
+        return real(args)
+
+    monkeypatch.setattr(navsim.runner, "_chunk", interrupt)
+    assert run(short, tmp_path / "cut", "--chunk-runs", "2") == 130
+    assert numbers(tmp_path / "cut")[1]["runs_done"] == 4
+    calls.clear()
+    stop[0] = False
+    assert run(short, tmp_path / "cut", "--resume") == 0          # the chunk size comes from the index
+    assert calls == [4]
+    (a, ma), (b, mb) = numbers(tmp_path / "whole"), numbers(tmp_path / "cut")
+    assert a == b and mb["runs_done"] == 6 and mb["interrupted"] is False
+    assert json.loads((tmp_path / "cut" / "run.json").read_text())["resumed"] is True
+    assert np.array_equal(np.load(tmp_path / "whole" / "runs.npz")["KF.pos_err_m"],
+                          np.load(tmp_path / "cut" / "runs.npz")["KF.pos_err_m"])
+
+
+def test_resume_refuses_another_run(short, tmp_path, capsys):
+    assert run(short, tmp_path / "none", "--resume") == 2
+    assert "nothing to resume" in capsys.readouterr().err
+    assert run(short, tmp_path / "out", "--chunk-runs", "3") == 0
+    assert run(short, tmp_path / "out", "--resume", "--seed", "5") == 2
+    assert "seed 4 there, 5 now" in capsys.readouterr().err
+
+
+def test_dask_local_cluster_gives_the_local_numbers(short, tmp_path, monkeypatch):
+    need_distributed()
+    assert run(short, tmp_path / "local", "--chunk-runs", "2", "--workers", "1") == 0
+    assert run(short, tmp_path / "dask", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
+    (a, _), (b, mb) = numbers(tmp_path / "local"), numbers(tmp_path / "dask")
+    assert a == b and mb["runs_done"] == 6
+    assert np.array_equal(np.load(tmp_path / "local" / "runs.npz")["KF.pos_err_m"],
+                          np.load(tmp_path / "dask" / "runs.npz")["KF.pos_err_m"])
+    assert json.loads((tmp_path / "dask" / "run.json").read_text())["executor"] == "dask"
+
+
+def test_dask_retries_a_chunk_once_and_flags_one_that_fails_twice(short, tmp_path, monkeypatch):
+    need_distributed()
+    import navsim.runner
+    real, marker = navsim.runner._chunk, tmp_path / "failed_once"
+
+    def flaky(args):
+        first = list(args[3])[0]
+        if first == 0 and not marker.exists():
+            marker.touch()
+            raise MemoryError("worker killed once")
+        if first == 2:
+            raise MemoryError("worker killed")
+        return real(args)
+
+    monkeypatch.setattr(navsim.runner, "_chunk", flaky)
+    assert run(short, tmp_path / "out", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
+    _, m = numbers(tmp_path / "out")
+    assert m["runs_done"] == 4 and set(m["failed_runs"]) == {"2", "3"} and marker.exists()
+    record = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert list(record["failed_chunks"]) == ["2-3"] and "worker killed" in record["failed_chunks"]["2-3"]
+
+
+def test_closed_loop_refuses_dask(repo_root, tmp_path, capsys):
+    assert main(["run", str(repo_root / "scenarios" / "p1_return_to_land.yaml"), "--executor", "dask",
+                 "--out", str(tmp_path)]) == 2
+    assert "local executor only" in capsys.readouterr().err
