@@ -110,6 +110,11 @@ def part_from_arrays(data) -> tuple:
     return list(data["runs"].tolist()), hist, bias, calib
 
 
+def _shared(key: str) -> bool:
+    """Whether an array of a stored part is the same for every chunk (no leading run axis)."""
+    return key == "meta" or key.endswith((".t_s", ".turns"))
+
+
 class ChunkStore:
     """The chunks of one Monte Carlo run in ``folder``, and its ``index.json``.
 
@@ -185,10 +190,36 @@ class ChunkStore:
         self.failed.update(failed_chunks)
         self._write_index()
 
-    def parts(self) -> list:
-        """Every stored chunk part, in run order."""
-        out = []
-        for name in sorted(self.done, key=lambda n: int(n.split("-")[0])):
-            with np.load(self.folder / self.done[name], allow_pickle=False) as data:
-                out.append(part_from_arrays(data))
-        return out
+    def _files(self) -> list:
+        return [self.done[n] for n in sorted(self.done, key=lambda n: int(n.split("-")[0]))]
+
+    def merged(self) -> tuple | None:
+        """All stored chunks as one part ``(runs, histories, truth_bias, calibration)``, or None.
+
+        The chunk files are read one at a time into arrays allocated once for all the runs, so
+        the peak memory is the merged result plus one chunk (not twice the result).
+        """
+        from navsim.runner import _sum_cost
+        files = self._files()
+        if not files:
+            return None
+        with np.load(self.folder / files[0], allow_pickle=False) as first:
+            meta = json.loads(str(first["meta"]))
+            total = sum(int(n.split("-")[1]) - int(n.split("-")[0]) + 1 for n in self.done)
+            out = {k: first[k] if _shared(k) else np.empty((total, *first[k].shape[1:]), first[k].dtype)
+                   for k in first.files}
+        metas, offset = [], 0
+        for file in files:
+            with np.load(self.folder / file, allow_pickle=False) as data:
+                n = len(data["runs"])
+                for k in data.files:
+                    if not _shared(k):
+                        out[k][offset:offset + n] = data[k]
+                metas.append(json.loads(str(data["meta"])))
+                offset += n
+        for i, h in enumerate(meta["histories"]):
+            parts = [m["histories"][i] for m in metas]
+            h["cost"] = _sum_cost([m["cost"] for m in parts])
+            h["resets"] = None if h["resets"] is None else [r for m in parts for r in m["resets"]]
+        out["meta"] = np.array(json.dumps(meta))
+        return part_from_arrays(out)

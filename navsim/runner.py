@@ -239,10 +239,13 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: i
             workers, progress, on_part)
     if store is not None:
         store.flag(_chunk_failures(pending, failed))
-        parts = store.parts()
-    if not parts:
+        merged = store.merged()
+    else:
+        merged = _merge(parts) if parts else None
+    if merged is None:
         return RunResult({}, np.array([], int), failed, interrupted)
-    done, hist, bias, calib = _merge(parts)
+    done, hist, bias, calib = merged
+    done = np.asarray(done)
     return RunResult(hist, done, failed, interrupted, bias, calib)
 
 

@@ -43,17 +43,23 @@ def assert_same_history(a: EstimatorHistory, b: EstimatorHistory, timed: bool = 
             assert va == vb, name
 
 
-def test_a_part_round_trips_every_field(tmp_path):
-    rng = np.random.default_rng(1)
+def synthetic_part(runs, seed):
+    """A chunk part with every optional field: NaN NIS, resets, no covariance, a calibration."""
+    rng = np.random.default_rng(seed)
     h = EstimatorHistory(
         label="CPF-EKF", t_s=np.arange(4.0), att_err_rad=rng.normal(size=(2, 4, 3)),
         vel_err_mps=rng.normal(size=(2, 4, 3)), pos_err_m=rng.normal(size=(2, 4, 3)), sigma=None, nees=None,
         nis={"mag_heading:mag": np.array([[np.nan, 1.0, 2.0, np.nan]] * 2), "baro:b": rng.random((2, 4))},
         nis_dim={"mag_heading:mag": 1, "baro:b": 1}, diverged=np.array([False, True]),
         cost={"propagate_s": 0.1, "epoch_s": 0.2, "runs": 2, "epochs": 3, "batches": 1},
-        euler_err_rad=rng.normal(size=(2, 4, 3)), resets=[[], [(1.5, "divergence"), (2.0, "innovation")]])
-    part = ([4, 5], {"CPF-EKF": h}, {"gyro_bias": rng.normal(size=(2, 4, 3))},
+        euler_err_rad=rng.normal(size=(2, 4, 3)), resets=[[], [(1.5 + seed, "divergence"), (2.0, "innovation")]])
+    return (list(runs), {"CPF-EKF": h}, {"gyro_bias": rng.normal(size=(2, 4, 3))},
             {"mag": {"t_s": np.arange(3.0), "turns": np.arange(3.0), "hard_iron_err": rng.random((2, 3))}})
+
+
+def test_a_part_round_trips_every_field(tmp_path):
+    part = synthetic_part([4, 5], 1)
+    h = part[1]["CPF-EKF"]
     np.savez(tmp_path / "p.npz", **part_arrays(part))
     with np.load(tmp_path / "p.npz", allow_pickle=False) as data:
         runs, hist, bias, calib = part_from_arrays(data)
@@ -61,6 +67,19 @@ def test_a_part_round_trips_every_field(tmp_path):
     assert_same_history(h, hist["CPF-EKF"])
     assert np.array_equal(bias["gyro_bias"], part[2]["gyro_bias"])
     assert all(np.array_equal(calib["mag"][k], v) for k, v in part[3]["mag"].items())
+
+
+def test_the_merged_store_equals_the_in_memory_merge(tmp_path):
+    from navsim.runner import _merge
+    parts = [synthetic_part(range(2, 4), 2), synthetic_part(range(0, 2), 1)]
+    store = ChunkStore(tmp_path, {"seed": 1})
+    for part in parts:
+        store.add(part)
+    (runs_a, hist_a, bias_a, calib_a), (runs_b, hist_b, bias_b, calib_b) = _merge(parts), store.merged()
+    assert list(runs_a) == list(runs_b) == [0, 1, 2, 3]
+    assert_same_history(hist_a["CPF-EKF"], hist_b["CPF-EKF"])
+    assert np.array_equal(bias_a["gyro_bias"], bias_b["gyro_bias"])
+    assert all(np.array_equal(calib_a["mag"][k], v) for k, v in calib_b["mag"].items())
 
 
 def test_stored_chunks_equal_the_in_memory_histories(short, tmp_path):
