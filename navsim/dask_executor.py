@@ -11,6 +11,8 @@ retried once; a chunk that fails twice marks its runs failed and the others comp
 
 from __future__ import annotations
 
+import uuid
+
 from navsim.errors import NavsimError
 
 RETRIES = 1
@@ -89,8 +91,9 @@ def run_chunks_dask(fn, chunks, truth, truth_path, rest: tuple, workers: int, sc
     client, cluster = open_client(workers, scheduler)
     try:
         shared = client.scatter(truth, broadcast=True) if scheduler else str(truth_path)
+        tag = uuid.uuid4().hex[:12]                  # keys unique on a scheduler shared by many runs
         futures = {client.submit(_task, fn, shared, rest, ch, retries=RETRIES, pure=False,
-                                 key=f"navsim-chunk-{ch[0]}-{ch[-1]}-{id(chunks)}"): ch for ch in chunks}
+                                 key=f"navsim-chunk-{ch[0]}-{ch[-1]}-{tag}"): ch for ch in chunks}
         try:
             for fut in distributed.as_completed(futures):
                 ch = futures.pop(fut)
