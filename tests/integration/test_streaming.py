@@ -171,3 +171,20 @@ def test_closed_loop_refuses_dask(repo_root, tmp_path, capsys):
     assert main(["run", str(repo_root / "scenarios" / "p1_return_to_land.yaml"), "--executor", "dask",
                  "--out", str(tmp_path)]) == 2
     assert "local executor only" in capsys.readouterr().err
+
+
+@pytest.mark.filterwarnings("ignore:No artists with labels")   # the stub returns no runs
+def test_sweep_passes_the_executor_to_every_point(short, tmp_path, monkeypatch):
+    import navsim.runner
+    seen = []
+
+    def record(*args, **kwargs):
+        seen.append((kwargs["executor"], kwargs["scheduler"]))
+        return navsim.runner.RunResult({}, np.array([], int))
+
+    monkeypatch.setattr(navsim.runner, "run_monte_carlo", record)
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(f"scenario: {short.name}\nruns: 2\npoints: [{{montecarlo.seed: 1}}, {{montecarlo.seed: 2}}]\n")
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "out"), "--executor", "dask",
+                 "--scheduler", "tcp://nowhere:8786"]) == 0
+    assert seen == [("dask", "tcp://nowhere:8786")] * 2
