@@ -1,6 +1,6 @@
 """Streaming and Dask scaling on P0: the driver's peak memory for a small and a large number of
-runs (chunks streamed to disk, metrics from the stored chunks; issue target: less than 2x from
-1000 to 10000 runs), and the wall time of the Monte Carlo on a LocalCluster of 1 and of 2 Dask
+runs (the whole ``navsim run``: chunks streamed to disk, metrics from the stored chunks, report
+from the first chunks; issue target: less than 2x from 1000 to 10000 runs), and the wall time of the Monte Carlo on a LocalCluster of 1 and of 2 Dask
 workers (target speed-up >= 1.7x on the 2-core machine).
 
     python benchmarks/dask_scaling.py [--runs 1000 10000] [--speed-runs 1000] [--workers 2]
@@ -25,11 +25,28 @@ sys.path.insert(0, str(ROOT))            # this checkout's navsim, not another i
 
 
 def measure(runs: int, workers: int, executor: str, out: Path) -> dict:
-    """One Monte Carlo of P0 in this process: wall time, peak memory, metrics."""
+    """``navsim run`` of P0 in this process (flight cached, Monte Carlo, metrics, report):
+    wall time, peak resident memory of this driver process, RMS position errors."""
+    import contextlib
+    import io
     import resource
 
+    from navsim.cli import main
+    t0 = time.perf_counter()
+    with contextlib.redirect_stdout(io.StringIO()):
+        rc = main(["run", str(SCENARIO), "--runs", str(runs), "--workers", str(workers), "--executor", executor,
+                   "--out", str(out)])
+    wall = time.perf_counter() - t0
+    m = json.loads((out / "metrics.json").read_text())
+    return {"runs": runs, "workers": workers, "executor": executor, "wall_s": wall, "rc": rc,
+            "runs_done": m["runs_done"], "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            "rms_pos_m": {k: e["rms"]["pos_m"] for k, e in m["estimators"].items()}}
+
+
+def measure_speed(runs: int, workers: int, executor: str, out: Path) -> dict:
+    """The Monte Carlo alone (chunks streamed; cluster start and close included): wall time."""
     from navsim.chunkstore import ChunkStore, scenario_hash
-    from navsim.metrics import score
+    from navsim.metrics_stream import score_parts
     from navsim.runner import CHUNK_RUNS, cached_flight, run_monte_carlo
     from navsim.scenario import load_scenario
     sc = load_scenario(SCENARIO)
@@ -37,16 +54,15 @@ def measure(runs: int, workers: int, executor: str, out: Path) -> dict:
     key = {"scenario_hash": scenario_hash(sc), "seed": sc.seed, "runs": runs, "chunk_runs": CHUNK_RUNS}
     store = ChunkStore(out, key)
     t0 = time.perf_counter()
-    res = run_monte_carlo(sc, truth, path, runs, sc.seed, workers, store=store, executor=executor)
-    metrics = {label: score(h, sc.settle_s, sc.windows)["rms"]["pos_m"] for label, h in res.histories.items()}
+    res = run_monte_carlo(sc, truth, path, runs, sc.seed, workers, store=store, executor=executor, keep_runs=0)
     wall = time.perf_counter() - t0
-    return {"runs": runs, "workers": workers, "executor": executor, "wall_s": wall,
-            "runs_done": int(len(res.runs)), "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-            "rms_pos_m": metrics}
+    m = score_parts(store.parts, sc.settle_s, sc.windows)
+    return {"runs": runs, "workers": workers, "executor": executor, "wall_s": wall, "runs_done": len(res.runs),
+            "rms_pos_m": {k: e["rms"]["pos_m"] for k, e in m.items()}}
 
 
-def child(runs: int, workers: int, executor: str, tmp: Path) -> dict:
-    cmd = [sys.executable, __file__, "--child", str(runs), str(workers), executor, str(tmp)]
+def child(mode: str, runs: int, workers: int, executor: str, tmp: Path) -> dict:
+    cmd = [sys.executable, __file__, "--child", mode, str(runs), str(workers), executor, str(tmp)]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     if proc.returncode:
         raise SystemExit(proc.stderr[-3000:])
@@ -58,30 +74,42 @@ def main() -> None:
     parser.add_argument("--runs", type=int, nargs=2, default=[1000, 10000], metavar=("SMALL", "LARGE"))
     parser.add_argument("--speed-runs", type=int, default=1000)
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
+    parser.add_argument("--only", choices=("memory", "speed"), help="one of the two measurements")
+    parser.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        runs, workers, executor, tmp = args.child
-        print(json.dumps(measure(int(runs), int(workers), executor, Path(tmp) / f"chunks_{runs}_{workers}")))
+        mode, runs, workers, executor, tmp = args.child
+        fn = measure if mode == "memory" else measure_speed
+        print(json.dumps(fn(int(runs), int(workers), executor, Path(tmp) / f"{mode}_{runs}_{workers}")))
         return
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["NAVSIM_CACHE"] = str(Path(tmp) / "cache")
         from navsim.runner import cached_flight
         from navsim.scenario import load_scenario
         cached_flight(load_scenario(SCENARIO).flight)
-        mem = [child(n, args.workers, "local", Path(tmp)) for n in args.runs]
-        for m in mem:
-            print(f"{m['runs']:6d} runs, local executor, {m['workers']} workers, streamed: "
-                  f"driver peak RSS {m['peak_rss_mb']:.0f} MB, {m['wall_s']:.1f} s")
-        print(f"peak memory {mem[0]['runs']} -> {mem[1]['runs']} runs: x{mem[1]['peak_rss_mb'] / mem[0]['peak_rss_mb']:.2f} "
-              "(target < 2)")
-        speed = [child(args.speed_runs, w, "dask", Path(tmp)) for w in (1, args.workers)]
-        for s in speed:
-            print(f"{s['runs']:6d} runs, Dask LocalCluster of {s['workers']} worker(s): {s['wall_s']:.1f} s")
-        print(f"speed-up 1 -> {args.workers} Dask workers: x{speed[0]['wall_s'] / speed[1]['wall_s']:.2f} "
-              "(target >= 1.7)")
-        same = speed[0]["rms_pos_m"] == speed[1]["rms_pos_m"]
-        print(f"RMS position errors identical across worker counts: {same}")
+        if args.only != "speed":
+            memory(args, Path(tmp))
+        if args.only != "memory":
+            speed(args, Path(tmp))
+
+
+def memory(args, tmp: Path) -> None:
+    mem = [child("memory", n, args.workers, "local", tmp) for n in args.runs]
+    for m in mem:
+        print(f"{m['runs']:6d} runs, local executor, {m['workers']} workers, streamed: "
+              f"driver peak RSS {m['peak_rss_mb']:.0f} MB, {m['wall_s']:.1f} s")
+    print(f"peak memory {mem[0]['runs']} -> {mem[1]['runs']} runs: x{mem[1]['peak_rss_mb'] / mem[0]['peak_rss_mb']:.2f} "
+          "(target < 2)")
+
+
+def speed(args, tmp: Path) -> None:
+    speed = [child("speed", args.speed_runs, w, "dask", tmp) for w in (1, args.workers)]
+    for s in speed:
+        print(f"{s['runs']:6d} runs, Dask LocalCluster of {s['workers']} worker(s): {s['wall_s']:.1f} s")
+    print(f"speed-up 1 -> {args.workers} Dask workers: x{speed[0]['wall_s'] / speed[1]['wall_s']:.2f} "
+          "(target >= 1.7)")
+    same = speed[0]["rms_pos_m"] == speed[1]["rms_pos_m"]
+    print(f"RMS position errors identical across worker counts: {same}")
 
 
 if __name__ == "__main__":

@@ -193,19 +193,39 @@ class ChunkStore:
     def _files(self) -> list:
         return [self.done[n] for n in sorted(self.done, key=lambda n: int(n.split("-")[0]))]
 
-    def merged(self) -> tuple | None:
-        """All stored chunks as one part ``(runs, histories, truth_bias, calibration)``, or None.
+    def parts(self):
+        """The stored chunk parts ``(runs, histories, truth_bias, calibration)`` one at a time,
+        in run order (one chunk in memory at a time)."""
+        for file in self._files():
+            with np.load(self.folder / file, allow_pickle=False) as data:
+                part = part_from_arrays({k: data[k] for k in data.files})
+            yield part
+
+    def runs(self) -> list:
+        """The run indices stored, in order."""
+        names = sorted(self.done, key=lambda n: int(n.split("-")[0]))
+        return [r for n in names for r in range(int(n.split("-")[0]), int(n.split("-")[1]) + 1)]
+
+    def merged(self, limit: int | None = None) -> tuple | None:
+        """The stored chunks as one part ``(runs, histories, truth_bias, calibration)``, or None:
+        all of them, or the first chunks (in run order) that hold ``limit`` runs.
 
         The chunk files are read one at a time into arrays allocated once for all the runs, so
         the peak memory is the merged result plus one chunk (not twice the result).
         """
         from navsim.runner import _sum_cost
-        files = self._files()
+        files, sizes = [], []
+        for file in self._files():
+            a, b = file[len("chunk_"):-len(".npz")].split("-")
+            if limit is not None and sum(sizes) >= limit:
+                break
+            files.append(file)
+            sizes.append(int(b) - int(a) + 1)
         if not files:
             return None
         with np.load(self.folder / files[0], allow_pickle=False) as first:
             meta = json.loads(str(first["meta"]))
-            total = sum(int(n.split("-")[1]) - int(n.split("-")[0]) + 1 for n in self.done)
+            total = sum(sizes)
             out = {k: first[k] if _shared(k) else np.empty((total, *first[k].shape[1:]), first[k].dtype)
                    for k in first.files}
         metas, offset = [], 0

@@ -111,7 +111,7 @@ def cmd_run(args) -> int:
     from navsim.provenance import provenance
     from navsim.report import write_report
     from navsim.errors import UsageError
-    from navsim.runner import cached_flight, chunk_ranges, flight_key, run_closed_loop, run_monte_carlo
+    from navsim.runner import REPORT_RUNS, cached_flight, chunk_ranges, flight_key, run_closed_loop, run_monte_carlo
     from navsim.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
@@ -149,22 +149,29 @@ def cmd_run(args) -> int:
                   disable=None) as pbar:
             result = run_monte_carlo(scenario, truth, truth_path, runs, seed, workers, progress=pbar.update,
                                      chunk_runs=store.key["chunk_runs"], store=store, executor=args.executor,
-                                     scheduler=args.scheduler)
+                                     scheduler=args.scheduler, keep_runs=REPORT_RUNS)
     metrics = {"scenario": scenario.name, "runs": runs, "runs_done": int(len(result.runs)),
                "seed": seed, "failed_runs": {str(k): v for k, v in result.failed.items()},
                "interrupted": result.interrupted, "estimators": {}}
     from navsim.metrics import sighting_metrics, sighting_spans
     sightings = sighting_spans(truth, scenario) if truth is not None else []
-    for label, h in result.histories.items():
-        metrics["estimators"][label] = score(h, scenario.settle_s, scenario.windows)
-        if sightings and h.sigma is not None:
-            metrics["estimators"][label]["landmarks"] = sighting_metrics(h, sightings)
+    if result.store is not None:               # streamed: scored chunk by chunk, flat memory
+        from navsim.metrics_stream import score_run
+        metrics["estimators"], calibration = score_run(result.store.parts, scenario.settle_s,
+                                                       scenario.windows, sightings)
+        if calibration:
+            metrics["calibration"] = calibration
+    else:
+        for label, h in result.histories.items():
+            metrics["estimators"][label] = score(h, scenario.settle_s, scenario.windows)
+            if sightings and h.sigma is not None:
+                metrics["estimators"][label]["landmarks"] = sighting_metrics(h, sightings)
+        if result.calibration:
+            from navsim.metrics import calibration_score
+            metrics["calibration"] = {name: calibration_score(c) for name, c in result.calibration.items()}
     if loop is not None:
         from navsim.metrics import closed_loop_metrics
         metrics["closed_loop"] = closed_loop_metrics(loop, reference, scenario.closed_loop, result.histories)
-    if result.calibration:
-        from navsim.metrics import calibration_score
-        metrics["calibration"] = {name: calibration_score(c) for name, c in result.calibration.items()}
     wall = time.perf_counter() - t0
     metrics["wall_s"] = wall
     record = {"scenario": str(args.scenario), "runs": runs, "runs_done": int(len(result.runs)),
@@ -172,8 +179,10 @@ def cmd_run(args) -> int:
               "interrupted": result.interrupted, "flight_cached": cached,
               "flight_key": flight_key(scenario.flight), "wall_s": wall, "executor": args.executor,
               "scheduler": args.scheduler, "resumed": bool(args.resume), **provenance()}
+    plotted = len(result.runs) if result.history_runs is None else len(result.history_runs)
+    record["runs_plotted"] = plotted
     if scenario.closed_loop is None:
-        record.update(chunk_runs=store.key["chunk_runs"], failed_chunks=store.failed)
+        record.update(chunk_runs=store.key["chunk_runs"], failed_chunks=store.failed, per_run_data="chunks/")
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
     resolved = dict(scenario.raw)
     resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": runs, "seed": seed, "workers": workers}
@@ -181,7 +190,7 @@ def cmd_run(args) -> int:
         f"# resolved by navsim {record['versions']['navsim']} at git {record['git_revision']}\n"
         + yaml.safe_dump(resolved, sort_keys=False))
     (out / "run.json").write_text(json.dumps(record, indent=2, default=str))
-    if result.histories:
+    if result.histories and plotted == len(result.runs):     # else the runs are in chunks/ only
         arrays = {"runs": result.runs}
         for label, h in result.histories.items():
             key = label.replace(" ", "_").replace("/", "-")

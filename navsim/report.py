@@ -60,6 +60,8 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
               f"runs          : {record['runs_done']} done of {record['runs']} (seed {record['seed']}, "
               f"workers {record['workers']})",
               f"failed runs   : {len(record['failed_runs'])}    interrupted: {record['interrupted']}",
+              *([f"plots         : the first {record['runs_plotted']} runs (metrics: all {record['runs_done']})"]
+                if record.get("runs_plotted", record["runs_done"]) < record["runs_done"] else []),
               f"flight        : {'from cache' if record['flight_cached'] else 'flown'} ({record['flight_key']})",
               f"wall time     : {record['wall_s']:.1f} s", f"git revision  : {record['git_revision']}",
               *textwrap.wrap("versions      : " + ", ".join(f"{k} {v}" for k, v in record["versions"].items()),

@@ -26,6 +26,9 @@ from navsim.flight.simulator import fly
 from navsim.flight.truth import Truth
 
 CHUNK_RUNS = 250
+#: streamed to a chunk store, the first chunks holding this many runs are loaded for the report's
+#: plots; the metrics are computed from every stored chunk (navsim.metrics_stream)
+REPORT_RUNS = 1000
 
 
 def cache_dir() -> Path:
@@ -79,6 +82,11 @@ class RunResult:
     truth_bias: dict = field(default_factory=dict)   #: gyro/accel true bias at epochs (B, E, 3)
     #: magnetometer name -> its online calibration scored against the truth (navsim.magcal)
     calibration: dict = field(default_factory=dict)
+    #: the chunk store every finished run is in (streamed runs), or None (all runs in memory)
+    store: object = None
+    #: the runs ``histories``, ``truth_bias`` and ``calibration`` hold (streamed: the first
+    #: :data:`REPORT_RUNS`); None: all of ``runs``
+    history_runs: np.ndarray | None = None
 
 
 def _chunk(args):
@@ -204,7 +212,7 @@ def _chunk_failures(chunks, failed: dict) -> dict:
 
 def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: int, workers: int,
                     progress=None, *, chunk_runs: int | None = None, store=None, executor: str = "local",
-                    scheduler: str | None = None) -> RunResult:
+                    scheduler: str | None = None, keep_runs: int | None = None) -> RunResult:
     """All runs of ``scenario`` on ``truth``, in chunks of ``chunk_runs`` (default :data:`CHUNK_RUNS`).
 
     Parameters
@@ -221,6 +229,9 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: i
         A process pool on this machine, or Dask distributed (:mod:`navsim.dask_executor`).
     scheduler : str, optional
         Dask scheduler address; without it a ``LocalCluster`` of ``workers`` processes.
+    keep_runs : int, optional
+        With ``store``: load the histories of the first chunks holding this many runs only
+        (memory independent of ``runs``; the whole result stays in ``result.store``).
 
     Returns
     -------
@@ -239,14 +250,13 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: i
             workers, progress, on_part)
     if store is not None:
         store.flag(_chunk_failures(pending, failed))
-        merged = store.merged()
+        merged = store.merged(keep_runs)
     else:
         merged = _merge(parts) if parts else None
-    if merged is None:
-        return RunResult({}, np.array([], int), failed, interrupted)
-    done, hist, bias, calib = merged
-    done = np.asarray(done)
-    return RunResult(hist, done, failed, interrupted, bias, calib)
+    done, hist, bias, calib = merged if merged is not None else ([], {}, {}, {})
+    done = np.asarray(done, int)
+    every = np.asarray(store.runs(), int) if store is not None else done
+    return RunResult(hist, every, failed, interrupted, bias, calib, store=store, history_runs=done)
 
 
 # --- navigation in the loop ---------------------------------------------------------------------

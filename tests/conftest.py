@@ -4,6 +4,7 @@ matplotlib.use("Agg")
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 
@@ -40,3 +41,27 @@ def assert_scenario_error():
             parse_scenario(data, "bad.yaml")
         assert f"bad.yaml: {key}:" in str(exc.value) and words in str(exc.value), str(exc.value)
     return check
+
+
+def _close_metrics(a, b, path=""):
+    """Equal metric trees; numbers equal up to the rounding of sums taken in another order."""
+    if isinstance(a, dict):
+        assert list(a) == list(b), path
+        for k in a:
+            _close_metrics(a[k], b[k], f"{path}.{k}")
+    elif isinstance(a, list) and a and isinstance(a[0], dict):
+        assert len(a) == len(b), path
+        for i, (x, y) in enumerate(zip(a, b)):
+            _close_metrics(x, y, f"{path}[{i}]")
+    elif isinstance(a, list) and a and isinstance(a[0], (list, str, tuple)):
+        assert a == b, path
+    elif isinstance(a, (list, float, int)) and not isinstance(a, bool):
+        assert np.allclose(a, b, rtol=1e-12, atol=0, equal_nan=True), (path, a, b)
+    else:
+        assert a == b, path
+
+
+@pytest.fixture
+def close_metrics():
+    """``close_metrics(a, b)``: two metrics.json trees equal (numbers to 1e-12 relative)."""
+    return _close_metrics

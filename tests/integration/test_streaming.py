@@ -188,3 +188,25 @@ def test_sweep_passes_the_executor_to_every_point(short, tmp_path, monkeypatch):
     assert main(["sweep", str(sweep), "--out", str(tmp_path / "out"), "--executor", "dask",
                  "--scheduler", "tcp://nowhere:8786"]) == 0
     assert seen == [("dask", "tcp://nowhere:8786")] * 2
+
+
+def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short, tmp_path, monkeypatch, close_metrics):
+    """Metrics chunk by chunk (flat memory) equal the in-memory scores of all runs; the report's
+    plots load only the first REPORT_RUNS runs and say so; no runs.npz (the runs are in chunks/)."""
+    import navsim.runner
+    from navsim.cli import open_store
+    from navsim.metrics import score
+    from navsim.scenario import load_scenario
+    monkeypatch.setattr(navsim.runner, "REPORT_RUNS", 2)
+    out = tmp_path / "out"
+    assert run(short, out, "--chunk-runs", "2") == 0
+    record = json.loads((out / "run.json").read_text())
+    assert record["runs_plotted"] == 2 and record["runs_done"] == 6 and record["per_run_data"] == "chunks/"
+    assert not (out / "runs.npz").exists() and (out / "report.pdf").stat().st_size > 0
+    sc = load_scenario(short)
+    _, hist, _, _ = open_store(out, sc, 4, 6, 2, resume=True).merged()
+    got = json.loads((out / "metrics.json").read_text())["estimators"]
+    for label, h in hist.items():
+        want = score(h, sc.settle_s, sc.windows)
+        close_metrics({k: v for k, v in want.items() if k != "cost"}, {k: v for k, v in got[label].items() if k != "cost"})
+    assert got["KF"]["runs_counted"] == 6
