@@ -210,3 +210,69 @@ def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short, tmp_pat
         want = score(h, sc.settle_s, sc.windows)
         close_metrics({k: v for k, v in want.items() if k != "cost"}, {k: v for k, v in got[label].items() if k != "cost"})
     assert got["KF"]["runs_counted"] == 6
+
+
+def test_dask_retries_a_chunk_whose_worker_dies_and_flags_one_that_kills_it_twice(short, tmp_path, monkeypatch):
+    """A worker process killed under a chunk (os._exit, as the OOM killer would): the chunk runs
+    again on a restarted worker; a chunk that kills its worker twice is flagged, the others complete."""
+    need_distributed()
+    import os
+
+    import navsim.runner
+    real, log = navsim.runner._chunk, tmp_path / "attempts"
+    log.mkdir()
+
+    def deadly(args):
+        first = list(args[3])[0]
+        (log / f"{first}-{len(list(log.iterdir()))}").touch()
+        if first == 2 or (first == 0 and len([p for p in log.iterdir() if p.name.startswith("0-")]) == 1):
+            os._exit(1)
+        return real(args)
+
+    monkeypatch.setattr(navsim.runner, "_chunk", deadly)
+    assert run(short, tmp_path / "out", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
+    _, m = numbers(tmp_path / "out")
+    attempts = [p.name.split("-")[0] for p in log.iterdir()]
+    assert attempts.count("0") == 2 and attempts.count("2") == 2 and attempts.count("4") == 1
+    assert m["runs_done"] == 4 and set(m["failed_runs"]) == {"2", "3"}
+    assert "KilledWorker" in json.loads((tmp_path / "out" / "run.json").read_text())["failed_chunks"]["2-3"]
+
+
+def test_a_run_killed_by_sigkill_resumes_to_the_uninterrupted_metrics(short, tmp_path):
+    """``navsim run`` killed (SIGKILL: no handler runs) once two chunks are stored; ``--resume``
+    completes it with the metrics of an uninterrupted run."""
+    import subprocess
+    import sys
+    import time
+    cut = tmp_path / "cut"
+    proc = subprocess.Popen([sys.executable, "-m", "navsim", "run", str(short), "--out", str(cut),
+                             "--chunk-runs", "1", "--workers", "1"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    index, done, deadline = cut / "chunks" / "index.json", 0, time.monotonic() + 600
+    while proc.poll() is None and done < 2 and time.monotonic() < deadline:
+        try:
+            done = len(json.loads(index.read_text())["chunks"])
+        except (OSError, ValueError, KeyError):
+            pass
+        time.sleep(0.02)
+    proc.kill()
+    proc.wait()
+    assert 2 <= done < 6 and not (cut / "metrics.json").exists()
+    assert run(short, cut, "--resume") == 0
+    assert run(short, tmp_path / "whole", "--chunk-runs", "1") == 0
+    (a, _), (b, mb) = numbers(tmp_path / "whole"), numbers(cut)
+    assert a == b and mb["runs_done"] == 6
+
+
+def test_dask_on_a_running_scheduler_gives_the_local_numbers(short, tmp_path):
+    """``--scheduler ADDRESS``: the truth is scattered to the cluster's workers (no flight cache
+    needed there) and the numbers equal the local executor's."""
+    need_distributed()
+    import distributed
+    assert run(short, tmp_path / "local", "--chunk-runs", "3", "--workers", "1") == 0
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster:
+        assert run(short, tmp_path / "remote", "--chunk-runs", "3", "--executor", "dask",
+                   "--scheduler", cluster.scheduler_address) == 0
+    (a, _), (b, mb) = numbers(tmp_path / "local"), numbers(tmp_path / "remote")
+    assert a == b and mb["runs_done"] == 6
+    assert json.loads((tmp_path / "remote" / "run.json").read_text())["scheduler"] == cluster.scheduler_address
