@@ -47,10 +47,12 @@ def open_client(workers: int, scheduler: str | None):
         except (OSError, TimeoutError) as exc:
             raise ExecutorError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
     import dask
-    # a chunk whose worker process dies is retried once too, then flagged (KilledWorker); no
-    # statistical profiler sampling the chunk's thread every 10 ms (it cost 10 % of a chunk
-    # with two workers on two cores). A remote cluster keeps its own settings (README).
+    # a chunk whose worker process dies is retried once too, then flagged (KilledWorker); one
+    # chunk on a worker at a time (none waits there, so a dying worker takes only its own chunk's
+    # retry with it); no statistical profiler sampling the chunk's thread every 10 ms (it cost
+    # 10 % of a chunk with two workers on two cores). A remote cluster keeps its own settings.
     with dask.config.set({"distributed.scheduler.allowed-failures": RETRIES,
+                          "distributed.scheduler.worker-saturation": 1.0,
                           "distributed.worker.profile.enabled": False}):
         cluster = distributed.LocalCluster(n_workers=max(workers, 1), threads_per_worker=1, processes=True,
                                            dashboard_address=None)
