@@ -143,6 +143,9 @@ def cmd_run(args) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return exc.exit_code
         bar.close()
+        if args.executor == "dask":            # before the store clears an earlier run's chunks
+            from navsim.dask_executor import _import_distributed
+            _import_distributed()
         store = open_store(out, scenario, seed, runs, args.chunk_runs, args.resume)
         todo = sum(len(ch) for ch in store.missing(chunk_ranges(runs, store.key["chunk_runs"])))
         with tqdm(total=todo, desc=f"{runs} runs" + (f", {todo} left" if args.resume else ""), unit="run",
@@ -190,6 +193,7 @@ def cmd_run(args) -> int:
         f"# resolved by navsim {record['versions']['navsim']} at git {record['git_revision']}\n"
         + yaml.safe_dump(resolved, sort_keys=False))
     (out / "run.json").write_text(json.dumps(record, indent=2, default=str))
+    (out / "runs.npz").unlink(missing_ok=True)                # never an earlier run's
     if result.histories and plotted == len(result.runs):     # else the runs are in chunks/ only
         arrays = {"runs": result.runs}
         for label, h in result.histories.items():
@@ -247,7 +251,8 @@ def cmd_run(args) -> int:
     if result.failed:
         note += f"; {len(result.failed)} run(s) failed: see run.json"
     print(f"\n{len(result.runs)}/{runs} runs in {wall:.1f} s{note}; wrote {out}/ "
-          f"(report.pdf, {len([f for f in files if f.suffix == '.png'])} PNGs, metrics.json, runs.npz)")
+          f"(report.pdf, {len([f for f in files if f.suffix == '.png'])} PNGs, metrics.json"
+          + (", runs.npz)" if (out / "runs.npz").exists() else ", per-run data in chunks/)"))
     return 130 if result.interrupted else 0
 
 
@@ -256,10 +261,12 @@ def open_store(out: Path, scenario, seed: int, runs: int, chunk_runs: int | None
     stored run's."""
     import navsim.runner
     from navsim.chunkstore import ChunkStore, scenario_hash
+    from navsim.runner import chunk_ranges
     folder = out / "chunks"
     if chunk_runs is None:
         index = ChunkStore.read_index(folder) if resume else None
         chunk_runs = index.get("chunk_runs") if index else navsim.runner.CHUNK_RUNS
+    chunk_ranges(runs, chunk_runs)                  # a bad chunk size stops before anything is cleared
     key = {"scenario_hash": scenario_hash(scenario), "seed": seed, "runs": runs, "chunk_runs": chunk_runs}
     return ChunkStore(folder, key, resume=resume)
 

@@ -60,6 +60,8 @@ def open_client(workers: int, scheduler: str | None):
 
 
 def _error(future) -> str:
+    if future.status == "cancelled":          # lost: the scheduler or the cluster went away
+        return "cancelled: the Dask scheduler lost the task (cluster shut down or scheduler restarted)"
     exc = future.exception()
     return f"{type(exc).__name__}: {exc}"
 

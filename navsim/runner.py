@@ -179,13 +179,15 @@ def run_chunks(fn, chunks, make_args, workers: int, progress=None, on_part=None)
                 futures = {pool.submit(fn, make_args(ch, True)): ch for ch in chunks}
                 try:
                     for fut in as_completed(futures):
-                        ch = futures[fut]
+                        ch = futures.pop(fut)          # a finished future keeps its part: drop it
+                        part = None
                         try:
                             part = fut.result()
                         except Exception as exc:
                             failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
                         else:
                             keep(part)
+                        del fut, part
                         if progress:
                             progress(len(ch))
                 except KeyboardInterrupt:

@@ -276,3 +276,31 @@ def test_dask_on_a_running_scheduler_gives_the_local_numbers(short, tmp_path):
     (a, _), (b, mb) = numbers(tmp_path / "local"), numbers(tmp_path / "remote")
     assert a == b and mb["runs_done"] == 6
     assert json.loads((tmp_path / "remote" / "run.json").read_text())["scheduler"] == cluster.scheduler_address
+
+
+def _ones(args):
+    return np.ones(1000)
+
+
+def test_the_local_pool_keeps_no_part_once_it_is_handed_on():
+    """With ``on_part`` (the chunk store) the driver holds no finished part: memory flat in runs."""
+    import gc
+    import weakref
+
+    from navsim.runner import run_chunks
+    refs, alive = [], []
+
+    def on_part(part):
+        gc.collect()
+        alive.append(sum(r() is not None for r in refs))     # earlier parts still held
+        refs.append(weakref.ref(part))
+    parts, failed, _ = run_chunks(_ones, [range(i, i + 1) for i in range(4)], lambda ch, remote: ch, 2, None,
+                                  on_part)
+    assert parts == [] and failed == {} and alive == [0, 0, 0, 0]
+
+
+def test_a_bad_chunk_size_clears_nothing(short, tmp_path, capsys):
+    assert run(short, tmp_path / "out", "--chunk-runs", "3") == 0
+    assert run(short, tmp_path / "out", "--chunk-runs", "0") == 2
+    assert "chunk size must be at least 1" in capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "out" / "chunks").glob("chunk_*")) == ["chunk_0-2.npz", "chunk_3-5.npz"]
