@@ -35,7 +35,10 @@ class ResumeError(NavsimError):
 
 
 def scenario_hash(scenario) -> str:
-    """Hash of a scenario's content (without its ``montecarlo`` settings) and of its flight.
+    """Hash of what a scenario's chunks depend on: its content without the ``montecarlo``,
+    ``metrics`` and ``report`` settings (the chunks do not depend on them: a resumed run may
+    be scored with other windows), the sensor and estimator models as resolved from the
+    catalog, navsim's version and the flight.
 
     Parameters
     ----------
@@ -47,9 +50,13 @@ def scenario_hash(scenario) -> str:
     str
         20 hex digits.
     """
-    from navsim.runner import flight_key
-    raw = {k: v for k, v in scenario.raw.items() if k != "montecarlo"}
+    import navsim
+    from navsim.runner import flight_key, plain
+    raw = {k: v for k, v in scenario.raw.items() if k not in ("montecarlo", "metrics", "report")}
     h = hashlib.sha256(json.dumps(raw, sort_keys=True, default=str).encode())
+    h.update(json.dumps(plain([scenario.sensors, scenario.estimators, scenario.initial]), sort_keys=True,
+                        default=str).encode())
+    h.update(navsim.__version__.encode())
     h.update(flight_key(scenario.flight).encode())
     return h.hexdigest()[:20]
 
@@ -61,9 +68,21 @@ def chunk_name(runs) -> str:
 
 
 def _write_atomic(path: Path, write) -> None:
+    """Write to a temporary name, flush it to the disk, rename: a crash of the process or of
+    the machine leaves the old file or the new one, never a part."""
     tmp = path.with_name(path.name + ".tmp")
     write(tmp)
+    with open(tmp, "rb+") as f:
+        os.fsync(f.fileno())
     os.replace(tmp, path)
+    try:
+        fd = os.open(path.parent, os.O_RDONLY)
+    except OSError:                      # a folder that cannot be opened (not POSIX): no fsync
+        return
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def _savez(path: Path, arrays: dict) -> None:

@@ -35,18 +35,21 @@ def cache_dir() -> Path:
     return Path(os.environ.get("NAVSIM_CACHE", Path.home() / ".cache" / "navsim"))
 
 
+def plain(x):
+    """Dataclasses, containers and arrays as plain JSON-able values (for content hashes)."""
+    if dataclasses.is_dataclass(x):
+        return {f.name: plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
+    if isinstance(x, (list, tuple)):
+        return [plain(v) for v in x]
+    if isinstance(x, dict):
+        return {str(k): plain(v) for k, v in x.items()}
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return x
+
+
 def flight_key(config) -> str:
     """Hash of everything that determines a flight."""
-    def plain(x):
-        if dataclasses.is_dataclass(x):
-            return {f.name: plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
-        if isinstance(x, (list, tuple)):
-            return [plain(v) for v in x]
-        if isinstance(x, dict):
-            return {str(k): plain(v) for k, v in x.items()}
-        if isinstance(x, np.ndarray):
-            return x.tolist()
-        return x
     h = hashlib.sha256()
     h.update(json.dumps({"config": plain(config), "version": navsim.__version__}, sort_keys=True,
                         default=str).encode())

@@ -304,3 +304,19 @@ def test_a_bad_chunk_size_clears_nothing(short, tmp_path, capsys):
     assert run(short, tmp_path / "out", "--chunk-runs", "0") == 2
     assert "chunk size must be at least 1" in capsys.readouterr().err
     assert sorted(p.name for p in (tmp_path / "out" / "chunks").glob("chunk_*")) == ["chunk_0-2.npz", "chunk_3-5.npz"]
+
+
+def test_resume_rescores_with_other_metric_settings_without_running_again(short, tmp_path, monkeypatch):
+    """The chunks do not depend on the ``metrics`` block: a resume with another settling time runs
+    nothing and scores the stored runs anew."""
+    import navsim.runner
+    assert run(short, tmp_path / "out", "--chunk-runs", "3") == 0
+    before = json.loads((tmp_path / "out" / "metrics.json").read_text())["estimators"]["KF"]
+    calls = []
+    monkeypatch.setattr(navsim.runner, "_chunk", lambda args: calls.append(args))
+    rescored = short.with_name("rescored.yaml")
+    rescored.write_text(short.read_text().replace("settle_s: 10", "settle_s: 20"))
+    assert run(rescored, tmp_path / "out", "--resume") == 0
+    after = json.loads((tmp_path / "out" / "metrics.json").read_text())["estimators"]["KF"]
+    assert calls == [] and after["settle_s"] == 20 and before["settle_s"] == 10
+    assert after["rms"] != before["rms"] and after["final"] == before["final"]
