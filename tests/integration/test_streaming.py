@@ -233,7 +233,9 @@ def test_dask_retries_a_chunk_whose_worker_dies_and_flags_one_that_kills_it_twic
     assert run(short, tmp_path / "out", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
     _, m = numbers(tmp_path / "out")
     attempts = [p.name.split("-")[0] for p in log.iterdir()]
-    assert attempts.count("0") == 2 and attempts.count("2") == 2 and attempts.count("4") == 1
+    # chunk 0 ran twice (killed once), or three times when its finished result was still on the
+    # worker that chunk 2 then killed (Dask recomputes lost results); chunk 2 exactly twice
+    assert attempts.count("0") in (2, 3) and attempts.count("2") == 2 and attempts.count("4") in (1, 2)
     assert m["runs_done"] == 4 and set(m["failed_runs"]) == {"2", "3"}
     assert "KilledWorker" in json.loads((tmp_path / "out" / "run.json").read_text())["failed_chunks"]["2-3"]
 
