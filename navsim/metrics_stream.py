@@ -153,6 +153,7 @@ class EstimatorScore:
         self.has_nees = self.has_euler = False
         self.nis_dim: dict = {}
         self.nis_keys: list = []
+        self.quantities: list = []          # window quantities, in window_quantities' order
         self.passes = 1
 
     def _a(self, key, make):
@@ -189,6 +190,8 @@ class EstimatorScore:
                 self.pct.add(("att_p95", j), e[..., j], 95)
                 self.pct.add(("att_about", j), about[..., j], 95)
         q = window_quantities(h, good)
+        if first:
+            self.quantities += [k for k in q if k not in self.quantities]
         for name, a, b in self.windows:
             m = (h.t_s >= a) & (h.t_s <= b)
             if m.any():
@@ -268,8 +271,7 @@ class EstimatorScore:
         out["windows"] = {}
         for name, a, b in self.windows:
             m = (t_s >= a) & (t_s <= b)
-            keys = sorted({k[2] for k in acc if isinstance(k, tuple) and k[0] == "wmom" and k[1] == name},
-                          key=self._quantity_order)
+            keys = [k for k in self.quantities if ("wmom", name, k) in acc]
             w = {}
             for key in keys:
                 w[key] = {"max_pos": float(acc[("wmax", name, key)].value()),
@@ -309,12 +311,6 @@ class EstimatorScore:
                 out["nis"][key] = {"average": float(np.nanmean(per_epoch)), "band": [lo, hi], "dim": d,
                                    "fraction_inside": float(np.mean((per_epoch > lo) & (per_epoch < hi)))}
         return out
-
-    _ORDER = ("north_m", "east_m", "height_m", "speed_mps", "heading_deg", "roll_deg", "pitch_deg", "yaw_deg")
-
-    @classmethod
-    def _quantity_order(cls, key):
-        return cls._ORDER.index(key) if key in cls._ORDER else len(cls._ORDER)
 
 
 def score_parts(parts, settle_s: float = 0.0, windows=()) -> dict:
