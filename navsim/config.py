@@ -33,21 +33,130 @@ SafeLoader.add_implicit_resolver("tag:yaml.org,2002:bool", re.compile(r"^(?:true
                                  list("tTfF"))
 
 
+#: the deepest nesting of mappings and lists a configuration file may have
+MAX_DEPTH = 40
+#: the most values (mapping entries and list items, counted as if every alias were written out)
+#: a configuration file may expand to: far above any scenario, far below a YAML "alias bomb"
+MAX_VALUES = 200_000
+#: the largest configuration file read, bytes
+MAX_BYTES = 4_000_000
+
+
+def _construct_mapping(loader, node, deep=False):
+    """A mapping whose keys are unique: a duplicated key is an error, not a silent overwrite
+    (keys merged in by ``<<: *anchor`` may be overridden, as YAML intends)."""
+    seen = {}
+    for key_node, _ in node.value:
+        if key_node.tag == "tag:yaml.org,2002:merge":
+            continue
+        key = loader.construct_object(key_node, deep=True)
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"duplicate key {key!r} (first at line {seen[key] + 1})", key_node.start_mark)
+        seen[key] = key_node.start_mark.line
+    return yaml.SafeLoader.construct_mapping(loader, node, deep)
+
+
+SafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+def _check_size(root, path: str) -> None:
+    """Refuse a document nested deeper than :data:`MAX_DEPTH` or expanding (aliases written
+    out) to more than :data:`MAX_VALUES` values; each shared node is counted once per use
+    without being walked again."""
+    sizes: dict[int, int] = {}
+
+    def walk(x, depth):
+        if not isinstance(x, (dict, list)):
+            return 1
+        if depth > MAX_DEPTH:
+            raise ScenarioError(f"is nested more than {MAX_DEPTH} levels deep", file=path,
+                                expected="a scenario, track or datasheet file")
+        if id(x) not in sizes:
+            items = x.values() if isinstance(x, dict) else x
+            total = 1
+            for v in items:
+                total += walk(v, depth + 1)
+                if total > MAX_VALUES:
+                    raise ScenarioError(f"expands to more than {MAX_VALUES} values (aliases written out)",
+                                        file=path, expected="a scenario, track or datasheet file",
+                                        hint="an alias used inside the anchor it names, or aliases of aliases")
+            sizes[id(x)] = total
+        return sizes[id(x)]
+    walk(root, 0)
+
+
 def load_yaml(path: str | Path) -> Any:
     """Read a YAML file with the safe loader (:class:`SafeLoader`: no object construction, YAML
-    1.2 booleans); syntax errors become :class:`ScenarioError`."""
+    1.2 booleans, unique keys); a file that cannot be read, is not UTF-8 text, is not valid
+    YAML, is nested deeper than :data:`MAX_DEPTH` or expands to more than :data:`MAX_VALUES`
+    values raises :class:`ScenarioError`."""
     path = Path(path)
     try:
-        text = path.read_text()
+        if path.is_dir():
+            raise ScenarioError("is a folder", file=str(path), expected="a YAML file")
+        if path.stat().st_size > MAX_BYTES:
+            raise ScenarioError(f"is larger than {MAX_BYTES // 1_000_000} MB", file=str(path),
+                                expected="a YAML file")
+        text = path.read_bytes().decode("utf-8")
     except OSError as exc:
         raise ScenarioError(f"cannot read the file: {exc.strerror}", file=str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"is not UTF-8 text (byte {exc.start})", file=str(path),
+                            expected="a YAML text file") from None
     try:
-        return yaml.load(text, Loader=SafeLoader)  # noqa: S506 (a SafeLoader subclass)
+        data = yaml.load(text, Loader=SafeLoader)  # noqa: S506 (a SafeLoader subclass)
+    except RecursionError:
+        raise ScenarioError(f"is nested more than {MAX_DEPTH} levels deep", file=str(path),
+                            expected="a scenario, track or datasheet file") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else None
-        raise ScenarioError(f"not valid YAML: {getattr(exc, 'problem', exc)}", file=str(path),
-                            key=where, hint="check indentation and the ':' after each key") from None
+        problem = str(getattr(exc, "problem", exc))
+        hint = ("write each key once in a mapping" if problem.startswith("duplicate key")
+                else "check indentation and the ':' after each key")
+        raise ScenarioError(f"not valid YAML: {problem}", file=str(path), key=where, hint=hint) from None
+    _check_size(data, str(path))
+    return data
+
+
+#: a name that may become a file or folder name: letters, digits, '.', '_', '-', not starting with '.'
+PLAIN_NAME_PATTERN = r"^[A-Za-z0-9_][A-Za-z0-9._-]{0,99}$"
+_PLAIN_NAME = re.compile(PLAIN_NAME_PATTERN)
+
+
+def plain_name(value: str) -> bool:
+    """Whether ``value`` is a plain file name: no separator, no ``..``, not absolute, not hidden."""
+    return bool(_PLAIN_NAME.match(value))
+
+
+def resolve_file(ref: str, *, catalog: Path, file: str | None, key: str, what: str,
+                 choices=()) -> Path:
+    """The YAML file a scenario names at ``key``: a plain name is an entry of ``catalog``
+    (``<catalog>/<name>.yaml``); anything else is a ``.yaml``/``.yml`` path relative to the
+    folder of the scenario ``file`` that must stay inside that folder (beside or below it).
+
+    Raises :class:`ScenarioError` for an absolute path, a path leaving the scenario's folder,
+    another suffix or a missing file; the file's content is never read here nor echoed.
+    """
+    if "/" not in ref and "\\" not in ref and not ref.endswith((".yaml", ".yml")):
+        path = catalog / f"{ref}.yaml"
+        if plain_name(ref) and path.is_file():
+            return path
+        raise ScenarioError(f"'{ref}' is not {what}", file=file, key=key,
+                            expected=f"a name of {catalog.name}/ or a .yaml file beside the scenario",
+                            hint=close_match(ref, choices))
+    base = Path(file).resolve().parent if file else Path.cwd().resolve()
+    expected = "a .yaml file beside or below the scenario's folder, as a relative path"
+    if Path(ref).is_absolute() or Path(ref).suffix not in (".yaml", ".yml"):
+        raise ScenarioError(f"'{ref}' is not allowed", file=file, key=key, expected=expected)
+    path = (base / ref).resolve()
+    if not path.is_relative_to(base):
+        raise ScenarioError(f"'{ref}' leaves the scenario's folder", file=file, key=key, expected=expected)
+    if not path.is_file():
+        raise ScenarioError(f"'{ref}' does not exist beside the scenario", file=file, key=key,
+                            expected=expected)
+    return path
 
 
 def close_match(word: str, choices) -> str | None:

@@ -25,12 +25,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from pathlib import Path
 
-from navsim.config import Node, close_match, load_yaml
+from navsim.config import Node, close_match, load_yaml, plain_name
 from navsim.errors import ScenarioError
 from navsim.flight.environment import parse_environment
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import FlightConfig
-from navsim.flight.track import parse_track
+from navsim.flight.track import nominal_duration_s, parse_track
+from navsim.sensors import HEIGHT_FIELDS, VELOCITY_FIELDS, output_fields, parse_sensors
+from navsim.sensors.base import check_faults
 
 
 @dataclass
@@ -69,6 +71,11 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
             raise ScenarioError("is not a known key", file=file, key=str(key),
                                 hint=close_match(str(key), TOP_KEYS))
     name = node.get("name", str, Path(file).stem if file else "scenario")
+    if not plain_name(name):
+        raise node.error(f"is '{name}'", "name",
+                         expected="a plain name (letters, digits, '.', '_', '-'; no '/', no '..'): it names "
+                         "the output folder reports/<name>",
+                         hint="give the output folder itself with --out")
     description = node.get("description", str, "")
     aircraft = node.get("aircraft", str, "survey10")
     if aircraft not in available_aircraft():
@@ -85,7 +92,7 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
         raise (exc if exc.file else exc.with_file(file or "<scenario>")) from None
     node._seen.add("environment")
     environment = parse_environment(node.data.get("environment"), "environment", file)
-    from navsim.sensors import parse_sensors
+    _check_start(track, environment, file)
     node._seen.add("sensors")
     sensors = parse_sensors(node.data.get("sensors"), file)
     mc = node.child("montecarlo", None)
@@ -105,14 +112,14 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
             raise ScenarioError(f"has {len(imu)} IMUs", file=file, key="sensors",
                                 expected="exactly one sensor of kind imu when estimators are given")
     initial = _initial(node.child("initial_errors", None))
-    duration = nominal_s = _duration(node, file)
+    duration = nominal_s = nominal_duration_s(track)
     if node.data.get("closed_loop") is not None:
         duration = math.inf           # each run's flight ends where its navigation takes it
     settle_s, windows = 0.0, ()
     metrics = node.child("metrics", None)
     if metrics is not None:
         settle_s = metrics.get("settle_s", float, 0.0, minimum=0.0)
-        windows = _windows(metrics, duration)
+        windows = _windows(metrics)
         metrics.done()
     reference = _reference(node.child("reference", None), [e.label for e in estimators], windows)
     report = {"formats": ["pdf", "png"]}
@@ -140,13 +147,90 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
                                         nominal_s, rate_hz)
     node.done()
     config = FlightConfig(track=track, environment=environment, aircraft=aircraft, rate_hz=rate_hz)
-    return Scenario(name=name, description=description, flight=config,
-                    path=Path(file) if file else None, raw=data, sensors=sensors, runs=runs, seed=seed,
-                    workers=workers, estimators=estimators, initial=initial, settle_s=settle_s,
-                    windows=windows, reference=reference, report=report, closed_loop=closed_loop)
+    scenario = Scenario(name=name, description=description, flight=config,
+                        path=Path(file) if file else None, raw=data, sensors=sensors, runs=runs, seed=seed,
+                        workers=workers, estimators=estimators, initial=initial, settle_s=settle_s,
+                        windows=windows, reference=reference, report=report, closed_loop=closed_loop)
+    check_scenario(scenario, duration)
+    return scenario
+
+
+def _check_start(track, environment, file) -> None:
+    """An air start at least :data:`MIN_START_AGL_M` above the surface; a launch or a parked
+    vehicle not below it."""
+    start = track.start
+    margin = MIN_START_AGL_M if start.type == "air" else 0.0
+    if start.alt_m < environment.surface_m + margin:
+        where = "below" if start.alt_m < environment.surface_m else "just above"
+        raise ScenarioError(f"is {start.alt_m:g} m, {where} the surface at {environment.surface_m:g} m",
+                            file=file, key="track.start.alt_m",
+                            expected=f"a start at least {margin:g} m above environment.surface_m")
+
+
+def check_scenario(scenario: Scenario, duration_s: float) -> None:
+    """The checks that need the whole scenario and its flight's duration: sensor faults and
+    ``metrics.settle_s`` within the flight, each estimator's period a whole number of IMU
+    steps, each measurement's ``field`` one its sensor produces.
+
+    :func:`parse_scenario` runs it with the track's nominal duration; ``navsim run`` runs it
+    again with the duration actually flown, before any sensor is emulated. Raises
+    :class:`ScenarioError` naming the scenario file and the key.
+    """
+    file = str(scenario.path) if scenario.path else None
+    for cfg in scenario.sensors:
+        try:
+            check_faults(cfg.faults, cfg.kind, duration_s, cfg.name)
+        except ScenarioError as exc:
+            raise exc.with_file(file or "<scenario>") from None
+    if scenario.settle_s >= duration_s:
+        raise ScenarioError(f"is {scenario.settle_s:g} s, not before the end of the flight ({duration_s:.0f} s)",
+                            file=file, key="metrics.settle_s",
+                            expected=f"a time within the flight (0-{duration_s:.0f} s)")
+    for name, a, b in scenario.windows:
+        if b > duration_s + 1e-6:
+            i = [w[0] for w in scenario.windows].index(name)
+            raise ScenarioError(f"is {b:g} s, after the end of the flight ({duration_s:.0f} s)", file=file,
+                                key=f"metrics.windows[{i}].end_s",
+                                expected=f"a time within the flight (0-{duration_s:.0f} s)")
+    imu = [c for c in scenario.sensors if c.kind == "imu"]
+    if not scenario.estimators or not imu:
+        return
+    dt = 1.0 / imu[0].spec.rate_hz
+    outputs = {c.name: output_fields(c.spec) for c in scenario.sensors}
+    for i, est in enumerate(scenario.estimators):
+        period = est.params.get("period_s")
+        steps = None if period is None else period / dt
+        if steps is not None and (round(steps) < 1 or abs(steps - round(steps)) > 1e-6 * steps):
+            raise ScenarioError(f"is {period:g} s", file=file, key=f"estimators[{i}].period_s",
+                                expected=f"a whole number of the IMU's steps ({dt:g} s at {imu[0].spec.rate_hz:g} Hz)")
+        for key, m in _measurement_entries(est.params, f"estimators[{i}]"):
+            _check_field(m, outputs[m["sensor"]], file, key)
+
+
+def _measurement_entries(params: dict, path: str):
+    """``(key path, entry)`` of every measurement of an estimator, its federated locals' too."""
+    for j, m in enumerate(params.get("measurements", [])):
+        yield f"{path}.measurements[{j}]", m
+    for k, loc in enumerate((params.get("federated") or {}).get("locals", [])):
+        for j, m in enumerate(loc["measurements"]):
+            yield f"{path}.federated.locals[{k}].measurements[{j}]", m
+
+
+def _check_field(m: dict, produced: tuple, file, key: str) -> None:
+    if "field" not in m:
+        return
+    family = VELOCITY_FIELDS if m["type"] == "velocity" else HEIGHT_FIELDS
+    usable = [f for f in produced if f in family]
+    if m["field"] not in usable:
+        raise ScenarioError(f"'{m['field']}' is not a {'velocity' if family is VELOCITY_FIELDS else 'height'} "
+                            f"that sensor '{m['sensor']}' produces", file=file, key=f"{key}.field",
+                            expected="one of " + ", ".join(usable) if usable else "another sensor",
+                            hint=close_match(m["field"], usable) if usable else None)
 
 
 ARCSEC = math.pi / 180 / 3600
+#: the lowest an air start may be above the surface, m
+MIN_START_AGL_M = 10.0
 
 
 def _three(node, key, default, scale=1.0):
@@ -154,7 +238,7 @@ def _three(node, key, default, scale=1.0):
     v = node.data.get(key, default)
     ok = isinstance(v, (int, float)) and not isinstance(v, bool) or (
         isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v))
-    if not ok or np.any(np.asarray(v, float) < 0):
+    if not ok or not np.all(np.isfinite(v)) or np.any(np.asarray(v, float) < 0):
         raise node.error(f"is {v!r}", key, expected="a non-negative number or a list of three (N, E, D)")
     return np.broadcast_to(np.asarray(v, float) * scale, (3,)).copy()
 
@@ -171,16 +255,7 @@ def _initial(node):
     return out
 
 
-def _duration(node, file):
-    from navsim.flight.track import nominal_duration_s
-    try:
-        from navsim.flight.track import parse_track
-        return nominal_duration_s(parse_track(node.data["track"], "track", file))
-    except Exception:
-        return math.inf
-
-
-def _windows(node, duration):
+def _windows(node):
     node._seen.add("windows")
     raw = node.data.get("windows", [])
     if not isinstance(raw, list):
@@ -194,12 +269,34 @@ def _windows(node, duration):
         names.add(name)
         a = w.get("start_s", float, minimum=0.0)
         b = w.get("end_s", float, exclusive_minimum=a)
-        if b > duration + 1e-6:
-            raise w.error(f"is {b:g} s, after the end of the flight ({duration:.0f} s)", "end_s",
-                          expected=f"a time within the flight (0-{duration:.0f} s)")
         w.done()
         out.append((name, a, b))
     return tuple(out)
+
+
+#: the first part of a metric path (``rms.pos_m``, ``windows.<name>.pos_m.rms``) in metrics.json
+METRIC_HEADS = ("rms", "final", "max_abs", "p99", "windows", "attitude", "resets", "nees")
+_QUANTITIES = {head: ("pos_m", "vel_mps", "att_deg") for head in ("rms", "final", "max_abs", "p99")}
+
+
+def check_metric_path(path: str, windows, *, file: str | None, key: str) -> None:
+    """Raise :class:`ScenarioError` unless ``path`` names a metric of an estimator's
+    metrics.json (:data:`METRIC_HEADS`; ``windows.<name>`` a window of ``windows``)."""
+    head, _, rest = path.partition(".")
+    if head not in METRIC_HEADS or not rest:
+        raise ScenarioError(f"'{path}' is not a metric", file=file, key=key,
+                            expected=" or ".join(f"{h}.*" for h in METRIC_HEADS),
+                            hint=close_match(head, METRIC_HEADS))
+    quantity = rest.split(".")[0]
+    if head in _QUANTITIES and quantity not in _QUANTITIES[head]:
+        raise ScenarioError(f"'{path}' is not a metric", file=file, key=key,
+                            expected=" or ".join(f"{head}.{q}" for q in _QUANTITIES[head]),
+                            hint=close_match(quantity, _QUANTITIES[head]))
+    if head == "windows":
+        name = rest.split(".")[0]
+        if name not in [w[0] for w in windows]:
+            raise ScenarioError(f"window '{name}' is not defined under metrics.windows", file=file, key=key,
+                                hint=close_match(name, [w[0] for w in windows]))
 
 
 def _reference(node, labels, windows):
@@ -216,20 +313,11 @@ def _reference(node, labels, windows):
         m = Node(metrics, vals.key(str(label)), node.file)
         for path, value in m.data.items():
             m._seen.add(path)
-            head = str(path).split(".")[0]
-            heads = ("rms", "final", "max_abs", "p99", "windows", "attitude", "resets")
-            if head not in heads:
-                raise m.error(f"'{path}' is not a metric", str(path),
-                              expected="rms.*, final.*, max_abs.*, p99.*, attitude.*, resets.* or windows.<name>.*",
-                              hint=close_match(head, heads))
-            if head == "windows":
-                wname = str(path).split(".")[1] if "." in str(path) else ""
-                if wname not in [w[0] for w in windows]:
-                    raise m.error(f"window '{wname}' is not defined under metrics.windows", str(path))
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool) or (
-                isinstance(value, list) and len(value) == 3)
+            check_metric_path(str(path), windows, file=node.file, key=m.key(str(path)))
+            number = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+            ok = number(value) or (isinstance(value, list) and len(value) == 3 and all(map(number, value)))
             if not ok:
-                raise m.error(f"is {value!r}", str(path), expected="a number or a list of three")
+                raise m.error(f"is {value!r}", str(path), expected="a finite number or a list of three")
         ref["values"][label] = dict(m.data)
     vals.done()
     node.done()

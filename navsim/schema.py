@@ -8,10 +8,14 @@ from __future__ import annotations
 
 import json
 
-from navsim.flight.track import SEGMENT_KEYS
+from navsim.config import PLAIN_NAME_PATTERN
+from navsim.flight.environment import MAX_WIND_MPS
+from navsim.flight.track import MAX_AIRSPEED_MPS, SEGMENT_KEYS
 
 NUM = {"type": "number"}
 POS = {"type": "number", "exclusiveMinimum": 0}
+AIRSPEED = {"type": "number", "exclusiveMinimum": 0, "maximum": MAX_AIRSPEED_MPS}
+WIND = {"type": "number", "minimum": -MAX_WIND_MPS, "maximum": MAX_WIND_MPS}
 VEC3 = {"oneOf": [{"type": "number", "minimum": 0},
                   {"type": "array", "items": {"type": "number", "minimum": 0}, "minItems": 3, "maxItems": 3}]}
 QUANTITY = {"description": "a number with its unit, e.g. '0.2 deg/h' or '[1, 1, 2] m'",
@@ -30,7 +34,7 @@ def _obj(props: dict, required=(), description: str | None = None) -> dict:
 
 
 def _segment(kind: str) -> dict:
-    props = {"type": {"const": kind}, "label": {"type": "string"}, "speed_mps": POS}
+    props = {"type": {"const": kind}, "label": {"type": "string"}, "speed_mps": AIRSPEED}
     for key, (typ, _default, cons) in SEGMENT_KEYS[kind].items():
         props[key] = {"type": "string", "enum": list(cons["choices"])} if "choices" in cons else {"type": "number"}
     return _obj(props, ["type"])
@@ -41,7 +45,7 @@ def scenario_schema() -> dict:
     from navsim.sensors.base import FAULT_TYPES
     from navsim.sensors.catalog import available
     start = _obj({"type": {"enum": ["air", "launch", "ground"]}, "lat_deg": NUM, "lon_deg": NUM, "alt_m": NUM,
-                  "speed_mps": POS, "heading_deg": NUM, "pitch_deg": NUM, "roll_deg": NUM, "launcher_height_m": POS,
+                  "speed_mps": AIRSPEED, "heading_deg": NUM, "pitch_deg": NUM, "roll_deg": NUM, "launcher_height_m": POS,
                   "booster_thrust_n": NUM, "booster_time_s": NUM},
                  ["lat_deg", "lon_deg", "alt_m"])
     # a parked (ground) start has no speed; the others need one
@@ -53,8 +57,9 @@ def scenario_schema() -> dict:
                                           "items": {"oneOf": [_segment(k) for k in SEGMENT_KEYS]}}},
                             ["start", "segments"])]}
     environment = _obj({
-        "wind": _obj({"speed_mps": NUM, "from_deg": NUM, "force": {"type": "integer", "minimum": 0, "maximum": 6},
-                      "north_mps": NUM, "east_mps": NUM, "down_mps": NUM}),
+        "wind": _obj({"speed_mps": {**WIND, "minimum": 0}, "from_deg": NUM,
+                      "force": {"type": "integer", "minimum": 0, "maximum": 6},
+                      "north_mps": WIND, "east_mps": WIND, "down_mps": WIND}),
         "turbulence": _obj({"type": {"enum": ["none", "milspec", "tustin"]}, "wind20_mps": NUM,
                             "severity": {"type": "integer", "minimum": 0, "maximum": 7},
                             "seed": {"type": "integer", "minimum": 0}}),
@@ -112,7 +117,9 @@ def scenario_schema() -> dict:
         "title": "navsim scenario",
         "description": "One experiment: flight, sensors, estimators, Monte Carlo, metrics, report.",
         **_obj({
-            "name": {"type": "string"}, "description": {"type": "string"}, "aircraft": {"type": "string"},
+            "name": {"type": "string", "pattern": PLAIN_NAME_PATTERN,
+                     "description": "a plain name: it names the output folder reports/<name>"},
+            "description": {"type": "string"}, "aircraft": {"type": "string"},
             "track": track, "environment": environment,
             "flight": _obj({"rate_hz": {"type": "number", "minimum": 20, "maximum": 1000}}),
             "sensors": {"type": "object", "additionalProperties": sensor},

@@ -22,6 +22,7 @@ import numpy as np
 
 from navsim.config import Node, load_yaml
 from navsim.errors import ScenarioError
+from navsim.scenario import check_metric_path, check_scenario, parse_scenario
 
 _INDEX = re.compile(r"^(.*)\[(\d+)\]$")
 
@@ -57,11 +58,12 @@ def parse_sweep(path: str | Path):
     node = Node(load_yaml(path), "", str(path))
     scenario = node.get("scenario", str)
     base_path = (path.parent / scenario)
-    if not base_path.is_file():
+    if Path(scenario).suffix not in (".yaml", ".yml") or not base_path.is_file():
         raise node.error(f"'{scenario}' not found next to the sweep file", "scenario",
                          expected="a scenario YAML path relative to the sweep file")
     runs = node.get("runs", int, None, minimum=1)
     metric = node.get("metric", str, "rms.pos_m")
+    check_metric_path(metric, [(w, 0, 0) for w in _window_names(base_path)], file=str(path), key="metric")
     grid = node.child("grid", None)
     node._seen.add("points")
     points = node.data.get("points")
@@ -81,13 +83,20 @@ def parse_sweep(path: str | Path):
     return base_path, runs, metric, points
 
 
+def _window_names(scenario_path: Path) -> list[str]:
+    """The names of the windows under the scenario's ``metrics.windows`` (read loosely: the
+    scenario itself is checked point by point)."""
+    data = load_yaml(scenario_path)
+    windows = ((data or {}).get("metrics") or {}).get("windows") if isinstance(data, dict) else None
+    return [w.get("name") for w in windows if isinstance(w, dict)] if isinstance(windows, list) else []
+
+
 def run_sweep(path, workers: int | None = None, out: Path | None = None, progress=None,
               executor: str = "local", scheduler: str | None = None):
     """Run every point (its runs on ``executor``, see :func:`navsim.runner.run_monte_carlo`);
     returns the rows ``(point, {label: metric value})`` and the metric."""
     from navsim.metrics import lookup, score
     from navsim.runner import cached_flight, run_monte_carlo
-    from navsim.scenario import parse_scenario
     base_path, runs, metric, points = parse_sweep(path)
     base = load_yaml(base_path)
     scenarios = []
@@ -96,12 +105,17 @@ def run_sweep(path, workers: int | None = None, out: Path | None = None, progres
         for key, value in point.items():
             set_path(data, key, value, str(path), f"points[{i}]")
         try:
-            scenarios.append(parse_scenario(data, f"{base_path} with sweep point {i} ({point})"))
+            scenarios.append(parse_scenario(data, str(base_path)))
         except ScenarioError as exc:
-            raise exc from None
+            raise (exc.with_file(f"{path}: point {i} ({point}) of {base_path}") if exc.file == str(base_path)
+                   else exc) from None
     rows = []
-    for point, sc in zip(points, scenarios):
+    for i, (point, sc) in enumerate(zip(points, scenarios)):
         truth, truth_path, _ = cached_flight(sc.flight)
+        try:
+            check_scenario(sc, truth.duration_s)
+        except ScenarioError as exc:
+            raise exc.with_file(f"{path}: point {i} ({point}) of {base_path}") from None
         n = runs or sc.runs
         res = run_monte_carlo(sc, truth, truth_path, n, sc.seed, workers or sc.workers,
                               executor=executor, scheduler=scheduler)

@@ -157,6 +157,9 @@ def _eskf_params(node: Node, sensors: dict) -> dict:
         blocks = list(PRESETS[states])
     elif isinstance(states, list) and all(isinstance(b, str) for b in states):
         blocks = states
+        twice = sorted({b for b in blocks if blocks.count(b) > 1})
+        if twice:
+            raise node.error(f"names the block '{twice[0]}' twice", "states", expected="each state block once")
         for b in blocks:
             if b not in BLOCK_SIZES:
                 raise node.error(f"block '{b}' is unknown", "states", expected=", ".join(BLOCK_SIZES),

@@ -29,6 +29,10 @@ class Environment:
     surface_m: float = 0.0
 
 
+#: the strongest wind a scenario may set, m/s (Beaufort 12, a hurricane, starts at 32.7 m/s)
+MAX_WIND_MPS = 40.0
+
+
 def wind_from(speed_mps: float, from_deg: float) -> tuple[float, float, float]:
     """Air-mass velocity NED of a wind of ``speed_mps`` blowing *from* ``from_deg`` (true)."""
     a = math.radians(from_deg)
@@ -50,14 +54,15 @@ def parse_environment(data, path: str = "environment", file: str | None = None) 
     wind = node.child("wind", None)
     if wind is not None:
         if wind.has("north_mps") or wind.has("east_mps"):
-            kw["wind_n_mps"] = (wind.get("north_mps", float, 0.0), wind.get("east_mps", float, 0.0),
-                                wind.get("down_mps", float, 0.0))
+            lim = dict(minimum=-MAX_WIND_MPS, maximum=MAX_WIND_MPS)
+            kw["wind_n_mps"] = (wind.get("north_mps", float, 0.0, **lim), wind.get("east_mps", float, 0.0, **lim),
+                                wind.get("down_mps", float, 0.0, **lim))
         elif wind.has("force"):
             force = wind.get("force", int, choices=tuple(BEAUFORT_MPS))
             lo, hi = BEAUFORT_MPS[force]
             kw["wind_n_mps"] = wind_from(0.5 * (lo + hi), wind.get("from_deg", float, 0.0))
         elif wind.has("speed_mps"):
-            kw["wind_n_mps"] = wind_from(wind.get("speed_mps", float, minimum=0.0),
+            kw["wind_n_mps"] = wind_from(wind.get("speed_mps", float, minimum=0.0, maximum=MAX_WIND_MPS),
                                          wind.get("from_deg", float, 0.0))
         else:
             raise ScenarioError("gives no wind", file=file, key=wind.path,
@@ -66,7 +71,7 @@ def parse_environment(data, path: str = "environment", file: str | None = None) 
     turb = node.child("turbulence", None)
     if turb is not None:
         kw["turbulence"] = turb.get("type", str, "milspec", choices=("none", "milspec", "tustin"))
-        kw["turbulence_wind20_mps"] = turb.get("wind20_mps", float, 0.0, minimum=0.0)
+        kw["turbulence_wind20_mps"] = turb.get("wind20_mps", float, 0.0, minimum=0.0, maximum=MAX_WIND_MPS)
         kw["turbulence_severity"] = turb.get("severity", int, 3, minimum=0, maximum=7)
         kw["turbulence_seed"] = turb.get("seed", int, 0, minimum=0)
         turb.done()

@@ -28,7 +28,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from navsim.config import Node, load_yaml
+from navsim.config import Node, close_match, load_yaml, resolve_file
 from navsim.errors import ScenarioError
 
 TRACKS_DIR = Path(__file__).resolve().parents[1] / "tracks"
@@ -84,13 +84,16 @@ class Track:
     description: str = ""
 
 
+#: the fastest airspeed a track may ask for, m/s (the shipped 10 kg aircraft cruises at 14-18 m/s)
+MAX_AIRSPEED_MPS = 40.0
+
 # type -> {key: (kind, default or REQUIRED, constraint)}; one of the "one_of" groups is required
 _REQ = object()
 _POS = dict(exclusive_minimum=0.0)
 SEGMENT_KEYS: dict[str, dict] = {
     "straight": {"time_s": (float, None, _POS), "distance_m": (float, None, _POS),
                  "until_s": (float, None, _POS)},
-    "speed": {"to_mps": (float, _REQ, _POS), "accel_mps2": (float, 0.5, _POS)},
+    "speed": {"to_mps": (float, _REQ, dict(exclusive_minimum=0.0, maximum=MAX_AIRSPEED_MPS)), "accel_mps2": (float, 0.5, _POS)},
     "climb": {"to_m": (float, _REQ, {}), "rate_mps": (float, 2.0, _POS)},
     "descend": {"to_m": (float, _REQ, {}), "rate_mps": (float, 2.0, _POS)},
     "turn": {"by_deg": (float, _REQ, {}), "bank_deg": (float, None, dict(exclusive_minimum=0.0,
@@ -112,9 +115,12 @@ _DEFAULT_ONE = {"turn": {"bank_deg": 20.0}}
 
 
 def parse_track(data, path: str = "track", file: str | None = None) -> Track:
-    """A :class:`Track` from a YAML mapping, or the name of a shipped track."""
+    """A :class:`Track` from a YAML mapping, or a string naming a shipped track or a track
+    file beside or below the scenario ``file`` (:func:`navsim.config.resolve_file`)."""
     if isinstance(data, str):
-        return load_track(data)
+        track_file = resolve_file(data, catalog=TRACKS_DIR, file=file, key=path or "track",
+                                  what="a shipped track", choices=available_tracks())
+        return _track_file(track_file, file, path or "track")
     node = Node(data, path, file)
     name = node.get("name", str, "custom")
     description = node.get("description", str, "")
@@ -146,7 +152,8 @@ def _parse_start(node: Node) -> Start:
         lat_deg=node.get("lat_deg", float, minimum=-89.0, maximum=89.0),
         lon_deg=node.get("lon_deg", float, minimum=-180.0, maximum=180.0),
         alt_m=node.get("alt_m", float, minimum=-400.0, maximum=10000.0),
-        speed_mps=0.0 if ground else node.get("speed_mps", float, exclusive_minimum=0.0),
+        speed_mps=0.0 if ground else node.get("speed_mps", float, exclusive_minimum=0.0,
+                                              maximum=MAX_AIRSPEED_MPS),
         heading_deg=node.get("heading_deg", float, 0.0),
     )
     if ground:
@@ -166,7 +173,7 @@ def _parse_segment(item, path: str, file: str | None, index: int) -> Segment:
     node = Node(item, path, file)
     kind = node.get("type", str, choices=tuple(SEGMENT_KEYS))
     label = node.get("label", str, f"{index}:{kind}")
-    speed = node.get("speed_mps", float, None, exclusive_minimum=0.0)
+    speed = node.get("speed_mps", float, None, exclusive_minimum=0.0, maximum=MAX_AIRSPEED_MPS)
     params = {}
     for key, (typ, default, cons) in SEGMENT_KEYS[kind].items():
         value = node.get(key, typ, None if default is _REQ else default, **cons)
@@ -207,11 +214,20 @@ def load_track(name_or_path: str | Path) -> Track:
     if not path.suffix:
         path = TRACKS_DIR / f"{name_or_path}.yaml"
         if not path.is_file():
-            from navsim.config import close_match
             raise ScenarioError(f"'{name_or_path}' is not a shipped track", key="track",
                                 expected="a track name or a mapping with start and segments",
                                 hint=close_match(str(name_or_path), available_tracks()))
+    return _track_file(path)
+
+
+def _track_file(path: Path, file: str | None = None, key: str | None = None) -> Track:
+    """The track in the YAML file ``path``: a mapping with start and segments (a file naming
+    another track is refused, so no chain of files is followed). ``file`` and ``key``: where
+    the scenario names it, for the error; the file's content is never echoed."""
     data = load_yaml(path)
+    if not isinstance(data, dict):
+        raise ScenarioError(f"'{path.name}' is not a track", file=file or str(path), key=key,
+                            expected="a YAML file holding a mapping with start and segments")
     return parse_track(data, "", str(path))
 
 

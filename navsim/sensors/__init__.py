@@ -48,6 +48,27 @@ class SensorConfig:
         return specs.kind_of(self.spec)
 
 
+#: the measurement values of each sensor kind (``SensorData.values`` keys), whatever its spec
+_OUTPUTS = {"imu": ("dtheta_b_rad", "dv_b_mps"), "baro": ("h_baro_m", "p_static_pa"),
+            "gnss": ("lat_rad", "lon_rad", "h_m", "fix_type", "h_acc_m", "v_acc_m", "s_acc_mps"),
+            "ads": ("p_static_pa", "p_total_pa", "temp_k", "h_pressure_m", "cas_mps", "tas_mps", "vel_n_mps"),
+            "radar_altimeter": ("h_agl_m",), "magnetometer": ("mag_b_T",),
+            "camera": ("lat_rad", "lon_rad", "h_m", "landmark")}
+#: the values a ``velocity`` measurement may read (NED velocity) and a ``height`` measurement
+VELOCITY_FIELDS = ("vel_n_mps",)
+HEIGHT_FIELDS = ("h_m", "h_baro_m", "h_pressure_m", "h_agl_m")
+
+
+def output_fields(spec) -> tuple[str, ...]:
+    """The ``values`` keys the emulator of ``spec`` produces (an IMU's rates only on request)."""
+    out = _OUTPUTS[specs.kind_of(spec)]
+    if getattr(spec, "velocity_output", False):
+        out += ("vel_n_mps",)
+    if getattr(spec, "velocity_axis", None) == "air":
+        out += ("alpha_rad", "beta_rad")
+    return out
+
+
 def emulate(truth, config: SensorConfig, seed: int, runs) -> SensorData:
     """Emulate ``config`` on ``truth`` for the run indices ``runs``."""
     fn = EMULATORS[config.kind]
@@ -81,5 +102,5 @@ def parse_sensors(data, file: str | None = None, path: str = "sensors") -> tuple
     return tuple(out)
 
 
-__all__ = ["EMULATORS", "Fault", "SensorConfig", "SensorData", "emulate", "load_spec",
+__all__ = ["EMULATORS", "HEIGHT_FIELDS", "VELOCITY_FIELDS", "output_fields", "Fault", "SensorConfig", "SensorData", "emulate", "load_spec",
            "parse_sensors"]

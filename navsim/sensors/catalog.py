@@ -13,11 +13,12 @@ file and the key path.
 from __future__ import annotations
 
 import copy
+import math
 from pathlib import Path
 
 import numpy as np
 
-from navsim.config import close_match, load_yaml
+from navsim.config import close_match, load_yaml, resolve_file
 from navsim.errors import ScenarioError
 from navsim.sensors import specs as S
 from navsim.sensors.units import UnitError, to_si
@@ -122,16 +123,16 @@ def merge(base: dict, override: dict) -> dict:
     return out
 
 
-def load_datasheet(name: str, key: str = "model", file: str | None = None) -> dict:
-    path = CATALOG_DIR / f"{name}.yaml"
-    if not path.is_file():
-        raise ScenarioError(f"'{name}' is not in the sensor catalog ({CATALOG_DIR})", file=file, key=key,
-                            expected="a catalog entry name", hint=close_match(name, available()))
+def load_datasheet(name: str, key: str = "model", file: str | None = None) -> tuple[dict, Path]:
+    """The datasheet ``name`` names (a catalog entry, or a ``.yaml`` file beside or below the
+    scenario ``file``, see :func:`navsim.config.resolve_file`) and its path."""
+    path = resolve_file(name, catalog=CATALOG_DIR, file=file, key=key, what="in the sensor catalog",
+                        choices=available())
     data = load_yaml(path)
     if not isinstance(data, dict) or data.get("kind") not in FIELDS:
         raise ScenarioError("needs 'kind'", file=str(path), key="kind",
                             expected="one of " + ", ".join(FIELDS))
-    return data
+    return data, path
 
 
 def spec_from_datasheet(data: dict, file: str | None = None, path: str = ""):
@@ -149,8 +150,9 @@ def load_spec(name: str, override: dict | None = None, off=(), file: str | None 
               key: str = ""):
     """The spec of catalog entry ``name`` with ``override`` merged and ``off`` error sources
     switched off (``off: all`` gives the ideal sensor)."""
-    data = merge(load_datasheet(name, _join(key, "model"), file), override or {})
-    spec = spec_from_datasheet(data, file if override else str(CATALOG_DIR / f"{name}.yaml"),
+    sheet, sheet_path = load_datasheet(name, _join(key, "model"), file)
+    data = merge(sheet, override or {})
+    spec = spec_from_datasheet(data, file if override else str(sheet_path),
                                _join(key, "override") if override else "")
     if off == "all":
         return S.ideal(spec)
@@ -186,8 +188,9 @@ def _read_fields(data: dict, table: dict, file, path, typ) -> dict:
                 out[attr] = tuple(S.Vibration(**_read_fields(v, dim, file, f"{where}[{i}]", S.Vibration))
                                   for i, v in enumerate(value))
             elif shape == "plain":
-                if isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0:
-                    raise UnitError(f"is {value!r}, expected a positive number")
+                if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+                        0 < value < math.inf):
+                    raise UnitError(f"is {value!r}, expected a positive finite number")
                 out[attr] = float(value)
             elif shape == "str":
                 if not isinstance(value, str):
@@ -201,7 +204,8 @@ def _read_fields(data: dict, table: dict, file, path, typ) -> dict:
                 out[attr] = value
             elif shape == "pair":
                 if not (isinstance(value, list) and len(value) == 2
-                        and all(isinstance(x, (int, float)) for x in value) and 0 < value[0] < value[1]):
+                        and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)
+                        and 0 < value[0] < value[1] < math.inf):
                     raise UnitError(f"is {value!r}, expected [low, high] with 0 < low < high")
                 out[attr] = (float(value[0]), float(value[1]))
             elif shape == "landmarks":
@@ -249,8 +253,11 @@ def _landmarks(value):
     if not isinstance(value, list):
         raise UnitError("expected a list of [lat_deg, lon_deg, h_m]")
     out = []
-    for item in value:
-        if not (isinstance(item, list) and len(item) == 3):
-            raise UnitError(f"landmark {item!r}: expected [lat_deg, lon_deg, h_m]")
+    for i, item in enumerate(value):
+        ok = isinstance(item, list) and len(item) == 3 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in item)
+        if not ok or not (-90 <= item[0] <= 90 and -180 <= item[1] <= 180):
+            raise UnitError(f"landmark [{i}] is {item!r}, expected [lat_deg, lon_deg, h_m] "
+                            "(finite numbers, latitude -90..90, longitude -180..180)")
         out.append(tuple(float(x) for x in item))
     return tuple(out)

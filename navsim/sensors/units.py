@@ -64,8 +64,16 @@ def units_of(dimension: str) -> list[str]:
 def to_si(value, dimension: str):
     """Convert a datasheet value to SI: a float, or a (3,) array for a three-axis value.
 
-    Numbers without a unit are accepted only for the ``dimensionless`` dimension.
+    Numbers without a unit are accepted only for the ``dimensionless`` dimension; NaN and
+    infinite values (``.nan``, ``1e400 m``) are refused.
     """
+    out = _to_si(value, dimension)
+    if not np.all(np.isfinite(out)):
+        raise UnitError(f"is {value!r}, expected finite numbers")
+    return out
+
+
+def _to_si(value, dimension: str):
     if isinstance(value, dict):
         if set(value) != {"value", "unit"}:
             raise UnitError("a mapping value needs exactly 'value' and 'unit'")
