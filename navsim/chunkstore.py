@@ -16,13 +16,17 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
+import logging
+import re
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
-from navsim.errors import NavsimError
+from navsim.errors import NavsimError, OutputError
+from navsim.outputs import temporary_name, write_atomic
 
+log = logging.getLogger(__name__)
 INDEX = "index.json"
 _ARRAYS = ("t_s", "att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "nees", "diverged", "gyro_bias",
            "accel_bias", "euler_err_rad")
@@ -67,24 +71,6 @@ def chunk_name(runs) -> str:
     return f"{runs[0]}-{runs[-1]}"
 
 
-def _write_atomic(path: Path, write) -> None:
-    """Write to a temporary name, flush it to the disk, rename: a crash of the process or of
-    the machine leaves the old file or the new one, never a part."""
-    tmp = path.with_name(path.name + ".tmp")
-    write(tmp)
-    with open(tmp, "rb+") as f:
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-    try:
-        fd = os.open(path.parent, os.O_RDONLY)
-    except OSError:                      # a folder that cannot be opened (not POSIX): no fsync
-        return
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
 def _savez(path: Path, arrays: dict) -> None:
     with open(path, "wb") as f:
         np.savez(f, **arrays)
@@ -101,7 +87,7 @@ def part_arrays(part) -> dict:
         arrays.update({f"h{i}.nis{j}": v for j, v in enumerate(h.nis.values())})
         meta["histories"].append({
             "arrays": present, "nis": list(h.nis), "nis_dim": h.nis_dim, "cost": h.cost,
-            "resets": h.resets})
+            "resets": h.resets, "divergence": getattr(h, "divergence", None)})
     arrays.update({f"bias.{k}": np.asarray(v) for k, v in bias.items()})
     for i, (name, c) in enumerate(calib.items()):
         meta["calibration"][name] = list(c)
@@ -117,16 +103,39 @@ def part_from_arrays(data) -> tuple:
     hist = {}
     for i, (label, m) in enumerate(zip(meta["labels"], meta["histories"])):
         fields = {name: data[f"h{i}.{name}"] for name in m["arrays"]}
-        resets = m["resets"]
+        resets, divergence = m["resets"], m.get("divergence")
         hist[label] = EstimatorHistory(
             label=label, **{name: fields.get(name) for name in _ARRAYS},
             nis={k: data[f"h{i}.nis{j}"] for j, k in enumerate(m["nis"])}, nis_dim=m["nis_dim"],
             cost=m["cost"],
-            resets=None if resets is None else [[tuple(e) for e in run] for run in resets])
+            resets=None if resets is None else [[tuple(e) for e in run] for run in resets],
+            divergence=None if divergence is None else [None if r is None else (float(r[0]), str(r[1]))
+                                                        for r in divergence])
     bias = {k: data[f"bias.{k}"] for k in meta["bias"]}
     calib = {name: {k: data[f"c{i}.{k}"] for k in keys}
              for i, (name, keys) in enumerate(meta["calibration"].items())}
     return list(data["runs"].tolist()), hist, bias, calib
+
+
+_CHUNK_FILE = re.compile(r"^chunk_\d+-\d+\.npz$")
+
+
+def _chunk_files(index: dict) -> dict:
+    """Chunk name -> file name of the chunks an index lists (plain chunk file names only)."""
+    chunks = index.get("chunks") if isinstance(index, dict) else None
+    if not isinstance(chunks, dict):
+        return {}
+    return {n: f for n, f in chunks.items() if isinstance(f, str) and _CHUNK_FILE.match(f)}
+
+
+def _readable(path: Path) -> bool:
+    """Whether a stored chunk file is whole (its zip CRCs check); a truncated or damaged one is
+    run again on resume."""
+    try:
+        with zipfile.ZipFile(path) as z:
+            return z.testzip() is None
+    except (OSError, zipfile.BadZipFile, EOFError, ValueError):
+        return False
 
 
 def _shared(key: str) -> bool:
@@ -178,18 +187,29 @@ class ChunkStore:
         if diff:
             raise ResumeError(f"{self.folder} holds another run ({'; '.join(diff)}); resume it with the same "
                               "scenario, seed, runs and chunk size, or run without --resume")
-        self.done = {name: file for name, file in index.get("chunks", {}).items()
-                     if (self.folder / file).is_file()}
+        listed = _chunk_files(index)
+        self.done = {name: file for name, file in listed.items() if _readable(self.folder / file)}
+        for name in sorted(set(listed) - set(self.done)):
+            log.warning("%s: chunk %s is missing or damaged; its runs are run again", self.folder, name)
 
     def _clear(self) -> None:
-        self.folder.mkdir(parents=True, exist_ok=True)
-        for path in self.folder.glob("chunk_*.npz*"):
-            path.unlink()
-        (self.folder / INDEX).unlink(missing_ok=True)
+        """Remove the chunk files the folder's index lists (and their temporary files), nothing
+        else: a folder without an index is left as it is."""
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            index = self.read_index(self.folder)
+        except (OSError, ResumeError):
+            index = None
+        for file in _chunk_files(index or {}).values():
+            for path in (self.folder / file, temporary_name(self.folder / file)):
+                try:
+                    path.unlink(missing_ok=True)
+                except OSError as exc:
+                    raise OutputError(path, exc) from None
 
     def _write_index(self) -> None:
         index = {**self.key, "chunks": self.done, "failed": self.failed}
-        _write_atomic(self.folder / INDEX, lambda p: p.write_text(json.dumps(index, indent=1)))
+        write_atomic(self.folder / INDEX, lambda p: p.write_text(json.dumps(index, indent=1)), fsync=True)
 
     def missing(self, chunks: list) -> list:
         """The chunks of ``chunks`` (ranges of run indices) not stored yet."""
@@ -199,7 +219,7 @@ class ChunkStore:
         """Store a finished chunk part and record it in the index."""
         name = chunk_name(part[0])
         file = f"chunk_{name}.npz"
-        _write_atomic(self.folder / file, lambda p: _savez(p, part_arrays(part)))
+        write_atomic(self.folder / file, lambda p: _savez(p, part_arrays(part)), fsync=True)
         self.done[name] = file
         self.failed.pop(name, None)
         self._write_index()
@@ -260,5 +280,7 @@ class ChunkStore:
             parts = [m["histories"][i] for m in metas]
             h["cost"] = _sum_cost([m["cost"] for m in parts])
             h["resets"] = None if h["resets"] is None else [r for m in parts for r in m["resets"]]
+            if any(m.get("divergence") is not None for m in parts):
+                h["divergence"] = [r for m, n in zip(parts, sizes) for r in (m.get("divergence") or [None] * n)]
         out["meta"] = np.array(json.dumps(meta))
         return part_from_arrays(out)

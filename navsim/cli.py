@@ -13,14 +13,21 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import shutil
 import sys
 import time
+import urllib.parse
 from pathlib import Path
 
 import numpy as np
 
-from navsim.errors import FlightError, NavsimError
+from navsim.errors import FlightError, NavsimError, OutputError
+from navsim.flight.plots import plot_flight
+from navsim.outputs import OutputFolder
+from navsim.provenance import provenance
+from navsim.runner import cached_flight
+from navsim.scenario import check_scenario, load_scenario
 
 
 def _numeric(text: str) -> bool:
@@ -64,16 +71,13 @@ def _progress(desc: str):
 
 
 def cmd_fly(args) -> int:
-    from navsim.flight.plots import plot_flight
     from navsim.flight.simulator import fly
-    from navsim.provenance import provenance
-    from navsim.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
-    if args.rate_hz:
+    if args.rate_hz is not None:
         scenario.flight.rate_hz = args.rate_hz
-    out = Path(args.out) if args.out else Path("reports") / scenario.name / "flight"
-    out.mkdir(parents=True, exist_ok=True)
+    out = OutputFolder(Path(args.out) if args.out else Path("reports") / scenario.name / "flight")
+    out.clear_earlier()
     bar, update = _progress(f"flying {scenario.flight.track.name}")
     t0 = time.perf_counter()
     failure = None
@@ -84,23 +88,49 @@ def cmd_fly(args) -> int:
     finally:
         bar.close()
     wall = time.perf_counter() - t0
-    shutil.copyfile(args.scenario, out / "scenario.yaml")
-    record = {"scenario": str(args.scenario), "name": scenario.name, **provenance(),
-              "wall_s": wall, "failure": str(failure) if failure else None}
+    files = save_flight(out, truth, args.scenario, scenario, wall, failure)
     if truth is not None:
-        truth.save(out / "truth.npz")
-        files = plot_flight(truth, out)
-        record.update(duration_s=truth.duration_s, samples=truth.n,
-                      real_time_factor=truth.duration_s / wall)
         print(flight_summary(truth))
         print(f"\nflew {truth.duration_s:.1f} s in {wall:.2f} s wall "
-              f"({truth.duration_s / wall:.0f}x real time); wrote {out}/ "
-              f"({', '.join(f.name for f in files)}, truth.npz)")
-    (out / "run.json").write_text(json.dumps(record, indent=2))
+              f"({truth.duration_s / max(wall, 1e-9):.0f}x real time); wrote {out.path}/ "
+              f"({', '.join(f.name for f in files)})")
     if failure:
         print(f"error: {failure}", file=sys.stderr)
         return failure.exit_code
     return 0
+
+
+def save_flight(out: OutputFolder, truth, scenario_file, scenario, wall_s: float, failure=None) -> list[Path]:
+    """Write a flight (or the part flown before ``failure``) into ``out``: ``truth.npz``, the
+    flight PNGs, ``scenario.yaml`` (a copy) and ``run.json``; returns the files written."""
+    files = [out.write("scenario.yaml", lambda p: shutil.copyfile(scenario_file, p))]
+    record = {"scenario": str(scenario_file), "name": scenario.name, **provenance(),
+              "wall_s": wall_s, "failure": str(failure) if failure else None}
+    if truth is not None:
+        files.append(out.write("truth.npz", truth.save))
+        plots = plot_flight(truth, out.path)
+        out.record(plots)
+        files += plots
+        record.update(duration_s=truth.duration_s, samples=truth.n,
+                      real_time_factor=truth.duration_s / max(wall_s, 1e-9))
+    files.append(out.text("run.json", json.dumps(record, indent=2)))
+    return files
+
+
+def _fly_or_save(scenario, scenario_file, out: OutputFolder):
+    """The scenario's flight from the cache or flown; a flight that fails saves the part flown
+    in ``out/flight`` (as ``navsim fly`` does) before its :class:`FlightError` goes on."""
+    bar, update = _progress(f"flight {scenario.flight.track.name}")
+    t0 = time.perf_counter()
+    try:
+        return cached_flight(scenario.flight, progress=update)
+    except FlightError as exc:
+        folder = OutputFolder(out.path / "flight")
+        save_flight(folder, getattr(exc, "truth", None), scenario_file, scenario, time.perf_counter() - t0, exc)
+        print(f"the part flown is saved in {folder.path}/", file=sys.stderr)
+        raise
+    finally:
+        bar.close()
 
 
 def cmd_run(args) -> int:
@@ -108,21 +138,19 @@ def cmd_run(args) -> int:
 
     from navsim.errors import ScenarioError
     from navsim.metrics import score
-    from navsim.provenance import provenance
     from navsim.report import write_report
     from navsim.errors import UsageError
-    from navsim.runner import REPORT_RUNS, cached_flight, chunk_ranges, flight_key, run_closed_loop, run_monte_carlo
-    from navsim.scenario import load_scenario
+    from navsim.runner import REPORT_RUNS, chunk_ranges, flight_key, run_closed_loop, run_monte_carlo
 
     scenario = load_scenario(args.scenario)
     if not scenario.estimators:
         raise ScenarioError("has no estimators to run", file=args.scenario, key="estimators",
                             expected="a list of estimators", hint="'navsim fly' flies a track alone")
-    runs = args.runs or scenario.runs
+    runs = scenario.runs if args.runs is None else args.runs
     seed = scenario.seed if args.seed is None else args.seed
-    workers = args.workers or scenario.workers
-    out = Path(args.out) if args.out else Path("reports") / scenario.name
-    out.mkdir(parents=True, exist_ok=True)
+    workers = scenario.workers if args.workers is None else args.workers
+    folder = OutputFolder(Path(args.out) if args.out else Path("reports") / scenario.name)
+    out = folder.path
     t0 = time.perf_counter()
     from tqdm import tqdm
     loop = reference = None
@@ -131,22 +159,18 @@ def cmd_run(args) -> int:
             raise UsageError("closed-loop scenarios run on the local executor only, without --resume "
                              "(drop --executor dask and --resume)")
         cached = False
+        folder.clear_earlier()
         with tqdm(total=runs, desc=f"{runs} runs, navigation in the loop", unit="run", disable=None) as pbar:
             result, loop, reference = run_closed_loop(scenario, runs, seed, workers, progress=pbar.update)
         truth = reference.truth
     else:
-        bar, update = _progress(f"flight {scenario.flight.track.name}")
-        try:
-            truth, truth_path, cached = cached_flight(scenario.flight, progress=update)
-        except FlightError as exc:
-            bar.close()
-            print(f"error: {exc}", file=sys.stderr)
-            return exc.exit_code
-        bar.close()
+        truth, truth_path, cached = _fly_or_save(scenario, args.scenario, folder)
+        check_scenario(scenario, truth.duration_s)     # the duration flown, before any sensor
         if args.executor == "dask":            # before the store clears an earlier run's chunks
             from navsim.dask_executor import _import_distributed
             _import_distributed()
         store = open_store(out, scenario, seed, runs, args.chunk_runs, args.resume)
+        folder.clear_earlier()                # the earlier run's metrics, report, runs.npz
         todo = sum(len(ch) for ch in store.missing(chunk_ranges(runs, store.key["chunk_runs"])))
         with tqdm(total=todo, desc=f"{runs} runs" + (f", {todo} left" if args.resume else ""), unit="run",
                   disable=None) as pbar:
@@ -166,7 +190,7 @@ def cmd_run(args) -> int:
             metrics["calibration"] = calibration
     else:
         for label, h in result.histories.items():
-            metrics["estimators"][label] = score(h, scenario.settle_s, scenario.windows)
+            metrics["estimators"][label] = score(h, scenario.settle_s, scenario.windows, runs=result.runs)
             if sightings and h.sigma is not None:
                 metrics["estimators"][label]["landmarks"] = sighting_metrics(h, sightings)
         if result.calibration:
@@ -186,14 +210,13 @@ def cmd_run(args) -> int:
     record["runs_plotted"] = plotted
     if scenario.closed_loop is None:
         record.update(chunk_runs=store.key["chunk_runs"], failed_chunks=store.failed, per_run_data="chunks/")
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
+    folder.text("metrics.json", json.dumps(metrics, indent=2))
     resolved = dict(scenario.raw)
     resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": runs, "seed": seed, "workers": workers}
-    (out / "scenario.resolved.yaml").write_text(
-        f"# resolved by navsim {record['versions']['navsim']} at git {record['git_revision']}\n"
-        + yaml.safe_dump(resolved, sort_keys=False))
-    (out / "run.json").write_text(json.dumps(record, indent=2, default=str))
-    (out / "runs.npz").unlink(missing_ok=True)                # never an earlier run's
+    folder.text("scenario.resolved.yaml",
+                f"# resolved by navsim {record['versions']['navsim']} at git {record['git_revision']}\n"
+                + yaml.safe_dump(resolved, sort_keys=False))
+    folder.text("run.json", json.dumps(record, indent=2, default=str))
     if result.histories and plotted == len(result.runs):     # else the runs are in chunks/ only
         arrays = {"runs": result.runs}
         for label, h in result.histories.items():
@@ -207,8 +230,9 @@ def cmd_run(args) -> int:
                 arrays[f"{key}.euler_err_rad"] = h.euler_err_rad
         if loop:
             arrays.update({f"closed_loop.{k}": np.asarray(v) for k, v in loop.items()})
-        np.savez_compressed(out / "runs.npz", **arrays)
+        folder.write("runs.npz", lambda p: np.savez_compressed(p, **arrays))
     files = write_report(out, scenario, truth, result, metrics, record, loop, reference, sightings)
+    folder.record(files)
     rows = []
     for label, m in metrics["estimators"].items():
         rms = m.get("rms", {})
@@ -221,7 +245,9 @@ def cmd_run(args) -> int:
                      str(m["diverged_runs"])])
     print(_table(["estimator", "RMS pos N E D m", "RMS vel m/s", "RMS att deg", "NEES", "in band %",
                   "converged s", "ms/run", "diverged"], rows))
-    from navsim.report import closed_loop_lines, sighting_lines
+    from navsim.report import closed_loop_lines, divergence_lines, sighting_lines
+    if divergence_lines(metrics):
+        print("\n".join(divergence_lines(metrics)))
     if loop is not None:
         print("\n".join(closed_loop_lines(metrics["closed_loop"])[1:]))
     if sightings:
@@ -249,11 +275,17 @@ def cmd_run(args) -> int:
         print()
     note = " (interrupted: partial results)" if result.interrupted else ""
     if result.failed:
-        note += f"; {len(result.failed)} run(s) failed: see run.json"
+        run, why = min(result.failed.items())
+        note += f"; {len(result.failed)} run(s) failed, the first (run {run}): {why}"
     print(f"\n{len(result.runs)}/{runs} runs in {wall:.1f} s{note}; wrote {out}/ "
           f"(report.pdf, {len([f for f in files if f.suffix == '.png'])} PNGs, metrics.json"
           + (", runs.npz)" if (out / "runs.npz").exists() else ", per-run data in chunks/)"))
-    return 130 if result.interrupted else 0
+    if result.interrupted:
+        return 130
+    if not len(result.runs):
+        print(f"error: no run succeeded (see {out}/run.json)", file=sys.stderr)
+        return 1
+    return 0
 
 
 def open_store(out: Path, scenario, seed: int, runs: int, chunk_runs: int | None, resume: bool):
@@ -272,28 +304,24 @@ def open_store(out: Path, scenario, seed: int, runs: int, chunk_runs: int | None
 
 
 def cmd_sensors(args) -> int:
-    from navsim.runner import cached_flight
     from navsim.sensors import emulate
     from navsim.sensors.plots import channels, plot_sensor
-    from navsim.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
     if not scenario.sensors:
         print(f"error: {args.scenario} has no 'sensors'", file=sys.stderr)
         return 2
-    runs = args.runs or scenario.runs
+    runs = scenario.runs if args.runs is None else args.runs
     seed = scenario.seed if args.seed is None else args.seed
-    out = Path(args.out) if args.out else Path("reports") / scenario.name / "sensors"
-    out.mkdir(parents=True, exist_ok=True)
-    bar, update = _progress(f"flying {scenario.flight.track.name}")
-    try:
-        truth, _, _ = cached_flight(scenario.flight, progress=update)
-    finally:
-        bar.close()
+    folder = OutputFolder(Path(args.out) if args.out else Path("reports") / scenario.name / "sensors")
+    out = folder.path
+    truth, _, _ = _fly_or_save(scenario, args.scenario, folder)
+    check_scenario(scenario, truth.duration_s)
+    folder.clear_earlier()
     rows = []
     for cfg in scenario.sensors:
         data = emulate(truth, cfg, seed, range(runs))
-        plot_sensor(data, truth, out / f"sensor_{cfg.name}.png", run=0)
+        folder.record([plot_sensor(data, truth, out / f"sensor_{cfg.name}.png", run=0)])
         for label, unit, _, _, _ in channels(data, truth, 0):
             errs = np.concatenate([np.where(data.valid[r], c[3] - c[4], np.nan)
                                    for r in range(runs) for c in channels(data, truth, r) if c[0] == label])
@@ -311,8 +339,9 @@ def cmd_sweep(args) -> int:
 
     from navsim.sweep import parse_sweep, run_sweep
     _, _, _, points = parse_sweep(args.sweep)
-    out = Path(args.out) if args.out else Path("reports") / Path(args.sweep).stem
-    out.mkdir(parents=True, exist_ok=True)
+    folder = OutputFolder(Path(args.out) if args.out else Path("reports") / Path(args.sweep).stem)
+    folder.clear_earlier()
+    out = folder.path
     with tqdm(total=len(points), desc="sweep points", disable=None) as bar:
         rows, metric = run_sweep(args.sweep, args.workers, out, progress=bar.update,
                                  executor=args.executor, scheduler=args.scheduler)
@@ -320,7 +349,7 @@ def cmd_sweep(args) -> int:
     table = [[", ".join(f"{k}={v}" for k, v in p.items())] + [f"{vals.get(lb, float('nan')):.4g}"
              if vals.get(lb) is not None else "-" for lb in labels] for p, vals in rows]
     print(_table(["point"] + [f"{lb}: {metric}" for lb in labels], table))
-    (out / "sweep.json").write_text(json.dumps({"metric": metric, "points": [
+    folder.text("sweep.json", json.dumps({"metric": metric, "points": [
         {"point": p, "values": v} for p, v in rows]}, indent=2, default=str))
     import matplotlib
     matplotlib.use("Agg")
@@ -338,7 +367,7 @@ def cmd_sweep(args) -> int:
     ax.legend(fontsize=8)
     ax.set_title(f"sweep {Path(args.sweep).name}: {metric}")
     fig.tight_layout()
-    fig.savefig(out / "sweep.png", dpi=110)
+    folder.write("sweep.png", lambda p: fig.savefig(p, dpi=110))
     print(f"\nwrote {out}/ (sweep.json, sweep.png)")
     return 0
 
@@ -366,7 +395,6 @@ DEFAULT_REPLAY_ESTIMATOR = "cpf_ekf"
 def cmd_replay(args) -> int:
     from navsim.errors import UsageError
     from navsim.estimators import base
-    from navsim.provenance import provenance
     from navsim.replay import load_ulog, replay, replay_metrics
     from navsim.replay_report import difference_table, write_replay_report
 
@@ -385,13 +413,15 @@ def cmd_replay(args) -> int:
                         align_s=args.align, progress=update)
     finally:
         bar.close()
-    out = Path(args.out) if args.out else Path("reports") / f"replay_{Path(args.log).name.split('.')[0]}_{name}"
-    out.mkdir(parents=True, exist_ok=True)
+    folder = OutputFolder(Path(args.out) if args.out else
+                          Path("reports") / f"replay_{Path(args.log).name.split('.')[0]}_{name}")
+    folder.clear_earlier()
+    out = folder.path
     metrics = replay_metrics(result)
     record = provenance()
     metrics.update(wall_s=time.perf_counter() - t0, provenance=record)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=str))
-    write_replay_report(out, result, metrics, record)
+    folder.text("metrics.json", json.dumps(metrics, indent=2, default=str))
+    folder.record(write_replay_report(out, result, metrics, record))
     print(f"{name} against PX4's vehicle_attitude, after {args.settle:g} s:")
     print(_table(*difference_table(metrics)))
     for reset in metrics["resets"]:
@@ -410,7 +440,6 @@ def cmd_schema(args) -> int:
 
 
 def cmd_validate(args) -> int:
-    from navsim.scenario import load_scenario
     for path in args.files:
         s = load_scenario(path)
         print(f"{path}: ok ({s.name}: track {s.flight.track.name}, "
@@ -433,11 +462,52 @@ def cmd_list(args) -> int:
     return 0
 
 
+def _number(kind, minimum=None, maximum=None, exclusive_minimum=None):
+    """An argparse ``type`` reading ``kind`` within bounds; a value out of them is a usage
+    error (exit 2) naming the bound."""
+    def read(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not {'an integer' if kind is int else 'a number'}")
+        if kind is float and not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{text} is not a finite number")
+        if minimum is not None and value < minimum:
+            raise argparse.ArgumentTypeError(f"{text} is below {minimum}")
+        if exclusive_minimum is not None and value <= exclusive_minimum:
+            raise argparse.ArgumentTypeError(f"{text} is not above {exclusive_minimum}")
+        if maximum is not None and value > maximum:
+            raise argparse.ArgumentTypeError(f"{text} is above {maximum}")
+        return value
+    read.__name__ = kind.__name__
+    return read
+
+
+RUNS = _number(int, minimum=1)
+SEED = _number(int, minimum=0, maximum=2**63 - 1)
+WORKERS = _number(int, minimum=1, maximum=256)
+#: the Dask schemes a scheduler address may use
+SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "inproc", "ucx")
+
+
+def scheduler_address(text: str) -> str:
+    """A Dask scheduler address ``scheme://host:port`` (argparse ``type``)."""
+    url = urllib.parse.urlsplit(text)
+    try:
+        port = url.port
+    except ValueError:
+        port = None
+    if url.scheme not in SCHEDULER_SCHEMES or not url.hostname or (url.scheme != "inproc" and port is None):
+        raise argparse.ArgumentTypeError(f"'{text}' is not a scheduler address (expected scheme://host:port, "
+                                         f"scheme one of {', '.join(SCHEDULER_SCHEMES)}, e.g. tcp://10.0.0.5:8786)")
+    return text
+
+
 def _executor_options(p) -> None:
     p.add_argument("--executor", choices=("local", "dask"), default="local",
                    help="where the chunks of runs go: a process pool here (local, default) or Dask "
                    "distributed tasks (dask; needs pip install 'navsim[dask]')")
-    p.add_argument("--scheduler", metavar="ADDRESS",
+    p.add_argument("--scheduler", metavar="ADDRESS", type=scheduler_address,
                    help="with --executor dask: a running scheduler (tcp://host:8786); without it a "
                    "LocalCluster of --workers processes is started")
 
@@ -454,19 +524,20 @@ def build_parser() -> argparse.ArgumentParser:
                        "the truth (truth.npz), PNG plots, run.json and print a summary.")
     p.add_argument("scenario", help="scenario YAML file")
     p.add_argument("--out", help="output folder (default reports/<name>/flight)")
-    p.add_argument("--rate-hz", type=float, help="simulation and truth rate (default: scenario's, 100)")
+    p.add_argument("--rate-hz", type=_number(float, minimum=20.0, maximum=1000.0),
+                   help="simulation and truth rate, 20-1000 Hz (default: scenario's, 100)")
     p.set_defaults(func=cmd_fly)
     p = sub.add_parser("run", help="run a scenario's Monte Carlo and write its report",
                        description="Fly the track (cached), emulate the sensors and run every "
                        "estimator over the Monte Carlo runs; write report.pdf, PNGs, metrics.json, "
                        "scenario.resolved.yaml and runs.npz; print a summary table.")
     p.add_argument("scenario", help="scenario YAML file")
-    p.add_argument("--runs", type=int, help="Monte Carlo runs (default: montecarlo.runs)")
-    p.add_argument("--seed", type=int, help="seed (default: montecarlo.seed)")
-    p.add_argument("--workers", type=int, help="worker processes (default: montecarlo.workers)")
+    p.add_argument("--runs", type=RUNS, help="Monte Carlo runs, >= 1 (default: montecarlo.runs)")
+    p.add_argument("--seed", type=SEED, help="seed, >= 0 (default: montecarlo.seed)")
+    p.add_argument("--workers", type=WORKERS, help="worker processes, 1-256 (default: montecarlo.workers)")
     p.add_argument("--out", help="output folder (default reports/<name>)")
     _executor_options(p)
-    p.add_argument("--chunk-runs", type=int, metavar="N",
+    p.add_argument("--chunk-runs", type=RUNS, metavar="N",
                    help="runs per chunk, the unit of work streamed to <out>/chunks (default 250; "
                    "the numbers do not depend on it)")
     p.add_argument("--resume", action="store_true",
@@ -478,8 +549,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "Carlo runs, write one PNG per sensor (output against truth, error) and print "
                        "error statistics over all runs.")
     p.add_argument("scenario", help="scenario YAML file")
-    p.add_argument("--runs", type=int, help="number of runs (default: the scenario's montecarlo.runs)")
-    p.add_argument("--seed", type=int, help="seed (default: the scenario's montecarlo.seed)")
+    p.add_argument("--runs", type=RUNS, help="number of runs (default: the scenario's montecarlo.runs)")
+    p.add_argument("--seed", type=SEED, help="seed (default: the scenario's montecarlo.seed)")
     p.add_argument("--out", help="output folder (default reports/<name>/sensors)")
     p.set_defaults(func=cmd_sensors)
     p = sub.add_parser("validate", help="check scenario files without running them",
@@ -490,7 +561,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Run every point of a sweep file (a grid or a list of changes "
                        "to a scenario), each a Monte Carlo; print a table and plot the chosen metric.")
     p.add_argument("sweep", help="sweep YAML file")
-    p.add_argument("--workers", type=int, help="worker processes (default: the scenario's)")
+    p.add_argument("--workers", type=WORKERS, help="worker processes (default: the scenario's)")
     p.add_argument("--out", help="output folder (default reports/<sweep name>)")
     _executor_options(p)
     p.set_defaults(func=cmd_sweep)
@@ -503,13 +574,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("log", help="PX4 .ulg file (example: tests/data/px4_quad_real_69s.ulg.gz)")
     p.add_argument("--estimator", help=f"registered estimator (default {DEFAULT_REPLAY_ESTIMATOR})")
     p.add_argument("--out", help="output folder (default reports/replay_<log>_<estimator>)")
-    p.add_argument("--settle", type=float, default=10.0,
+    p.add_argument("--settle", type=_number(float, minimum=0.0), default=10.0,
                    help="seconds left out of the metrics while the estimator converges (default 10)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="estimator parameter (YAML value), repeatable: --set period_s=0.02")
-    p.add_argument("--imu-rate", type=float,
+    p.add_argument("--imu-rate", type=_number(float, exclusive_minimum=0.0, maximum=10000.0),
                    help="IMU grid rate, Hz (default: the log's, 250 Hz for PX4's sensor_combined)")
-    p.add_argument("--align", type=float, default=1.0,
+    p.add_argument("--align", type=_number(float, exclusive_minimum=0.0), default=1.0,
                    help="coarse-alignment window from the first sample, s (default 1)")
     p.add_argument("--allow-damaged", action="store_true",
                    help="replay what a truncated or corrupt log still holds instead of refusing it")
@@ -535,6 +606,9 @@ def main(argv: list[str] | None = None) -> int:
     except NavsimError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except OSError as exc:                     # the disk, a permission: the environment, not a bug
+        print(f"error: {OutputError(exc.filename or '?', exc)}", file=sys.stderr)
+        return OutputError.exit_code
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import errno
+
 
 class NavsimError(Exception):
     """Base class of the errors the command line reports without a traceback."""
@@ -71,3 +73,17 @@ class UsageError(NavsimError):
     """A command line that cannot be served: an unknown estimator, a parameter it does not take."""
 
     exit_code = 2
+
+
+class OutputError(NavsimError):
+    """The operating system refused an output: a folder that is a file, cannot be created or
+    written, a full disk. Names the path and the system's reason."""
+
+    exit_code = 4
+
+    def __init__(self, path, exc: OSError | None = None, *, reason: str | None = None):
+        self.path = str(path)
+        why = reason or (exc.strerror if exc is not None and exc.strerror else str(exc))
+        super().__init__(f"{self.path}: {why}"
+                         + ("\n  hint: free some space, or write elsewhere with --out"
+                            if exc is not None and exc.errno == errno.ENOSPC else ""))

@@ -13,8 +13,44 @@ import numpy as np
 from scipy.stats import chi2
 
 
+#: diverged runs listed by run in an estimator's ``divergence`` metrics (all are counted)
+DIVERGENCE_LISTED = 20
+
+
 def _rms(x, axis):
     return np.sqrt(np.nanmean(x ** 2, axis=axis))
+
+
+class DivergenceLog:
+    """The runs of an estimator left out of its statistics, fed one history at a time: their
+    count, the count per cause, and the first :data:`DIVERGENCE_LISTED` with when and why
+    (:attr:`~navsim.montecarlo.EstimatorHistory.divergence`; ``"not recorded"`` where the
+    history has no record)."""
+
+    def __init__(self):
+        self.count = 0
+        self.causes: dict = {}
+        self.listed: list = []
+        self.rows = 0                 # runs fed so far: the default run numbers
+
+    def add(self, h, good, runs=None) -> None:
+        """Feed a history ``h`` whose runs ``good`` are counted; ``runs``: their run numbers
+        (default: the runs fed so far, counted from 0)."""
+        good = np.asarray(good, bool)
+        runs = np.arange(self.rows, self.rows + good.size) if runs is None else np.asarray(runs)
+        self.rows += good.size
+        records = getattr(h, "divergence", None)
+        for b in np.flatnonzero(~good):
+            rec = records[b] if records is not None else None
+            t_s, cause = (float(rec[0]), str(rec[1])) if rec is not None else (None, "not recorded")
+            self.count += 1
+            self.causes[cause] = self.causes.get(cause, 0) + 1
+            if len(self.listed) < DIVERGENCE_LISTED:
+                self.listed.append({"run": int(runs[b]), "t_s": t_s, "cause": cause})
+
+    def result(self) -> dict:
+        """``{"count", "causes": {cause: runs}, "runs": [{"run", "t_s", "cause"}, ...]}``."""
+        return {"count": self.count, "causes": dict(self.causes), "runs": list(self.listed)}
 
 
 def chi2_band(dim: int, runs: int, p: float = 0.95) -> tuple[float, float]:
@@ -35,11 +71,13 @@ def window_quantities(h, good):
     return out
 
 
-def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
+def score(h, settle_s: float = 0.0, windows=(), good=None, runs=None) -> dict:
     """The metrics of one estimator's :class:`~navsim.montecarlo.EstimatorHistory`; ``good``
-    selects the runs counted (diverged ones are excluded by default). Errors, NEES and NIS are
-    scored from ``settle_s`` on (``nees.average_from_start`` keeps the whole run); the
-    convergence time and the windows use the whole run."""
+    selects the runs counted (diverged ones are excluded by default), and the runs left out
+    are listed with when and why in ``divergence`` (:class:`DivergenceLog`; ``runs``: the run
+    numbers of the history's rows, default 0, 1, ...). Errors, NEES and NIS are scored from
+    ``settle_s`` on (``nees.average_from_start`` keeps the whole run); the convergence time
+    and the windows use the whole run."""
     if good is None:
         good = ~np.asarray(h.diverged, bool)
     after = h.t_s >= settle_s
@@ -48,6 +86,10 @@ def score(h, settle_s: float = 0.0, windows=(), good=None) -> dict:
     att = np.degrees(h.att_err_rad[good][:, after])
     out = {"runs_counted": int(good.sum()), "diverged_runs": int((~good).sum()),
            "settle_s": settle_s}
+    if not good.all():
+        log = DivergenceLog()
+        log.add(h, good, runs)
+        out["divergence"] = log.result()
     if good.sum() == 0 or not after.any():
         return out
     out["rms"] = {"pos_m": _rms(pos, (0, 1)).tolist(), "vel_mps": _rms(vel, (0, 1)).tolist(),

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
-from navsim.metrics import chi2_band, convergence_time, window_quantities
+from navsim.metrics import DivergenceLog, chi2_band, convergence_time, window_quantities
 
 BINS_PER_DECADE = 400
 _LOG_MIN, _LOG_MAX = -15.0, 15.0
@@ -146,6 +146,7 @@ class EstimatorScore:
         self.pct = AbsPercentiles()
         self.acc: dict = {}
         self.good = self.bad = 0
+        self.divergence = DivergenceLog()
         self.final: list = []
         self.resets: list | None = None
         self.costs: list = []
@@ -161,8 +162,9 @@ class EstimatorScore:
             self.acc[key] = make()
         return self.acc[key]
 
-    def add(self, h, good=None) -> None:
-        """Feed one chunk's :class:`~navsim.montecarlo.EstimatorHistory` (``good``: runs counted)."""
+    def add(self, h, good=None, runs=None) -> None:
+        """Feed one chunk's :class:`~navsim.montecarlo.EstimatorHistory` (``good``: runs counted;
+        ``runs``: their run numbers, default the runs fed so far counted from 0)."""
         if good is None:
             good = ~np.asarray(h.diverged, bool)
         good = np.asarray(good, bool)
@@ -172,6 +174,7 @@ class EstimatorScore:
             self.t_s = h.t_s
             self.good += int(good.sum())
             self.bad += int((~good).sum())
+            self.divergence.add(h, good, runs)
             self.has_nees = h.nees is not None
             self.nis_dim.update(h.nis_dim)
             self.nis_keys += [k for k in h.nis if k not in self.nis_keys]
@@ -244,6 +247,8 @@ class EstimatorScore:
         t_s = self.t_s
         after = t_s >= self.settle_s
         out = {"runs_counted": self.good, "diverged_runs": self.bad, "settle_s": self.settle_s}
+        if self.bad:
+            out["divergence"] = self.divergence.result()
         if self.good == 0 or not after.any():
             return out
         acc, p = self.acc, self.pct.value
@@ -357,7 +362,7 @@ def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> tuple[d
     scores, thin, calib = {}, {}, {}
     for part in parts():
         for label, h in part[1].items():
-            scores.setdefault(label, EstimatorScore(settle_s, windows)).add(h)
+            scores.setdefault(label, EstimatorScore(settle_s, windows)).add(h, runs=part[0])
             if sightings and h.sigma is not None:
                 idx = _sighting_epochs(h.t_s, sightings)
                 thin.setdefault(label, []).append((h.t_s[idx], h.pos_err_m[:, idx], h.diverged))
@@ -367,7 +372,7 @@ def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> tuple[d
         s.second_pass()
     for part in parts():
         for label, h in part[1].items():
-            scores[label].add(h)
+            scores[label].add(h, runs=part[0])
     out = {label: s.result() for label, s in scores.items()}
     for label, pieces in thin.items():
         h = SimpleNamespace(t_s=pieces[0][0], pos_err_m=np.concatenate([p[1] for p in pieces]),

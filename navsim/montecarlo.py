@@ -4,6 +4,14 @@
 every estimator from them, feeds the IMU increments at the IMU rate and the other sensors at
 each estimator's filter epochs, and records at every epoch the errors against the truth, the
 filter's 1-sigma, NEES and the innovations' NIS (:class:`EstimatorHistory`).
+
+A run of an estimator is flagged diverged, and stays flagged, at the first recorded epoch where
+its solution is not finite, its navigation covariance is not a covariance
+(:func:`covariance_faults`: not finite, not symmetric, or not positive semi-definite by a
+Cholesky factorisation), its NEES exceeds :data:`NEES_BOUND`, or the estimator itself reports
+it; the time and the cause go to :attr:`EstimatorHistory.divergence`. An exception raised by an
+estimator flags all its runs of the batch with the exception as the cause, and the loop goes on
+without it (NaN errors from there) while the other estimators continue.
 """
 
 from __future__ import annotations
@@ -15,11 +23,20 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from navsim import earth
+from navsim.estimators.kalman import solve_runs
 from navsim.sensors.base import run_generators
 from navsim.strapdown import NavState, rotation, state_from_truth
 from navsim.transform import dcm_from_quat, euler_from_dcm, wrap_angle
 
 ARCSEC = math.pi / 180 / 3600
+#: NEES (9 navigation errors) above which a run is flagged diverged: an error of 1e6 sigma,
+#: which no working filter reaches (a consistent one averages 9)
+NEES_BOUND = 1e12
+#: largest asymmetry of a covariance scaled to a unit diagonal, relative to its largest entry
+SYMMETRY_TOL = 1e-6
+#: the scaled covariance plus this times the identity must have a Cholesky factorisation
+#: (positive semi-definite up to rounding: a zero initial uncertainty is not a divergence)
+PSD_TOL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -98,6 +115,69 @@ class EstimatorHistory:
     euler_err_rad: np.ndarray | None = None
     #: per run, the estimator's reset events ``(t_s, cause)`` (P4's divergence monitor), or None
     resets: list | None = None
+    #: per run, None or ``(t_s, cause)``: when and why it was first flagged diverged (None: not
+    #: recorded, as in histories built by hand)
+    divergence: list | None = None
+
+
+#: the causes of a divergence flag, by code (0: none); :func:`covariance_codes` gives 1-3
+CAUSES = (None, "covariance not finite", "covariance not symmetric", "covariance not positive definite",
+          "non-finite state", "NEES above bound", "flagged by the estimator")
+
+
+def covariance_codes(P: np.ndarray) -> np.ndarray:
+    """Per run, why the covariance ``P`` is not a covariance: a code of :data:`CAUSES` (0 where
+    it is one, 1 not finite, 2 not symmetric, 3 not positive definite).
+
+    The checks run on ``P`` scaled to a unit diagonal (``P_ij / sqrt(P_ii P_jj)``, a zero
+    variance left unscaled), so that the attitude (rad), velocity (m/s) and position (rad, m)
+    blocks weigh alike: a non-finite entry, a negative variance, an asymmetry above
+    :data:`SYMMETRY_TOL` of the largest entry, or no Cholesky factorisation of the scaled
+    matrix plus :data:`PSD_TOL` times the identity (not positive semi-definite). The batch is
+    factorised at once; only when that fails are its runs factorised one at a time.
+
+    Parameters
+    ----------
+    P : (B, n, n) array
+        The covariances of the runs.
+
+    Returns
+    -------
+    (B,) int array
+    """
+    n = P.shape[-1]
+    finite = np.all(np.isfinite(P), axis=(1, 2))
+    Pf = np.where(finite[:, None, None], P, np.eye(n))
+    d = np.diagonal(Pf, axis1=1, axis2=2)
+    s = np.sqrt(np.where(d > 0, d, 1.0))
+    Pn = Pf / (s[:, :, None] * s[:, None, :])
+    asym = np.max(np.abs(Pn - np.swapaxes(Pn, -1, -2)), axis=(1, 2))
+    asym = asym > SYMMETRY_TOL * np.maximum(np.max(np.abs(Pn), axis=(1, 2)), 1.0)
+    A = 0.5 * (Pn + np.swapaxes(Pn, -1, -2)) + PSD_TOL * np.eye(n)
+    definite = ~(d < 0).any(-1) & _cholesky_ok(A)
+    return np.select([~finite, asym, ~definite], [1, 2, 3], 0)
+
+
+def covariance_faults(P: np.ndarray) -> list:
+    """Per run, the cause (:data:`CAUSES`) why ``P`` is not a covariance, or None
+    (:func:`covariance_codes`)."""
+    return [CAUSES[c] for c in covariance_codes(P)]
+
+
+def _cholesky_ok(A: np.ndarray) -> np.ndarray:
+    """``(B,)`` whether each matrix of ``A`` has a Cholesky factorisation."""
+    try:
+        np.linalg.cholesky(A)
+        return np.ones(A.shape[0], bool)
+    except np.linalg.LinAlgError:
+        pass
+    ok = np.ones(A.shape[0], bool)
+    for b in range(A.shape[0]):
+        try:
+            np.linalg.cholesky(A[b])
+        except np.linalg.LinAlgError:
+            ok[b] = False
+    return ok
 
 
 def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialErrors, seed: int,
@@ -105,7 +185,10 @@ def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialError
     """Run ``estimators`` (label -> estimator object) on the runs ``runs``.
 
     ``imu`` is the IMU :class:`~navsim.sensors.base.SensorData` of these runs, ``sensors`` the
-    other sensors' data by name. All estimators share the time loop and the initial errors.
+    other sensors' data by name. All estimators share the time loop and the initial errors. An
+    estimator that raises (an ``Exception``) in ``initialize``, ``propagate``, ``epoch`` or
+    ``solution`` has all its runs flagged diverged with the exception as the cause and is not
+    called again; its errors are NaN from there, and the other estimators go on.
     """
     runs = list(runs)
     errors = initial.draw(seed, runs)
@@ -113,36 +196,72 @@ def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialError
     step = int(round(dt / truth.dt_s))
     nav0 = perturbed_start(truth, errors, 0)
     sigma0 = initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0])
-    for est in estimators.values():
-        if hasattr(est, "noise_sigma0"):
-            est.initialize(nav0, {**sigma0, **est.noise_sigma0()})
-        else:
-            est.initialize(nav0, sigma0)
-    rec = {label: _Recorder(label) for label in estimators}
+    rec = {label: _Recorder(label, len(runs)) for label in estimators}
+    for label, est in estimators.items():
+        try:
+            if hasattr(est, "noise_sigma0"):
+                est.initialize(nav0, {**sigma0, **est.noise_sigma0()})
+            else:
+                est.initialize(nav0, sigma0)
+            rec[label].add(est, truth, 0, 0.0, [])
+        except Exception as exc:  # one estimator's failure must not stop the others
+            rec[label].fail(0.0, exc)
+            if not rec[label].t:
+                rec[label].add_nan(0.0)
     dth, dv = imu.values["dtheta_b_rad"], imu.values["dv_b_mps"]
     n = dth.shape[1]
     epoch_every = {label: int(round(est.period_s / dt)) for label, est in estimators.items()}
-    for label, est in estimators.items():
-        rec[label].add(est, truth, 0, 0.0, [])
-    clock = time.perf_counter
     for i in range(1, n):
         t = imu.t_s[i]
         for label, est in estimators.items():
-            c0 = clock()
-            est.propagate(dth[:, i], dv[:, i], dt)
-            c1 = clock()
-            rec[label].propagate_s += c1 - c0
-            if i % epoch_every[label] == 0:
-                innov = est.epoch(t, sensors)
-                rec[label].epoch_s += clock() - c1
-                rec[label].add(est, truth, i * step, t, innov)
+            _advance(rec[label], est, truth, dth[:, i], dv[:, i], dt, i % epoch_every[label] == 0,
+                     i * step, t, sensors)
         if progress is not None and i % 1000 == 0:
             progress(i, n)
     return {label: r.history(estimators[label]) for label, r in rec.items()}
 
 
+def _advance(rec, est, truth, dtheta_b_rad, dv_b_mps, dt_s: float, is_epoch: bool, k: int, t_s: float,
+             sensors: dict) -> None:
+    """One IMU step of one estimator: ``propagate``, and at its epochs ``epoch`` and the record
+    of truth sample ``k``; an exception flags the estimator's runs and stops it
+    (:meth:`_Recorder.fail`), a stopped estimator gets a NaN record at its epochs."""
+    if rec.failed:
+        if is_epoch:
+            rec.add_nan(t_s)
+        return
+    clock = time.perf_counter
+    recorded = len(rec.t)
+    try:
+        c0 = clock()
+        est.propagate(dtheta_b_rad, dv_b_mps, dt_s)
+        c1 = clock()
+        rec.propagate_s += c1 - c0
+        if is_epoch:
+            innov = est.epoch(t_s, sensors)
+            rec.epoch_s += clock() - c1
+            rec.add(est, truth, k, t_s, innov)
+    except Exception as exc:  # one estimator's failure must not stop the others
+        rec.fail(t_s, exc)
+        if is_epoch and len(rec.t) == recorded:
+            rec.add_nan(t_s)
+
+
+def _nees(P: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``(B,)`` NEES ``e^T P^-1 e``; NaN in a run whose ``P`` is singular."""
+    return np.einsum("bi,bi->b", e, solve_runs(P, e[..., None])[..., 0])
+
+
+def _state_finite(sol, *errors) -> np.ndarray:
+    """``(B,)`` whether a run's errors and estimated biases are all finite."""
+    parts = [x for x in (*errors, sol.gyro_bias, sol.accel_bias) if x is not None]
+    return np.all(np.isfinite(np.concatenate([np.reshape(x, (x.shape[0], -1)) for x in parts], -1)), -1)
+
+
 class _Recorder:
-    def __init__(self, label):
+    """The records of one estimator over the batch, its divergence flags and their causes."""
+
+    def __init__(self, label, runs: int | None = None):
         self.label = label
         self.t, self.att, self.vel, self.pos, self.sig, self.nees = [], [], [], [], [], []
         self.euler = []
@@ -150,31 +269,79 @@ class _Recorder:
         self.nis: dict = {}
         self.nis_dim: dict = {}
         self.propagate_s = self.epoch_s = 0.0
+        self.runs = runs
+        self.flagged = None if runs is None else np.zeros(runs, bool)
+        self.why: list = [None] * (runs or 0)
+        self.failed = False          #: the estimator raised: not called again
+        self.extra: dict = {}        #: its last solution's ``extra``
 
     def add(self, est, truth, k, t, innovations):
+        """Record the estimator's solution against truth sample ``k`` at time ``t`` (s)."""
         sol = est.solution()
         phi, dv, pos_m, pos_filter = nav_errors(sol.nav, truth, k)
+        euler = wrap_angle(euler_from_dcm(sol.nav.C_nb) - truth.euler_rad[k])
+        nees = sig = None
+        if sol.P_nav is not None:
+            P = sol.P_nav
+            nees = _nees(P, np.concatenate([phi, dv, pos_filter], -1))
+            d = np.sqrt(np.maximum(np.diagonal(P, axis1=1, axis2=2), 0.0)).copy()
+            r_m, r_n = earth.radii(truth.lat_rad[k])
+            d[:, 6] *= r_m + truth.h_m[k]
+            d[:, 7] *= (r_n + truth.h_m[k]) * np.cos(truth.lat_rad[k])
+            sig = d
+        nis = [(f"{inn.measurement}:{inn.sensor}", inn.nis, inn.y.shape[-1]) for inn in innovations]
+        self._check(t, sol, nees, phi, dv, pos_m, euler)
         self.t.append(t)
         self.att.append(phi)
-        self.euler.append(wrap_angle(euler_from_dcm(sol.nav.C_nb) - truth.euler_rad[k]))
+        self.euler.append(euler)
         self.vel.append(dv)
         self.pos.append(pos_m)
         if sol.gyro_bias is not None:
             self.bg.append(sol.gyro_bias.copy())
             self.ba.append(sol.accel_bias.copy())
-        if sol.P_nav is not None:
-            P = sol.P_nav
-            e = np.concatenate([phi, dv, pos_filter], -1)
-            self.nees.append(np.einsum("bi,bi->b", e, np.linalg.solve(P, e[..., None])[..., 0]))
-            d = np.sqrt(np.maximum(np.diagonal(P, axis1=1, axis2=2), 0.0)).copy()
-            r_m, r_n = earth.radii(truth.lat_rad[k])
-            d[:, 6] *= r_m + truth.h_m[k]
-            d[:, 7] *= (r_n + truth.h_m[k]) * np.cos(truth.lat_rad[k])
-            self.sig.append(d)
-        for inn in innovations:
-            key = f"{inn.measurement}:{inn.sensor}"
-            self.nis.setdefault(key, []).append((len(self.t) - 1, inn.nis))
-            self.nis_dim[key] = inn.y.shape[-1]
+        if nees is not None:
+            self.nees.append(nees)
+            self.sig.append(sig)
+        for key, v, dim in nis:
+            self.nis.setdefault(key, []).append((len(self.t) - 1, v))
+            self.nis_dim[key] = dim
+        self.extra = sol.extra
+
+    def _check(self, t, sol, nees, *errors) -> None:
+        """Flag the runs not flagged yet whose solution at ``t`` has diverged, with the cause."""
+        B = errors[0].shape[0]
+        if self.flagged is None:
+            self.runs, self.flagged, self.why = B, np.zeros(B, bool), [None] * B
+        if self.flagged.all():
+            return
+        cov = covariance_codes(sol.P_nav) if sol.P_nav is not None else np.zeros(B, int)
+        big = nees > NEES_BOUND if nees is not None else np.zeros(B, bool)
+        own = np.broadcast_to(np.asarray(sol.extra.get("diverged", False), bool), (B,))
+        code = np.select([~_state_finite(sol, *errors), cov > 0, big, own], [4, cov, 5, 6], 0)
+        code[self.flagged] = 0
+        self._flag(t, [CAUSES[c] for c in code] if code.any() else [])
+
+    def _flag(self, t, cause: list) -> None:
+        for b, c in enumerate(cause):
+            if c is not None and not self.flagged[b]:
+                self.flagged[b] = True
+                self.why[b] = (float(t), c)
+
+    def fail(self, t, exc: Exception) -> None:
+        """The estimator raised ``exc`` at ``t`` (s): flag every run not flagged yet with it."""
+        self.failed = True
+        if self.flagged is not None:
+            self._flag(t, [f"{type(exc).__name__}: {exc}"] * self.runs)
+
+    def add_nan(self, t) -> None:
+        """A record of NaN errors at ``t`` (s), for an estimator that has stopped."""
+        nan = np.full((self.runs, 3), np.nan)
+        self.t.append(t)
+        for xs in (self.att, self.euler, self.vel, self.pos) + ((self.bg, self.ba) if self.bg else ()):
+            xs.append(nan)
+        if self.sig:
+            self.sig.append(np.full((self.runs, self.sig[0].shape[-1]), np.nan))
+            self.nees.append(np.full(self.runs, np.nan))
 
     def history(self, est) -> EstimatorHistory:
         E = len(self.t)
@@ -185,17 +352,26 @@ class _Recorder:
             for e, v in items:
                 arr[:, e] = v
             nis[key] = arr
+        extra = self.extra
+        if not self.failed:
+            try:
+                extra = est.solution().extra
+            except Exception as exc:  # one estimator's failure must not stop the others
+                self.fail(self.t[-1], exc)
+        diverged = np.asarray(extra.get("diverged", False)) | ~np.all(np.isfinite(stack(self.pos)), axis=(1, 2))
+        self._flag(self.t[-1], ["flagged by the estimator" if d else None
+                                for d in np.broadcast_to(diverged, (self.runs,))])
         return EstimatorHistory(
             label=self.label, t_s=np.array(self.t), att_err_rad=stack(self.att),
             vel_err_mps=stack(self.vel), pos_err_m=stack(self.pos),
             sigma=stack(self.sig) if self.sig else None,
             nees=np.stack(self.nees, axis=1) if self.nees else None, nis=nis, nis_dim=self.nis_dim,
-            diverged=np.asarray(est.solution().extra.get("diverged", False)) | ~np.all(
-                np.isfinite(stack(self.pos)), axis=(1, 2)),
+            diverged=diverged | self.flagged,
             gyro_bias=stack(self.bg) if self.bg else None, accel_bias=stack(self.ba) if self.ba else None,
             cost={"propagate_s": self.propagate_s, "epoch_s": self.epoch_s, "runs": len(self.pos[0]),
                   "epochs": E - 1, "batches": 1},
-            euler_err_rad=stack(self.euler), resets=_copy_resets(est.solution().extra.get("resets")))
+            euler_err_rad=stack(self.euler), resets=_copy_resets(extra.get("resets")),
+            divergence=list(self.why))
 
 
 def _copy_resets(resets):

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from navsim.outputs import write_atomic
 from navsim.replay import AXES, ReplayResult
 from navsim.report import _plt, _table_lines, _text_page
 
@@ -84,15 +85,15 @@ def write_replay_report(out: Path, result: ReplayResult, metrics: dict, record: 
     from matplotlib.backends.backend_pdf import PdfPages
     out = Path(out)
     fig = attitude_figure(result)
-    png = out / "attitude.png"
-    fig.savefig(png, dpi=110)
+    png = write_atomic(out / "attitude.png", lambda p: fig.savefig(p, dpi=110))
     page = _text_page(f"navsim replay: {result.log.path.name}, {result.estimator}",
                       summary_lines(metrics, record))
-    pdf_path = out / "replay.pdf"
-    with PdfPages(pdf_path) as pdf:
-        pdf.savefig(page)
-        pdf.savefig(fig)
-        pdf.infodict()["Title"] = f"navsim replay {result.log.path.name}"
+    def write_pdf(path):
+        with PdfPages(path) as pdf:
+            pdf.savefig(page)
+            pdf.savefig(fig)
+            pdf.infodict()["Title"] = f"navsim replay {result.log.path.name}"
+    pdf_path = write_atomic(out / "replay.pdf", write_pdf)
     plt.close(page)
     plt.close(fig)
     return [png, pdf_path]

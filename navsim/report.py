@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import os
 import textwrap
 import warnings
 from pathlib import Path
 
 import numpy as np
 
+from navsim.errors import OutputError
 from navsim.metrics import chi2_band, lookup
+from navsim.outputs import temporary_name, write_atomic
 
 AXES = {"pos": ("position error", "m", ["north", "east", "down"]),
         "vel": ("velocity error", "m/s", ["north", "east", "down"]),
@@ -54,6 +57,22 @@ def _fmt(v):
     return f"{v:.4g}"
 
 
+def divergence_lines(metrics: dict) -> list[str]:
+    """The runs flagged diverged (excluded from the statistics) per estimator: how many, why,
+    and the first listed runs with the time each was flagged."""
+    lines = []
+    for label, m in metrics["estimators"].items():
+        div = m.get("divergence")
+        if not div:
+            continue
+        causes = ", ".join(f"{cause}: {n}" for cause, n in div["causes"].items())
+        listed = [f"run {r['run']} at {r['t_s']:.1f} s" for r in div["runs"][:6]]
+        more = f" (+{div['count'] - len(listed)} more)" if div["count"] > len(listed) else ""
+        lines += ["", f"{label}: {div['count']} of {m['runs_counted'] + m['diverged_runs']} runs flagged diverged "
+                  f"and excluded ({causes})", "  " + ", ".join(listed) + more]
+    return lines
+
+
 def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
     lines = textwrap.wrap(scenario.description.strip() or "(no description)", 100)
     lines += ["", f"scenario file : {record['scenario']}", f"track         : {scenario.flight.track.name}",
@@ -87,6 +106,7 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
             if "nees" in qs:
                 lines += [f"  NEES average {qs['nees']['average']:.3g}, "
                           f"{qs['nees']['fraction_inside'] * 100:.0f} % of the epochs inside the 95 % band"]
+    lines += divergence_lines(metrics)
     lines += closed_loop_lines(metrics.get("closed_loop"))
     lines += sighting_lines(metrics)
     from navsim.report_attitude import attitude_lines
@@ -510,17 +530,22 @@ def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict
         pages += calibration_figures(result.calibration, result.histories, metrics, scenario.windows)
     files = []
     fmts = scenario.report.get("formats", ["pdf", "png"])
-    pdf = PdfPages(out / "report.pdf") if "pdf" in fmts else None
-    for name, fig in pages:
-        if "png" in fmts:
-            files.append(out / f"{name}.png")
-            fig.savefig(files[-1], dpi=110)
+    pdf_tmp = temporary_name(out / "report.pdf")
+    pdf = PdfPages(pdf_tmp) if "pdf" in fmts else None     # renamed once complete
+    try:
+        for name, fig in pages:
+            if "png" in fmts:
+                files.append(write_atomic(out / f"{name}.png", lambda p: fig.savefig(p, dpi=110)))
+            if pdf is not None:
+                pdf.savefig(fig)
+            plt.close(fig)
         if pdf is not None:
-            pdf.savefig(fig)
-        plt.close(fig)
-    if pdf is not None:
-        d = pdf.infodict()
-        d["Title"] = f"navsim report: {scenario.name}"
-        pdf.close()
-        files.append(out / "report.pdf")
+            pdf.infodict()["Title"] = f"navsim report: {scenario.name}"
+            pdf.close()
+            os.replace(pdf_tmp, out / "report.pdf")
+            files.append(out / "report.pdf")
+    except OSError as exc:
+        raise OutputError(exc.filename or out, exc) from None
+    finally:
+        pdf_tmp.unlink(missing_ok=True)
     return files

@@ -23,6 +23,7 @@ import numpy as np
 import navsim
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import fly
+from navsim.errors import ScenarioError
 from navsim.flight.truth import Truth
 
 CHUNK_RUNS = 250
@@ -93,8 +94,16 @@ class RunResult:
 
 
 def _chunk(args):
-    """Worker: sensors and estimators of one chunk of runs."""
-    truth_or_path, scenario, seed, runs = args
+    """Worker: sensors and estimators of one chunk of runs; a :class:`ScenarioError` raised
+    there names the scenario's file."""
+    try:
+        return _chunk_work(*args)
+    except ScenarioError as exc:
+        raise (exc.with_file(str(args[1].path)) if exc.file is None and args[1].path else exc) from None
+
+
+def _chunk_work(truth_or_path, scenario, seed, runs):
+    """The sensors and estimators of the runs ``runs``: ``(runs, histories, truth_bias, calibration)``."""
     truth = Truth.load(truth_or_path) if isinstance(truth_or_path, (str, Path)) else truth_or_path
     from navsim.estimators.factory import build
     from navsim.montecarlo import run_batch
@@ -146,13 +155,17 @@ def _merge(parts):
     for label in labels:
         hs = [p[1][label] for p in parts]
         cat = lambda name: None if getattr(hs[0], name) is None else np.concatenate([getattr(h, name) for h in hs])
+        # per-run divergence records; a history without them (built by hand) has None per run
+        divergence = None if all(h.divergence is None for h in hs) else [
+            r for h in hs for r in (h.divergence or [None] * len(h.diverged))]
         merged[label] = EstimatorHistory(
             label=label, t_s=hs[0].t_s, att_err_rad=cat("att_err_rad"), vel_err_mps=cat("vel_err_mps"),
             pos_err_m=cat("pos_err_m"), sigma=cat("sigma"), nees=cat("nees"),
             nis={k: np.concatenate([h.nis[k] for h in hs]) for k in hs[0].nis},
             nis_dim=hs[0].nis_dim, diverged=cat("diverged"), gyro_bias=cat("gyro_bias"),
             accel_bias=cat("accel_bias"), cost=_sum_cost([h.cost for h in hs]), euler_err_rad=cat("euler_err_rad"),
-            resets=None if hs[0].resets is None else [r for h in hs for r in h.resets])
+            resets=None if hs[0].resets is None else [r for h in hs for r in h.resets],
+            divergence=divergence)
     bias = {k: np.concatenate([p[2][k] for p in parts]) for k in parts[0][2]}
     calib = {name: {k: v if k in ("t_s", "turns") else np.concatenate([p[3][name][k] for p in parts])
                     for k, v in c.items()} for name, c in parts[0][3].items()}

@@ -65,3 +65,24 @@ def _close_metrics(a, b, path=""):
 def close_metrics():
     """``close_metrics(a, b)``: two metrics.json trees equal (numbers to 1e-12 relative)."""
     return _close_metrics
+
+
+def _same_history(a, b, timed: bool = True):
+    """Two EstimatorHistory equal in every field, bit for bit (NaN equal to NaN); ``timed=False``
+    for two separate runs: the CPU seconds in ``cost`` differ."""
+    for name, va in vars(a).items():
+        vb = getattr(b, name)
+        if isinstance(va, np.ndarray):
+            assert va.dtype == vb.dtype and np.array_equal(va, vb, equal_nan=va.dtype.kind == "f"), name
+        elif name == "nis":
+            assert list(va) == list(vb) and all(np.array_equal(va[k], vb[k], equal_nan=True) for k in va)
+        elif name == "cost" and not timed:
+            assert {k: va[k] for k in ("runs", "epochs", "batches")} == {k: vb[k] for k in ("runs", "epochs", "batches")}
+        else:
+            assert va == vb, name
+
+
+@pytest.fixture
+def same_history():
+    """``same_history(a, b, timed=True)``: two histories equal in every field (see above)."""
+    return _same_history

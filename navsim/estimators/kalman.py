@@ -62,21 +62,56 @@ def predict(x, P, Phi, Qd):
     return x, symmetrize(P)
 
 
+def solve_runs(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.linalg.solve(A, b)`` of a batch of runs, where a singular ``A`` spoils its own run only.
+
+    :func:`numpy.linalg.solve` raises for the whole batch when one matrix is singular; then the
+    runs are solved one at a time (bit for bit the batch's values) and a singular run's solution
+    is NaN, so that the Monte Carlo loop flags that run diverged and the others go on.
+
+    Parameters
+    ----------
+    A : (B, m, m) array
+        The matrices.
+    b : (B, m, k) array
+        The right-hand sides.
+
+    Returns
+    -------
+    (B, m, k) array
+        The solutions; NaN in the runs whose ``A`` is singular.
+    """
+    try:
+        return np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        pass
+    out = np.full(np.broadcast_shapes(A.shape[:-2], b.shape[:-2]) + b.shape[-2:], np.nan,
+                  np.result_type(A, b))
+    for i in range(out.shape[0]):
+        try:
+            out[i:i + 1] = np.linalg.solve(A[i:i + 1], b[i:i + 1])
+        except np.linalg.LinAlgError:
+            continue
+    return out
+
+
 def update(x, P, z, H, R, valid=None):
     """Joseph-form measurement update of the runs where ``valid``.
 
     Returns ``x, P, y, S, nis`` with the innovation ``y = z - H x``, its covariance
     ``S = H P H^T + R`` and the normalised innovation squared ``y^T S^-1 y`` (NaN where not
-    valid).
+    valid). A valid run whose ``S`` is singular gets NaN state and covariance (:func:`solve_runs`);
+    the other runs are updated as they would be alone.
     """
     Ht = np.swapaxes(H, -1, -2)
     y = z - (H @ x[..., None])[..., 0]
     PHt = P @ Ht
     S = H @ PHt + R
     S = symmetrize(S)
-    # K = P H^T S^-1, via a solve on S (symmetric positive definite)
-    K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, -1, -2)), -1, -2)
-    nis = np.einsum("bi,bi->b", y, np.linalg.solve(S, y[..., None])[..., 0])
+    # K = P H^T S^-1, via a solve on S (symmetric positive definite); a singular S gives NaN in
+    # its own run only
+    K = np.swapaxes(solve_runs(S, np.swapaxes(PHt, -1, -2)), -1, -2)
+    nis = np.einsum("bi,bi->b", y, solve_runs(S, y[..., None])[..., 0])
     n = P.shape[-1]
     IKH = np.eye(n) - K @ H
     P_new = IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)

@@ -8,6 +8,7 @@ import numpy as np
 
 from navsim.earth import local_ne
 from navsim.flight.truth import Truth
+from navsim.outputs import write_atomic
 
 
 def _segments(truth: Truth, ax, label: bool = True) -> None:
@@ -27,8 +28,8 @@ def plot_flight(truth: Truth, out_dir: str | Path, prefix: str = "flight") -> li
     out.mkdir(parents=True, exist_ok=True)
     files = []
     for name, fig in flight_figures(truth):
-        files.append(out / f"{prefix}_{name}.png")
-        fig.savefig(files[-1], dpi=120, bbox_inches="tight")
+        files.append(write_atomic(out / f"{prefix}_{name}.png",
+                                  lambda p: fig.savefig(p, dpi=120, bbox_inches="tight")))
         plt.close(fig)
     return files
 

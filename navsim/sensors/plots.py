@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from navsim import earth
+from navsim.outputs import write_atomic
 from navsim.sensors.base import SensorData
 from navsim.transform import dcm_from_quat
 
@@ -81,7 +82,6 @@ def plot_sensor(data: SensorData, truth, path: str | Path, run: int = 0) -> Path
     axs[-1, 1].set_xlabel("time, s")
     fig.suptitle(f"{data.name} ({data.kind}, {data.meta.get('rate_hz', 0):g} Hz): output and error, run {run}")
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=110)
+    path = write_atomic(Path(path), lambda p: fig.savefig(p, dpi=110))
     plt.close(fig)
     return path

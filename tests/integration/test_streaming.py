@@ -29,20 +29,6 @@ def numbers(out):
     return {k: {q: v for q, v in e.items() if q != "cost"} for k, e in m["estimators"].items()}, m
 
 
-def assert_same_history(a: EstimatorHistory, b: EstimatorHistory, timed: bool = True):
-    """Every field equal; ``timed=False`` for two runs: the CPU seconds in ``cost`` differ."""
-    for name, va in vars(a).items():
-        vb = getattr(b, name)
-        if isinstance(va, np.ndarray):
-            assert va.dtype == vb.dtype and np.array_equal(va, vb, equal_nan=va.dtype.kind == "f"), name
-        elif name == "nis":
-            assert list(va) == list(vb) and all(np.array_equal(va[k], vb[k], equal_nan=True) for k in va)
-        elif name == "cost" and not timed:
-            assert {k: va[k] for k in ("runs", "epochs", "batches")} == {k: vb[k] for k in ("runs", "epochs", "batches")}
-        else:
-            assert va == vb, name
-
-
 def synthetic_part(runs, seed):
     """A chunk part with every optional field: NaN NIS, resets, no covariance, a calibration."""
     rng = np.random.default_rng(seed)
@@ -57,19 +43,19 @@ def synthetic_part(runs, seed):
             {"mag": {"t_s": np.arange(3.0), "turns": np.arange(3.0), "hard_iron_err": rng.random((2, 3))}})
 
 
-def test_a_part_round_trips_every_field(tmp_path):
+def test_a_part_round_trips_every_field(same_history, tmp_path):
     part = synthetic_part([4, 5], 1)
     h = part[1]["CPF-EKF"]
     np.savez(tmp_path / "p.npz", **part_arrays(part))
     with np.load(tmp_path / "p.npz", allow_pickle=False) as data:
         runs, hist, bias, calib = part_from_arrays(data)
     assert runs == [4, 5]
-    assert_same_history(h, hist["CPF-EKF"])
+    same_history(h, hist["CPF-EKF"])
     assert np.array_equal(bias["gyro_bias"], part[2]["gyro_bias"])
     assert all(np.array_equal(calib["mag"][k], v) for k, v in part[3]["mag"].items())
 
 
-def test_the_merged_store_equals_the_in_memory_merge(tmp_path):
+def test_the_merged_store_equals_the_in_memory_merge(same_history, tmp_path):
     from navsim.runner import _merge
     parts = [synthetic_part(range(2, 4), 2), synthetic_part(range(0, 2), 1)]
     store = ChunkStore(tmp_path, {"seed": 1})
@@ -77,12 +63,12 @@ def test_the_merged_store_equals_the_in_memory_merge(tmp_path):
         store.add(part)
     (runs_a, hist_a, bias_a, calib_a), (runs_b, hist_b, bias_b, calib_b) = _merge(parts), store.merged()
     assert list(runs_a) == list(runs_b) == [0, 1, 2, 3]
-    assert_same_history(hist_a["CPF-EKF"], hist_b["CPF-EKF"])
+    same_history(hist_a["CPF-EKF"], hist_b["CPF-EKF"])
     assert np.array_equal(bias_a["gyro_bias"], bias_b["gyro_bias"])
     assert all(np.array_equal(calib_a["mag"][k], v) for k, v in calib_b["mag"].items())
 
 
-def test_stored_chunks_equal_the_in_memory_histories(short, tmp_path):
+def test_stored_chunks_equal_the_in_memory_histories(same_history, short, tmp_path):
     from navsim.runner import cached_flight, run_monte_carlo
     from navsim.scenario import load_scenario
     sc = load_scenario(short)
@@ -95,7 +81,7 @@ def test_stored_chunks_equal_the_in_memory_histories(short, tmp_path):
         "chunk_0-1.npz", "chunk_2-3.npz", "chunk_4-4.npz", "index.json"]
     assert list(stored.runs) == list(memory.runs) == [0, 1, 2, 3, 4]
     for label in memory.histories:
-        assert_same_history(memory.histories[label], stored.histories[label], timed=False)
+        same_history(memory.histories[label], stored.histories[label], timed=False)
     assert all(np.array_equal(memory.truth_bias[k], stored.truth_bias[k]) for k in memory.truth_bias)
     index = json.loads((tmp_path / "chunks" / "index.json").read_text())
     assert index["chunks"]["2-3"] == "chunk_2-3.npz" and index["failed"] == {} and index["seed"] == 4
@@ -303,8 +289,10 @@ def test_the_local_pool_keeps_no_part_once_it_is_handed_on():
 
 def test_a_bad_chunk_size_clears_nothing(short, tmp_path, capsys):
     assert run(short, tmp_path / "out", "--chunk-runs", "3") == 0
-    assert run(short, tmp_path / "out", "--chunk-runs", "0") == 2
-    assert "chunk size must be at least 1" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:             # a usage error, from the command line parser
+        run(short, tmp_path / "out", "--chunk-runs", "0")
+    assert exc.value.code == 2
+    assert "--chunk-runs: 0 is below 1" in capsys.readouterr().err
     assert sorted(p.name for p in (tmp_path / "out" / "chunks").glob("chunk_*")) == ["chunk_0-2.npz", "chunk_3-5.npz"]
 
 
