@@ -125,7 +125,8 @@ def _chunk_files(index: dict) -> dict:
     chunks = index.get("chunks") if isinstance(index, dict) else None
     if not isinstance(chunks, dict):
         return {}
-    return {n: f for n, f in chunks.items() if isinstance(f, str) and _CHUNK_FILE.match(f)}
+    return {n: f for n, f in chunks.items()
+            if isinstance(f, str) and _CHUNK_FILE.fullmatch(f) and f == f"chunk_{n}.npz"}
 
 
 def _readable(path: Path) -> bool:
@@ -175,9 +176,12 @@ class ChunkStore:
         if not path.is_file():
             return None
         try:
-            return json.loads(path.read_text())
-        except ValueError as exc:
+            index = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
             raise ResumeError(f"{path}: unreadable index ({exc})") from None
+        if not isinstance(index, dict):
+            raise ResumeError(f"{path}: not a chunk index (expected a JSON object)")
+        return index
 
     def _reopen(self) -> None:
         index = self.read_index(self.folder)
@@ -270,6 +274,9 @@ class ChunkStore:
         metas, offset = [], 0
         for file in files:
             with np.load(self.folder / file, allow_pickle=False) as data:
+                if set(data.files) != set(out):     # else rows would stay uninitialised
+                    raise ResumeError(f"{self.folder / file}: holds other fields than {files[0]} "
+                                      f"({', '.join(sorted(set(data.files) ^ set(out)))})")
                 n = len(data["runs"])
                 for k in data.files:
                     if not _shared(k):

@@ -27,7 +27,7 @@ from navsim.flight.plots import plot_flight
 from navsim.outputs import OutputFolder
 from navsim.provenance import provenance
 from navsim.runner import cached_flight
-from navsim.scenario import check_scenario, load_scenario
+from navsim.scenario import MAX_SEED, MAX_WORKERS, RATE_HZ, check_scenario, load_scenario
 
 
 def _numeric(text: str) -> bool:
@@ -125,7 +125,9 @@ def _fly_or_save(scenario, scenario_file, out: OutputFolder):
     try:
         return cached_flight(scenario.flight, progress=update)
     except FlightError as exc:
+        out.clear_earlier()               # an earlier run's results do not stand beside this failure
         folder = OutputFolder(out.path / "flight")
+        folder.clear_earlier()
         save_flight(folder, getattr(exc, "truth", None), scenario_file, scenario, time.perf_counter() - t0, exc)
         print(f"the part flown is saved in {folder.path}/", file=sys.stderr)
         raise
@@ -231,8 +233,7 @@ def cmd_run(args) -> int:
         if loop:
             arrays.update({f"closed_loop.{k}": np.asarray(v) for k, v in loop.items()})
         folder.write("runs.npz", lambda p: np.savez_compressed(p, **arrays))
-    files = write_report(out, scenario, truth, result, metrics, record, loop, reference, sightings)
-    folder.record(files)
+    files = write_report(folder, scenario, truth, result, metrics, record, loop, reference, sightings)
     rows = []
     for label, m in metrics["estimators"].items():
         rms = m.get("rms", {})
@@ -343,14 +344,16 @@ def cmd_sweep(args) -> int:
     folder.clear_earlier()
     out = folder.path
     with tqdm(total=len(points), desc="sweep points", disable=None) as bar:
-        rows, metric = run_sweep(args.sweep, args.workers, out, progress=bar.update,
-                                 executor=args.executor, scheduler=args.scheduler)
+        sweep = run_sweep(args.sweep, args.workers, out, progress=bar.update,
+                          executor=args.executor, scheduler=args.scheduler)
+    rows, metric = sweep.rows, sweep.metric
     labels = list(rows[0][1]) if rows else []
     table = [[", ".join(f"{k}={v}" for k, v in p.items())] + [f"{vals.get(lb, float('nan')):.4g}"
              if vals.get(lb) is not None else "-" for lb in labels] for p, vals in rows]
     print(_table(["point"] + [f"{lb}: {metric}" for lb in labels], table))
     folder.text("sweep.json", json.dumps({"metric": metric, "points": [
-        {"point": p, "values": v} for p, v in rows]}, indent=2, default=str))
+        {"point": p, "values": v} for p, v in rows], "failed_points": sweep.failed_points,
+        "interrupted": sweep.interrupted}, indent=2, default=str))
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -362,14 +365,20 @@ def cmd_sweep(args) -> int:
     ax.set_xticklabels(["\n".join(f"{k.split('.')[-1]}={v}" for k, v in p.items()) for p, _ in rows],
                        fontsize=7)
     ax.set_ylabel(metric + " (norm)")
-    ax.set_yscale("log")
+    if any(v is not None and v > 0 for _, vals in rows for v in vals.values()):
+        ax.set_yscale("log")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax.set_title(f"sweep {Path(args.sweep).name}: {metric}")
     fig.tight_layout()
     folder.write("sweep.png", lambda p: fig.savefig(p, dpi=110))
     print(f"\nwrote {out}/ (sweep.json, sweep.png)")
-    return 0
+    for i, why in sweep.failed_points.items():
+        print(f"error: no run of point {i} succeeded: {why}", file=sys.stderr)
+    if sweep.interrupted:
+        print(f"interrupted after {len(rows)} of {len(points)} points", file=sys.stderr)
+        return 130
+    return 1 if sweep.failed_points else 0
 
 
 def parse_settings(items: list[str] | None) -> dict:
@@ -484,15 +493,16 @@ def _number(kind, minimum=None, maximum=None, exclusive_minimum=None):
 
 
 RUNS = _number(int, minimum=1)
-SEED = _number(int, minimum=0, maximum=2**63 - 1)
-WORKERS = _number(int, minimum=1, maximum=256)
+SEED = _number(int, minimum=0, maximum=MAX_SEED)
+WORKERS = _number(int, minimum=1, maximum=MAX_WORKERS)
 #: the Dask schemes a scheduler address may use
 SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "inproc", "ucx")
 
 
 def scheduler_address(text: str) -> str:
-    """A Dask scheduler address ``scheme://host:port`` (argparse ``type``)."""
-    url = urllib.parse.urlsplit(text)
+    """A Dask scheduler address ``scheme://host:port``, or ``host:port`` for TCP as Dask reads
+    it (argparse ``type``)."""
+    url = urllib.parse.urlsplit(text if "://" in text else f"tcp://{text}")
     try:
         port = url.port
     except ValueError:
@@ -524,8 +534,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "the truth (truth.npz), PNG plots, run.json and print a summary.")
     p.add_argument("scenario", help="scenario YAML file")
     p.add_argument("--out", help="output folder (default reports/<name>/flight)")
-    p.add_argument("--rate-hz", type=_number(float, minimum=20.0, maximum=1000.0),
-                   help="simulation and truth rate, 20-1000 Hz (default: scenario's, 100)")
+    p.add_argument("--rate-hz", type=_number(float, minimum=RATE_HZ[0], maximum=RATE_HZ[1]),
+                   help=f"simulation and truth rate, {RATE_HZ[0]:g}-{RATE_HZ[1]:g} Hz (default: scenario's, 100)")
     p.set_defaults(func=cmd_fly)
     p = sub.add_parser("run", help="run a scenario's Monte Carlo and write its report",
                        description="Fly the track (cached), emulate the sensors and run every "
@@ -534,7 +544,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", help="scenario YAML file")
     p.add_argument("--runs", type=RUNS, help="Monte Carlo runs, >= 1 (default: montecarlo.runs)")
     p.add_argument("--seed", type=SEED, help="seed, >= 0 (default: montecarlo.seed)")
-    p.add_argument("--workers", type=WORKERS, help="worker processes, 1-256 (default: montecarlo.workers)")
+    p.add_argument("--workers", type=WORKERS, help=f"worker processes, 1-{MAX_WORKERS} (default: montecarlo.workers)")
     p.add_argument("--out", help="output folder (default reports/<name>)")
     _executor_options(p)
     p.add_argument("--chunk-runs", type=RUNS, metavar="N",

@@ -50,6 +50,11 @@ def _construct_mapping(loader, node, deep=False):
         if key_node.tag == "tag:yaml.org,2002:merge":
             continue
         key = loader.construct_object(key_node, deep=True)
+        try:
+            hash(key)
+        except TypeError:
+            raise yaml.constructor.ConstructorError(None, None, "a list or mapping used as a key",
+                                                    key_node.start_mark) from None
         if key in seen:
             raise yaml.constructor.ConstructorError(
                 None, None, f"duplicate key {key!r} (first at line {seen[key] + 1})", key_node.start_mark)
@@ -62,27 +67,32 @@ SafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _cons
 
 def _check_size(root, path: str) -> None:
     """Refuse a document nested deeper than :data:`MAX_DEPTH` or expanding (aliases written
-    out) to more than :data:`MAX_VALUES` values; each shared node is counted once per use
-    without being walked again."""
-    sizes: dict[int, int] = {}
+    out) to more than :data:`MAX_VALUES` values. Each shared node is walked once; its size and
+    height are counted again at each use, so aliases can neither hide depth nor multiply work."""
+    seen: dict[int, tuple[int, int]] = {}     # id -> (values, height)
+
+    def deep():
+        return ScenarioError(f"is nested more than {MAX_DEPTH} levels deep", file=path,
+                             expected="a scenario, track or datasheet file")
 
     def walk(x, depth):
         if not isinstance(x, (dict, list)):
-            return 1
+            return 1, 0
         if depth > MAX_DEPTH:
-            raise ScenarioError(f"is nested more than {MAX_DEPTH} levels deep", file=path,
-                                expected="a scenario, track or datasheet file")
-        if id(x) not in sizes:
-            items = x.values() if isinstance(x, dict) else x
-            total = 1
-            for v in items:
-                total += walk(v, depth + 1)
+            raise deep()
+        if id(x) not in seen:
+            total, height = 1, 0
+            for v in (x.values() if isinstance(x, dict) else x):
+                n, h = walk(v, depth + 1)
+                total, height = total + n, max(height, h + 1)
                 if total > MAX_VALUES:
                     raise ScenarioError(f"expands to more than {MAX_VALUES} values (aliases written out)",
                                         file=path, expected="a scenario, track or datasheet file",
                                         hint="an alias used inside the anchor it names, or aliases of aliases")
-            sizes[id(x)] = total
-        return sizes[id(x)]
+            seen[id(x)] = total, height
+        if depth + seen[id(x)][1] > MAX_DEPTH:
+            raise deep()
+        return seen[id(x)]
     walk(root, 0)
 
 
@@ -127,7 +137,7 @@ _PLAIN_NAME = re.compile(PLAIN_NAME_PATTERN)
 
 def plain_name(value: str) -> bool:
     """Whether ``value`` is a plain file name: no separator, no ``..``, not absolute, not hidden."""
-    return bool(_PLAIN_NAME.match(value))
+    return bool(_PLAIN_NAME.fullmatch(value))
 
 
 def resolve_file(ref: str, *, catalog: Path, file: str | None, key: str, what: str,
@@ -139,7 +149,7 @@ def resolve_file(ref: str, *, catalog: Path, file: str | None, key: str, what: s
     Raises :class:`ScenarioError` for an absolute path, a path leaving the scenario's folder,
     another suffix or a missing file; the file's content is never read here nor echoed.
     """
-    if "/" not in ref and "\\" not in ref and not ref.endswith((".yaml", ".yml")):
+    if "/" not in ref and "\\" not in ref and Path(ref).suffix.lower() not in (".yaml", ".yml"):
         path = catalog / f"{ref}.yaml"
         if plain_name(ref) and path.is_file():
             return path
@@ -148,7 +158,7 @@ def resolve_file(ref: str, *, catalog: Path, file: str | None, key: str, what: s
                             hint=close_match(ref, choices))
     base = Path(file).resolve().parent if file else Path.cwd().resolve()
     expected = "a .yaml file beside or below the scenario's folder, as a relative path"
-    if Path(ref).is_absolute() or Path(ref).suffix not in (".yaml", ".yml"):
+    if Path(ref).is_absolute() or Path(ref).suffix.lower() not in (".yaml", ".yml"):
         raise ScenarioError(f"'{ref}' is not allowed", file=file, key=key, expected=expected)
     path = (base / ref).resolve()
     if not path.is_relative_to(base):

@@ -16,6 +16,7 @@ without it (NaN errors from there) while the other estimators continue.
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -28,6 +29,7 @@ from navsim.sensors.base import run_generators
 from navsim.strapdown import NavState, rotation, state_from_truth
 from navsim.transform import dcm_from_quat, euler_from_dcm, wrap_angle
 
+log = logging.getLogger(__name__)
 ARCSEC = math.pi / 180 / 3600
 #: NEES (9 navigation errors) above which a run is flagged diverged: an error of 1e6 sigma,
 #: which no working filter reaches (a consistent one averages 9)
@@ -328,7 +330,13 @@ class _Recorder:
                 self.why[b] = (float(t), c)
 
     def fail(self, t, exc: Exception) -> None:
-        """The estimator raised ``exc`` at ``t`` (s): flag every run not flagged yet with it."""
+        """The estimator raised ``exc`` at ``t`` (s): flag every run not flagged yet with it,
+        and log it with its traceback (a bug in an estimator must not pass for a divergence).
+        A :class:`MemoryError` is raised again: it is the machine's, not the filter's."""
+        if isinstance(exc, MemoryError):
+            raise exc
+        log.warning("estimator '%s' raised at t = %.2f s; its %s runs of this batch are flagged diverged",
+                    self.label, t, self.runs, exc_info=exc)
         self.failed = True
         if self.flagged is not None:
             self._flag(t, [f"{type(exc).__name__}: {exc}"] * self.runs)

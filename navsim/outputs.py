@@ -47,7 +47,7 @@ def write_atomic(path: Path, write: Callable[[Path], object], *, fsync: bool = F
     except OSError as exc:
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
-        raise OutputError(exc.filename or path, exc) from None
+        raise OutputError(path, exc) from None
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
@@ -104,6 +104,7 @@ class OutputFolder:
         for name in self._names:
             target = self.path / name
             try:
+                temporary_name(target).unlink(missing_ok=True)     # left by a killed writer
                 if target.is_file():
                     target.unlink()
                     removed.append(name)

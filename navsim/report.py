@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import textwrap
 import warnings
@@ -11,7 +12,7 @@ import numpy as np
 
 from navsim.errors import OutputError
 from navsim.metrics import chi2_band, lookup
-from navsim.outputs import temporary_name, write_atomic
+from navsim.outputs import OutputFolder, temporary_name
 
 AXES = {"pos": ("position error", "m", ["north", "east", "down"]),
         "vel": ("velocity error", "m/s", ["north", "east", "down"]),
@@ -66,7 +67,7 @@ def divergence_lines(metrics: dict) -> list[str]:
         if not div:
             continue
         causes = ", ".join(f"{cause}: {n}" for cause, n in div["causes"].items())
-        listed = [f"run {r['run']} at {r['t_s']:.1f} s" for r in div["runs"][:6]]
+        listed = [f"run {r['run']}" + ("" if r["t_s"] is None else f" at {r['t_s']:.1f} s") for r in div["runs"][:6]]
         more = f" (+{div['count'] - len(listed)} more)" if div["count"] > len(listed) else ""
         lines += ["", f"{label}: {div['count']} of {m['runs_counted'] + m['diverged_runs']} runs flagged diverged "
                   f"and excluded ({causes})", "  " + ", ".join(listed) + more]
@@ -496,9 +497,10 @@ def calibration_figures(calibration: dict, histories: dict, metrics: dict, spans
     return figs
 
 
-def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict,
+def write_report(folder: OutputFolder, scenario, truth, result, metrics: dict, record: dict,
                  loop: dict | None = None, reference=None, sightings=()) -> list[Path]:
-    """Write the PNGs and ``report.pdf`` into ``out``; returns the files written. ``loop`` and
+    """Write the PNGs and ``report.pdf`` into the output folder ``folder`` (each name recorded
+    in its manifest before it is written); returns the files written. ``loop`` and
     ``reference``: the per-run outcome of a closed-loop scenario and its truth-guided flight;
     ``sightings``: landmark sightings ``(name, start_s, end_s, sigma_m)``, shaded in green."""
     plt = _plt()
@@ -530,22 +532,30 @@ def write_report(out: Path, scenario, truth, result, metrics: dict, record: dict
         pages += calibration_figures(result.calibration, result.histories, metrics, scenario.windows)
     files = []
     fmts = scenario.report.get("formats", ["pdf", "png"])
+    out = folder.path
+    if "pdf" in fmts:
+        folder.record([out / "report.pdf"])
     pdf_tmp = temporary_name(out / "report.pdf")
-    pdf = PdfPages(pdf_tmp) if "pdf" in fmts else None     # renamed once complete
+    pdf = None
     try:
+        pdf = PdfPages(pdf_tmp) if "pdf" in fmts else None     # renamed once complete
         for name, fig in pages:
             if "png" in fmts:
-                files.append(write_atomic(out / f"{name}.png", lambda p: fig.savefig(p, dpi=110)))
+                files.append(folder.write(f"{name}.png", lambda p: fig.savefig(p, dpi=110)))
             if pdf is not None:
                 pdf.savefig(fig)
             plt.close(fig)
         if pdf is not None:
             pdf.infodict()["Title"] = f"navsim report: {scenario.name}"
             pdf.close()
+            pdf = None
             os.replace(pdf_tmp, out / "report.pdf")
             files.append(out / "report.pdf")
     except OSError as exc:
-        raise OutputError(exc.filename or out, exc) from None
+        raise OutputError(out / "report.pdf" if pdf is not None else out, exc) from None
     finally:
+        if pdf is not None:
+            with contextlib.suppress(Exception):
+                pdf.close()
         pdf_tmp.unlink(missing_ok=True)
     return files

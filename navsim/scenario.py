@@ -20,6 +20,7 @@ file, the key path, what was expected and a hint.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -70,12 +71,13 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
         if key not in TOP_KEYS:
             raise ScenarioError("is not a known key", file=file, key=str(key),
                                 hint=close_match(str(key), TOP_KEYS))
-    name = node.get("name", str, Path(file).stem if file else "scenario")
+    default = re.sub(r"[^A-Za-z0-9._-]", "_", Path(file).stem).lstrip(".") if file else "scenario"
+    name = node.get("name", str, default or "scenario")
     if not plain_name(name):
         raise node.error(f"is '{name}'", "name",
                          expected="a plain name (letters, digits, '.', '_', '-'; no '/', no '..'): it names "
                          "the output folder reports/<name>",
-                         hint="give the output folder itself with --out")
+                         hint="name: my_run (and --out DIR to write elsewhere than reports/)")
     description = node.get("description", str, "")
     aircraft = node.get("aircraft", str, "survey10")
     if aircraft not in available_aircraft():
@@ -99,8 +101,8 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     runs, seed, workers = 1, 0, 1
     if mc is not None:
         runs = mc.get("runs", int, 1, minimum=1)
-        seed = mc.get("seed", int, 0, minimum=0)
-        workers = mc.get("workers", int, 1, minimum=1, maximum=256)
+        seed = mc.get("seed", int, 0, minimum=0, maximum=MAX_SEED)
+        workers = mc.get("workers", int, 1, minimum=1, maximum=MAX_WORKERS)
         mc.done()
     estimators = ()
     if "estimators" in node.data:
@@ -135,7 +137,7 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     flight_node = node.child("flight", None)
     rate_hz = 100.0
     if flight_node is not None:
-        rate_hz = flight_node.get("rate_hz", float, 100.0, minimum=20.0, maximum=1000.0)
+        rate_hz = flight_node.get("rate_hz", float, 100.0, minimum=RATE_HZ[0], maximum=RATE_HZ[1])
         flight_node.done()
     closed_loop = None
     cl_node = node.child("closed_loop", None)
@@ -229,6 +231,10 @@ def _check_field(m: dict, produced: tuple, file, key: str) -> None:
 
 
 ARCSEC = math.pi / 180 / 3600
+#: the most worker processes, the largest seed, the simulation (truth) rate range in Hz
+MAX_WORKERS = 256
+MAX_SEED = 2**63 - 1
+RATE_HZ = (20.0, 1000.0)
 #: the lowest an air start may be above the surface, m
 MIN_START_AGL_M = 10.0
 
@@ -275,7 +281,9 @@ def _windows(node):
 
 
 #: the first part of a metric path (``rms.pos_m``, ``windows.<name>.pos_m.rms``) in metrics.json
-METRIC_HEADS = ("rms", "final", "max_abs", "p99", "windows", "attitude", "resets", "nees")
+METRIC_HEADS = ("rms", "final", "max_abs", "p99", "windows", "attitude", "resets", "nees", "nis", "cost")
+#: the metrics of an estimator that are one number (no dotted rest)
+SCALAR_METRICS = ("runs_counted", "diverged_runs", "convergence_s")
 _QUANTITIES = {head: ("pos_m", "vel_mps", "att_deg") for head in ("rms", "final", "max_abs", "p99")}
 
 
@@ -283,10 +291,12 @@ def check_metric_path(path: str, windows, *, file: str | None, key: str) -> None
     """Raise :class:`ScenarioError` unless ``path`` names a metric of an estimator's
     metrics.json (:data:`METRIC_HEADS`; ``windows.<name>`` a window of ``windows``)."""
     head, _, rest = path.partition(".")
+    if head in SCALAR_METRICS and not rest:
+        return
     if head not in METRIC_HEADS or not rest:
         raise ScenarioError(f"'{path}' is not a metric", file=file, key=key,
-                            expected=" or ".join(f"{h}.*" for h in METRIC_HEADS),
-                            hint=close_match(head, METRIC_HEADS))
+                            expected=" or ".join([f"{h}.*" for h in METRIC_HEADS] + list(SCALAR_METRICS)),
+                            hint=close_match(head, METRIC_HEADS + SCALAR_METRICS))
     quantity = rest.split(".")[0]
     if head in _QUANTITIES and quantity not in _QUANTITIES[head]:
         raise ScenarioError(f"'{path}' is not a metric", file=file, key=key,

@@ -11,6 +11,7 @@ import json
 from navsim.config import PLAIN_NAME_PATTERN
 from navsim.flight.environment import MAX_WIND_MPS
 from navsim.flight.track import MAX_AIRSPEED_MPS, SEGMENT_KEYS
+from navsim.scenario import MAX_WORKERS, RATE_HZ
 
 NUM = {"type": "number"}
 POS = {"type": "number", "exclusiveMinimum": 0}
@@ -121,12 +122,12 @@ def scenario_schema() -> dict:
                      "description": "a plain name: it names the output folder reports/<name>"},
             "description": {"type": "string"}, "aircraft": {"type": "string"},
             "track": track, "environment": environment,
-            "flight": _obj({"rate_hz": {"type": "number", "minimum": 20, "maximum": 1000}}),
+            "flight": _obj({"rate_hz": {"type": "number", "minimum": RATE_HZ[0], "maximum": RATE_HZ[1]}}),
             "sensors": {"type": "object", "additionalProperties": sensor},
             "estimators": {"type": "array", "minItems": 1, "items": estimator},
             "initial_errors": _obj({"pos_m": VEC3, "vel_mps": VEC3, "att_arcsec": VEC3, "fixed": {"type": "boolean"}}),
             "montecarlo": _obj({"runs": {"type": "integer", "minimum": 1}, "seed": {"type": "integer", "minimum": 0},
-                                "workers": {"type": "integer", "minimum": 1}}),
+                                "workers": {"type": "integer", "minimum": 1, "maximum": MAX_WORKERS}}),
             "metrics": _obj({"settle_s": {"type": "number", "minimum": 0},
                              "windows": {"type": "array", "items": _obj(
                                  {"name": {"type": "string"}, "start_s": NUM, "end_s": NUM},

@@ -16,12 +16,15 @@ from __future__ import annotations
 import copy
 import itertools
 import re
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from navsim.config import Node, load_yaml
 from navsim.errors import ScenarioError
+from navsim.metrics import lookup, score
+from navsim.runner import cached_flight, run_monte_carlo
 from navsim.scenario import check_metric_path, check_scenario, parse_scenario
 
 _INDEX = re.compile(r"^(.*)\[(\d+)\]$")
@@ -58,7 +61,8 @@ def parse_sweep(path: str | Path):
     node = Node(load_yaml(path), "", str(path))
     scenario = node.get("scenario", str)
     base_path = (path.parent / scenario)
-    if Path(scenario).suffix not in (".yaml", ".yml") or not base_path.is_file():
+    if Path(scenario).is_absolute() or Path(scenario).suffix.lower() not in (".yaml", ".yml") \
+            or not base_path.is_file():
         raise node.error(f"'{scenario}' not found next to the sweep file", "scenario",
                          expected="a scenario YAML path relative to the sweep file")
     runs = node.get("runs", int, None, minimum=1)
@@ -91,39 +95,58 @@ def _window_names(scenario_path: Path) -> list[str]:
     return [w.get("name") for w in windows if isinstance(w, dict)] if isinstance(windows, list) else []
 
 
+@dataclass
+class SweepResult:
+    """The rows ``(point, {label: metric value})`` of the points run, the metric, the first
+    error of each point none of whose runs succeeded (point index -> message), and whether the
+    sweep was interrupted (the points after it are not run)."""
+
+    rows: list
+    metric: str
+    failed_points: dict = field(default_factory=dict)
+    interrupted: bool = False
+
+
 def run_sweep(path, workers: int | None = None, out: Path | None = None, progress=None,
-              executor: str = "local", scheduler: str | None = None):
-    """Run every point (its runs on ``executor``, see :func:`navsim.runner.run_monte_carlo`);
-    returns the rows ``(point, {label: metric value})`` and the metric."""
-    from navsim.metrics import lookup, score
-    from navsim.runner import cached_flight, run_monte_carlo
+              executor: str = "local", scheduler: str | None = None) -> SweepResult:
+    """Run every point (its runs on ``executor``, see :func:`navsim.runner.run_monte_carlo`).
+
+    Every point is parsed, flown (or read from the flight cache) and checked against the
+    duration flown before the first Monte Carlo starts, so a bad point stops the sweep before
+    any work is spent; a :class:`ScenarioError` names the sweep file and the point.
+    """
     base_path, runs, metric, points = parse_sweep(path)
     base = load_yaml(base_path)
-    scenarios = []
+    where = lambda i: f"{path}: point {i} ({points[i]}) of {base_path}"
+    scenarios, flights = [], []
     for i, point in enumerate(points):
         data = copy.deepcopy(base)
         for key, value in point.items():
             set_path(data, key, value, str(path), f"points[{i}]")
         try:
-            scenarios.append(parse_scenario(data, str(base_path)))
+            sc = parse_scenario(data, str(base_path))
+            flights.append(cached_flight(sc.flight))
+            check_scenario(sc, flights[-1][0].duration_s)
         except ScenarioError as exc:
-            raise (exc.with_file(f"{path}: point {i} ({point}) of {base_path}") if exc.file == str(base_path)
-                   else exc) from None
-    rows = []
-    for i, (point, sc) in enumerate(zip(points, scenarios)):
-        truth, truth_path, _ = cached_flight(sc.flight)
-        try:
-            check_scenario(sc, truth.duration_s)
-        except ScenarioError as exc:
-            raise exc.with_file(f"{path}: point {i} ({point}) of {base_path}") from None
-        n = runs or sc.runs
-        res = run_monte_carlo(sc, truth, truth_path, n, sc.seed, workers or sc.workers,
+            raise (exc.with_file(where(i)) if exc.file in (None, str(base_path)) else exc) from None
+        scenarios.append(sc)
+    result = SweepResult([], metric)
+    for i, (point, sc, (truth, truth_path, _)) in enumerate(zip(points, scenarios, flights)):
+        res = run_monte_carlo(sc, truth, truth_path, runs or sc.runs, sc.seed, workers or sc.workers,
                               executor=executor, scheduler=scheduler)
+        if res.interrupted:
+            result.interrupted = True
+            break
+        if not len(res.runs):
+            result.failed_points[i] = min(res.failed.items())[1] if res.failed else "no run"
         values = {}
         for label, h in res.histories.items():
             v = lookup(score(h, sc.settle_s, sc.windows), metric)
+            if isinstance(v, dict):
+                raise ScenarioError(f"'{metric}' is a group of metrics ({', '.join(v)})", file=str(path),
+                                    key="metric", expected="the path of a number or of a list of three")
             values[label] = float(np.linalg.norm(v)) if isinstance(v, list) else v
-        rows.append((point, values))
+        result.rows.append((point, values))
         if progress:
             progress(1)
-    return rows, metric
+    return result

@@ -45,13 +45,15 @@ def _sensor(node: Node, role: str, sensors: dict, required: bool):
     return name
 
 
-def _floats(node: Node, key: str, keys, minimum: float = 0.0) -> dict:
+def _floats(node: Node, key: str, keys, positive: bool = False) -> dict:
+    """The numbers ``keys`` of the block ``key`` (>= 0, or > 0 with ``positive``)."""
     sub = node.child(key, None)
     if sub is None:
         return {}
     out = {}
+    bound = {"exclusive_minimum": 0.0} if positive else {"minimum": 0.0}
     for k in keys:
-        v = sub.get(k, float, None, minimum=minimum)
+        v = sub.get(k, float, None, **bound)
         if v is not None:
             out[k] = v
     sub.done()
@@ -86,7 +88,7 @@ def attitude_params(node: Node, kind: str, sensors: dict) -> dict:
         if not isinstance(spec, ImuSpec):
             raise node.error(f"'{imu}' is not an IMU", "imu", expected="an imu catalog entry")
         p["imu"] = imu
-    p["sigma"] = _floats(node, "sigma", SIGMA_KEYS)
+    p["sigma"] = _floats(node, "sigma", SIGMA_KEYS, positive=True)    # a zero sigma: a singular S
     p["initial"] = _floats(node, "initial", INITIAL_KEYS)
     p["reset_sigma"] = _floats(node, "reset_sigma", INITIAL_KEYS)
     p["noise"] = _floats(node, "noise", ("gyro_rad_s_rthz", "accel_mps2_rthz", "gyro_bias_walk",

@@ -43,7 +43,8 @@ def _information(P):
     ~1e-12 while attitude and biases are ~1e-6: inverting ``P`` directly loses digits)."""
     d = 1.0 / np.sqrt(np.diagonal(P, axis1=1, axis2=2))
     C = P * d[:, :, None] * d[:, None, :]
-    return np.linalg.inv(C) * d[:, :, None] * d[:, None, :]
+    eye = np.broadcast_to(np.eye(P.shape[-1]), P.shape)
+    return kalman.solve_runs(C, eye) * d[:, :, None] * d[:, None, :]     # NaN in a singular run only
 
 
 @register("federated")

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.estimators import kalman
 from navsim.estimators.base import register
 from navsim.estimators.eskf import ErrorStateKF
 
@@ -83,7 +84,7 @@ class FuzzyAdaptiveKF(ErrorStateKF):
         B, dim = z.shape
         y = z - (H @ self.x[..., None])[..., 0]
         S = H @ self.P @ np.swapaxes(H, -1, -2) + R
-        nis = np.einsum("bi,bi->b", y, np.linalg.solve(S, y[..., None])[..., 0]) / dim
+        nis = np.einsum("bi,bi->b", y, kalman.solve_runs(S, y[..., None])[..., 0]) / dim
         a = 1.0 / self.window
         m = self.nis_smoothed.get(key, np.ones(B))
         v = np.asarray(valid, bool)

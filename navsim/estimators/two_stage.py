@@ -108,11 +108,11 @@ class TwoStageAdaptiveKF(ErrorStateKF):
             R = self._adapt_R(key, y, Hx, Sens, R, valid)
         HxT = np.swapaxes(Hx, -1, -2)
         Sx = kalman.symmetrize(Hx @ self.Pt @ HxT + R)
-        Kx = np.swapaxes(np.linalg.solve(Sx, (self.Pt @ HxT).swapaxes(-1, -2)), -1, -2)
+        Kx = np.swapaxes(kalman.solve_runs(Sx, (self.Pt @ HxT).swapaxes(-1, -2)), -1, -2)
         SensT = np.swapaxes(Sens, -1, -2)
         Sb = kalman.symmetrize(Sens @ self.Pb @ SensT + Sx)
-        Kb = np.swapaxes(np.linalg.solve(Sb, (self.Pb @ SensT).swapaxes(-1, -2)), -1, -2)
-        nis = np.einsum("bi,bi->b", y, np.linalg.solve(Sb, y[..., None])[..., 0])
+        Kb = np.swapaxes(kalman.solve_runs(Sb, (self.Pb @ SensT).swapaxes(-1, -2)), -1, -2)
+        nis = np.einsum("bi,bi->b", y, kalman.solve_runs(Sb, y[..., None])[..., 0])
         bh = self.bh + (Kb @ y[..., None])[..., 0]
         IKb = np.eye(bi.size) - Kb @ Sens
         Pb = IKb @ self.Pb @ np.swapaxes(IKb, -1, -2) + Kb @ Sx @ np.swapaxes(Kb, -1, -2)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from navsim.config import Node
+from navsim.config import Node, plain_name
 from navsim.sensors import specs
 from navsim.sensors.airdata import emulate_ads, emulate_baro
 from navsim.sensors.base import Fault, SensorData, check_faults, parse_faults
@@ -49,7 +49,7 @@ class SensorConfig:
 
 
 #: the measurement values of each sensor kind (``SensorData.values`` keys), whatever its spec
-_OUTPUTS = {"imu": ("dtheta_b_rad", "dv_b_mps"), "baro": ("h_baro_m", "p_static_pa"),
+_OUTPUTS = {"imu": ("omega_ib_b_rps", "f_b_mps2", "dtheta_b_rad", "dv_b_mps"), "baro": ("h_baro_m", "p_static_pa"),
             "gnss": ("lat_rad", "lon_rad", "h_m", "fix_type", "h_acc_m", "v_acc_m", "s_acc_mps"),
             "ads": ("p_static_pa", "p_total_pa", "temp_k", "h_pressure_m", "cas_mps", "tas_mps", "vel_n_mps"),
             "radar_altimeter": ("h_agl_m",), "magnetometer": ("mag_b_T",),
@@ -60,7 +60,7 @@ HEIGHT_FIELDS = ("h_m", "h_baro_m", "h_pressure_m", "h_agl_m")
 
 
 def output_fields(spec) -> tuple[str, ...]:
-    """The ``values`` keys the emulator of ``spec`` produces (an IMU's rates only on request)."""
+    """The ``values`` keys the emulator of ``spec`` produces (:func:`emulate`)."""
     out = _OUTPUTS[specs.kind_of(spec)]
     if getattr(spec, "velocity_output", False):
         out += ("vel_n_mps",)
@@ -85,6 +85,9 @@ def parse_sensors(data, file: str | None = None, path: str = "sensors") -> tuple
     node = Node(data, path, file)
     out = []
     for name in list(node.data):
+        if not plain_name(str(name)):
+            raise node.error(f"'{name}' is not a sensor name", str(name),
+                             expected="a plain name (letters, digits, '.', '_', '-'): it names report files")
         item = node.child(str(name))
         model = item.get("model", str)
         override = item.child("override", None)

@@ -199,6 +199,22 @@ CASES = [
     ("out-not-creatable", {S: scenario()}, RUN + ["--out", "/proc/navsim-out"], 4, ["/proc/navsim-out"]),
     ("fly-out-is-a-file", {S: scenario(), "taken": "a file"}, ["fly", "case/" + S, "--out", "case/taken"], 4,
      ["not a folder"]),
+    ("sweep-scenario-absolute", {"w.yaml": "scenario: /etc/hostname.yaml\ngrid: {montecarlo.seed: [1]}\n"},
+     ["sweep", "case/w.yaml"], 2, ["case/w.yaml: scenario"]),
+    ("sweep-metric-group", {S: scenario(metrics={"windows": [{"name": "w", "start_s": 1, "end_s": 5}]}),
+                            "w.yaml": "scenario: s.yaml\ngrid: {montecarlo.seed: [1]}\nmetric: windows.x.height_m\n"},
+     ["sweep", "case/w.yaml"], 2, ["case/w.yaml: metric", "window 'x'"]),
+    ("sensor-name-path", {S: scenario(**{"sensors": {"imu": {"model": "p0_imu"}, "../../x": {"model": "p0_bd2"}}})},
+     VALIDATE, 2, ["sensors.../../x", "not a sensor name"]),
+    ("name-trailing-newline", {S: scenario(name="tiny\n")}, VALIDATE, 2, ["name"]),
+    ("yaml-list-as-key", {S: scenario() + "? [a, b]\n: 1\n"}, VALIDATE, 2, ["a list or mapping used as a key"]),
+    ("yaml-deep-through-aliases", {S: "name: x\n" + "".join(
+        f"a{i}: &a{i} " + "[" * 30 + (f"*a{i - 1}" if i else "0") + "]" * 30 + "\n" for i in range(4))},
+     VALIDATE, 2, ["nested more than"]),
+    ("attitude-sigma-zero", {S: (Path(__file__).parents[2] / "scenarios" / "p4_static.yaml").read_text()
+                             .replace("mag_uT: 0.5", "mag_uT: 0")}, VALIDATE, 2, ["sigma.mag_uT", "> 0.0"]),
+    ("resume-index-not-object", {S: scenario(), "out/chunks/index.json": "[1, 2]"},
+     RUN + ["--out", "case/out", "--resume"], 2, ["not a chunk index"]),
     ("resume-nothing", {S: scenario()}, RUN + ["--out", "case/empty", "--resume"], 2, ["nothing to resume"]),
 ]
 
@@ -382,12 +398,28 @@ sys.exit(code)
 '''
 
 
+def audited(tmp_path, *argv):
+    """Run ``navsim argv`` in a fresh process under an audit hook: ``(process, reads, writes)``,
+    the files it opened for reading and the paths it wrote, renamed, created or deleted."""
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / "script.py").write_text(AUDIT)
+    env = dict(os.environ, NAVSIM_CACHE=str(tmp_path / "cache"), MPLCONFIGDIR=str(tmp_path / "mpl"),
+               PYTHONDONTWRITEBYTECODE="1", AUDIT_OUT=str(tmp_path / "audit.tsv"))
+    proc = subprocess.run([sys.executable, str(tmp_path / "script.py"), *map(str, argv)], cwd=tmp_path, env=env,
+                          capture_output=True, text=True)
+    events = [line.split("\t") for line in (tmp_path / "audit.tsv").read_text().splitlines()]
+    reads = {Path(p) for kind, p in events if kind == "read" and Path(p).is_file()}
+    return proc, reads, {Path(p) for kind, p in events if kind == "write"}
+
+
 def test_a_run_touches_only_its_output_folder_the_cache_and_its_inputs(tmp_path, repo_root):
     """Every file navsim writes, renames or deletes in a whole ``navsim run`` is in the output
     folder or the flight cache; every file it reads is navsim's own (package, catalog,
-    aircraft), the scenario's folder, the cache, or the Python installation."""
-    import os
-    import subprocess
+    aircraft), the scenario's folder, the cache, the Python installation or the fonts; a track
+    file that is a link to a file outside the scenario's folder is refused without being read."""
     import sys
     import sysconfig
 
@@ -396,16 +428,8 @@ def test_a_run_touches_only_its_output_folder_the_cache_and_its_inputs(tmp_path,
     (case / "tracks" / "leg.yaml").write_text(yaml.safe_dump(BASE["track"]))
     (case / "my_gnss.yaml").write_text((repo_root / "sensors" / "p0_bd2.yaml").read_text())
     (case / S).write_text(scenario(track="tracks/leg.yaml", **{"sensors.bd.model": "my_gnss.yaml"}))
-    (tmp_path / "secret.yaml").write_text(SECRET)
-    (tmp_path / "script.py").write_text(AUDIT)
-    env = dict(os.environ, NAVSIM_CACHE=str(tmp_path / "cache"), MPLCONFIGDIR=str(tmp_path / "mpl"),
-               PYTHONDONTWRITEBYTECODE="1", AUDIT_OUT=str(tmp_path / "audit.tsv"))
-    proc = subprocess.run([sys.executable, str(tmp_path / "script.py"), "run", str(case / S), "--out",
-                           str(tmp_path / "out")], cwd=tmp_path, env=env, capture_output=True, text=True)
+    proc, reads, writes = audited(tmp_path, "run", case / S, "--out", tmp_path / "out")
     assert proc.returncode == 0, proc.stderr
-    events = [line.split("\t") for line in (tmp_path / "audit.tsv").read_text().splitlines()]
-    writes = {Path(p) for kind, p in events if kind == "write"}
-    reads = {Path(p) for kind, p in events if kind == "read"}
     allowed_writes = [tmp_path / "out", tmp_path / "cache", tmp_path / "mpl"]
     bad = [p for p in writes if not any(p.is_relative_to(a) for a in allowed_writes)
            and not str(p).startswith("/dev/")]
@@ -414,8 +438,37 @@ def test_a_run_touches_only_its_output_folder_the_cache_and_its_inputs(tmp_path,
     installs = {Path(sysconfig.get_paths()[k]).resolve() for k in ("stdlib", "purelib", "platlib", "data")}
     allowed_reads = [case, tmp_path / "out", tmp_path / "cache", tmp_path / "mpl", repo_root / "navsim",
                      repo_root / "sensors", repo_root / "aircraft", Path(sys.prefix), Path(sys.base_prefix),
-                     *installs, Path("/usr"), Path("/etc"), Path("/proc"), Path("/sys"), Path("/dev")]
-    strays = [p for p in reads if p.exists() and not any(p.resolve().is_relative_to(a) for a in allowed_reads)]
+                     *installs, Path("/usr/share/fonts")]
+    strays = [p for p in reads if not any(p.resolve().is_relative_to(a) for a in allowed_reads)]
     assert not strays, strays
     assert (case / "tracks" / "leg.yaml") in reads and (case / "my_gnss.yaml") in reads
-    assert tmp_path / "secret.yaml" not in reads
+
+    (tmp_path / "secret.yaml").write_text(f"start: {{}}  # {SECRET}\n")
+    (case / "tracks" / "link.yaml").symlink_to(tmp_path / "secret.yaml")
+    (case / "linked.yaml").write_text(scenario(track="tracks/link.yaml"))
+    proc, reads, writes = audited(tmp_path, "validate", case / "linked.yaml")
+    assert proc.returncode == 2 and "leaves the scenario's folder" in proc.stderr, proc.stderr
+    assert SECRET not in proc.stderr and not {tmp_path / "secret.yaml", case / "tracks" / "link.yaml"} & reads
+
+
+def test_a_file_name_that_is_not_a_plain_name_gives_a_plain_default_name(tmp_path):
+    from navsim.scenario import load_scenario
+    path = tmp_path / "my copy (2).yaml"
+    path.write_text(scenario(name=None))
+    assert load_scenario(path).name == "my_copy__2_"
+
+
+def test_a_sweep_point_without_a_successful_run_is_an_error(workdir, capsys, monkeypatch):
+    import numpy as np
+
+    import navsim.runner
+    import navsim.sweep
+    monkeypatch.setattr(navsim.sweep, "run_monte_carlo", lambda *a, **k: navsim.runner.RunResult(
+        {}, np.array([], int), failed={0: "RuntimeError: filter exploded", 1: "RuntimeError: filter exploded"}))
+    (workdir / "case").mkdir()
+    (workdir / "case" / S).write_text(scenario())
+    (workdir / "case" / "w.yaml").write_text("scenario: s.yaml\ngrid: {montecarlo.seed: [1, 2]}\n")
+    assert call(["sweep", "case/w.yaml", "--out", "out"]) == 1
+    err = capsys.readouterr().err
+    assert "no run of point 0 succeeded: RuntimeError: filter exploded" in err and "Traceback" not in err
+    assert json.loads((workdir / "out" / "sweep.json").read_text())["failed_points"]

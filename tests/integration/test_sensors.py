@@ -229,3 +229,15 @@ def test_parse_sensors_from_scenario_text():
         "ra": {"model": "p2_radar", "faults": [{"type": "bias", "start_s": 960, "end_s": 970, "value_m": 10}]}})
     assert [c.kind for c in cfg] == ["gnss", "radar_altimeter"]
     np.testing.assert_allclose(cfg[0].faults[0].value, [0, 0, -80])
+
+
+@pytest.mark.parametrize("kind, override", [(k, None) for k in ALL] + [
+    ("gnss", {"velocity_output": True}), ("ads", {"velocity_axis": "air", "vane_noise": "0.1 deg"})])
+def test_declared_output_fields_are_what_each_emulator_produces(truth, kind, override):
+    """The fields a measurement's ``field`` is checked against (navsim.sensors.output_fields)
+    are exactly the values the emulator gives."""
+    from navsim.sensors import output_fields
+    cfg = config(kind, override=override)
+    if kind == "camera":
+        cfg = config(kind, override={"landmarks": landmarks_under(truth)})
+    assert set(output_fields(cfg.spec)) == set(emulate(truth, cfg, 1, range(2)).values)
