@@ -368,10 +368,12 @@ def cmd_sweep(args) -> int:
     if any(v is not None and v > 0 for _, vals in rows for v in vals.values()):
         ax.set_yscale("log")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    if labels:
+        ax.legend(fontsize=8)
     ax.set_title(f"sweep {Path(args.sweep).name}: {metric}")
     fig.tight_layout()
     folder.write("sweep.png", lambda p: fig.savefig(p, dpi=110))
+    plt.close(fig)
     print(f"\nwrote {out}/ (sweep.json, sweep.png)")
     for i, why in sweep.failed_points.items():
         print(f"error: no run of point {i} succeeded: {why}", file=sys.stderr)

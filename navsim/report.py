@@ -558,4 +558,6 @@ def write_report(folder: OutputFolder, scenario, truth, result, metrics: dict, r
             with contextlib.suppress(Exception):
                 pdf.close()
         pdf_tmp.unlink(missing_ok=True)
+        for _, fig in pages:               # also those not reached when writing failed
+            plt.close(fig)
     return files
