@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navsim import earth
+from navsim import earth, kernels
 
 
 @dataclass
@@ -149,6 +149,46 @@ class Strapdown:
             s.C_nb = 1.5 * C - 0.5 * C @ np.swapaxes(C, -1, -2) @ C
         self.dtheta_prev, self.dv_prev = dth, dv
         return s
+
+
+class BlockStrapdown:
+    """:class:`Strapdown` compiled: a whole block of IMU intervals per call
+    (:func:`navsim.kernels.strapdown_block`), the same algorithm to rounding (held to it by a
+    test), one loop per run.
+
+    Parameters
+    ----------
+    state : NavState
+        The start; integrated in place.
+    gravity_every : int
+        IMU steps sharing one evaluation of gravity, rates and radii.
+    """
+
+    def __init__(self, state: NavState, gravity_every: int = 10):
+        self.state = state
+        self.gravity_every = gravity_every
+        B = state.lat_rad.shape[0]
+        self.dtheta_prev = np.zeros((B, 3))
+        self.dv_prev = np.zeros((B, 3))
+        self._cache = np.zeros((B, kernels.CACHE_SIZE))
+        self._k = 0
+
+    def block(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> np.ndarray:
+        """Advance by the ``K`` intervals of ``dtheta_b``, ``dv_b`` ``(B, K, 3)``; returns each
+        interval's specific-force velocity increment in NED ``(B, K, 3)``."""
+        s = self.state
+        dtheta_b = np.ascontiguousarray(dtheta_b, float)
+        dv_b = np.ascontiguousarray(dv_b, float)
+        if self._k == 0:              # no previous interval: no coning/sculling terms
+            self.dtheta_prev, self.dv_prev = dtheta_b[:, 0].copy(), dv_b[:, 0].copy()
+        for name in ("lat_rad", "lon_rad", "h_m", "vel_n_mps", "C_nb"):
+            setattr(s, name, np.ascontiguousarray(getattr(s, name), float))
+        dv_n = np.empty_like(dv_b)
+        kernels.strapdown_block(s.lat_rad, s.lon_rad, s.h_m, s.vel_n_mps, s.C_nb, self.dtheta_prev,
+                                self.dv_prev, self._cache, dtheta_b, dv_b, float(dt), self._k,
+                                self.gravity_every, dv_n)
+        self._k += dtheta_b.shape[1]
+        return dv_n
 
 
 def state_from_truth(truth, k: int = 0, runs: int = 1) -> NavState:

@@ -1,0 +1,205 @@
+"""Compiled kernels (numba ``njit(cache=True)``): per-sample work over a block of IMU samples.
+
+Each kernel loops over the runs of a batch and, inside, over the ``K`` samples of a block, so a
+run's arithmetic never depends on the other runs (a batch of 3 equals 3 single runs bit for
+bit) and Python is entered once per block, not once per IMU sample.
+
+Strapdown mechanization (:func:`strapdown_block`), the algorithm of
+:class:`navsim.strapdown.Strapdown` in the local-level NED frame, per IMU interval with the
+increments ``dtheta``, ``dv`` and the previous interval's ``dtheta_p``, ``dv_p``:
+
+* coning: ``dtheta_c = dtheta + dtheta_p x dtheta / 12``;
+* rotation and sculling: ``dv_c = dv + (dtheta / 2 + dtheta_p / 12) x dv + (dv_p x dtheta) / 12``;
+* ``dv_n = C_nb dv_c - (omega_in dt / 2) x (C_nb dv_c)``;
+  ``v <- v + dv_n + (g - (2 omega_ie + omega_en) x v) dt``;
+* ``C_nb <- (I - [omega_in dt x]) C_nb exp([dtheta_c x])`` (Rodrigues, Taylor series of its
+  coefficients below 0.05 rad), re-orthonormalised every 1000 steps;
+* position: trapezoid on the old and new velocities with the WGS-84 radii.
+
+Gravity (WGS-84 with J2, as :func:`navsim.earth.gravity_n`), Earth rate, transport rate and the
+radii are evaluated every ``gravity_every`` steps and kept in the run's ``cache`` row between
+blocks.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from navsim import earth
+
+A_M, E2, OMEGA, GM, J2 = earth.A_M, earth.E2, earth.OMEGA_IE_RPS, earth.GM_M3PS2, earth.J2
+#: a run's cache row: gravity (3), omega_in (3), 2 omega_ie + omega_en (3), r_m, r_n
+CACHE_SIZE = 11
+
+
+@njit(cache=True)
+def _radii(lat):
+    s = math.sin(lat)
+    w = math.sqrt(1.0 - E2 * s * s)
+    return A_M * (1.0 - E2) / (w * w * w), A_M / w
+
+
+@njit(cache=True)
+def _gravity_n(lat, h, out):
+    """Gravity in NED at latitude ``lat`` (rad), height ``h`` (m), into ``out`` (3,):
+    :func:`navsim.earth.gravity_n` for one point."""
+    _, r_n = _radii(lat)
+    sl, cl = math.sin(lat), math.cos(lat)
+    x = (r_n + h) * cl
+    z = (r_n * (1.0 - E2) + h) * sl
+    rn2 = x * x + z * z
+    rn = math.sqrt(rn2)
+    k = 1.5 * J2 * (A_M * A_M / rn2)
+    zr2 = z * z / rn2
+    c = -GM / (rn2 * rn)
+    gx = c * x * (1.0 + k * (1.0 - 5.0 * zr2)) + OMEGA * OMEGA * x
+    gz = c * z * (1.0 + k * (3.0 - 5.0 * zr2))
+    # NED from ECEF at longitude 0: north = (-sl, 0, cl), east = (0, 1, 0), down = (-cl, 0, -sl)
+    out[0] = -sl * gx + cl * gz
+    out[1] = 0.0
+    out[2] = -cl * gx - sl * gz
+
+
+@njit(cache=True)
+def _refresh(lat, h, vel, cache):
+    """Gravity, rates and radii of one run into its cache row."""
+    _gravity_n(lat, h, cache[0:3])
+    r_m, r_n = _radii(lat)
+    cl, sl = math.cos(lat), math.sin(lat)
+    w_ie0, w_ie2 = OMEGA * cl, -OMEGA * sl
+    w_en0, w_en1, w_en2 = vel[1] / (r_n + h), -vel[0] / (r_m + h), -vel[1] * math.tan(lat) / (r_n + h)
+    cache[3], cache[4], cache[5] = w_ie0 + w_en0, w_en1, w_ie2 + w_en2
+    cache[6], cache[7], cache[8] = 2.0 * w_ie0 + w_en0, w_en1, 2.0 * w_ie2 + w_en2
+    cache[9], cache[10] = r_m, r_n
+
+
+@njit(cache=True)
+def _cross(a0, a1, a2, b0, b1, b2):
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@njit(cache=True)
+def _rotation(x, y, z, R):
+    """``exp([v x])`` of the rotation vector ``(x, y, z)`` into ``R`` (3, 3), as
+    :func:`navsim.strapdown.rotation`."""
+    a2 = x * x + y * y + z * z
+    if a2 < 2.5e-3:
+        s = 1.0 - a2 * (1.0 / 6.0) + a2 * a2 * (1.0 / 120.0) - a2 ** 3 * (1.0 / 5040.0)
+        c = 0.5 - a2 * (1.0 / 24.0) + a2 * a2 * (1.0 / 720.0) - a2 ** 3 * (1.0 / 40320.0)
+    else:
+        a = math.sqrt(a2)
+        s, c = math.sin(a) / a, (1.0 - math.cos(a)) / a2
+    cx, cy = c * x, c * y
+    R[0, 0] = 1.0 - c * (y * y + z * z)
+    R[1, 1] = 1.0 - c * (x * x + z * z)
+    R[2, 2] = 1.0 - c * (x * x + y * y)
+    R[0, 1], R[1, 0] = cx * y - s * z, cx * y + s * z
+    R[0, 2], R[2, 0] = cx * z + s * y, cx * z - s * y
+    R[1, 2], R[2, 1] = cy * z - s * x, cy * z + s * x
+
+
+@njit(cache=True)
+def _attitude(C, w_in, dt, R, T):
+    """``C <- (I - [w_in dt x]) C R`` in place (``T`` scratch)."""
+    for i in range(3):
+        for j in range(3):
+            T[i, j] = C[i, 0] * R[0, j] + C[i, 1] * R[1, j] + C[i, 2] * R[2, j]
+    a0, a1, a2 = w_in[0] * dt, w_in[1] * dt, w_in[2] * dt
+    for j in range(3):        # (I - [a x]) T: row i minus (a x column j)_i
+        t0, t1, t2 = T[0, j], T[1, j], T[2, j]
+        C[0, j] = t0 - (a1 * t2 - a2 * t1)
+        C[1, j] = t1 - (a2 * t0 - a0 * t2)
+        C[2, j] = t2 - (a0 * t1 - a1 * t0)
+
+
+@njit(cache=True)
+def _orthonormalise(C, T):
+    """``C <- 1.5 C - 0.5 C C^T C``."""
+    for i in range(3):
+        for j in range(3):
+            T[i, j] = C[i, 0] * C[j, 0] + C[i, 1] * C[j, 1] + C[i, 2] * C[j, 2]
+    D = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            D[i, j] = 1.5 * C[i, j] - 0.5 * (T[i, 0] * C[0, j] + T[i, 1] * C[1, j] + T[i, 2] * C[2, j])
+    C[:, :] = D
+
+
+@njit(cache=True)
+def strapdown_block(lat, lon, h, vel, C, dth_prev, dv_prev, cache, dth, dv, dt, k0, gravity_every, dv_n):
+    """Integrate ``K`` IMU intervals of ``B`` runs in place.
+
+    Parameters
+    ----------
+    lat, lon, h : (B,) arrays
+        Geodetic latitude, longitude (rad) and height (m); updated.
+    vel : (B, 3) array
+        NED velocity, m/s; updated.
+    C : (B, 3, 3) array
+        ``C_nb``; updated.
+    dth_prev, dv_prev : (B, 3) arrays
+        The previous interval's increments (equal to the first ones at the start); updated.
+    cache : (B, :data:`CACHE_SIZE`) array
+        Gravity, rates and radii of the last refresh; updated.
+    dth, dv : (B, K, 3) arrays
+        The block's angle (rad) and velocity (m/s) increments.
+    dt : float
+        The IMU interval, s.
+    k0 : int
+        Steps taken before this block (gravity refresh and re-orthonormalisation cadence).
+    gravity_every : int
+        Steps between two evaluations of gravity, rates and radii.
+    dv_n : (B, K, 3) array
+        Out: each interval's specific-force velocity increment in NED.
+    """
+    B, K = dth.shape[0], dth.shape[1]
+    R = np.empty((3, 3))
+    T = np.empty((3, 3))
+    for b in range(B):
+        Cb, cb = C[b], cache[b]
+        w_in = np.empty(3)
+        for j in range(K):
+            k = k0 + j
+            if k % gravity_every == 0:
+                _refresh(lat[b], h[b], vel[b], cb)
+            g0, g1, g2 = cb[0], cb[1], cb[2]
+            w_in[0], w_in[1], w_in[2] = cb[3], cb[4], cb[5]
+            r0, r1, r2 = cb[6], cb[7], cb[8]
+            r_m, r_n = cb[9], cb[10]
+            t0, t1, t2 = dth[b, j, 0], dth[b, j, 1], dth[b, j, 2]
+            v0, v1, v2 = dv[b, j, 0], dv[b, j, 1], dv[b, j, 2]
+            p0, p1, p2 = dth_prev[b, 0], dth_prev[b, 1], dth_prev[b, 2]
+            q0, q1, q2 = dv_prev[b, 0], dv_prev[b, 1], dv_prev[b, 2]
+            e0, e1, e2 = _cross(0.5 * t0 + p0 * (1.0 / 12.0), 0.5 * t1 + p1 * (1.0 / 12.0),
+                                0.5 * t2 + p2 * (1.0 / 12.0), v0, v1, v2)
+            f0, f1, f2 = _cross(q0, q1, q2, t0, t1, t2)
+            c0 = v0 + e0 + f0 * (1.0 / 12.0)
+            c1 = v1 + e1 + f1 * (1.0 / 12.0)
+            c2 = v2 + e2 + f2 * (1.0 / 12.0)
+            h0, h1, h2 = _cross(p0, p1, p2, t0, t1, t2)
+            a0, a1, a2 = t0 + h0 * (1.0 / 12.0), t1 + h1 * (1.0 / 12.0), t2 + h2 * (1.0 / 12.0)
+            n0 = Cb[0, 0] * c0 + Cb[0, 1] * c1 + Cb[0, 2] * c2
+            n1 = Cb[1, 0] * c0 + Cb[1, 1] * c1 + Cb[1, 2] * c2
+            n2 = Cb[2, 0] * c0 + Cb[2, 1] * c1 + Cb[2, 2] * c2
+            x0, x1, x2 = _cross(w_in[0], w_in[1], w_in[2], n0, n1, n2)
+            n0, n1, n2 = n0 - 0.5 * dt * x0, n1 - 0.5 * dt * x1, n2 - 0.5 * dt * x2
+            dv_n[b, j, 0], dv_n[b, j, 1], dv_n[b, j, 2] = n0, n1, n2
+            o0, o1, o2 = vel[b, 0], vel[b, 1], vel[b, 2]
+            y0, y1, y2 = _cross(r0, r1, r2, o0, o1, o2)
+            w0, w1, w2 = o0 + n0 + (g0 - y0) * dt, o1 + n1 + (g1 - y1) * dt, o2 + n2 + (g2 - y2) * dt
+            _rotation(a0, a1, a2, R)
+            _attitude(Cb, w_in, dt, R, T)
+            m0, m1, m2 = 0.5 * (o0 + w0), 0.5 * (o1 + w1), 0.5 * (o2 + w2)
+            h_new = h[b] - m2 * dt
+            h_mid = 0.5 * (h[b] + h_new)
+            lat_new = lat[b] + m0 * dt / (r_m + h_mid)
+            lon[b] = lon[b] + m1 * dt / ((r_n + h_mid) * math.cos(0.5 * (lat[b] + lat_new)))
+            lat[b], h[b] = lat_new, h_new
+            vel[b, 0], vel[b, 1], vel[b, 2] = w0, w1, w2
+            if (k + 1) % 1000 == 0:
+                _orthonormalise(Cb, T)
+            dth_prev[b, 0], dth_prev[b, 1], dth_prev[b, 2] = t0, t1, t2
+            dv_prev[b, 0], dv_prev[b, 1], dv_prev[b, 2] = v0, v1, v2
