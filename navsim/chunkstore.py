@@ -24,12 +24,12 @@ from pathlib import Path
 import numpy as np
 
 from navsim.errors import NavsimError, OutputError
+from navsim.montecarlo import ARRAY_FIELDS, EstimatorHistory
 from navsim.outputs import temporary_name, write_atomic
 
 log = logging.getLogger(__name__)
 INDEX = "index.json"
-_ARRAYS = ("t_s", "att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "nees", "diverged", "gyro_bias",
-           "accel_bias", "euler_err_rad")
+_ARRAYS = ARRAY_FIELDS
 
 
 class ResumeError(NavsimError):
@@ -98,7 +98,6 @@ def part_arrays(part) -> dict:
 
 def part_from_arrays(data) -> tuple:
     """The chunk part ``(runs, histories, truth_bias, calibration)`` stored by :func:`part_arrays`."""
-    from navsim.montecarlo import EstimatorHistory
     meta = json.loads(str(data["meta"]))
     hist = {}
     for i, (label, m) in enumerate(zip(meta["labels"], meta["histories"])):

@@ -24,6 +24,7 @@ import numpy as np
 
 from navsim.errors import FlightError, NavsimError, OutputError
 from navsim.flight.plots import plot_flight
+from navsim.montecarlo import ARRAY_FIELDS
 from navsim.outputs import OutputFolder
 from navsim.provenance import provenance
 from navsim.runner import cached_flight
@@ -223,13 +224,8 @@ def cmd_run(args) -> int:
         arrays = {"runs": result.runs}
         for label, h in result.histories.items():
             key = label.replace(" ", "_").replace("/", "-")
-            arrays.update({f"{key}.t_s": h.t_s, f"{key}.pos_err_m": h.pos_err_m,
-                           f"{key}.vel_err_mps": h.vel_err_mps, f"{key}.att_err_rad": h.att_err_rad,
-                           f"{key}.diverged": h.diverged})
-            if h.sigma is not None:
-                arrays.update({f"{key}.sigma": h.sigma, f"{key}.nees": h.nees})
-            if h.euler_err_rad is not None:
-                arrays[f"{key}.euler_err_rad"] = h.euler_err_rad
+            arrays.update({f"{key}.{name}": getattr(h, name) for name in ARRAY_FIELDS
+                           if getattr(h, name) is not None})
         if loop:
             arrays.update({f"closed_loop.{k}": np.asarray(v) for k, v in loop.items()})
         folder.write("runs.npz", lambda p: np.savez_compressed(p, **arrays))

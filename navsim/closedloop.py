@@ -54,6 +54,7 @@ from navsim.flight.segments import State
 from navsim.flight.simulator import Aircraft, Watchdog
 from navsim.flight.track import Segment
 from navsim.flight.truth import Truth, truth_from_rows
+from navsim.montecarlo import EPOCH_ARRAYS
 from navsim.transform import quat_from_euler
 
 SUPPORTED_KINDS = ("imu", "gnss", "baro")
@@ -391,13 +392,10 @@ def end_records(batch: LoopBatch, dt: float) -> None:
     end = np.where(np.isfinite(batch.end_t_s), batch.end_t_s, np.inf)
     for h in batch.histories.values():
         after = h.t_s[None, :] > end[:, None] + 0.5 * dt            # (B, E)
-        for name in ("att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "gyro_bias", "accel_bias",
-                     "euler_err_rad"):
+        for name in EPOCH_ARRAYS:
             a = getattr(h, name)
             if a is not None:
                 a[after] = np.nan
-        if h.nees is not None:
-            h.nees[after] = np.nan
         for v in h.nis.values():
             v[after] = np.nan
     after = batch.path_t_s[None, :] > end[:, None] + 0.5 * dt

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 import re
 from pathlib import Path
 from typing import Any
@@ -167,6 +168,12 @@ def resolve_file(ref: str, *, catalog: Path, file: str | None, key: str, what: s
         raise ScenarioError(f"'{ref}' does not exist beside the scenario", file=file, key=key,
                             expected=expected)
     return path
+
+
+def cache_dir() -> Path:
+    """navsim's cache folder: ``$NAVSIM_CACHE``, default ``~/.cache/navsim`` (flown flights,
+    compiled kernels)."""
+    return Path(os.environ.get("NAVSIM_CACHE", Path.home() / ".cache" / "navsim"))
 
 
 def close_match(word: str, choices) -> str | None:

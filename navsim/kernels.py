@@ -19,16 +19,25 @@ increments ``dtheta``, ``dv`` and the previous interval's ``dtheta_p``, ``dv_p``
 Gravity (WGS-84 with J2, as :func:`navsim.earth.gravity_n`), Earth rate, transport rate and the
 radii are evaluated every ``gravity_every`` steps and kept in the run's ``cache`` row between
 blocks.
+
+The compiled code is cached in ``<navsim cache>/numba`` (:func:`navsim.config.cache_dir`), or
+in ``$NUMBA_CACHE_DIR`` when that is set.
 """
 
 from __future__ import annotations
 
 import math
+import os
 
+import numba
 import numpy as np
 from numba import njit
 
 from navsim import earth
+from navsim.config import cache_dir
+
+if "NUMBA_CACHE_DIR" not in os.environ:      # compiled kernels in navsim's cache, not the package
+    numba.config.CACHE_DIR = str(cache_dir() / "numba")
 
 A_M, E2, OMEGA, GM, J2 = earth.A_M, earth.E2, earth.OMEGA_IE_RPS, earth.GM_M3PS2, earth.J2
 #: a run's cache row: gravity (3), omega_in (3), 2 omega_ie + omega_en (3), r_m, r_n

@@ -94,6 +94,17 @@ def nav_errors(nav: NavState, truth, k: int):
     return phi, dv, pos_m, np.stack([dlat, dlon, dh], -1)
 
 
+#: the arrays of an :class:`EstimatorHistory` with a run and an epoch axis, ``(B, E, ...)``:
+#: what chunks concatenate, closed-loop records pad and blank, the chunk store saves
+EPOCH_ARRAYS = ("att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "nees", "gyro_bias", "accel_bias",
+                "euler_err_rad")
+#: every array of an :class:`EstimatorHistory`: the epoch times ``(E,)``, the epoch arrays and
+#: the per-run flag ``diverged`` ``(B,)`` (the NIS are a dict of ``(B, E_m)`` arrays beside)
+ARRAY_FIELDS = ("t_s", *EPOCH_ARRAYS, "diverged")
+#: the per-run lists (one entry per run) of an :class:`EstimatorHistory`, or None
+RUN_LISTS = ("resets", "divergence")
+
+
 @dataclass
 class EstimatorHistory:
     """What one estimator did over the batch, sampled at its epochs ``t_s`` ``(E,)``."""

@@ -23,17 +23,15 @@ import numpy as np
 import navsim
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import fly
+from navsim.config import cache_dir
 from navsim.errors import ScenarioError
 from navsim.flight.truth import Truth
+from navsim.montecarlo import EPOCH_ARRAYS, RUN_LISTS, EstimatorHistory
 
 CHUNK_RUNS = 250
 #: streamed to a chunk store, the first chunks holding this many runs are loaded for the report's
 #: plots; the metrics are computed from every stored chunk (navsim.metrics_stream)
 REPORT_RUNS = 1000
-
-
-def cache_dir() -> Path:
-    return Path(os.environ.get("NAVSIM_CACHE", Path.home() / ".cache" / "navsim"))
 
 
 def plain(x):
@@ -147,7 +145,6 @@ def _sum_cost(costs):
 
 
 def _merge(parts):
-    from navsim.montecarlo import EstimatorHistory
     parts = sorted(parts, key=lambda p: p[0][0])
     runs = np.concatenate([p[0] for p in parts])
     labels = list(parts[0][1])
@@ -155,17 +152,13 @@ def _merge(parts):
     for label in labels:
         hs = [p[1][label] for p in parts]
         cat = lambda name: None if getattr(hs[0], name) is None else np.concatenate([getattr(h, name) for h in hs])
-        # per-run divergence records; a history without them (built by hand) has None per run
-        divergence = None if all(h.divergence is None for h in hs) else [
-            r for h in hs for r in (h.divergence or [None] * len(h.diverged))]
+        # per-run lists; a history without one (built by hand) has None per run
+        lists = {name: None if all(getattr(h, name) is None for h in hs) else [
+            r for h in hs for r in (getattr(h, name) or [None] * len(h.diverged))] for name in RUN_LISTS}
         merged[label] = EstimatorHistory(
-            label=label, t_s=hs[0].t_s, att_err_rad=cat("att_err_rad"), vel_err_mps=cat("vel_err_mps"),
-            pos_err_m=cat("pos_err_m"), sigma=cat("sigma"), nees=cat("nees"),
+            label=label, t_s=hs[0].t_s, **{name: cat(name) for name in (*EPOCH_ARRAYS, "diverged")},
             nis={k: np.concatenate([h.nis[k] for h in hs]) for k in hs[0].nis},
-            nis_dim=hs[0].nis_dim, diverged=cat("diverged"), gyro_bias=cat("gyro_bias"),
-            accel_bias=cat("accel_bias"), cost=_sum_cost([h.cost for h in hs]), euler_err_rad=cat("euler_err_rad"),
-            resets=None if hs[0].resets is None else [r for h in hs for r in h.resets],
-            divergence=divergence)
+            nis_dim=hs[0].nis_dim, cost=_sum_cost([h.cost for h in hs]), **lists)
     bias = {k: np.concatenate([p[2][k] for p in parts]) for k in parts[0][2]}
     calib = {name: {k: v if k in ("t_s", "turns") else np.concatenate([p[3][name][k] for p in parts])
                     for k, v in c.items()} for name, c in parts[0][3].items()}
@@ -306,8 +299,7 @@ def _pad_part(part, t_full, path_t_full):
     runs, hist, bias, extra, failed = part
     E = len(t_full)
     for h in hist.values():
-        for name in ("att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "nees", "gyro_bias", "accel_bias",
-                     "euler_err_rad"):
+        for name in EPOCH_ARRAYS:
             setattr(h, name, _pad(getattr(h, name), E))
         h.nis = {k: _pad(v, E) for k, v in h.nis.items()}
         h.t_s = t_full

@@ -418,7 +418,8 @@ def audited(tmp_path, *argv):
 def test_a_run_touches_only_its_output_folder_the_cache_and_its_inputs(tmp_path, repo_root):
     """Every file navsim writes, renames or deletes in a whole ``navsim run`` is in the output
     folder or the flight cache; every file it reads is navsim's own (package, catalog,
-    aircraft), the scenario's folder, the cache, the Python installation or the fonts; a track
+    aircraft), the scenario's folder, the cache, the Python installation, the fonts or the CPU
+    description numba reads; a track
     file that is a link to a file outside the scenario's folder is refused without being read."""
     import sys
     import sysconfig
@@ -438,7 +439,8 @@ def test_a_run_touches_only_its_output_folder_the_cache_and_its_inputs(tmp_path,
     installs = {Path(sysconfig.get_paths()[k]).resolve() for k in ("stdlib", "purelib", "platlib", "data")}
     allowed_reads = [case, tmp_path / "out", tmp_path / "cache", tmp_path / "mpl", repo_root / "navsim",
                      repo_root / "sensors", repo_root / "aircraft", Path(sys.prefix), Path(sys.base_prefix),
-                     *installs, Path("/usr/share/fonts")]
+                     *installs, Path("/usr/share/fonts"), Path("/proc/cpuinfo"), Path("/sys/devices/system/cpu"),
+                     Path("/sys/fs/cgroup")]           # fonts for the plots; the CPU for numba
     strays = [p for p in reads if not any(p.resolve().is_relative_to(a) for a in allowed_reads)]
     assert not strays, strays
     assert (case / "tracks" / "leg.yaml") in reads and (case / "my_gnss.yaml") in reads
