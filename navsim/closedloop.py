@@ -41,7 +41,6 @@ in turn; sensors and estimators are batched over the runs.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -227,7 +226,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
     docstring); ``on_truth`` flies them on the truth whatever ``fly_on`` says; ``keep_truth``
     keeps the first run's whole truth record (for the flight pages of the report)."""
     from navsim.estimators.factory import build
-    from navsim.montecarlo import _Recorder, perturbed_start
+    from navsim.montecarlo import Driver, perturbed_start
     from navsim.sensors.imu import OnlineIncrements, quantize_increment
     cl = scenario.closed_loop
     rtl = cl.return_to_land
@@ -256,13 +255,9 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
     errors = scenario.initial.draw(seed, runs)
     nav0 = perturbed_start(_StepTruth(rows[:1], batched=False), errors, 0)
     sigma0 = scenario.initial.sigma_blocks(rows[0, P.COL_LAT], rows[0, P.COL_H])
-    for est in estimators.values():
-        est.initialize(nav0, {**sigma0, **(est.noise_sigma0() if hasattr(est, "noise_sigma0") else {})})
-    rec = {label: _Recorder(label) for label in estimators}
-    for label, est in estimators.items():
-        rec[label].add(est, view, 0, 0.0, [])
-    every = {label: int(round(est.period_s / dt)) for label, est in estimators.items()}
-    path_every = min(every.values())
+    loop = Driver(estimators, dt, B, isolate=False)        # the guidance needs every step
+    loop.start(nav0, sigma0, view, 0)
+    path_every = min(loop.every.values())
     inc = OnlineIncrements(B, dt)
     inc.update(view.omega_ib_b_rps, view.f_b_mps2)
     states = [State() for _ in range(B)]
@@ -278,7 +273,6 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
     paths, path_t = [], []
     kept = [] if keep_truth else None
     seg_kept = []
-    clock = time.perf_counter
     for k in range(n_max):
         t = k * dt
         if k > 0:
@@ -291,15 +285,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
             for data in sensors.values():
                 if k % data.meta["step"] == 0:
                     _fill(data, k // data.meta["step"], rows)
-            for label, est in estimators.items():
-                tic = clock()
-                est.propagate(dth, dv, dt)
-                toc = clock()
-                rec[label].propagate_s += toc - tic
-                if k % every[label] == 0:
-                    innov = est.epoch(t, sensors)
-                    rec[label].epoch_s += clock() - toc
-                    rec[label].add(est, view, 0, t, innov)
+            loop.advance(dth[:, None], dv[:, None], t, sensors, view, 0)
         if k % path_every == 0:
             path_t.append(t)
             paths.append(np.stack([(rows[:, P.COL_LAT] - c0.lat0) * c0.k_north,
@@ -366,7 +352,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
         new = [c.io.read_row() if status[b] != "failed" else rows[b] for b, c in enumerate(craft)]
         rows = np.array(new)
     outcome = ["time limit" if st in ("flying", "aborted") else st for st in status]
-    histories = {label: r.history(estimators[label]) for label, r in rec.items()}
+    histories = loop.histories()
     ks = np.round(next(iter(histories.values())).t_s / dt).astype(int)
     bias = {}
     for key in ("gyro_bias", "accel_bias"):

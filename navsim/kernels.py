@@ -73,6 +73,23 @@ def _gravity_n(lat, h, out):
 
 
 @njit(cache=True)
+def gravity_gradient(lat, h, dlat, dh, out):
+    """Derivatives of gravity in NED (:func:`_gravity_n`) by central differences of ``dlat``
+    (rad) and ``dh`` (m), at each run's latitude ``lat`` and height ``h`` ``(B,)``: ``out``
+    ``(B, 3, 2)``, per radian of latitude and per metre of height."""
+    gp, gm = np.empty(3), np.empty(3)
+    for b in range(lat.shape[0]):
+        _gravity_n(lat[b] + dlat, h[b], gp)
+        _gravity_n(lat[b] - dlat, h[b], gm)
+        for i in range(3):
+            out[b, i, 0] = (gp[i] - gm[i]) / (2.0 * dlat)
+        _gravity_n(lat[b], h[b] + dh, gp)
+        _gravity_n(lat[b], h[b] - dh, gm)
+        for i in range(3):
+            out[b, i, 1] = (gp[i] - gm[i]) / (2.0 * dh)
+
+
+@njit(cache=True)
 def _refresh(lat, h, vel, cache):
     """Gravity, rates and radii of one run into its cache row."""
     _gravity_n(lat, h, cache[0:3])
@@ -138,8 +155,10 @@ def _orthonormalise(C, T):
 
 
 @njit(cache=True)
-def strapdown_block(lat, lon, h, vel, C, dth_prev, dv_prev, cache, dth, dv, dt, k0, gravity_every, dv_n):
-    """Integrate ``K`` IMU intervals of ``B`` runs in place.
+def strapdown_block(lat, lon, h, vel, C, dth_prev, dv_prev, cache, dth, dv, bias_g, bias_a, dt, k0,
+                    gravity_every, sum_C, sum_dv_n):
+    """Integrate ``K`` IMU intervals of ``B`` runs in place, the increments less the biases
+    times ``dt``.
 
     Parameters
     ----------
@@ -154,15 +173,19 @@ def strapdown_block(lat, lon, h, vel, C, dth_prev, dv_prev, cache, dth, dv, dt, 
     cache : (B, :data:`CACHE_SIZE`) array
         Gravity, rates and radii of the last refresh; updated.
     dth, dv : (B, K, 3) arrays
-        The block's angle (rad) and velocity (m/s) increments.
+        The block's angle (rad) and velocity (m/s) increments (any strides).
+    bias_g, bias_a : (B, 3) arrays
+        The gyro (rad/s) and accelerometer (m/s^2) biases to take off.
     dt : float
         The IMU interval, s.
     k0 : int
         Steps taken before this block (gravity refresh and re-orthonormalisation cadence).
     gravity_every : int
         Steps between two evaluations of gravity, rates and radii.
-    dv_n : (B, K, 3) array
-        Out: each interval's specific-force velocity increment in NED.
+    sum_C : (B, 3, 3) array
+        ``C_nb`` after each interval, added up (for a filter's averaged attitude); updated.
+    sum_dv_n : (B, 3) array
+        Each interval's specific-force velocity increment in NED, ``dv_n``, added up; updated.
     """
     B, K = dth.shape[0], dth.shape[1]
     R = np.empty((3, 3))
@@ -170,6 +193,8 @@ def strapdown_block(lat, lon, h, vel, C, dth_prev, dv_prev, cache, dth, dv, dt, 
     for b in range(B):
         Cb, cb = C[b], cache[b]
         w_in = np.empty(3)
+        bg0, bg1, bg2 = bias_g[b, 0] * dt, bias_g[b, 1] * dt, bias_g[b, 2] * dt
+        ba0, ba1, ba2 = bias_a[b, 0] * dt, bias_a[b, 1] * dt, bias_a[b, 2] * dt
         for j in range(K):
             k = k0 + j
             if k % gravity_every == 0:
@@ -178,8 +203,8 @@ def strapdown_block(lat, lon, h, vel, C, dth_prev, dv_prev, cache, dth, dv, dt, 
             w_in[0], w_in[1], w_in[2] = cb[3], cb[4], cb[5]
             r0, r1, r2 = cb[6], cb[7], cb[8]
             r_m, r_n = cb[9], cb[10]
-            t0, t1, t2 = dth[b, j, 0], dth[b, j, 1], dth[b, j, 2]
-            v0, v1, v2 = dv[b, j, 0], dv[b, j, 1], dv[b, j, 2]
+            t0, t1, t2 = dth[b, j, 0] - bg0, dth[b, j, 1] - bg1, dth[b, j, 2] - bg2
+            v0, v1, v2 = dv[b, j, 0] - ba0, dv[b, j, 1] - ba1, dv[b, j, 2] - ba2
             p0, p1, p2 = dth_prev[b, 0], dth_prev[b, 1], dth_prev[b, 2]
             q0, q1, q2 = dv_prev[b, 0], dv_prev[b, 1], dv_prev[b, 2]
             e0, e1, e2 = _cross(0.5 * t0 + p0 * (1.0 / 12.0), 0.5 * t1 + p1 * (1.0 / 12.0),
@@ -195,7 +220,9 @@ def strapdown_block(lat, lon, h, vel, C, dth_prev, dv_prev, cache, dth, dv, dt, 
             n2 = Cb[2, 0] * c0 + Cb[2, 1] * c1 + Cb[2, 2] * c2
             x0, x1, x2 = _cross(w_in[0], w_in[1], w_in[2], n0, n1, n2)
             n0, n1, n2 = n0 - 0.5 * dt * x0, n1 - 0.5 * dt * x1, n2 - 0.5 * dt * x2
-            dv_n[b, j, 0], dv_n[b, j, 1], dv_n[b, j, 2] = n0, n1, n2
+            sum_dv_n[b, 0] += n0
+            sum_dv_n[b, 1] += n1
+            sum_dv_n[b, 2] += n2
             o0, o1, o2 = vel[b, 0], vel[b, 1], vel[b, 2]
             y0, y1, y2 = _cross(r0, r1, r2, o0, o1, o2)
             w0, w1, w2 = o0 + n0 + (g0 - y0) * dt, o1 + n1 + (g1 - y1) * dt, o2 + n2 + (g2 - y2) * dt
@@ -210,5 +237,238 @@ def strapdown_block(lat, lon, h, vel, C, dth_prev, dv_prev, cache, dth, dv, dt, 
             vel[b, 0], vel[b, 1], vel[b, 2] = w0, w1, w2
             if (k + 1) % 1000 == 0:
                 _orthonormalise(Cb, T)
+            for r in range(3):
+                for c in range(3):
+                    sum_C[b, r, c] += Cb[r, c]
             dth_prev[b, 0], dth_prev[b, 1], dth_prev[b, 2] = t0, t1, t2
             dv_prev[b, 0], dv_prev[b, 1], dv_prev[b, 2] = v0, v1, v2
+
+
+# --- Kalman filter epochs -------------------------------------------------------------------
+#
+# Per run, over the ``n`` states of a filter: the matrix-exponential series of the transition
+# and the process noise (:func:`discretize_series`), the covariance prediction
+# (:func:`predict`) and the Joseph-form update (:func:`joseph_update`). The products are
+# written as loops whose innermost index runs along a row, so that LLVM vectorises them; the
+# results equal numpy's batched products to rounding (the tests hold them to 1e-12).
+
+
+@njit(cache=True)
+def _matmul(A, B, out):
+    """``out = A @ B`` (``out`` distinct from both), the zeros of ``A`` skipped."""
+    n, m, p = A.shape[0], A.shape[1], B.shape[1]
+    for i in range(n):
+        for j in range(p):
+            out[i, j] = 0.0
+        for k in range(m):
+            a = A[i, k]
+            if a != 0.0:
+                for j in range(p):
+                    out[i, j] += a * B[k, j]
+
+
+@njit(cache=True)
+def discretize_series(F, Qc, T, order, Phi, Qd):
+    """``Phi = sum_k (F T)^k / k!`` and ``Qd = sum_k M_k T^k / k!`` (``M_1 = Qc``,
+    ``M_k+1 = F M_k + (F M_k)^T``, symmetric as ``Qc`` is), to ``order``, of each run. The
+    products have ``F`` on the left, so that its zeros (most of an error-state model's) are
+    skipped.
+
+    Parameters
+    ----------
+    F : (B, n, n) array
+        The continuous system matrices.
+    Qc : (B, n, n) array
+        The continuous process-noise densities, symmetric.
+    T : float
+        The interval, s.
+    order : int
+        The last power of the series.
+    Phi, Qd : (B, n, n) arrays
+        Out: the transition matrices and the (symmetrised) process noise.
+    """
+    B, n = F.shape[0], F.shape[1]
+    term = np.empty((n, n))
+    nxt = np.empty((n, n))
+    M = np.empty((n, n))
+    FM = np.empty((n, n))
+    for b in range(B):
+        Fb, P, Q = F[b], Phi[b], Qd[b]
+        for i in range(n):
+            for j in range(n):
+                term[i, j] = 1.0 if i == j else 0.0
+                P[i, j] = term[i, j]
+                M[i, j] = Qc[b, i, j]
+                Q[i, j] = Qc[b, i, j] * T
+        c = T
+        for k in range(1, order + 1):
+            _matmul(Fb, term, nxt)         # F^k = F F^k-1: F's zeros are skipped
+            s = T / k
+            for i in range(n):
+                for j in range(n):
+                    term[i, j] = nxt[i, j] * s
+                    P[i, j] += term[i, j]
+            if k < order:
+                _matmul(Fb, M, FM)
+                c = c * T / (k + 1)
+                for i in range(n):
+                    for j in range(n):
+                        M[i, j] = FM[i, j] + FM[j, i]
+                        Q[i, j] += M[i, j] * c
+        for i in range(n):
+            for j in range(i + 1, n):
+                v = 0.5 * (Q[i, j] + Q[j, i])
+                Q[i, j] = v
+                Q[j, i] = v
+
+
+@njit(cache=True)
+def predict(x, P, Phi, Qd):
+    """``x <- Phi x``, ``P <- Phi P Phi^T + Qd`` (symmetrised) of each run, in place."""
+    B, n = P.shape[0], P.shape[1]
+    A = np.empty((n, n))
+    C = np.empty((n, n))
+    Ft = np.empty((n, n))
+    xn = np.empty(n)
+    for b in range(B):
+        Fb, Pb = Phi[b], P[b]
+        for i in range(n):
+            s = 0.0
+            for k in range(n):
+                s += Fb[i, k] * x[b, k]
+            xn[i] = s
+            for j in range(n):
+                Ft[i, j] = Fb[j, i]
+        x[b, :] = xn
+        _matmul(Fb, Pb, A)
+        _matmul(A, Ft, C)
+        for i in range(n):
+            for j in range(i, n):
+                v = 0.5 * ((C[i, j] + Qd[b, i, j]) + (C[j, i] + Qd[b, j, i]))
+                Pb[i, j] = v
+                Pb[j, i] = v
+
+
+@njit(cache=True)
+def _solve(S, Y, A, X):
+    """``X = S^-1 Y`` by Gaussian elimination with partial pivoting (``S`` ``(m, m)``, ``Y``
+    ``(m, r)``; ``A`` ``(m, m)`` scratch, ``X`` ``(m, r)`` out); False when ``S`` is singular."""
+    m, r = S.shape[0], Y.shape[1]
+    A[:, :] = S
+    X[:, :] = Y
+    for c in range(m):
+        p = c
+        for i in range(c + 1, m):
+            if abs(A[i, c]) > abs(A[p, c]):
+                p = i
+        if A[p, c] == 0.0 or not math.isfinite(A[p, c]):
+            return False
+        if p != c:
+            for j in range(m):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
+            for j in range(r):
+                X[c, j], X[p, j] = X[p, j], X[c, j]
+        for i in range(c + 1, m):
+            f = A[i, c] / A[c, c]
+            for j in range(c, m):
+                A[i, j] -= f * A[c, j]
+            for j in range(r):
+                X[i, j] -= f * X[c, j]
+    for c in range(m - 1, -1, -1):
+        d = A[c, c]
+        for j in range(r):
+            s = X[c, j]
+            for k in range(c + 1, m):
+                s -= A[c, k] * X[k, j]
+            X[c, j] = s / d
+    return True
+
+
+@njit(cache=True)
+def joseph_update(x, P, z, H, R, valid, y, S, nis):
+    """Joseph-form update of the runs where ``valid``, in place: ``y = z - H x``,
+    ``S = H P H^T + R`` (symmetrised), ``K = P H^T S^-1``, ``x <- x + K y``,
+    ``P <- (I - K H) P (I - K H)^T + K R K^T`` (symmetrised), evaluated as
+    ``A = P - K (H P)``, ``A - (A H^T) K^T + K R K^T`` (``O(n^2 m)``), and
+    ``nis = y^T S^-1 y``. A valid run whose ``S`` is singular gets NaN state and covariance;
+    an invalid one keeps them, with NaN NIS.
+
+    Parameters
+    ----------
+    x : (B, n), P : (B, n, n)
+        State and covariance (symmetric); updated.
+    z : (B, m), H : (B, m, n), R : (B, m, m), valid : (B,) bool
+        The measurement.
+    y : (B, m), S : (B, m, m), nis : (B,)
+        Out: innovation, its covariance and the NIS.
+    """
+    B, n, m = P.shape[0], P.shape[1], H.shape[1]
+    HP = np.empty((m, n))          # H P = (P H^T)^T
+    Kt = np.empty((m, n))          # K^T = S^-1 H P
+    D = np.empty((n, m))           # K R - A H^T
+    Ab = np.empty((n, n))
+    W = np.empty((m, m))
+    yy = np.empty((m, 1))
+    sy = np.empty((m, 1))
+    for b in range(B):
+        Pb, Hb, Rb, Sb = P[b], H[b], R[b], S[b]
+        for i in range(m):
+            s = z[b, i]
+            for k in range(n):
+                s -= Hb[i, k] * x[b, k]
+            y[b, i] = s
+            yy[i, 0] = s
+        _matmul(Hb, Pb, HP)
+        for i in range(m):
+            for j in range(m):
+                s = 0.0
+                for k in range(n):
+                    s += HP[i, k] * Hb[j, k]
+                Sb[i, j] = s + Rb[i, j]
+        for i in range(m):
+            for j in range(i + 1, m):
+                v = 0.5 * (Sb[i, j] + Sb[j, i])
+                Sb[i, j] = v
+                Sb[j, i] = v
+        if not valid[b]:
+            nis[b] = np.nan
+            continue
+        if not (_solve(Sb, HP, W, Kt) and _solve(Sb, yy, W, sy)):
+            x[b, :] = np.nan
+            Pb[:, :] = np.nan
+            nis[b] = np.nan
+            continue
+        s = 0.0
+        for i in range(m):
+            s += yy[i, 0] * sy[i, 0]
+        nis[b] = s
+        for k in range(m):
+            for i in range(n):
+                x[b, i] += Kt[k, i] * yy[k, 0]
+        for i in range(n):             # A = P - K H P
+            for j in range(n):
+                Ab[i, j] = Pb[i, j]
+            for k in range(m):
+                c = Kt[k, i]
+                for j in range(n):
+                    Ab[i, j] -= c * HP[k, j]
+        for i in range(n):             # D = K R - A H^T
+            for j in range(m):
+                s = 0.0
+                for k in range(m):
+                    s += Kt[k, i] * Rb[k, j]
+                for k in range(n):
+                    s -= Ab[i, k] * Hb[j, k]
+                D[i, j] = s
+        for i in range(n):             # P = A + D K^T
+            for j in range(n):
+                Pb[i, j] = Ab[i, j]
+            for k in range(m):
+                c = D[i, k]
+                for j in range(n):
+                    Pb[i, j] += c * Kt[k, j]
+        for i in range(n):
+            for j in range(i + 1, n):
+                v = 0.5 * (Pb[i, j] + Pb[j, i])
+                Pb[i, j] = v
+                Pb[j, i] = v

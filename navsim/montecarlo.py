@@ -193,71 +193,139 @@ def _cholesky_ok(A: np.ndarray) -> np.ndarray:
     return ok
 
 
+class Driver:
+    """The time loop of a set of estimators over a batch of runs, shared by open-loop Monte
+    Carlo (:func:`run_batch`), the closed loop (:func:`navsim.closedloop.fly_batch`) and log
+    replay (:func:`navsim.replay.replay`): the initialisation (the navigation blocks of the
+    initial uncertainty plus each estimator's ``noise_sigma0``), the epoch cadence (every
+    ``period_s`` on the IMU grid), the CPU time of ``propagate`` and of the epochs, and the
+    records against the truth (:class:`EstimatorHistory`).
+
+    Parameters
+    ----------
+    estimators : dict
+        Label -> estimator object.
+    dt_s : float
+        The IMU interval, s.
+    runs : int, optional
+        The batch size (known before the first record: an estimator that fails at once).
+    isolate : bool
+        True: an estimator that raises an ``Exception`` has its runs flagged diverged, at the
+        time of the block's last sample when ``propagate`` raised, and is not called again (NaN
+        records from there), the others go on; False: the exception propagates.
+    """
+
+    def __init__(self, estimators: dict, dt_s: float, runs: int | None = None, isolate: bool = True):
+        self.estimators, self.dt_s, self.isolate = estimators, dt_s, isolate
+        self.every = {label: max(1, int(round(est.period_s / dt_s))) for label, est in estimators.items()}
+        self.rec = {label: _Recorder(label, runs) for label in estimators}
+        self.i = 0          #: the IMU sample the estimators have reached
+
+    def start(self, nav0: NavState, sigma0: dict, truth=None, k: int = 0) -> None:
+        """Initialise every estimator at ``nav0`` with the 1-sigma blocks ``sigma0`` and record
+        it against truth sample ``k`` (no record without ``truth``)."""
+        for label, est in self.estimators.items():
+            rec = self.rec[label]
+            try:
+                est.initialize(nav0, {**sigma0, **est.noise_sigma0()} if hasattr(est, "noise_sigma0") else sigma0)
+                if truth is not None:
+                    rec.add(est, truth, k, 0.0, [])
+            except Exception as exc:  # one estimator's failure must not stop the others
+                self._fail(rec, 0.0, exc, truth is not None and not rec.t)
+
+    def stops(self, n: int) -> np.ndarray:
+        """The IMU samples in ``1 .. n-1`` where a block must end: every epoch of every
+        estimator, and the last sample."""
+        ends = [np.arange(e, n, e) for e in self.every.values()] + [np.array([n - 1])]
+        out = np.unique(np.concatenate(ends))
+        return out[out >= 1]
+
+    def advance(self, dtheta_b: np.ndarray, dv_b: np.ndarray, t_s: float, sensors: dict, truth=None,
+                k: int = 0) -> list:
+        """Propagate every estimator over the ``K`` intervals ``(B, K, 3)`` that follow the
+        sample reached, and run the epochs that fall on the block's last sample (at ``t_s``, s),
+        recorded against truth sample ``k`` (no record without ``truth``). A block must not
+        cross an epoch (:meth:`stops`). Returns the labels whose epoch this was."""
+        i = self.i + dtheta_b.shape[1]
+        for label, e in self.every.items():
+            if (self.i // e + 1) * e < i:
+                raise ValueError(f"a block of samples {self.i + 1}-{i} crosses an epoch of '{label}'")
+        due = [label for label, e in self.every.items() if i % e == 0]
+        for label, est in self.estimators.items():
+            self._advance(self.rec[label], est, dtheta_b, dv_b, label in due, t_s, sensors, truth, k)
+        self.i = i
+        return due
+
+    def _advance(self, rec, est, dtheta_b, dv_b, is_epoch: bool, t_s: float, sensors, truth, k) -> None:
+        """One block of one estimator: ``propagate``, and at its epoch ``epoch`` and the record;
+        a stopped estimator gets a NaN record at its epochs."""
+        record = truth is not None
+        if rec.failed:
+            if is_epoch and record:
+                rec.add_nan(t_s)
+            return
+        clock = time.perf_counter
+        recorded = len(rec.t)
+        try:
+            c0 = clock()
+            est.propagate(dtheta_b, dv_b, self.dt_s)
+            c1 = clock()
+            rec.propagate_s += c1 - c0
+            rec.steps += dtheta_b.shape[1]
+            if is_epoch:
+                innov = est.epoch(t_s, sensors)
+                rec.epoch_s += clock() - c1
+                rec.epochs += 1
+                if record:
+                    rec.add(est, truth, k, t_s, innov)
+        except Exception as exc:  # one estimator's failure must not stop the others
+            self._fail(rec, t_s, exc, is_epoch and record and len(rec.t) == recorded)
+
+    def _fail(self, rec, t_s: float, exc: Exception, blank: bool) -> None:
+        if not self.isolate:
+            raise exc
+        rec.fail(t_s, exc)
+        if blank:
+            rec.add_nan(t_s)
+
+    def cost(self, label: str) -> dict:
+        """CPU seconds in ``propagate`` and the epochs of one estimator, with the IMU intervals
+        and the epochs they covered."""
+        r = self.rec[label]
+        return {"propagate_s": r.propagate_s, "epoch_s": r.epoch_s, "steps": r.steps, "epochs": r.epochs}
+
+    def histories(self) -> dict[str, EstimatorHistory]:
+        """Label -> :class:`EstimatorHistory` of the records so far."""
+        return {label: r.history(self.estimators[label]) for label, r in self.rec.items()}
+
+
 def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialErrors, seed: int,
               runs, progress=None) -> dict[str, EstimatorHistory]:
     """Run ``estimators`` (label -> estimator object) on the runs ``runs``.
 
     ``imu`` is the IMU :class:`~navsim.sensors.base.SensorData` of these runs, ``sensors`` the
-    other sensors' data by name. All estimators share the time loop and the initial errors. An
-    estimator that raises (an ``Exception``) in ``initialize``, ``propagate``, ``epoch`` or
-    ``solution`` has all its runs flagged diverged with the exception as the cause and is not
-    called again; its errors are NaN from there, and the other estimators go on.
+    other sensors' data by name. All estimators share the time loop (:class:`Driver`) and the
+    initial errors; each ``propagate`` gets the IMU increments up to the next epoch of any
+    estimator, so Python runs once per filter epoch, not once per IMU sample. An estimator that
+    raises (an ``Exception``) in ``initialize``, ``propagate``, ``epoch`` or ``solution`` has
+    all its runs flagged diverged with the exception as the cause and is not called again; its
+    errors are NaN from there, and the other estimators go on.
     """
     runs = list(runs)
     errors = initial.draw(seed, runs)
     dt = imu.meta["dt_s"]
     step = int(round(dt / truth.dt_s))
-    nav0 = perturbed_start(truth, errors, 0)
-    sigma0 = initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0])
-    rec = {label: _Recorder(label, len(runs)) for label in estimators}
-    for label, est in estimators.items():
-        try:
-            if hasattr(est, "noise_sigma0"):
-                est.initialize(nav0, {**sigma0, **est.noise_sigma0()})
-            else:
-                est.initialize(nav0, sigma0)
-            rec[label].add(est, truth, 0, 0.0, [])
-        except Exception as exc:  # one estimator's failure must not stop the others
-            rec[label].fail(0.0, exc)
-            if not rec[label].t:
-                rec[label].add_nan(0.0)
+    driver = Driver(estimators, dt, len(runs))
+    driver.start(perturbed_start(truth, errors, 0), initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0]),
+                 truth, 0)
     dth, dv = imu.values["dtheta_b_rad"], imu.values["dv_b_mps"]
     n = dth.shape[1]
-    epoch_every = {label: int(round(est.period_s / dt)) for label, est in estimators.items()}
-    for i in range(1, n):
-        t = imu.t_s[i]
-        for label, est in estimators.items():
-            _advance(rec[label], est, truth, dth[:, i], dv[:, i], dt, i % epoch_every[label] == 0,
-                     i * step, t, sensors)
-        if progress is not None and i % 1000 == 0:
+    for i in driver.stops(n):
+        i0 = driver.i + 1
+        driver.advance(dth[:, i0:i + 1], dv[:, i0:i + 1], imu.t_s[i], sensors, truth, i * step)
+        if progress is not None and i // 1000 > (i0 - 1) // 1000:
             progress(i, n)
-    return {label: r.history(estimators[label]) for label, r in rec.items()}
-
-
-def _advance(rec, est, truth, dtheta_b_rad, dv_b_mps, dt_s: float, is_epoch: bool, k: int, t_s: float,
-             sensors: dict) -> None:
-    """One IMU step of one estimator: ``propagate``, and at its epochs ``epoch`` and the record
-    of truth sample ``k``; an exception flags the estimator's runs and stops it
-    (:meth:`_Recorder.fail`), a stopped estimator gets a NaN record at its epochs."""
-    if rec.failed:
-        if is_epoch:
-            rec.add_nan(t_s)
-        return
-    clock = time.perf_counter
-    recorded = len(rec.t)
-    try:
-        c0 = clock()
-        est.propagate(dtheta_b_rad, dv_b_mps, dt_s)
-        c1 = clock()
-        rec.propagate_s += c1 - c0
-        if is_epoch:
-            innov = est.epoch(t_s, sensors)
-            rec.epoch_s += clock() - c1
-            rec.add(est, truth, k, t_s, innov)
-    except Exception as exc:  # one estimator's failure must not stop the others
-        rec.fail(t_s, exc)
-        if is_epoch and len(rec.t) == recorded:
-            rec.add_nan(t_s)
+    return driver.histories()
 
 
 def _nees(P: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -282,6 +350,7 @@ class _Recorder:
         self.nis: dict = {}
         self.nis_dim: dict = {}
         self.propagate_s = self.epoch_s = 0.0
+        self.steps = self.epochs = 0
         self.runs = runs
         self.flagged = None if runs is None else np.zeros(runs, bool)
         self.why: list = [None] * (runs or 0)

@@ -10,7 +10,7 @@ or ``vehicle_magnetometer``, gauss), the barometric altitude when the log has on
 :func:`replay` resamples the IMU to a uniform grid (increments ``dtheta_b``, ``dv_b``), puts each
 magnetometer and baro sample on the first grid time at or after its own time, aligns the
 estimator coarsely from the first second of data (:func:`coarse_alignment`), drives it as
-:func:`navsim.montecarlo.run_batch` does (``propagate`` every IMU step, ``epoch`` every
+:func:`navsim.montecarlo.run_batch` does (``propagate`` up to each epoch, ``epoch`` every
 ``period_s``) and records its roll, pitch and yaw with PX4's, slerped to the same times.
 :func:`replay_metrics` scores the differences after ``settle_s``.
 
@@ -26,7 +26,6 @@ import inspect
 import io
 import math
 import struct
-import time
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from navsim.errors import LogError, UsageError
+from navsim.montecarlo import Driver, InitialErrors
 from navsim.sensors.base import SensorData
 from navsim.strapdown import NavState
 from navsim.transform import dcm_from_euler, euler_from_dcm, wrap_angle
@@ -426,7 +426,6 @@ def coarse_alignment(log: ReplayLog, window_s: float = ALIGN_S) -> Alignment:
 
 def initial_state(log: ReplayLog, align: Alignment) -> tuple[NavState, dict]:
     """``nav0`` (one run) and its ``sigma0`` blocks (:data:`ALIGN_SIGMA`)."""
-    from navsim.montecarlo import InitialErrors
     lat = log.lat_rad or 0.0
     h = float(log.h_baro_m[0]) if len(log.h_baro_m) else (log.h_ref_m or 0.0)
     nav0 = NavState(np.array([lat]), np.array([log.lon_rad or 0.0]), np.array([h]), np.zeros((1, 3)),
@@ -532,25 +531,21 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_ra
                 "no_gnss_sigma_mps": NO_GNSS_SIGMA_MPS}
     est, kw = build_estimator(estimator, dict(params or {}), defaults)
     nav0, sigma0 = initial_state(log, align)
-    est.initialize(nav0, {**sigma0, **est.noise_sigma0()} if hasattr(est, "noise_sigma0") else sigma0)
     dt = 1.0 / rate
-    every = max(1, int(round(est.period_s / dt)))
+    loop = Driver({estimator: est}, dt, 1, isolate=False)
+    loop.start(nav0, sigma0)
+    every = loop.every[estimator]
     rec_every = max(1, int(round(min(record_s, every * dt) / dt)))
     t_rec, C_rec = [0.0], [est.solution().nav.C_nb[0].copy()]
-    clock, prop_s, epoch_s, epochs = time.perf_counter, 0.0, 0.0, 0
-    for i in range(1, len(grid)):
-        c0 = clock()
-        est.propagate(dth[None, i], dv[None, i], dt)
-        c1 = clock()
-        prop_s += c1 - c0
-        if i % every == 0:
-            est.epoch(float(grid[i]), sensors)
-            epoch_s += clock() - c1
-            epochs += 1
+    n = len(grid)
+    stops = np.union1d(loop.stops(n), np.arange(rec_every, n, rec_every))
+    for i in stops:
+        i0 = loop.i + 1
+        loop.advance(dth[None, i0:i + 1], dv[None, i0:i + 1], float(grid[i]), sensors)
         if i % rec_every == 0:
             t_rec.append(float(grid[i]))
             C_rec.append(est.solution().nav.C_nb[0].copy())
-        if progress is not None and i % 2000 == 0:
+        if progress is not None and i // 2000 > (i0 - 1) // 2000:
             progress(grid[i], grid[-1])
     t_rec = np.asarray(t_rec)
     resets = est.solution().extra.get("resets")
@@ -559,7 +554,7 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_ra
         log=log, estimator=estimator, params=kw, alignment=align, imu_rate_hz=rate,
         period_s=every * dt, t_s=t_rec, euler_rad=euler_from_dcm(np.asarray(C_rec)),
         euler_px4_rad=px4_euler_at(log, t_rec), settle_s=settle_s, resets=resets,
-        cost={"propagate_s": prop_s, "epoch_s": epoch_s, "steps": len(grid) - 1, "epochs": epochs},
+        cost=loop.cost(estimator),
         sensors={k: {"samples": int(s.t_s.size), "rate_hz": s.meta["rate_hz"]} for k, s in sensors.items()})
 
 

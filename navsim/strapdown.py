@@ -1,8 +1,9 @@
 """Batched strapdown mechanization in the local-level NED frame.
 
 State of ``B`` runs (:class:`NavState`): geodetic latitude, longitude, height, NED velocity and
-``C_nb``. :func:`step` advances it with one IMU interval's increments ``dtheta_b``, ``dv_b``
-(``(B, 3)``) using the previous interval's increments for coning and sculling compensation:
+``C_nb``. :class:`BlockStrapdown` advances it over a block of IMU intervals, each with its
+increments ``dtheta_b``, ``dv_b`` and the previous interval's, for coning and sculling
+compensation:
 
 * attitude: ``C_nb <- C_nn(-omega_in^n dt) C_nb C_bb(dtheta + dtheta_prev x dtheta / 12)``;
 * velocity: ``v <- v + C_nb [dv + dtheta x dv / 2 + (dtheta_prev x dv + dv_prev x dtheta) / 12]
@@ -10,11 +11,13 @@ State of ``B`` runs (:class:`NavState`): geodetic latitude, longitude, height, N
 * position: trapezoid on the old and new velocities, WGS-84 radii.
 
 Gravity is :func:`navsim.earth.gravity_n` (WGS-84 with J2, as JSBSim), Earth rate and transport
-rate are included. Arrays broadcast over the leading run axis.
+rate are included. Arrays broadcast over the leading run axis. The per-interval loop is compiled
+(:mod:`navsim.kernels`, where the same formulas are written out per component).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,18 +58,17 @@ def skew(v):
 def rotation(rotvec):
     """Rotation matrix ``exp([rotvec x])`` of ``(..., 3)`` rotation vectors (Rodrigues):
     ``I + s K + c K^2`` with ``K^2 = v v^T - |v|^2 I``; the Taylor series of ``s`` and ``c``
-    (exact to 1e-16) when every angle is below 0.05 rad, as IMU steps are."""
+    (exact to 1e-16) for angles below 0.05 rad, as IMU steps are, :mod:`math`'s sine and cosine
+    above, vector by vector (a batch of rotations equals the rotations one by one, bit for
+    bit: numpy's vectorised sine may round differently for another array length)."""
     rotvec = np.asarray(rotvec, float)
-    a2 = np.einsum("...i,...i->...", rotvec, rotvec)
-    if np.all(a2 < 2.5e-3):
-        s = 1.0 - a2 * (1.0 / 6.0) + a2 * a2 * (1.0 / 120.0) - a2 ** 3 * (1.0 / 5040.0)
-        c = 0.5 - a2 * (1.0 / 24.0) + a2 * a2 * (1.0 / 720.0) - a2 ** 3 * (1.0 / 40320.0)
-    else:
-        small = a2 < 1e-8
-        safe = np.where(small, 1.0, np.sqrt(a2))
-        s = np.where(small, 1.0 - a2 / 6.0, np.sin(safe) / safe)
-        c = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
     x, y, z = rotvec[..., 0], rotvec[..., 1], rotvec[..., 2]
+    a2 = np.asarray(x * x + y * y + z * z)
+    s = np.array(1.0 - a2 * (1.0 / 6.0) + a2 * a2 * (1.0 / 120.0) - a2 ** 3 * (1.0 / 5040.0))
+    c = np.array(0.5 - a2 * (1.0 / 24.0) + a2 * a2 * (1.0 / 720.0) - a2 ** 3 * (1.0 / 40320.0))
+    for i in np.flatnonzero(a2 >= 2.5e-3):     # rare: element by element, so no run's
+        a = math.sqrt(a2.flat[i])               # rotation depends on the others'
+        s.flat[i], c.flat[i] = math.sin(a) / a, (1.0 - math.cos(a)) / a2.flat[i]
     R = np.empty(rotvec.shape[:-1] + (3, 3))
     cx, cy = c * x, c * y
     R[..., 0, 0] = 1.0 - c * (y * y + z * z)
@@ -91,70 +93,12 @@ def rates_n(lat, h, vel_n):
     return w_ie, w_en, r_m, r_n
 
 
-class Strapdown:
-    """Free-inertial integration of IMU increments, batch-first.
-
-    ``gravity_every`` IMU steps share one evaluation of gravity, Earth rate, transport rate and
-    radii (at UAV speeds they change by less than 1e-7 of themselves in 0.1 s).
-    """
-
-    def __init__(self, state: NavState, gravity_every: int = 10):
-        self.state = state
-        self.dtheta_prev = np.zeros_like(state.vel_n_mps)
-        self.dv_prev = np.zeros_like(state.vel_n_mps)
-        self.gravity_every = gravity_every
-        self._g = None
-        self._k = 0
-        self.first = True
-
-    def step(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> NavState:
-        """Advance by one IMU interval; ``self.dv_n`` keeps the interval's specific-force
-        velocity increment in NED (for the filters' averaged specific force)."""
-        s = self.state
-        if self.first:               # no previous interval: no coning/sculling terms
-            self.dtheta_prev, self.dv_prev = dtheta_b, dv_b
-            self.first = False
-        every = self.gravity_every
-        if self._k % every == 0:
-            self._g = earth.gravity_n(s.lat_rad, s.h_m)
-            self._w_ie, self._w_en, self._r_m, self._r_n = rates_n(s.lat_rad, s.h_m, s.vel_n_mps)
-            self._w_in = self._w_ie + self._w_en
-            self._cor = 2.0 * self._w_ie + self._w_en
-            # the navigation frame turns by w_in dt (< 1e-6 rad) a step
-            self._C_nn = np.eye(3) - skew(self._w_in * dt)
-        self._k += 1
-        r_m, r_n, w_in = self._r_m, self._r_n, self._w_in
-        dth, dv, dth_p, dv_p = dtheta_b, dv_b, self.dtheta_prev, self.dv_prev
-        # rotation and sculling compensation: dv + dth x dv / 2 + (dth_p x dv + dv_p x dth) / 12
-        dv_c = dv + cross(0.5 * dth + dth_p * (1.0 / 12.0), dv) + cross(dv_p, dth) * (1.0 / 12.0)
-        # coning compensation
-        dth_c = dth + cross(dth_p, dth) * (1.0 / 12.0)
-        C = s.C_nb
-        dv_n = np.einsum("bij,bj->bi", C, dv_c)
-        dv_n -= (0.5 * dt) * cross(w_in, dv_n)
-        self.dv_n = dv_n
-        v_old = s.vel_n_mps
-        v_new = v_old + dv_n + (self._g - cross(self._cor, v_old)) * dt
-        # attitude
-        C = self._C_nn @ (C @ rotation(dth_c))
-        s.C_nb = C
-        # position (trapezoid)
-        v_mid = 0.5 * (v_old + v_new)
-        h_new = s.h_m - v_mid[:, 2] * dt
-        h_mid = 0.5 * (s.h_m + h_new)
-        lat_new = s.lat_rad + v_mid[:, 0] * dt / (r_m + h_mid)
-        s.lon_rad = s.lon_rad + v_mid[:, 1] * dt / ((r_n + h_mid) * np.cos(0.5 * (s.lat_rad + lat_new)))
-        s.lat_rad, s.h_m, s.vel_n_mps = lat_new, h_new, v_new
-        if self._k % 1000 == 0:         # keep C_nb orthonormal
-            s.C_nb = 1.5 * C - 0.5 * C @ np.swapaxes(C, -1, -2) @ C
-        self.dtheta_prev, self.dv_prev = dth, dv
-        return s
-
-
 class BlockStrapdown:
-    """:class:`Strapdown` compiled: a whole block of IMU intervals per call
-    (:func:`navsim.kernels.strapdown_block`), the same algorithm to rounding (held to it by a
-    test), one loop per run.
+    """The mechanization of the module docstring over a whole block of IMU intervals per call,
+    compiled (:func:`navsim.kernels.strapdown_block`), one loop per run. ``gravity_every`` IMU
+    steps share one evaluation of gravity, Earth rate, transport rate and radii (at UAV speeds
+    they change by less than 1e-7 of themselves in 0.1 s). The tests hold it to a numpy
+    reference of the same algorithm (``tests/reference_strapdown.py``) to 1e-9.
 
     Parameters
     ----------
@@ -162,6 +106,15 @@ class BlockStrapdown:
         The start; integrated in place.
     gravity_every : int
         IMU steps sharing one evaluation of gravity, rates and radii.
+
+    Attributes
+    ----------
+    sum_C_nb : (B, 3, 3) array
+        ``C_nb`` after each interval since the last :meth:`reset_sums`, added up.
+    sum_dv_n_mps : (B, 3) array
+        The intervals' specific-force velocity increments in NED since then, added up.
+    steps : int
+        The intervals since then.
     """
 
     def __init__(self, state: NavState, gravity_every: int = 10):
@@ -172,23 +125,37 @@ class BlockStrapdown:
         self.dv_prev = np.zeros((B, 3))
         self._cache = np.zeros((B, kernels.CACHE_SIZE))
         self._k = 0
+        self.reset_sums()
 
-    def block(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> np.ndarray:
-        """Advance by the ``K`` intervals of ``dtheta_b``, ``dv_b`` ``(B, K, 3)``; returns each
-        interval's specific-force velocity increment in NED ``(B, K, 3)``."""
+    def reset_sums(self) -> None:
+        """Start new sums of ``C_nb`` and ``dv_n`` (a filter epoch)."""
+        B = self.state.lat_rad.shape[0]
+        self.sum_C_nb = np.zeros((B, 3, 3))
+        self.sum_dv_n_mps = np.zeros((B, 3))
+        self.steps = 0
+
+    def block(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float, gyro_bias: np.ndarray | None = None,
+              accel_bias: np.ndarray | None = None) -> NavState:
+        """Advance by the ``K`` intervals of the increments ``dtheta_b`` (rad), ``dv_b`` (m/s),
+        ``(B, K, 3)``, of ``dt`` (s) each, less ``gyro_bias`` (rad/s) and ``accel_bias``
+        (m/s^2) ``(B, 3)`` times ``dt`` when given; returns the state."""
         s = self.state
-        dtheta_b = np.ascontiguousarray(dtheta_b, float)
-        dv_b = np.ascontiguousarray(dv_b, float)
+        B = dtheta_b.shape[0]
         if self._k == 0:              # no previous interval: no coning/sculling terms
-            self.dtheta_prev, self.dv_prev = dtheta_b[:, 0].copy(), dv_b[:, 0].copy()
+            self.dtheta_prev = dtheta_b[:, 0] - (0.0 if gyro_bias is None else gyro_bias * dt)
+            self.dv_prev = dv_b[:, 0] - (0.0 if accel_bias is None else accel_bias * dt)
+            self.dtheta_prev, self.dv_prev = (np.array(self.dtheta_prev, float), np.array(self.dv_prev, float))
         for name in ("lat_rad", "lon_rad", "h_m", "vel_n_mps", "C_nb"):
             setattr(s, name, np.ascontiguousarray(getattr(s, name), float))
-        dv_n = np.empty_like(dv_b)
+        zero = np.zeros((B, 3))
         kernels.strapdown_block(s.lat_rad, s.lon_rad, s.h_m, s.vel_n_mps, s.C_nb, self.dtheta_prev,
-                                self.dv_prev, self._cache, dtheta_b, dv_b, float(dt), self._k,
-                                self.gravity_every, dv_n)
+                                self.dv_prev, self._cache, np.asarray(dtheta_b, float), np.asarray(dv_b, float),
+                                zero if gyro_bias is None else np.ascontiguousarray(gyro_bias, float),
+                                zero if accel_bias is None else np.ascontiguousarray(accel_bias, float),
+                                float(dt), self._k, self.gravity_every, self.sum_C_nb, self.sum_dv_n_mps)
         self._k += dtheta_b.shape[1]
-        return dv_n
+        self.steps += dtheta_b.shape[1]
+        return s
 
 
 def state_from_truth(truth, k: int = 0, runs: int = 1) -> NavState:

@@ -5,7 +5,11 @@ An estimator works on a batch of ``B`` Monte Carlo runs at once and is driven by
 1. ``initialize(nav0, P0_sigma)``: the initial navigation state ``NavState`` (``B`` runs,
    already carrying the drawn initial errors) and its 1-sigma uncertainty per error-state
    block;
-2. ``propagate(dtheta_b, dv_b, dt)`` at every IMU sample, ``(B, 3)`` increments;
+2. ``propagate(dtheta_b, dv_b, dt)``: the IMU increments (rad, m/s) of the ``K`` intervals of
+   ``dt`` seconds since the last call, ``(B, K, 3)``. Open-loop Monte Carlo hands the whole
+   block between two of the estimator's epochs (or less: a block never crosses an epoch of any
+   estimator of the scenario), the closed loop one interval at a time; the result must not
+   depend on how the intervals are cut into blocks;
 3. ``epoch(t, sensors)`` at every filter epoch (``period_s``): predict the covariance and
    ``correct`` with each measurement model whose sensor has a sample at ``t``; returns the
    :class:`Innovation` of each correction (innovations and NIS, for consistency scoring);

@@ -156,7 +156,9 @@ class ComplementaryFilter:
         self.t_prev = -self.period_s
 
     def propagate(self, dtheta_b, dv_b, dt: float) -> None:
-        self.core.step(dtheta_b, dv_b, dt)
+        """The ``K`` IMU intervals of ``(B, K, 3)`` increments, one at a time."""
+        for j in range(dtheta_b.shape[1]):
+            self.core.step(dtheta_b[:, j], dv_b[:, j], dt)
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self.core.aid(t, sensors, self.mag, self.gnss, self.field_n_T, self.t_prev)

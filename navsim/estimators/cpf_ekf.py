@@ -204,6 +204,12 @@ class CpfEkf:
         return P
 
     def propagate(self, dtheta_b, dv_b, dt: float) -> None:
+        """The ``K`` IMU intervals of ``(B, K, 3)`` increments, one at a time (RK4 attitude,
+        velocity and position; the CPF beside)."""
+        for j in range(dtheta_b.shape[1]):
+            self._step(dtheta_b[:, j], dv_b[:, j], dt)
+
+    def _step(self, dtheta_b, dv_b, dt: float) -> None:
         x = self.x
         q = x[:, Q]
         w_b = dtheta_b / dt - x[:, WB] - rotate_n_to_b(q, self.frame.w_ie_n)

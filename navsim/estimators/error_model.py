@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navsim import earth
+from navsim import earth, kernels
 from navsim.strapdown import skew
 
 BLOCK_SIZES = {"att": 3, "vel": 3, "pos": 3, "gyro_bias": 3, "accel_bias": 3, "baro": 1,
@@ -128,8 +128,10 @@ def system_matrix(layout: Layout, lat, h, vel_n, C_nb, f_n) -> np.ndarray:
     F[:, V, Pp] = Vx @ (2.0 * dwie_dp + dwen_dp)
     # gravity gradient (J2 model, by central differences): latitude and height
     dL, dh = 1e-5, 1.0
-    F[:, V, Pp.start] += (earth.gravity_n(lat + dL, h) - earth.gravity_n(lat - dL, h)) / (2 * dL)
-    F[:, V, Pp.start + 2] += (earth.gravity_n(lat, h + dh) - earth.gravity_n(lat, h - dh)) / (2 * dh)
+    grad = np.empty((B, 3, 2))
+    kernels.gravity_gradient(np.ascontiguousarray(lat, float), np.ascontiguousarray(h, float), dL, dh, grad)
+    F[:, V, Pp.start] += grad[:, :, 0]
+    F[:, V, Pp.start + 2] += grad[:, :, 1]
     # position
     F[:, Pp.start, V.start] = 1.0 / Rm
     F[:, Pp.start, Pp.start + 2] = -vn / Rm ** 2

@@ -1,7 +1,8 @@
 """Closed-loop error-state Kalman filter for SINS aided by any set of measurement models
 (P3's 15 states, P0's 16, P2's 18, or any :class:`Layout`).
 
-The strapdown mechanization runs at the IMU rate on bias-compensated increments; every
+The strapdown mechanization (:class:`~navsim.strapdown.BlockStrapdown`, compiled) runs at the
+IMU rate on bias-compensated increments, a block of them per ``propagate``; every
 ``period_s`` the filter predicts with ``F`` built from the navigation state averaged over the
 period (``C_nb`` and the specific force in NED), discretised by the third-order series (P3) or
 Van Loan, then applies each available measurement with the Joseph form, and feeds the
@@ -17,7 +18,7 @@ from navsim.estimators import kalman
 from navsim.estimators.base import Innovation, Solution, register
 from navsim.estimators.error_model import (Layout, ProcessNoise, add_markov_decay, process_noise,
                                            system_matrix)
-from navsim.strapdown import NavState, Strapdown, rotation
+from navsim.strapdown import BlockStrapdown, NavState, rotation
 
 FEEDBACK = ("att", "vel", "pos", "gyro_bias", "accel_bias", "gyro_markov", "accel_markov")
 
@@ -76,7 +77,7 @@ class ErrorStateKF:
     def initialize(self, nav0: NavState, sigma0: dict) -> None:
         """``sigma0``: 1-sigma per block (arrays of the block's size), e.g. ``{"att": ...}``."""
         B = nav0.lat_rad.shape[0]
-        self.sd = Strapdown(nav0.copy())
+        self.sd = BlockStrapdown(nav0.copy())
         n = self.layout.n
         self.x = np.zeros((B, n))
         var = np.zeros(n)
@@ -92,13 +93,9 @@ class ErrorStateKF:
         self.diverged = np.zeros(B, bool)
 
     def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
-        gyro = self.b_gyro + self.m_gyro
-        accel = self.b_accel + self.m_accel
-        s = self.sd.step(dtheta_b - gyro * dt, dv_b - accel * dt, dt)
-        self._sum_C += s.C_nb
-        self._sum_f += self.sd.dv_n
-        self._count += 1
-        self._elapsed += dt
+        """Mechanize the increments ``(B, K, 3)`` less the estimated biases."""
+        self.sd.block(dtheta_b, dv_b, dt, self.b_gyro + self.m_gyro, self.b_accel + self.m_accel)
+        self._elapsed += dt * dtheta_b.shape[1]
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self.predict()
@@ -124,8 +121,8 @@ class ErrorStateKF:
     def _transition(self):
         """Phi, Qd over the elapsed period, F from the period's averaged C_nb and f_n."""
         s = self.sd.state
-        C_mean = self._sum_C / self._count
-        f_mean = self._sum_f / self._elapsed
+        C_mean = self.sd.sum_C_nb / self.sd.steps
+        f_mean = self.sd.sum_dv_n_mps / self._elapsed
         F = system_matrix(self.layout, s.lat_rad, s.h_m, s.vel_n_mps, C_mean, f_mean)
         F = add_markov_decay(F, self.layout, self.noise)
         T = self._elapsed
@@ -143,7 +140,7 @@ class ErrorStateKF:
             self.m_accel *= np.exp(-T / self.noise.accel_markov_tau_s)
 
     def predict(self) -> None:
-        if self._count == 0:
+        if self.sd.steps == 0:
             return
         Phi, Qd, T = self._transition()
         self.x, self.P = kalman.predict(self.x, self.P, Phi, Qd)
@@ -185,10 +182,7 @@ class ErrorStateKF:
                 x[:, L.slice(block)] = 0.0
 
     def _reset_accumulators(self) -> None:
-        B = self.sd.state.lat_rad.shape[0]
-        self._sum_C = np.zeros((B, 3, 3))
-        self._sum_f = np.zeros((B, 3))
-        self._count = 0
+        self.sd.reset_sums()
         self._elapsed = 0.0
 
 

@@ -79,7 +79,7 @@ class FederatedKF(ErrorStateKF):
         self.nis_avg = np.ones((L, B))
 
     def predict(self) -> None:
-        if self._count == 0:
+        if self.sd.steps == 0:
             return
         Phi, Qd, T = self._transition()
         for i, b in enumerate(self.beta):

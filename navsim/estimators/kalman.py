@@ -6,10 +6,11 @@ All arrays carry a leading run axis ``B``: ``x`` ``(B, n)``, ``P`` ``(B, n, n)``
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import scipy.linalg
+
+from navsim import kernels
 
 
 def symmetrize(P: np.ndarray) -> np.ndarray:
@@ -19,26 +20,18 @@ def symmetrize(P: np.ndarray) -> np.ndarray:
 def discretize_series(F: np.ndarray, Qc: np.ndarray, T: float, order: int = 3):
     """Transition matrix and process noise over ``T`` by the matrix-exponential series
     (P3: third order): ``Phi = sum (F T)^k / k!``, ``Qd = sum M_k T^k / k!`` with
-    ``M_1 = Qc``, ``M_{k+1} = F M_k + M_k F^T``.
+    ``M_1 = Qc``, ``M_{k+1} = F M_k + M_k F^T`` (compiled, one run at a time:
+    :func:`navsim.kernels.discretize_series`).
 
     Parameters
     ----------
     F : (B, n, n) continuous system matrix.
-    Qc : (B, n, n) or (n, n) continuous process-noise spectral density.
+    Qc : (B, n, n) or (n, n) continuous process-noise spectral density, symmetric.
     """
-    n = F.shape[-1]
-    Phi = np.broadcast_to(np.eye(n), F.shape).copy()
-    term = Phi.copy()
-    M = np.broadcast_to(Qc, F.shape).copy()
-    Qd = M * T
-    Ft = np.swapaxes(F, -1, -2)
-    for k in range(1, order + 1):
-        term = term @ F * (T / k)
-        Phi += term
-        if k < order:
-            M = F @ M + M @ Ft
-            Qd += M * (T ** (k + 1) / math.factorial(k + 1))
-    return Phi, symmetrize(Qd)
+    F = np.ascontiguousarray(F, float)
+    Phi, Qd = np.empty_like(F), np.empty_like(F)
+    kernels.discretize_series(F, _batch(Qc, F.shape), float(T), int(order), Phi, Qd)
+    return Phi, Qd
 
 
 def discretize_van_loan(F: np.ndarray, Qc: np.ndarray, T: float):
@@ -56,10 +49,17 @@ def discretize_van_loan(F: np.ndarray, Qc: np.ndarray, T: float):
 
 
 def predict(x, P, Phi, Qd):
-    """``x <- Phi x``, ``P <- Phi P Phi^T + Qd``."""
-    x = (Phi @ x[..., None])[..., 0]
-    P = Phi @ P @ np.swapaxes(Phi, -1, -2) + Qd
-    return x, symmetrize(P)
+    """``x <- Phi x``, ``P <- Phi P Phi^T + Qd`` (symmetrised; compiled:
+    :func:`navsim.kernels.predict`). The inputs are left as they are."""
+    x, P = np.array(x, float), np.array(P, float)
+    kernels.predict(x, P, np.ascontiguousarray(Phi, float), _batch(Qd, P.shape))
+    return x, P
+
+
+def _batch(a, shape) -> np.ndarray:
+    """``a`` broadcast to ``shape`` as a contiguous float array."""
+    a = np.asarray(a, float)
+    return np.ascontiguousarray(np.broadcast_to(a, shape)) if a.shape != shape else np.ascontiguousarray(a)
 
 
 def solve_runs(A: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -96,29 +96,19 @@ def solve_runs(A: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def update(x, P, z, H, R, valid=None):
-    """Joseph-form measurement update of the runs where ``valid``.
+    """Joseph-form measurement update of the runs where ``valid`` (compiled:
+    :func:`navsim.kernels.joseph_update`).
 
     Returns ``x, P, y, S, nis`` with the innovation ``y = z - H x``, its covariance
     ``S = H P H^T + R`` and the normalised innovation squared ``y^T S^-1 y`` (NaN where not
-    valid). A valid run whose ``S`` is singular gets NaN state and covariance (:func:`solve_runs`);
-    the other runs are updated as they would be alone.
+    valid). A valid run whose ``S`` is singular gets NaN state and covariance; the other runs
+    are updated as they would be alone. The inputs are left as they are.
     """
-    Ht = np.swapaxes(H, -1, -2)
-    y = z - (H @ x[..., None])[..., 0]
-    PHt = P @ Ht
-    S = H @ PHt + R
-    S = symmetrize(S)
-    # K = P H^T S^-1, via a solve on S (symmetric positive definite); a singular S gives NaN in
-    # its own run only
-    K = np.swapaxes(solve_runs(S, np.swapaxes(PHt, -1, -2)), -1, -2)
-    nis = np.einsum("bi,bi->b", y, solve_runs(S, y[..., None])[..., 0])
-    n = P.shape[-1]
-    IKH = np.eye(n) - K @ H
-    P_new = IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
-    x_new = x + (K @ y[..., None])[..., 0]
-    if valid is not None and not np.all(valid):
-        v = np.asarray(valid, bool)
-        x_new = np.where(v[:, None], x_new, x)
-        P_new = np.where(v[:, None, None], P_new, P)
-        nis = np.where(v, nis, np.nan)
-    return x_new, symmetrize(P_new), y, S, nis
+    x, P = np.array(x, float), np.array(P, float)
+    B, n = x.shape
+    H = _batch(H, (B,) + np.shape(H)[-2:])
+    m = H.shape[1]
+    valid = np.ones(B, bool) if valid is None else _batch(valid, (B,)).astype(bool)
+    y, S, nis = np.empty((B, m)), np.empty((B, m, m)), np.empty(B)
+    kernels.joseph_update(x, P, _batch(z, (B, m)), H, _batch(R, (B, m, m)), valid, y, S, nis)
+    return x, P, y, S, nis

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from navsim.estimators.base import Innovation, Solution, register
-from navsim.strapdown import NavState, Strapdown
+from navsim.strapdown import BlockStrapdown, NavState
 
 
 @register("sins")
@@ -19,11 +19,12 @@ class FreeInertial:
         self.period_s = period_s
 
     def initialize(self, nav0: NavState, sigma0: dict | None = None) -> None:
-        self.sd = Strapdown(nav0.copy())
+        self.sd = BlockStrapdown(nav0.copy())
         self.diverged = np.zeros(nav0.lat_rad.shape[0], bool)
 
     def propagate(self, dtheta_b, dv_b, dt: float) -> None:
-        self.sd.step(dtheta_b, dv_b, dt)
+        """Mechanize the increments ``(B, K, 3)``."""
+        self.sd.block(dtheta_b, dv_b, dt)
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         return []

@@ -83,7 +83,7 @@ class TwoStageAdaptiveKF(ErrorStateKF):
         return x, P
 
     def predict(self) -> None:
-        if self._count == 0:
+        if self.sd.steps == 0:
             return
         Phi, Qd, T = self._transition()
         xi, bi = self.xidx, self.bidx

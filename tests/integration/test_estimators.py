@@ -143,17 +143,17 @@ def test_van_loan_and_series_filters_agree(p0_truth):
 TOY = '''
 import numpy as np
 from navsim.estimators.base import Solution
-from navsim.strapdown import Strapdown
+from navsim.strapdown import BlockStrapdown
 
 class Toy:
     """A third-party estimator: free inertial that ignores the gyros' Earth-rate part."""
     period_s = 1.0
     def initialize(self, nav0, sigma0):
-        self.sd = Strapdown(nav0.copy())
-        self.calls = 0
+        self.sd = BlockStrapdown(nav0.copy())
+        self.steps = 0
     def propagate(self, dtheta_b, dv_b, dt):
-        self.sd.step(dtheta_b, dv_b, dt)
-        self.calls += 1
+        self.sd.block(dtheta_b, dv_b, dt)
+        self.steps += dtheta_b.shape[1]
     def epoch(self, t, sensors):
         return []
     def solution(self):
@@ -174,7 +174,7 @@ def test_third_party_estimator_through_entry_point(tmp_path, monkeypatch, p0_tru
     imu = emulate(short, SensorConfig("imu", "ideal", ImuSpec()), 1, range(2))
     est = cls()
     h = run_batch(short, imu, {}, {"toy": est}, InitialErrors(), 1, range(2))["toy"]
-    assert est.calls == 1000 and h.pos_err_m.shape == (2, 11, 3)
+    assert est.steps == 1000 and h.pos_err_m.shape == (2, 11, 3)
     assert np.abs(h.pos_err_m).max() < 0.01
     with pytest.raises(KeyError, match="did you mean 'eskf'"):
         get("eskff")

@@ -140,7 +140,7 @@ def test_a_batch_of_three_equals_three_single_runs():
         est.x[hit, 0:4] = quat_multiply(quat_from_rotvec(np.radians([[0, 0, 40.0]])), est.x[hit, 0:4])
         dth, dv, dt = imu.values["dtheta_b_rad"], imu.values["dv_b_mps"], imu.meta["dt_s"]
         for i in range(1, dth.shape[1]):
-            est.propagate(dth[:, i], dv[:, i], dt)
+            est.propagate(dth[:, i:i + 1], dv[:, i:i + 1], dt)
             if i % 5 == 0:
                 est.epoch(imu.t_s[i], sensors)
         return est
@@ -172,7 +172,7 @@ def test_the_cpf_monitor_resets_a_diverged_ekf_to_the_cpf_attitude():
         dth, dv = imu.values["dtheta_b_rad"], imu.values["dv_b_mps"]
         dt = imu.meta["dt_s"]
         for i in range(1, 26):
-            est.propagate(dth[:, i], dv[:, i], dt)
+            est.propagate(dth[:, i:i + 1], dv[:, i:i + 1], dt)
             if i % 5 == 0:
                 est.epoch(imu.t_s[i], sensors)
         resets = est.solution().extra["resets"][0]
@@ -189,7 +189,7 @@ def test_the_cpf_monitor_resets_a_diverged_ekf_to_the_cpf_attitude():
     est.x[:, Q] = quat_multiply(quat_from_rotvec(np.radians([[0, 0, 40.0]])), est.x[:, Q])
     nis = []
     for i in range(1, 26):
-        est.propagate(imu.values["dtheta_b_rad"][:, i], imu.values["dv_b_mps"][:, i], imu.meta["dt_s"])
+        est.propagate(imu.values["dtheta_b_rad"][:, i:i + 1], imu.values["dv_b_mps"][:, i:i + 1], imu.meta["dt_s"])
         if i % 5 == 0:
             nis += [inn.nis[0] for inn in est.epoch(imu.t_s[i], all_sensors) if inn.measurement == "mag"]
     off_deg = np.degrees(np.sqrt(euler_distance2(euler_from_quat(est.x[:, Q]), truth.euler_rad[:1])))[0]

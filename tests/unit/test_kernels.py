@@ -1,4 +1,4 @@
-"""The compiled strapdown (navsim.kernels) against the numpy one (navsim.strapdown.Strapdown)."""
+"""The compiled strapdown (navsim.kernels) against the numpy reference (tests/reference_strapdown.py)."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,8 @@ import pytest
 from navsim.flight import fly, parse_track
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.imu import emulate_imu
-from navsim.strapdown import BlockStrapdown, Strapdown, state_from_truth
+from navsim.strapdown import BlockStrapdown, state_from_truth
+from reference_strapdown import Strapdown
 
 
 @pytest.fixture(scope="module")
@@ -23,19 +24,20 @@ def imu():
 def integrate_numpy(truth, data, runs, n):
     sd = Strapdown(state_from_truth(truth, 0, len(runs)))
     dth, dv = data.values["dtheta_b_rad"][runs], data.values["dv_b_mps"][runs]
-    dv_n = []
+    sum_C, sum_dv = 0.0, 0.0
     for i in range(1, n):
         sd.step(dth[:, i], dv[:, i], data.meta["dt_s"])
-        dv_n.append(sd.dv_n)
-    return sd.state, np.stack(dv_n, 1)
+        sum_C, sum_dv = sum_C + sd.state.C_nb, sum_dv + sd.dv_n
+    return sd.state, (sum_C, sum_dv)
 
 
 def integrate_blocks(truth, data, runs, n, size):
     sd = BlockStrapdown(state_from_truth(truth, 0, len(runs)))
     dth, dv = data.values["dtheta_b_rad"][runs], data.values["dv_b_mps"][runs]
-    out = [sd.block(dth[:, a:min(a + size, n)], dv[:, a:min(a + size, n)], data.meta["dt_s"])
-           for a in range(1, n, size)]
-    return sd.state, np.concatenate(out, 1)
+    for a in range(1, n, size):
+        sd.block(dth[:, a:min(a + size, n)], dv[:, a:min(a + size, n)], data.meta["dt_s"])
+    assert sd.steps == n - 1
+    return sd.state, (sd.sum_C_nb, sd.sum_dv_n_mps)
 
 
 @pytest.mark.parametrize("size", [100, 7, 1])
@@ -51,7 +53,8 @@ def test_the_compiled_strapdown_follows_the_numpy_one(imu, size):
     assert np.allclose(got.lat_rad, ref.lat_rad, rtol=0, atol=1e-12)
     assert np.allclose(got.lon_rad, ref.lon_rad, rtol=0, atol=1e-12)
     assert np.allclose(got.h_m, ref.h_m, rtol=0, atol=1e-6)
-    assert np.allclose(got_dv, ref_dv, rtol=1e-9, atol=1e-12)
+    assert np.allclose(got_dv[0], ref_dv[0], rtol=1e-9, atol=1e-9)      # sum of C_nb
+    assert np.allclose(got_dv[1], ref_dv[1], rtol=1e-9, atol=1e-9)      # sum of dv_n
     # the free-inertial drift over the flight is real (not both integrators standing still)
     assert np.abs(ref.h_m - truth.h_m[-1]).max() > 1.0
 
@@ -64,4 +67,81 @@ def test_a_batch_of_three_equals_three_single_runs_bit_for_bit(imu):
         one, one_dv = integrate_blocks(truth, data, [r], n, 100)
         for name in ("lat_rad", "lon_rad", "h_m", "vel_n_mps", "C_nb"):
             assert np.array_equal(getattr(one, name)[0], getattr(batch, name)[r]), name
-        assert np.array_equal(one_dv[0], batch_dv[r])
+        assert np.array_equal(one_dv[0][0], batch_dv[0][r]) and np.array_equal(one_dv[1][0], batch_dv[1][r])
+
+
+def test_rotation_matches_scipy_and_does_not_depend_on_the_batch():
+    """exp([v x]) against scipy for small (series) and large (sine, cosine) angles, one vector
+    or a stack; a rotation in a stack with a large one equals it alone, bit for bit."""
+    from scipy.spatial.transform import Rotation
+
+    from navsim.strapdown import rotation
+    v = np.random.default_rng(4).normal(size=(50, 3)) * np.logspace(-9, 0.5, 50)[:, None]
+    ref = Rotation.from_rotvec(v).as_matrix()
+    assert np.abs(rotation(v) - ref).max() < 1e-15 and np.abs(rotation(v[None]) - ref[None]).max() < 1e-15
+    for k in (0, 25, 49):
+        assert np.abs(rotation(v[k]) - ref[k]).max() < 1e-15
+        assert np.array_equal(rotation(v[k:k + 1])[0], rotation(v)[k])
+
+
+def _kalman_case(B=7, n=16, m=3, seed=0):
+    rng = np.random.default_rng(seed)
+    F = rng.normal(size=(B, n, n)) * 0.1 * (rng.uniform(size=(n, n)) < 0.3)
+    Qc = np.diag(rng.uniform(0.1, 1.0, n))
+    A = rng.normal(size=(B, n, n))
+    P = A @ np.swapaxes(A, -1, -2) + np.eye(n)
+    return F, Qc, P, rng.normal(size=(B, n)), rng.normal(size=(B, m, n)), rng.normal(size=(B, m)), rng
+
+
+def test_the_compiled_kalman_steps_equal_their_formulas():
+    """Series discretisation, prediction and the Joseph update against the formulas written
+    with numpy (dense products, an explicit inverse), to 1e-14 of the largest entry; a run
+    without a sample keeps its state and gets NaN NIS."""
+    import math
+
+    from navsim.estimators import kalman
+    F, Qc, P, x, H, z, rng = _kalman_case()
+    n, T, order = F.shape[-1], 1.0, 6
+    Phi, Qd = kalman.discretize_series(F, Qc, T, order)
+    ref_Phi, term = np.broadcast_to(np.eye(n), F.shape).copy(), np.broadcast_to(np.eye(n), F.shape).copy()
+    M = np.broadcast_to(Qc, F.shape).copy()
+    ref_Qd = M * T
+    for k in range(1, order + 1):
+        term = term @ F * (T / k)
+        ref_Phi += term
+        if k < order:
+            M = F @ M + M @ np.swapaxes(F, -1, -2)
+            ref_Qd += M * T ** (k + 1) / math.factorial(k + 1)
+    close = lambda a, b: np.abs(a - b).max() <= 1e-14 * np.abs(b).max()
+    assert close(Phi, ref_Phi) and close(Qd, ref_Qd) and np.array_equal(Qd, np.swapaxes(Qd, -1, -2))
+    x1, P1 = kalman.predict(x, P, Phi, Qd)
+    assert close(x1, (Phi @ x[..., None])[..., 0])
+    assert close(P1, Phi @ P @ np.swapaxes(Phi, -1, -2) + Qd) and np.array_equal(P1, np.swapaxes(P1, -1, -2))
+    R = np.diag([2.0, 3.0, 1.5])
+    valid = np.array([True, False, True, True, False, True, True])
+    xu, Pu, y, S, nis = kalman.update(x, P, z, H, R, valid)
+    Ht = np.swapaxes(H, -1, -2)
+    S_ref = H @ P @ Ht + R
+    K = P @ Ht @ np.linalg.inv(S_ref)
+    IKH = np.eye(n) - K @ H
+    v = valid
+    assert close(y, z - (H @ x[..., None])[..., 0]) and close(S, S_ref)
+    assert close(xu[v], (x + (K @ (z - (H @ x[..., None])[..., 0])[..., None])[..., 0])[v])
+    assert close(Pu[v], (IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2))[v])
+    assert close(nis[v], np.einsum("bi,bi->b", y, np.linalg.solve(S_ref, y[..., None])[..., 0])[v])
+    assert np.array_equal(xu[~v], x[~v]) and np.array_equal(Pu[~v], P[~v]) and np.isnan(nis[~v]).all()
+
+
+def test_the_compiled_kalman_steps_of_a_batch_equal_single_runs_bit_for_bit():
+    from navsim.estimators import kalman
+    F, Qc, P, x, H, z, _ = _kalman_case()
+    Phi, Qd = kalman.discretize_series(F, Qc, 1.0, 6)
+    xp, Pp = kalman.predict(x, P, Phi, Qd)
+    xu, Pu, *_ = kalman.update(xp, Pp, z, H, np.eye(3), None)
+    for b in range(F.shape[0]):
+        one = slice(b, b + 1)
+        Phi1, Qd1 = kalman.discretize_series(F[one], Qc, 1.0, 6)
+        x1, P1 = kalman.predict(x[one], P[one], Phi1, Qd1)
+        x1, P1, *_ = kalman.update(x1, P1, z[one], H[one], np.eye(3), None)
+        assert np.array_equal(Phi1[0], Phi[b]) and np.array_equal(Qd1[0], Qd[b])
+        assert np.array_equal(x1[0], xu[b]) and np.array_equal(P1[0], Pu[b])
