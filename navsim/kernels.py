@@ -20,6 +20,13 @@ Gravity (WGS-84 with J2, as :func:`navsim.earth.gravity_n`), Earth rate, transpo
 radii are evaluated every ``gravity_every`` steps and kept in the run's ``cache`` row between
 blocks.
 
+Kalman filter epochs, per run over the ``n`` states: :func:`discretize_series` (the
+matrix-exponential series of ``Phi`` and ``Qd``), :func:`predict` (``Phi P Phi^T + Qd``) and
+:func:`joseph_update` (the Joseph form in ``O(n^2 m)``); :func:`gravity_gradient` for the
+error model's ``F``. Products skip the zeros of their left factor (most of an error-state
+``F``), and their innermost loops run along rows so that LLVM vectorises them; the tests hold
+each to the same formula written with numpy.
+
 The compiled code is cached in ``<navsim cache>/numba`` (:func:`navsim.config.cache_dir`), or
 in ``$NUMBA_CACHE_DIR`` when that is set.
 """
@@ -244,13 +251,7 @@ def strapdown_block(lat, lon, h, vel, C, dth_prev, dv_prev, cache, dth, dv, bias
             dv_prev[b, 0], dv_prev[b, 1], dv_prev[b, 2] = v0, v1, v2
 
 
-# --- Kalman filter epochs -------------------------------------------------------------------
-#
-# Per run, over the ``n`` states of a filter: the matrix-exponential series of the transition
-# and the process noise (:func:`discretize_series`), the covariance prediction
-# (:func:`predict`) and the Joseph-form update (:func:`joseph_update`). The products are
-# written as loops whose innermost index runs along a row, so that LLVM vectorises them; the
-# results equal numpy's batched products to rounding (the tests hold them to 1e-12).
+# --- Kalman filter epochs (see the module docstring) ---------------------------------------
 
 
 @njit(cache=True)

@@ -592,7 +592,7 @@ def replay_metrics(result: ReplayResult) -> dict:
         "record_s": float(np.median(np.diff(r.t_s))) if len(r.t_s) > 1 else None,
         "attitude_diff_deg": diff,
         "resets": [{"t_s": t, "cause": cause} for t, cause in r.resets],
-        "cost": {"us_per_propagate": 1e6 * c["propagate_s"] / max(c["steps"], 1),
+        "cost": {"us_per_imu_step_propagated": 1e6 * c["propagate_s"] / max(c["steps"], 1),
                  "us_per_epoch": 1e6 * c["epoch_s"] / max(c["epochs"], 1),
                  "us_per_imu_cycle": 1e6 * (c["propagate_s"] + c["epoch_s"]) / max(c["steps"], 1),
                  "real_time_factor": log.duration_s / max(c["propagate_s"] + c["epoch_s"], 1e-9)},

@@ -61,7 +61,7 @@ def summary_lines(metrics: dict, record: dict) -> list[str]:
              f"navsim        : {record['versions']['navsim']} at git {record['git_revision']}", ""]
     lines += _table_lines(*difference_table(metrics))
     c = metrics["cost"]
-    lines += ["", f"cost: {c['us_per_propagate']:.0f} us per propagate, {c['us_per_epoch']:.0f} us per "
+    lines += ["", f"cost: {c['us_per_imu_step_propagated']:.1f} us per IMU step propagated, {c['us_per_epoch']:.0f} us per "
               f"epoch, {c['us_per_imu_cycle']:.0f} us per IMU cycle ({c['real_time_factor']:.0f}x real time)"]
     if metrics["resets"]:
         lines += ["", "resets:"] + [f"  {x['t_s']:8.2f} s  {x['cause']}" for x in metrics["resets"]]

@@ -1,11 +1,14 @@
-import matplotlib
-
-matplotlib.use("Agg")
-
+import os
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 import pytest
+
+matplotlib.use("Agg")
+# one cache of compiled kernels for every test, worker and subprocess of the suite (tests that
+# point NAVSIM_CACHE at a folder of their own would otherwise compile the kernels again)
+os.environ.setdefault("NUMBA_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".pytest_cache" / "numba"))
 
 
 @pytest.fixture(scope="session")
@@ -17,8 +20,6 @@ def repo_root() -> Path:
 def shipped_flight(repo_root, tmp_path_factory):
     """``get(name)`` -> (scenario, truth, truth path) of a shipped scenario; flights are cached
     in a per-session folder unless NAVSIM_CACHE is set."""
-    import os
-
     from navsim.runner import cached_flight
     from navsim.scenario import load_scenario
     os.environ.setdefault("NAVSIM_CACHE", str(tmp_path_factory.mktemp("cache")))

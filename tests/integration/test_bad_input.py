@@ -11,6 +11,7 @@ from __future__ import annotations
 import copy
 import errno
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -417,7 +418,7 @@ def audited(tmp_path, *argv):
 
 def test_a_run_touches_only_its_output_folder_the_cache_and_its_inputs(tmp_path, repo_root):
     """Every file navsim writes, renames or deletes in a whole ``navsim run`` is in the output
-    folder or the flight cache; every file it reads is navsim's own (package, catalog,
+    folder or the caches (flights, compiled kernels); every file it reads is navsim's own (package, catalog,
     aircraft), the scenario's folder, the cache, the Python installation, the fonts or the CPU
     description numba reads; a track
     file that is a link to a file outside the scenario's folder is refused without being read."""
@@ -431,13 +432,14 @@ def test_a_run_touches_only_its_output_folder_the_cache_and_its_inputs(tmp_path,
     (case / S).write_text(scenario(track="tracks/leg.yaml", **{"sensors.bd.model": "my_gnss.yaml"}))
     proc, reads, writes = audited(tmp_path, "run", case / S, "--out", tmp_path / "out")
     assert proc.returncode == 0, proc.stderr
-    allowed_writes = [tmp_path / "out", tmp_path / "cache", tmp_path / "mpl"]
+    numba_cache = [Path(os.environ["NUMBA_CACHE_DIR"])] if "NUMBA_CACHE_DIR" in os.environ else []
+    allowed_writes = [tmp_path / "out", tmp_path / "cache", tmp_path / "mpl", *numba_cache]
     bad = [p for p in writes if not any(p.is_relative_to(a) for a in allowed_writes)
            and not str(p).startswith("/dev/")]
     assert not bad, bad
     assert any(p.is_relative_to(tmp_path / "out") for p in writes)
     installs = {Path(sysconfig.get_paths()[k]).resolve() for k in ("stdlib", "purelib", "platlib", "data")}
-    allowed_reads = [case, tmp_path / "out", tmp_path / "cache", tmp_path / "mpl", repo_root / "navsim",
+    allowed_reads = [case, tmp_path / "out", tmp_path / "cache", tmp_path / "mpl", *numba_cache, repo_root / "navsim",
                      repo_root / "sensors", repo_root / "aircraft", Path(sys.prefix), Path(sys.base_prefix),
                      *installs, Path("/usr/share/fonts"), Path("/proc/cpuinfo"), Path("/sys/devices/system/cpu"),
                      Path("/sys/fs/cgroup")]           # fonts for the plots; the CPU for numba
