@@ -473,3 +473,56 @@ def joseph_update(x, P, z, H, R, valid, y, S, nis):
                 v = 0.5 * (Pb[i, j] + Pb[j, i])
                 Pb[i, j] = v
                 Pb[j, i] = v
+
+
+# --- IMU errors ------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def imu_triad(g, noisy, noise_scale, M, identity, truth_x, incr_x, bias, dt, rate, incr):
+    """One run's triad over ``n`` samples in one pass (:func:`navsim.sensors.imu._triad`):
+    ``rate = noise + M x + b``, ``incr = rate dt + M (incr_x - x dt)``.
+
+    Parameters
+    ----------
+    g : numpy.random.Generator
+        The run's stream; when ``noisy``, ``n x 3`` standard normals are drawn from it in
+        sample-major order (numpy's ``g.standard_normal((n, 3))``).
+    noise_scale : (3,) array
+        White-noise standard deviation per axis (density / sqrt(dt)).
+    M : (3, 3) array
+        ``I + M`` (scale factors and misalignments); ``identity``: it is the identity.
+    truth_x, incr_x : (n, 3) arrays
+        The true rates and increments.
+    bias : (nb, 3) array
+        The bias, constant (``nb = 1``) or per sample (``nb = n``).
+    dt : float
+        The interval, s.
+    rate : (n, 3) or (0, 3) array
+        Out: the rates (not written when it has no rows).
+    incr : (n, 3) array
+        Out: the increments.
+    """
+    n = truth_x.shape[0]
+    per_sample = bias.shape[0] > 1
+    keep = rate.shape[0] > 0
+    w = np.zeros(3)
+    y = np.empty(3)
+    c = np.empty(3)
+    for j in range(n):
+        if noisy:
+            for i in range(3):
+                w[i] = g.standard_normal() * noise_scale[i]
+        jb = j if per_sample else 0
+        for i in range(3):
+            if identity:
+                y[i] = truth_x[j, i]
+                c[i] = incr_x[j, i] - truth_x[j, i] * dt
+            else:
+                y[i] = M[i, 0] * truth_x[j, 0] + M[i, 1] * truth_x[j, 1] + M[i, 2] * truth_x[j, 2]
+                c[i] = (M[i, 0] * (incr_x[j, 0] - truth_x[j, 0] * dt) + M[i, 1] * (incr_x[j, 1] - truth_x[j, 1] * dt)
+                        + M[i, 2] * (incr_x[j, 2] - truth_x[j, 2] * dt))
+            r = (w[i] + y[i]) + bias[jb, i]
+            if keep:
+                rate[j, i] = r
+            incr[j, i] = r * dt + c[i]

@@ -23,6 +23,7 @@ import math
 import numpy as np
 from scipy.signal import butter, sosfilt
 
+from navsim import kernels
 from navsim.errors import ScenarioError
 from navsim.sensors.base import (SensorData, decimation, gauss_markov, normals, random_walk,
                                  run_generators)
@@ -43,8 +44,11 @@ def gm_allan_peak() -> float:
     return float(np.sqrt(avar.max()))
 
 
-def _triad(gens, truth_x, incr_x, dt, e: AxisErrors, n: int):
-    """Corrupt one triad; returns (rate, increment, bias(t), matrix)."""
+def _triad(gens, truth_x, incr_x, dt, e: AxisErrors, n: int, need_rate: bool = True):
+    """Corrupt one triad; returns (rate or None, increment, bias(t), matrix). The random draws
+    come in this order from each run's stream: scale factors, misalignments, random-constant
+    bias, bias-instability and Markov processes, random walk, white noise; the white noise
+    and the signal are one compiled pass per run (:func:`navsim.kernels.imu_triad`)."""
     B = len(gens)
     matrix = np.broadcast_to(np.eye(3), (B, 3, 3)).copy()
     if np.any(e.scale_factor) or np.any(e.scale_factor_sigma):
@@ -64,26 +68,15 @@ def _triad(gens, truth_x, incr_x, dt, e: AxisErrors, n: int):
         bias = bias + gauss_markov(gens, n, dt, e.markov_sigma, e.markov_tau_s)
     if np.any(e.random_walk):
         bias = bias + random_walk(gens, n, dt, e.random_walk)
-    # white noise drawn straight into the output, then the signal added in place:
-    # rate = (I + M) x + b + n;  incr = rate dt + (I + M) (incr_x - x dt)
-    rate = np.empty((B, n, 3))
-    if np.any(e.noise_density):
-        for g, r in zip(gens, rate):
-            g.standard_normal(out=r)
-        rate *= e.noise_density / math.sqrt(dt)
-    else:
-        rate[...] = 0.0
+    noisy = bool(np.any(e.noise_density))
+    scale = np.broadcast_to(np.asarray(e.noise_density, float) / math.sqrt(dt), (3,)).copy()
     identity = np.array_equal(matrix, np.broadcast_to(np.eye(3), matrix.shape))
-    if identity:
-        rate += truth_x
-        corr = incr_x - truth_x * dt
-    else:
-        rate += np.einsum("bij,nj->bni", matrix, truth_x)
-        corr = np.einsum("bij,nj->bni", matrix, incr_x - truth_x * dt)
-    rate += bias
-    incr = np.multiply(rate, dt)
-    incr += corr
-    return rate, incr, bias, matrix
+    truth_x, incr_x = np.ascontiguousarray(truth_x, float), np.ascontiguousarray(incr_x, float)
+    rate = np.empty((B, n if need_rate else 0, 3))
+    incr = np.empty((B, n, 3))
+    for b, g in enumerate(gens):
+        kernels.imu_triad(g, noisy, scale, matrix[b], identity, truth_x, incr_x, bias[b], float(dt), rate[b], incr[b])
+    return (rate if need_rate else None), incr, bias, matrix
 
 
 def _vibration(gens, t, dt, vib, rate_hz, amp_attr):
@@ -190,16 +183,21 @@ def emulate_imu(truth, spec: ImuSpec, seed: int, runs, name: str = "imu",
     gens = run_generators(seed, runs, name)
     om, fb = truth.omega_ib_b_rps, truth.f_b_mps2
     inc_g, inc_a = truth_increments(truth, step)
-    rate_g, incr_g, bias_g, mat_g = _triad(gens, om[::step], inc_g, dt, spec.gyro, n)
-    rate_a, incr_a, bias_a, mat_a = _triad(gens, fb[::step], inc_a, dt, spec.accel, n)
+    # the rates are needed for the output, saturation or quantization (not for the increments)
+    need = keep_rates or any(math.isfinite(e.range) or e.quantization for e in (spec.gyro, spec.accel))
+    rate_g, incr_g, bias_g, mat_g = _triad(gens, om[::step], inc_g, dt, spec.gyro, n, need)
+    rate_a, incr_a, bias_a, mat_a = _triad(gens, fb[::step], inc_a, dt, spec.accel, n, need)
     for vib in spec.vibration:
         va = _vibration(gens, t, dt, vib, spec.rate_hz, "amplitude")
         vg = _vibration(gens, t, dt, vib, spec.rate_hz, "gyro_amplitude")
-        rate_a = rate_a + va
         incr_a = incr_a + va * dt
-        rate_g = rate_g + vg
         incr_g = incr_g + vg * dt
+        if need:
+            rate_a = rate_a + va
+            rate_g = rate_g + vg
     for rate, incr, e in ((rate_g, incr_g, spec.gyro), (rate_a, incr_a, spec.accel)):
+        if not need:
+            continue
         if math.isfinite(e.range):
             np.clip(rate, -e.range, e.range, out=rate)
         if e.quantization:
@@ -209,10 +207,6 @@ def emulate_imu(truth, spec: ImuSpec, seed: int, runs, name: str = "imu",
             np.round(incr / q, out=incr)
             incr *= q
     B = len(runs)
-    if rate_g.shape[0] != B:
-        rate_g, incr_g = np.broadcast_to(rate_g, (B, n, 3)).copy(), np.broadcast_to(incr_g, (B, n, 3)).copy()
-    if rate_a.shape[0] != B:
-        rate_a, incr_a = np.broadcast_to(rate_a, (B, n, 3)).copy(), np.broadcast_to(incr_a, (B, n, 3)).copy()
     return SensorData(
         name=name, kind="imu", t_s=t,
         values={"omega_ib_b_rps": rate_g, "f_b_mps2": rate_a, "dtheta_b_rad": incr_g,
@@ -278,8 +272,8 @@ def error_increments(spec: ImuSpec, seed: int, runs, n: int, dt: float, name: st
     gens = run_generators(seed, runs, name)
     zero = np.zeros((n, 3))
     t = np.arange(n) * dt
-    _, err_g, bias_g, mat_g = _triad(gens, zero, zero, dt, spec.gyro, n)
-    _, err_a, bias_a, mat_a = _triad(gens, zero, zero, dt, spec.accel, n)
+    _, err_g, bias_g, mat_g = _triad(gens, zero, zero, dt, spec.gyro, n, False)
+    _, err_a, bias_a, mat_a = _triad(gens, zero, zero, dt, spec.accel, n, False)
     for vib in spec.vibration:
         err_a = err_a + _vibration(gens, t, dt, vib, spec.rate_hz, "amplitude") * dt
         err_g = err_g + _vibration(gens, t, dt, vib, spec.rate_hz, "gyro_amplitude") * dt
