@@ -27,6 +27,10 @@ error model's ``F``. Products skip the zeros of their left factor (most of an er
 ``F``), and their innermost loops run along rows so that LLVM vectorises them; the tests hold
 each to the same formula written with numpy.
 
+IMU errors: :func:`imu_triad` (a triad's rates and increments in one pass), :func:`bias_block`
+(Gauss-Markov and random-walk biases carried from block to block), :func:`draw_normals` and
+:func:`skip_normals` (numpy's standard-normal stream of a run's generator, drawn inside numba).
+
 The compiled code is cached in ``<navsim cache>/numba`` (:func:`navsim.config.cache_dir`), or
 in ``$NUMBA_CACHE_DIR`` when that is set.
 """
@@ -479,50 +483,88 @@ def joseph_update(x, P, z, H, R, valid, y, S, nis):
 
 
 @njit(cache=True)
-def imu_triad(g, noisy, noise_scale, M, identity, truth_x, incr_x, bias, dt, rate, incr):
-    """One run's triad over ``n`` samples in one pass (:func:`navsim.sensors.imu._triad`):
-    ``rate = noise + M x + b``, ``incr = rate dt + M (incr_x - x dt)``.
+def imu_triad(w, noise_scale, M, identity, truth_x, incr_x, bias, dt, rate, incr):
+    """A triad over ``K`` samples of ``B`` runs in one pass (:mod:`navsim.sensors.imu`):
+    ``rate = w noise_scale + M x + b``, ``incr = rate dt + M (incr_x - x dt)``.
 
     Parameters
     ----------
-    g : numpy.random.Generator
-        The run's stream; when ``noisy``, ``n x 3`` standard normals are drawn from it in
-        sample-major order (numpy's ``g.standard_normal((n, 3))``).
+    w : (B, K, 3) or (B, 0, 3) array
+        Standard normals of the white noise (none: no white noise).
     noise_scale : (3,) array
         White-noise standard deviation per axis (density / sqrt(dt)).
-    M : (3, 3) array
-        ``I + M`` (scale factors and misalignments); ``identity``: it is the identity.
-    truth_x, incr_x : (n, 3) arrays
+    M : (B, 3, 3) array
+        ``I + M`` (scale factors and misalignments); ``identity``: they are the identity.
+    truth_x, incr_x : (K, 3) arrays
         The true rates and increments.
-    bias : (nb, 3) array
-        The bias, constant (``nb = 1``) or per sample (``nb = n``).
+    bias : (B, nb, 3) array
+        The bias, constant (``nb = 1``) or per sample (``nb = K``).
     dt : float
         The interval, s.
-    rate : (n, 3) or (0, 3) array
+    rate : (B, K, 3) or (B, 0, 3) array
         Out: the rates (not written when it has no rows).
-    incr : (n, 3) array
+    incr : (B, K, 3) array
         Out: the increments.
     """
-    n = truth_x.shape[0]
-    per_sample = bias.shape[0] > 1
-    keep = rate.shape[0] > 0
-    w = np.zeros(3)
+    B, K = incr.shape[0], incr.shape[1]
+    per_sample = bias.shape[1] > 1
+    keep = rate.shape[1] > 0
+    noisy = w.shape[1] > 0
     y = np.empty(3)
     c = np.empty(3)
-    for j in range(n):
-        if noisy:
+    for b in range(B):
+        Mb = M[b]
+        for j in range(K):
+            jb = j if per_sample else 0
             for i in range(3):
-                w[i] = g.standard_normal() * noise_scale[i]
-        jb = j if per_sample else 0
-        for i in range(3):
-            if identity:
-                y[i] = truth_x[j, i]
-                c[i] = incr_x[j, i] - truth_x[j, i] * dt
-            else:
-                y[i] = M[i, 0] * truth_x[j, 0] + M[i, 1] * truth_x[j, 1] + M[i, 2] * truth_x[j, 2]
-                c[i] = (M[i, 0] * (incr_x[j, 0] - truth_x[j, 0] * dt) + M[i, 1] * (incr_x[j, 1] - truth_x[j, 1] * dt)
-                        + M[i, 2] * (incr_x[j, 2] - truth_x[j, 2] * dt))
-            r = (w[i] + y[i]) + bias[jb, i]
-            if keep:
-                rate[j, i] = r
-            incr[j, i] = r * dt + c[i]
+                if identity:
+                    y[i] = truth_x[j, i]
+                    c[i] = incr_x[j, i] - truth_x[j, i] * dt
+                else:
+                    y[i] = Mb[i, 0] * truth_x[j, 0] + Mb[i, 1] * truth_x[j, 1] + Mb[i, 2] * truth_x[j, 2]
+                    c[i] = (Mb[i, 0] * (incr_x[j, 0] - truth_x[j, 0] * dt)
+                            + Mb[i, 1] * (incr_x[j, 1] - truth_x[j, 1] * dt)
+                            + Mb[i, 2] * (incr_x[j, 2] - truth_x[j, 2] * dt))
+                r = ((w[b, j, i] * noise_scale[i] if noisy else 0.0) + y[i]) + bias[b, jb, i]
+                if keep:
+                    rate[b, j, i] = r
+                incr[b, j, i] = r * dt + c[i]
+
+
+@njit(cache=True)
+def draw_normals(g, out):
+    """Fill ``out`` (any shape, C order) with standard normals from ``g`` (numpy's stream)."""
+    flat = out.reshape(-1)
+    for k in range(flat.size):
+        flat[k] = g.standard_normal()
+
+
+@njit(cache=True)
+def skip_normals(g, count):
+    """Draw ``count`` standard normals from ``g`` and drop them."""
+    for _ in range(count):
+        g.standard_normal()
+
+
+@njit(cache=True)
+def bias_block(w, j0, first_scale, step_scale, a, kind, state, out):
+    """Add one bias process over a block to ``out`` ``(B, K, 3)`` in place, from its standard
+    normals ``w`` ``(B, >= j0 + K, 3)`` starting at row ``j0``. ``kind`` 0: first-order
+    Gauss-Markov, ``x_0 = first_scale w_0``, ``x_k = a x_k-1 + step_scale w_k``; 1: random
+    walk, ``x_0 = 0``, ``x_k = x_k-1 + step_scale w_k``. ``state`` ``(B, 4)``: the last value
+    of each axis and whether a sample was drawn (column 3); updated."""
+    B, K = out.shape[0], out.shape[1]
+    for b in range(B):
+        for j in range(K):
+            started = state[b, 3] != 0.0
+            for i in range(3):
+                x = w[b, j0 + j, i]
+                if not started:
+                    v = first_scale[i] * x if kind == 0 else 0.0
+                elif kind == 0:
+                    v = a * state[b, i] + step_scale[i] * x
+                else:
+                    v = state[b, i] + step_scale[i] * x
+                state[b, i] = v
+                out[b, j, i] += v
+            state[b, 3] = 1.0

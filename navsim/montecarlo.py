@@ -303,8 +303,9 @@ def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialError
               runs, progress=None) -> dict[str, EstimatorHistory]:
     """Run ``estimators`` (label -> estimator object) on the runs ``runs``.
 
-    ``imu`` is the IMU :class:`~navsim.sensors.base.SensorData` of these runs, ``sensors`` the
-    other sensors' data by name. All estimators share the time loop (:class:`Driver`) and the
+    ``imu`` is the IMU :class:`~navsim.sensors.base.SensorData` of these runs, or an
+    :class:`~navsim.sensors.imu.ImuStream` generating it block by block, ``sensors`` the other
+    sensors' data by name. All estimators share the time loop (:class:`Driver`) and the
     initial errors; each ``propagate`` gets the IMU increments up to the next epoch of any
     estimator, so Python runs once per filter epoch, not once per IMU sample. An estimator that
     raises (an ``Exception``) in ``initialize``, ``propagate``, ``epoch`` or ``solution`` has
@@ -318,11 +319,15 @@ def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialError
     driver = Driver(estimators, dt, len(runs))
     driver.start(perturbed_start(truth, errors, 0), initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0]),
                  truth, 0)
-    dth, dv = imu.values["dtheta_b_rad"], imu.values["dv_b_mps"]
-    n = dth.shape[1]
+    if hasattr(imu, "block"):                    # an ImuStream: generated block by block
+        blocks = lambda a, b: imu.block(a, b)[0]
+    else:
+        dth, dv = imu.values["dtheta_b_rad"], imu.values["dv_b_mps"]
+        blocks = lambda a, b: (dth[:, a:b], dv[:, a:b])
+    n = len(imu.t_s)
     for i in driver.stops(n):
         i0 = driver.i + 1
-        driver.advance(dth[:, i0:i + 1], dv[:, i0:i + 1], imu.t_s[i], sensors, truth, i * step)
+        driver.advance(*blocks(i0, i + 1), imu.t_s[i], sensors, truth, i * step)
         if progress is not None and i // 1000 > (i0 - 1) // 1000:
             progress(i, n)
     return driver.histories()

@@ -106,18 +106,25 @@ def _chunk_work(truth_or_path, scenario, seed, runs):
     from navsim.estimators.factory import build
     from navsim.montecarlo import run_batch
     from navsim.sensors import emulate
-    from navsim.sensors.imu import emulate_imu
+    from navsim.sensors.imu import ImuStream, emulate_imu
     imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
-    imu = emulate_imu(truth, imu_cfg.spec, seed, runs, name=imu_cfg.name, keep_rates=False)
+    if imu_cfg.spec.vibration:       # normalised over the whole record: emulated whole
+        imu = emulate_imu(truth, imu_cfg.spec, seed, runs, name=imu_cfg.name, keep_rates=False)
+    else:                            # generated block by block inside the loop
+        imu = ImuStream(truth, imu_cfg.spec, seed, runs, name=imu_cfg.name)
+        imu.record_bias()
     others = {c.name: emulate(truth, c, seed, runs) for c in scenario.sensors if c.kind != "imu"}
     estimators = {e.label: build(e) for e in scenario.estimators}
     hist = run_batch(truth, imu, others, estimators, scenario.initial, seed, runs)
     # true IMU biases at the epochs of the first estimator, for the bias plots
     first = next(iter(hist.values()))
     idx = np.searchsorted(imu.t_s, first.t_s - 1e-9)
-    bias = {k: np.broadcast_to(imu.errors[k], (len(runs), max(imu.errors[k].shape[1], 1), 3))
-            for k in ("gyro_bias", "accel_bias")}
-    bias = {k: (v[:, idx] if v.shape[1] > 1 else np.repeat(v, len(idx), axis=1)) for k, v in bias.items()}
+    if isinstance(imu, ImuStream):
+        bias = imu.bias(idx)
+    else:
+        bias = {k: np.broadcast_to(imu.errors[k], (len(runs), max(imu.errors[k].shape[1], 1), 3))
+                for k in ("gyro_bias", "accel_bias")}
+        bias = {k: (v[:, idx] if v.shape[1] > 1 else np.repeat(v, len(idx), axis=1)) for k, v in bias.items()}
     from navsim.magcal import calibration_history
     calib = {name: calibration_history(truth, others[name], s["noise_uT"] * 1e-6, s["forgetting"])
              for name, s in mag_calibrations(scenario).items()}

@@ -14,10 +14,19 @@ constant, the bias-instability and Markov Gauss-Markov processes and the random 
 noise of density ``noise_density`` (std ``density / sqrt(dt)``), ``v`` vibration; then
 saturation at ``range`` and quantization to ``quantization``. ``errors`` holds ``gyro_bias``,
 ``accel_bias`` (``b(t)``), ``gyro_matrix``, ``accel_matrix`` (``I + M``, ``(B, 3, 3)``).
+
+:class:`ImuStream` generates the same numbers block by block (a Monte Carlo chunk asks for the
+samples up to each filter epoch), so that no ``(B, n, 3)`` array is held: each time-varying
+error process draws from its own copy of the run's generator, positioned where the whole
+record starts drawing it, and carries its state from block to block
+(:func:`navsim.kernels.bias_block`, :func:`navsim.kernels.imu_triad`). :func:`emulate_imu` is
+the stream in one block, plus the vibration (band-limited vibration is normalised over the
+whole record, so an IMU with vibration is emulated whole).
 """
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -25,8 +34,7 @@ from scipy.signal import butter, sosfilt
 
 from navsim import kernels
 from navsim.errors import ScenarioError
-from navsim.sensors.base import (SensorData, decimation, gauss_markov, normals, random_walk,
-                                 run_generators)
+from navsim.sensors.base import SensorData, decimation, normals, run_generators
 from navsim.sensors.specs import AxisErrors, ImuSpec
 from navsim.strapdown import cross, rotation
 
@@ -44,11 +52,10 @@ def gm_allan_peak() -> float:
     return float(np.sqrt(avar.max()))
 
 
-def _triad(gens, truth_x, incr_x, dt, e: AxisErrors, n: int, need_rate: bool = True):
-    """Corrupt one triad; returns (rate or None, increment, bias(t), matrix). The random draws
-    come in this order from each run's stream: scale factors, misalignments, random-constant
-    bias, bias-instability and Markov processes, random walk, white noise; the white noise
-    and the signal are one compiled pass per run (:func:`navsim.kernels.imu_triad`)."""
+def _constants(gens, e: AxisErrors):
+    """The triad's constant errors, drawn from each run's stream in this order: scale factors,
+    misalignments, random-constant bias. Returns ``I + M`` ``(B, 3, 3)`` and the constant bias
+    ``(B, 1, 3)``."""
     B = len(gens)
     matrix = np.broadcast_to(np.eye(3), (B, 3, 3)).copy()
     if np.any(e.scale_factor) or np.any(e.scale_factor_sigma):
@@ -61,22 +68,193 @@ def _triad(gens, truth_x, incr_x, dt, e: AxisErrors, n: int, need_rate: bool = T
     bias = np.broadcast_to(e.bias, (B, 1, 3)).copy()
     if np.any(e.bias_sigma):
         bias = bias + (normals(gens, (3,)) * e.bias_sigma)[:, None, :]
-    if np.any(e.bias_instability):
-        sigma = e.bias_instability * FLICKER_FLOOR / GM_ALLAN_PEAK
-        bias = bias + gauss_markov(gens, n, dt, sigma, e.bias_instability_tau_s)
-    if np.any(e.markov_sigma):
-        bias = bias + gauss_markov(gens, n, dt, e.markov_sigma, e.markov_tau_s)
+    return matrix, bias
+
+
+def _processes(e: AxisErrors, dt: float) -> list:
+    """The triad's time-varying errors in the order their normals are drawn, each
+    ``(kind, first_scale, step_scale, a)`` for :func:`navsim.kernels.bias_block` (kind 0
+    Gauss-Markov, 1 random walk, 2 white noise): bias instability (a Gauss-Markov process
+    whose Allan peak is the flicker floor), Markov bias, random walk, white noise."""
+    out = []
+    for sigma, tau in ((np.asarray(e.bias_instability, float) * FLICKER_FLOOR / GM_ALLAN_PEAK, e.bias_instability_tau_s),
+                       (np.asarray(e.markov_sigma, float), e.markov_tau_s)):
+        if np.any(sigma):
+            a = math.exp(-dt / tau)
+            out.append((0, _three(sigma), _three(sigma * math.sqrt(1.0 - a * a)), a))
     if np.any(e.random_walk):
-        bias = bias + random_walk(gens, n, dt, e.random_walk)
-    noisy = bool(np.any(e.noise_density))
-    scale = np.broadcast_to(np.asarray(e.noise_density, float) / math.sqrt(dt), (3,)).copy()
-    identity = np.array_equal(matrix, np.broadcast_to(np.eye(3), matrix.shape))
-    truth_x, incr_x = np.ascontiguousarray(truth_x, float), np.ascontiguousarray(incr_x, float)
-    rate = np.empty((B, n if need_rate else 0, 3))
-    incr = np.empty((B, n, 3))
-    for b, g in enumerate(gens):
-        kernels.imu_triad(g, noisy, scale, matrix[b], identity, truth_x, incr_x, bias[b], float(dt), rate[b], incr[b])
-    return (rate if need_rate else None), incr, bias, matrix
+        out.append((1, np.zeros(3), _three(np.asarray(e.random_walk, float) * math.sqrt(dt)), 1.0))
+    if np.any(e.noise_density):
+        out.append((2, np.zeros(3), _three(np.asarray(e.noise_density, float) / math.sqrt(dt)), 0.0))
+    return out
+
+
+def _three(x) -> np.ndarray:
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(x, float), (3,)))
+
+
+class _Normals:
+    """One error process's standard normals ``(B, ., 3)``, drawn from each run's generator a
+    block of ``size`` samples at a time, in sample order (so the numbers do not depend on how
+    the record is cut into blocks), never beyond sample ``n``."""
+
+    def __init__(self, gens, n: int, size: int):
+        self.gens, self.n, self.size = gens, n, size
+        self.buf = np.empty((len(gens), 0, 3))
+        self.start = self.end = 0                 # buf rows hold the samples [start, end)
+
+    def take(self, i0: int, i1: int) -> tuple[np.ndarray, int]:
+        """The buffer holding samples ``[i0, i1)`` and the row of ``i0`` in it; requests go
+        forward (``i0`` at or after the last request's)."""
+        if i1 > self.end:
+            lo = max(min(i0, self.end), self.start)
+            keep = self.buf[:, lo - self.start:self.end - self.start].copy()
+            size = min(max(self.size, i1 - lo), self.n - lo)
+            if self.buf.shape[1] < size:
+                self.buf = np.empty((len(self.gens), size, 3))
+            k = keep.shape[1]
+            self.buf[:, :k] = keep
+            for b, g in enumerate(self.gens):
+                kernels.draw_normals(g, self.buf[b, k:size])
+            self.start, self.end = lo, lo + size
+        return self.buf, i0 - self.start
+
+
+class _Triad:
+    """One triad's errors for ``B`` runs, generated block by block (:class:`ImuStream`)."""
+
+    def __init__(self, gens, e: AxisErrors, dt: float, n: int, block: int, truth_x, incr_x):
+        self.e, self.dt, self.n = e, dt, n
+        self.matrix, self.bias0 = _constants(gens, e)
+        self.identity = np.array_equal(self.matrix, np.broadcast_to(np.eye(3), self.matrix.shape))
+        self.truth_x = np.ascontiguousarray(truth_x, float)
+        self.incr_x = np.ascontiguousarray(incr_x, float)
+        self.procs = _processes(e, dt)
+        self.streams = []                # filled by ImuStream, one _Normals per process
+        self.state = np.zeros((len(gens), len(self.procs), 4))
+        self.block_size = block
+        self.next = 0                    #: the first sample not generated yet
+        self.record = False              #: keep the bias at each block's last sample
+        self.bias_at: dict = {}          #: sample -> bias (B, 3) there
+
+    def block(self, i0: int, i1: int, need_rate: bool):
+        """``(rate or None, increments, bias)`` of samples ``[i0, i1)`` (requests go forward);
+        the bias is ``(B, 1, 3)`` when constant."""
+        if i0 > self.next:               # the processes' recursions start at sample 0
+            self.block(self.next, i0, False)
+        self.next = i1
+        B, K = self.bias0.shape[0], i1 - i0
+        varying = any(kind < 2 for kind, *_ in self.procs)
+        bias = np.repeat(self.bias0, K, axis=1) if varying else self.bias0
+        white = np.empty((B, 0, 3))
+        scale = np.zeros(3)
+        for p, ((kind, first, step, a), stream) in enumerate(zip(self.procs, self.streams)):
+            w, j0 = stream.take(i0, i1)
+            if kind == 2:
+                white, scale = w[:, j0:j0 + K], step
+            else:
+                kernels.bias_block(w, j0, first, step, a, kind, self.state[:, p], bias)
+        rate = np.empty((B, K if need_rate else 0, 3))
+        incr = np.empty((B, K, 3))
+        kernels.imu_triad(white, scale, self.matrix, self.identity, self.truth_x[i0:i1], self.incr_x[i0:i1],
+                          np.ascontiguousarray(bias), float(self.dt), rate, incr)
+        if self.record:
+            self.bias_at[i1 - 1] = bias[:, -1].copy()
+        return (rate if need_rate else None), incr, bias
+
+
+class ImuStream:
+    """The IMU of :func:`emulate_imu` (but its vibration) generated block by block: the same
+    numbers (to rounding), drawn from the same per-run streams, but no ``(B, n, 3)`` arrays
+    are held; :meth:`block` gives the increments of the samples ``[i0, i1)``, requests going
+    forward. The constants are drawn at construction; each time-varying error process reads
+    its own copy of the run's generator, positioned where the whole-record emulation starts
+    drawing it (the normals before it are drawn and dropped).
+
+    Parameters
+    ----------
+    truth : Truth
+    spec : ImuSpec
+        Its vibration is not emulated here (band-limited vibration is normalised over the whole
+        record): :func:`emulate_imu` adds it after the whole record's triads, from
+        :attr:`gens`, which the last process leaves where the whole record ends.
+    seed : int
+    runs : iterable of int
+    name : str
+        The sensor's name (its random streams).
+    block : int
+        Samples of normals drawn per process and run at a time (memory ``B x block x 24`` bytes
+        per process).
+    truth_x : tuple, optional
+        ``(omega, incr_g, f, incr_a)`` ``(n, 3)`` instead of the truth's (zeros: the errors alone).
+    """
+
+    def __init__(self, truth, spec: ImuSpec, seed: int, runs, name: str = "imu", block: int = 5000,
+                 truth_x: tuple | None = None, dt_s: float | None = None, n: int | None = None):
+        self.runs = list(runs)
+        self.spec, self.name, self.seed = spec, name, seed
+        if truth_x is None:
+            step = decimation(truth.meta.get("rate_hz", 1.0 / truth.dt_s), spec.rate_hz, name)
+            self.t_s = truth.t_s[::step]
+            dt_s, n = step * truth.dt_s, len(self.t_s)
+            inc_g, inc_a = truth_increments(truth, step)
+            truth_x = (truth.omega_ib_b_rps[::step], inc_g, truth.f_b_mps2[::step], inc_a)
+        else:
+            self.t_s = np.arange(n) * dt_s
+        self.dt_s, self.n = dt_s, n
+        self.meta = {"rate_hz": spec.rate_hz, "dt_s": dt_s, "runs": self.runs, "seed": seed}
+        self.gens = gens = run_generators(seed, self.runs, name)
+        self.gyro = _Triad(gens, spec.gyro, dt_s, n, block, truth_x[0], truth_x[1])
+        self._attach(self.gyro, last=False)
+        self.accel = _Triad(gens, spec.accel, dt_s, n, block, truth_x[2], truth_x[3])
+        self._attach(self.accel, last=True)
+        self.need_rate = any(math.isfinite(e.range) or e.quantization for e in (spec.gyro, spec.accel))
+
+    def _attach(self, triad: _Triad, last: bool) -> None:
+        """Give each of the triad's processes its normals: a copy of every run's generator where
+        the whole-record emulation starts drawing that process, the originals then moved past
+        it; the very last process of the IMU reads the originals themselves (nothing is drawn
+        after it)."""
+        for k in range(len(triad.procs)):
+            if last and k == len(triad.procs) - 1:
+                triad.streams.append(_Normals(self.gens, self.n, triad.block_size))
+                return
+            triad.streams.append(_Normals([copy.deepcopy(g) for g in self.gens], self.n, triad.block_size))
+            for g in self.gens:
+                kernels.skip_normals(g, 3 * self.n)
+
+    def block(self, i0: int, i1: int, keep_rates: bool = False):
+        """``(dtheta_b_rad, dv_b_mps)`` ``(B, i1 - i0, 3)`` of the samples ``[i0, i1)``, and the
+        rates ``(omega_ib_b_rps, f_b_mps2)`` when ``keep_rates`` (else None)."""
+        need = keep_rates or self.need_rate
+        rate_g, incr_g, bias_g = self.gyro.block(i0, i1, need)
+        rate_a, incr_a, bias_a = self.accel.block(i0, i1, need)
+        for rate, incr, e in ((rate_g, incr_g, self.spec.gyro), (rate_a, incr_a, self.spec.accel)):
+            _saturate_quantize(rate, incr, e, self.dt_s)
+        return (incr_g, incr_a), ((rate_g, rate_a) if keep_rates else None)
+
+    def record_bias(self) -> None:
+        """Keep the true biases at the last sample of each block from now on (:meth:`bias`)."""
+        self.gyro.record = self.accel.record = True
+
+    def bias(self, samples) -> dict:
+        """``gyro_bias``, ``accel_bias`` ``(B, len(samples), 3)`` at samples that ended a block
+        since :meth:`record_bias` (or sample 0, which the first block after it passes)."""
+        return {key: np.stack([t.bias_at[int(k)] for k in samples], axis=1)
+                for key, t in (("gyro_bias", self.gyro), ("accel_bias", self.accel))}
+
+
+def _saturate_quantize(rate, incr, e: AxisErrors, dt: float) -> None:
+    """Rates saturated at the triad's ``range``, rates and increments rounded to its
+    ``quantization`` (rate LSB, times ``dt`` for the increments), in place."""
+    if math.isfinite(e.range):
+        np.clip(rate, -e.range, e.range, out=rate)
+    if e.quantization:
+        np.round(rate / e.quantization, out=rate)
+        rate *= e.quantization
+        q = e.quantization * dt
+        np.round(incr / q, out=incr)
+        incr *= q
 
 
 def _vibration(gens, t, dt, vib, rate_hz, amp_attr):
@@ -174,47 +352,36 @@ def _truth_increments(truth, step: int):
 
 def emulate_imu(truth, spec: ImuSpec, seed: int, runs, name: str = "imu",
                 keep_rates: bool = True) -> SensorData:
-    """IMU data of ``runs`` (run indices) from ``truth``; see the module docstring."""
-    runs = list(runs)
-    step = decimation(truth.meta.get("rate_hz", 1.0 / truth.dt_s), spec.rate_hz, name)
-    t = truth.t_s[::step]
-    dt = step * truth.dt_s
-    n = len(t)
-    gens = run_generators(seed, runs, name)
-    om, fb = truth.omega_ib_b_rps, truth.f_b_mps2
-    inc_g, inc_a = truth_increments(truth, step)
-    # the rates are needed for the output, saturation or quantization (not for the increments)
-    need = keep_rates or any(math.isfinite(e.range) or e.quantization for e in (spec.gyro, spec.accel))
-    rate_g, incr_g, bias_g, mat_g = _triad(gens, om[::step], inc_g, dt, spec.gyro, n, need)
-    rate_a, incr_a, bias_a, mat_a = _triad(gens, fb[::step], inc_a, dt, spec.accel, n, need)
-    for vib in spec.vibration:
-        va = _vibration(gens, t, dt, vib, spec.rate_hz, "amplitude")
-        vg = _vibration(gens, t, dt, vib, spec.rate_hz, "gyro_amplitude")
+    """IMU data of ``runs`` (run indices) from ``truth``; see the module docstring. The whole
+    record at once: an :class:`ImuStream` of one block, then the vibration."""
+    stream = ImuStream(truth, spec, seed, runs, name, block=1)
+    return _whole(stream, spec, keep_rates)
+
+
+def _whole(stream: "ImuStream", spec: ImuSpec, keep_rates: bool) -> SensorData:
+    """The whole record of ``stream`` with its vibration, as SensorData."""
+    n, dt, t = stream.n, stream.dt_s, stream.t_s
+    need = keep_rates or stream.need_rate
+    rate_g, incr_g, bias_g = stream.gyro.block(0, n, need)
+    rate_a, incr_a, bias_a = stream.accel.block(0, n, need)
+    vib = _vibrations(stream, spec)
+    for va, vg in vib:
         incr_a = incr_a + va * dt
         incr_g = incr_g + vg * dt
         if need:
             rate_a = rate_a + va
             rate_g = rate_g + vg
     for rate, incr, e in ((rate_g, incr_g, spec.gyro), (rate_a, incr_a, spec.accel)):
-        if not need:
-            continue
-        if math.isfinite(e.range):
-            np.clip(rate, -e.range, e.range, out=rate)
-        if e.quantization:
-            np.round(rate / e.quantization, out=rate)
-            rate *= e.quantization
-            q = e.quantization * dt
-            np.round(incr / q, out=incr)
-            incr *= q
-    B = len(runs)
+        _saturate_quantize(rate, incr, e, dt)
+    B = len(stream.runs)
     return SensorData(
-        name=name, kind="imu", t_s=t,
+        name=stream.name, kind="imu", t_s=t,
         values={"omega_ib_b_rps": rate_g, "f_b_mps2": rate_a, "dtheta_b_rad": incr_g,
                 "dv_b_mps": incr_a} if keep_rates else {"dtheta_b_rad": incr_g, "dv_b_mps": incr_a},
         valid=np.ones((B, n), bool),
-        errors={"gyro_bias": bias_g, "accel_bias": bias_a, "gyro_matrix": mat_g,
-                "accel_matrix": mat_a},
-        meta={"rate_hz": spec.rate_hz, "dt_s": dt, "runs": runs, "seed": seed})
+        errors={"gyro_bias": bias_g, "accel_bias": bias_a, "gyro_matrix": stream.gyro.matrix,
+                "accel_matrix": stream.accel.matrix},
+        meta=dict(stream.meta))
 
 
 class OnlineIncrements:
@@ -268,18 +435,23 @@ def error_increments(spec: ImuSpec, seed: int, runs, n: int, dt: float, name: st
     (``I + M``), so that the measured increment is ``matrix @ ideal + error`` (then quantized):
     the same numbers as :func:`emulate_imu` with the same ``n``. Range saturation is not
     applied (it needs the rate, which a closed loop does not keep)."""
-    runs = list(runs)
-    gens = run_generators(seed, runs, name)
     zero = np.zeros((n, 3))
-    t = np.arange(n) * dt
-    _, err_g, bias_g, mat_g = _triad(gens, zero, zero, dt, spec.gyro, n, False)
-    _, err_a, bias_a, mat_a = _triad(gens, zero, zero, dt, spec.accel, n, False)
-    for vib in spec.vibration:
-        err_a = err_a + _vibration(gens, t, dt, vib, spec.rate_hz, "amplitude") * dt
-        err_g = err_g + _vibration(gens, t, dt, vib, spec.rate_hz, "gyro_amplitude") * dt
-    B = len(runs)
-    return {"gyro": np.broadcast_to(err_g, (B, n, 3)), "accel": np.broadcast_to(err_a, (B, n, 3)),
-            "gyro_matrix": mat_g, "accel_matrix": mat_a, "gyro_bias": bias_g, "accel_bias": bias_a}
+    stream = ImuStream(None, spec, seed, runs, name, block=1, truth_x=(zero, zero, zero, zero), dt_s=dt, n=n)
+    _, err_g, bias_g = stream.gyro.block(0, n, False)
+    _, err_a, bias_a = stream.accel.block(0, n, False)
+    for va, vg in _vibrations(stream, spec):
+        err_a = err_a + va * dt
+        err_g = err_g + vg * dt
+    return {"gyro": err_g, "accel": err_a, "gyro_matrix": stream.gyro.matrix, "accel_matrix": stream.accel.matrix,
+            "gyro_bias": bias_g, "accel_bias": bias_a}
+
+
+def _vibrations(stream: "ImuStream", spec: ImuSpec) -> list:
+    """Each vibration's accelerometer and gyro signals ``(B, n, 3)`` (or 0), drawn after the
+    whole record's triads."""
+    return [(_vibration(stream.gens, stream.t_s, stream.dt_s, v, spec.rate_hz, "amplitude"),
+             _vibration(stream.gens, stream.t_s, stream.dt_s, v, spec.rate_hz, "gyro_amplitude"))
+            for v in spec.vibration]
 
 
 def quantize_increment(incr: np.ndarray, e: AxisErrors, dt: float) -> np.ndarray:
