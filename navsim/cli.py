@@ -228,7 +228,8 @@ def cmd_run(args) -> int:
                            if getattr(h, name) is not None})
         if loop:
             arrays.update({f"closed_loop.{k}": np.asarray(v) for k, v in loop.items()})
-        folder.write("runs.npz", lambda p: np.savez_compressed(p, **arrays))
+        # uncompressed: deflate saved 8 % of 1000 P0 runs (160 MB) and cost 7.6 of the 30 s
+        folder.write("runs.npz", lambda p: np.savez(p, **arrays))
     files = write_report(folder, scenario, truth, result, metrics, record, loop, reference, sightings)
     rows = []
     for label, m in metrics["estimators"].items():
