@@ -4,8 +4,8 @@ Each kernel loops over the runs of a batch and, inside, over the ``K`` samples o
 run's arithmetic never depends on the other runs (a batch of 3 equals 3 single runs bit for
 bit) and Python is entered once per block, not once per IMU sample.
 
-Strapdown mechanization (:func:`strapdown_block`), the algorithm of
-:class:`navsim.strapdown.Strapdown` in the local-level NED frame, per IMU interval with the
+Strapdown mechanization (:func:`strapdown_block`, behind :class:`navsim.strapdown.BlockStrapdown`)
+in the local-level NED frame, per IMU interval with the
 increments ``dtheta``, ``dv`` and the previous interval's ``dtheta_p``, ``dv_p``:
 
 * coning: ``dtheta_c = dtheta + dtheta_p x dtheta / 12``;

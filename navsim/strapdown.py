@@ -64,11 +64,15 @@ def rotation(rotvec):
     rotvec = np.asarray(rotvec, float)
     x, y, z = rotvec[..., 0], rotvec[..., 1], rotvec[..., 2]
     a2 = np.asarray(x * x + y * y + z * z)
-    s = np.array(1.0 - a2 * (1.0 / 6.0) + a2 * a2 * (1.0 / 120.0) - a2 ** 3 * (1.0 / 5040.0))
-    c = np.array(0.5 - a2 * (1.0 / 24.0) + a2 * a2 * (1.0 / 720.0) - a2 ** 3 * (1.0 / 40320.0))
+    with np.errstate(invalid="ignore", over="ignore"):      # a diverged run: its own NaN
+        s = np.array(1.0 - a2 * (1.0 / 6.0) + a2 * a2 * (1.0 / 120.0) - a2 ** 3 * (1.0 / 5040.0))
+        c = np.array(0.5 - a2 * (1.0 / 24.0) + a2 * a2 * (1.0 / 720.0) - a2 ** 3 * (1.0 / 40320.0))
     for i in np.flatnonzero(a2 >= 2.5e-3):     # rare: element by element, so no run's
         a = math.sqrt(a2.flat[i])               # rotation depends on the others'
-        s.flat[i], c.flat[i] = math.sin(a) / a, (1.0 - math.cos(a)) / a2.flat[i]
+        if math.isfinite(a):
+            s.flat[i], c.flat[i] = math.sin(a) / a, (1.0 - math.cos(a)) / a2.flat[i]
+        else:                                   # a diverged run: NaN, its own only
+            s.flat[i] = c.flat[i] = math.nan
     R = np.empty(rotvec.shape[:-1] + (3, 3))
     cx, cy = c * x, c * y
     R[..., 0, 0] = 1.0 - c * (y * y + z * z)

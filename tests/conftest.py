@@ -11,6 +11,22 @@ matplotlib.use("Agg")
 os.environ.setdefault("NUMBA_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".pytest_cache" / "numba"))
 
 
+def pytest_configure(config):
+    """Compile the kernels once, in the controlling process before the workers start (each
+    worker and each subprocess would otherwise compile them itself on a fresh clone): two runs
+    of P0's chunk over 3 s of flight (the strapdown, Kalman and IMU kernels); a second of work
+    when the cache is warm."""
+    if hasattr(config, "workerinput") or config.option.collectonly:
+        return
+    from navsim.flight import fly, parse_track
+    from navsim.runner import _chunk_work
+    from navsim.scenario import load_scenario
+    scenario = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "p0_bd_sins_ads.yaml")
+    truth = fly(parse_track({"start": {"lat_deg": 30.0, "lon_deg": 122.5, "alt_m": 150, "speed_mps": 15,
+                                       "heading_deg": 0}, "segments": [{"type": "straight", "time_s": 3}]}))
+    _chunk_work(truth, scenario, 1, range(2))
+
+
 @pytest.fixture(scope="session")
 def repo_root() -> Path:
     return Path(__file__).resolve().parents[1]

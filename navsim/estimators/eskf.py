@@ -95,7 +95,7 @@ class ErrorStateKF:
     def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
         """Mechanize the increments ``(B, K, 3)`` less the estimated biases."""
         self.sd.block(dtheta_b, dv_b, dt, self.b_gyro + self.m_gyro, self.b_accel + self.m_accel)
-        self._elapsed += dt * dtheta_b.shape[1]
+        self._elapsed = self.sd.steps * dt          # whatever the blocks the period was cut into
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self.predict()

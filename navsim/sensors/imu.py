@@ -140,6 +140,8 @@ class _Triad:
     def block(self, i0: int, i1: int, need_rate: bool):
         """``(rate or None, increments, bias)`` of samples ``[i0, i1)`` (requests go forward);
         the bias is ``(B, 1, 3)`` when constant."""
+        if not 0 <= i0 <= i1 <= self.n or i0 < self.next:
+            raise ValueError(f"samples {i0}-{i1} of {self.n}: requests go forward from sample {self.next}")
         if i0 > self.next:               # the processes' recursions start at sample 0
             self.block(self.next, i0, False)
         self.next = i1

@@ -82,6 +82,10 @@ def test_rotation_matches_scipy_and_does_not_depend_on_the_batch():
     for k in (0, 25, 49):
         assert np.abs(rotation(v[k]) - ref[k]).max() < 1e-15
         assert np.array_equal(rotation(v[k:k + 1])[0], rotation(v)[k])
+    bad = v.copy()
+    bad[3] = np.inf                                  # a diverged run spoils its own rotation only
+    R = rotation(bad)
+    assert np.isnan(R[3]).all() and np.array_equal(np.delete(R, 3, 0), np.delete(rotation(v), 3, 0))
 
 
 def _kalman_case(B=7, n=16, m=3, seed=0):
