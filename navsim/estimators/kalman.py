@@ -32,7 +32,8 @@ def discretize_series(F: np.ndarray, Qc: np.ndarray, T: float, order: int = 3):
     Phi, Qd = np.empty_like(F), np.empty_like(F)
     Qc = np.asarray(Qc, float)
     Qc = 0.5 * (Qc + np.swapaxes(Qc, -1, -2))       # the kernel's recursion needs it symmetric
-    kernels.discretize_series(F, _batch(Qc, F.shape), float(T), int(order), Phi, Qd)
+    Qc = Qc[None] if Qc.ndim == 2 else Qc
+    kernels.discretize_series(F, np.ascontiguousarray(Qc), float(T), int(order), Phi, Qd)
     return Phi, Qd
 
 
