@@ -329,11 +329,18 @@ def discretize_series(F, Qc, T, order, Phi, Qd):
                     for j in range(n):
                         M[i, j] = FM[i, j] + FM[j, i]
                         Q[i, j] += M[i, j] * c
-        for i in range(n):
-            for j in range(i + 1, n):
-                v = 0.5 * (Q[i, j] + Q[j, i])
-                Q[i, j] = v
-                Q[j, i] = v
+        _symmetrize(Q)
+
+
+@njit(cache=True)
+def _symmetrize(A):
+    """``A <- (A + A^T) / 2`` of a square matrix, in place."""
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(i + 1, n):
+            v = 0.5 * (A[i, j] + A[j, i])
+            A[i, j] = v
+            A[j, i] = v
 
 
 @njit(cache=True)
@@ -450,11 +457,7 @@ def joseph_update(x, P, z, H, R, valid, y, S, nis):
                 for k in range(n):
                     s += HP[i, k] * Hb[j, k]
                 Sb[i, j] = s + Rb[i, j]
-        for i in range(m):
-            for j in range(i + 1, m):
-                v = 0.5 * (Sb[i, j] + Sb[j, i])
-                Sb[i, j] = v
-                Sb[j, i] = v
+        _symmetrize(Sb)
         if not valid[b]:
             nis[b] = np.nan
             continue
@@ -492,11 +495,7 @@ def joseph_update(x, P, z, H, R, valid, y, S, nis):
                 c = D[i, k]
                 for j in range(n):
                     Pb[i, j] += c * Kt[k, j]
-        for i in range(n):
-            for j in range(i + 1, n):
-                v = 0.5 * (Pb[i, j] + Pb[j, i])
-                Pb[i, j] = v
-                Pb[j, i] = v
+        _symmetrize(Pb)
 
 
 # --- IMU errors ------------------------------------------------------------------------------
