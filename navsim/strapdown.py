@@ -144,19 +144,16 @@ class BlockStrapdown:
         ``(B, K, 3)``, of ``dt`` (s) each, less ``gyro_bias`` (rad/s) and ``accel_bias``
         (m/s^2) ``(B, 3)`` times ``dt`` when given; returns the state."""
         s = self.state
-        B = dtheta_b.shape[0]
+        bias = lambda b: np.zeros((dtheta_b.shape[0], 3)) if b is None else np.ascontiguousarray(b, float)
+        bg, ba = bias(gyro_bias), bias(accel_bias)
         if self._k == 0:              # no previous interval: no coning/sculling terms
-            self.dtheta_prev = dtheta_b[:, 0] - (0.0 if gyro_bias is None else gyro_bias * dt)
-            self.dv_prev = dv_b[:, 0] - (0.0 if accel_bias is None else accel_bias * dt)
-            self.dtheta_prev, self.dv_prev = (np.array(self.dtheta_prev, float), np.array(self.dv_prev, float))
+            self.dtheta_prev = np.array(dtheta_b[:, 0] - bg * dt, float)
+            self.dv_prev = np.array(dv_b[:, 0] - ba * dt, float)
         for name in ("lat_rad", "lon_rad", "h_m", "vel_n_mps", "C_nb"):
             setattr(s, name, np.ascontiguousarray(getattr(s, name), float))
-        zero = np.zeros((B, 3))
         kernels.strapdown_block(s.lat_rad, s.lon_rad, s.h_m, s.vel_n_mps, s.C_nb, self.dtheta_prev,
                                 self.dv_prev, self._cache, np.asarray(dtheta_b, float), np.asarray(dv_b, float),
-                                zero if gyro_bias is None else np.ascontiguousarray(gyro_bias, float),
-                                zero if accel_bias is None else np.ascontiguousarray(accel_bias, float),
-                                float(dt), self._k, self.gravity_every, self.sum_C_nb, self.sum_dv_n_mps)
+                                bg, ba, float(dt), self._k, self.gravity_every, self.sum_C_nb, self.sum_dv_n_mps)
         self._k += dtheta_b.shape[1]
         self.steps += dtheta_b.shape[1]
         return s

@@ -124,12 +124,13 @@ class _Triad:
     """One triad's errors for ``B`` runs, generated block by block (:class:`ImuStream`)."""
 
     def __init__(self, gens, e: AxisErrors, dt: float, n: int, block: int, truth_x, incr_x):
-        self.e, self.dt, self.n = e, dt, n
+        self.dt, self.n = dt, n
         self.matrix, self.bias0 = _constants(gens, e)
         self.identity = np.array_equal(self.matrix, np.broadcast_to(np.eye(3), self.matrix.shape))
         self.truth_x = np.ascontiguousarray(truth_x, float)
         self.incr_x = np.ascontiguousarray(incr_x, float)
         self.procs = _processes(e, dt)
+        self.varying = any(kind < 2 for kind, *_ in self.procs)     #: a bias that changes
         self.streams = []                # filled by ImuStream, one _Normals per process
         self.state = np.zeros((len(gens), len(self.procs), 4))
         self.block_size = block
@@ -146,8 +147,7 @@ class _Triad:
             self.block(self.next, i0, False)
         self.next = i1
         B, K = self.bias0.shape[0], i1 - i0
-        varying = any(kind < 2 for kind, *_ in self.procs)
-        bias = np.repeat(self.bias0, K, axis=1) if varying else self.bias0
+        bias = np.repeat(self.bias0, K, axis=1) if self.varying else self.bias0
         white = np.empty((B, 0, 3))
         scale = np.zeros(3)
         for p, ((kind, first, step, a), stream) in enumerate(zip(self.procs, self.streams)):
@@ -167,7 +167,7 @@ class _Triad:
 
 class ImuStream:
     """The IMU of :func:`emulate_imu` (but its vibration) generated block by block: the same
-    numbers (to rounding), drawn from the same per-run streams, but no ``(B, n, 3)`` arrays
+    numbers bit for bit, drawn from the same per-run streams, but no ``(B, n, 3)`` arrays
     are held; :meth:`block` gives the increments of the samples ``[i0, i1)``, requests going
     forward. The constants are drawn at construction; each time-varying error process reads
     its own copy of the run's generator, positioned where the whole-record emulation starts
