@@ -99,9 +99,9 @@ def rates_n(lat, h, vel_n):
 
 class BlockStrapdown:
     """The mechanization of the module docstring over a whole block of IMU intervals per call,
-    compiled (:func:`navsim.kernels.strapdown_block`), one loop per run. ``gravity_every`` IMU
-    steps share one evaluation of gravity, Earth rate, transport rate and radii (at UAV speeds
-    they change by less than 1e-7 of themselves in 0.1 s). The tests hold it to a numpy
+    compiled (:func:`navsim.kernels.strapdown_block`, runs side by side in vector lanes).
+    ``gravity_every`` IMU steps share one evaluation of gravity, Earth rate, transport rate and
+    radii (at UAV speeds they change by less than 1e-7 of themselves in 0.1 s). The tests hold it to a numpy
     reference of the same algorithm (``tests/reference_strapdown.py``) to 1e-9.
 
     Parameters
