@@ -615,6 +615,84 @@ def joseph_update(x, P, z, H, R, valid, y, S, nis):
         _symmetrize(Pb)
 
 
+@njit(cache=True)
+def covariance_codes(P, symmetry_tol, psd_tol, codes):
+    """Per run, why ``P`` ``(B, n, n)`` is not a covariance, into ``codes`` ``(B,)``: 0 it is
+    one, 1 an entry is not finite, 2 ``P`` scaled to a unit diagonal (``P_ij / sqrt(P_ii
+    P_jj)``, a variance not above zero left unscaled) is asymmetric by more than
+    ``symmetry_tol`` of its largest entry (or of 1), 3 a variance is negative or the scaled
+    matrix, symmetrised, plus ``psd_tol`` times the identity has no Cholesky factor."""
+    B, n = P.shape[0], P.shape[1]
+    s = np.empty(n)
+    L = np.empty((n, n))
+    for b in range(B):
+        Pb = P[b]
+        codes[b] = 0
+        for i in range(n):
+            for j in range(n):
+                if not math.isfinite(Pb[i, j]):
+                    codes[b] = 1
+        if codes[b]:
+            continue
+        negative = False
+        for i in range(n):
+            d = Pb[i, i]
+            s[i] = math.sqrt(d) if d > 0 else 1.0
+            negative = negative or d < 0
+        asym, big = 0.0, 1.0
+        for i in range(n):
+            for j in range(n):
+                a = Pb[i, j] / (s[i] * s[j])
+                asym = max(asym, abs(a - Pb[j, i] / (s[j] * s[i])))
+                big = max(big, abs(a))
+                L[i, j] = 0.5 * (a + Pb[j, i] / (s[j] * s[i])) + (psd_tol if i == j else 0.0)
+        if asym > symmetry_tol * big:
+            codes[b] = 2
+        elif negative or not _cholesky_in_place(L):
+            codes[b] = 3
+
+
+@njit(cache=True)
+def _cholesky_in_place(A):
+    """The lower Cholesky factor of the symmetric ``A`` into its lower triangle; False when a
+    pivot is not above zero (not positive definite) or not finite."""
+    n = A.shape[0]
+    for j in range(n):
+        d = A[j, j]
+        for k in range(j):
+            d -= A[j, k] * A[j, k]
+        if not d > 0.0:
+            return False
+        d = math.sqrt(d)
+        A[j, j] = d
+        for i in range(j + 1, n):
+            v = A[i, j]
+            for k in range(j):
+                v -= A[i, k] * A[j, k]
+            A[i, j] = v / d
+    return True
+
+
+@njit(cache=True)
+def nees(P, e, out):
+    """``out[b] = e_b^T P_b^-1 e_b`` of each run (``P`` ``(B, n, n)``, ``e`` ``(B, n)``), by
+    :func:`_solve`; NaN where ``P`` is singular."""
+    B, n = P.shape[0], P.shape[1]
+    A = np.empty((n, n))
+    y = np.empty((n, 1))
+    x = np.empty((n, 1))
+    for b in range(B):
+        for i in range(n):
+            y[i, 0] = e[b, i]
+        if _solve(P[b], y, A, x):
+            v = 0.0
+            for i in range(n):
+                v += e[b, i] * x[i, 0]
+            out[b] = v
+        else:
+            out[b] = np.nan
+
+
 # --- IMU errors ------------------------------------------------------------------------------
 
 

@@ -23,8 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from navsim import earth
-from navsim.estimators.kalman import solve_runs
+from navsim import earth, kernels
 from navsim.sensors.base import run_generators
 from navsim.strapdown import NavState, rotation, state_from_truth
 from navsim.transform import dcm_from_quat, euler_from_dcm, wrap_angle
@@ -146,8 +145,8 @@ def covariance_codes(P: np.ndarray) -> np.ndarray:
     variance left unscaled), so that the attitude (rad), velocity (m/s) and position (rad, m)
     blocks weigh alike: a non-finite entry, a negative variance, an asymmetry above
     :data:`SYMMETRY_TOL` of the largest entry, or no Cholesky factorisation of the scaled
-    matrix plus :data:`PSD_TOL` times the identity (not positive semi-definite). The batch is
-    factorised at once; only when that fails are its runs factorised one at a time.
+    matrix plus :data:`PSD_TOL` times the identity (not positive semi-definite). Compiled, run
+    by run: :func:`navsim.kernels.covariance_codes`.
 
     Parameters
     ----------
@@ -158,39 +157,15 @@ def covariance_codes(P: np.ndarray) -> np.ndarray:
     -------
     (B,) int array
     """
-    n = P.shape[-1]
-    finite = np.all(np.isfinite(P), axis=(1, 2))
-    Pf = np.where(finite[:, None, None], P, np.eye(n))
-    d = np.diagonal(Pf, axis1=1, axis2=2)
-    s = np.sqrt(np.where(d > 0, d, 1.0))
-    Pn = Pf / (s[:, :, None] * s[:, None, :])
-    asym = np.max(np.abs(Pn - np.swapaxes(Pn, -1, -2)), axis=(1, 2))
-    asym = asym > SYMMETRY_TOL * np.maximum(np.max(np.abs(Pn), axis=(1, 2)), 1.0)
-    A = 0.5 * (Pn + np.swapaxes(Pn, -1, -2)) + PSD_TOL * np.eye(n)
-    definite = ~(d < 0).any(-1) & _cholesky_ok(A)
-    return np.select([~finite, asym, ~definite], [1, 2, 3], 0)
+    codes = np.empty(P.shape[0], np.int64)
+    kernels.covariance_codes(np.ascontiguousarray(P, float), SYMMETRY_TOL, PSD_TOL, codes)
+    return codes
 
 
 def covariance_faults(P: np.ndarray) -> list:
     """Per run, the cause (:data:`CAUSES`) why ``P`` is not a covariance, or None
     (:func:`covariance_codes`)."""
     return [CAUSES[c] for c in covariance_codes(P)]
-
-
-def _cholesky_ok(A: np.ndarray) -> np.ndarray:
-    """``(B,)`` whether each matrix of ``A`` has a Cholesky factorisation."""
-    try:
-        np.linalg.cholesky(A)
-        return np.ones(A.shape[0], bool)
-    except np.linalg.LinAlgError:
-        pass
-    ok = np.ones(A.shape[0], bool)
-    for b in range(A.shape[0]):
-        try:
-            np.linalg.cholesky(A[b])
-        except np.linalg.LinAlgError:
-            ok[b] = False
-    return ok
 
 
 class Driver:
@@ -334,8 +309,11 @@ def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialError
 
 
 def _nees(P: np.ndarray, e: np.ndarray) -> np.ndarray:
-    """``(B,)`` NEES ``e^T P^-1 e``; NaN in a run whose ``P`` is singular."""
-    return np.einsum("bi,bi->b", e, solve_runs(P, e[..., None])[..., 0])
+    """``(B,)`` NEES ``e^T P^-1 e``; NaN in a run whose ``P`` is singular (compiled:
+    :func:`navsim.kernels.nees`)."""
+    out = np.empty(P.shape[0])
+    kernels.nees(np.ascontiguousarray(P, float), np.ascontiguousarray(e, float), out)
+    return out
 
 
 def _state_finite(sol, *errors) -> np.ndarray:

@@ -178,6 +178,19 @@ def test_covariance_faults():
     assert covariance_faults(np.stack([healthy, zero])) == [None, None]          # the batch at once
 
 
+def test_nees_against_numpy_and_nan_for_a_singular_covariance():
+    from navsim.montecarlo import _nees
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(4, 9, 9))
+    P = A @ np.swapaxes(A, -1, -2) + 0.1 * np.eye(9)
+    P[2] = 0.0
+    e = rng.normal(size=(4, 9))
+    got = _nees(P, e)
+    ok = [0, 1, 3]
+    want = np.einsum("bi,bi->b", e[ok], np.linalg.solve(P[ok], e[ok][..., None])[..., 0])
+    assert np.allclose(got[ok], want, rtol=1e-10, atol=0) and np.isnan(got[2])
+
+
 def test_a_singular_innovation_covariance_spoils_its_own_run_only():
     rng = np.random.default_rng(7)
     B, n, m = 3, 4, 2
