@@ -83,7 +83,9 @@ class OutputError(NavsimError):
 
     def __init__(self, path, exc: OSError | None = None, *, reason: str | None = None):
         self.path = str(path)
+        self.errno = exc.errno if exc is not None else None
         why = reason or (exc.strerror if exc is not None and exc.strerror else str(exc))
+        self.reason = why
         super().__init__(f"{self.path}: {why}"
                          + ("\n  hint: free some space, or write elsewhere with --out"
                             if exc is not None and exc.errno == errno.ENOSPC else ""))

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import contextlib
 import os
+import sys
 import textwrap
 import warnings
 from pathlib import Path
@@ -12,7 +12,7 @@ import numpy as np
 
 from navsim.errors import OutputError
 from navsim.metrics import chi2_band, lookup
-from navsim.outputs import OutputFolder, temporary_name
+from navsim.outputs import OutputFolder, write_atomic
 
 AXES = {"pos": ("position error", "m", ["north", "east", "down"]),
         "vel": ("velocity error", "m/s", ["north", "east", "down"]),
@@ -504,7 +504,6 @@ def write_report(folder: OutputFolder, scenario, truth, result, metrics: dict, r
     ``reference``: the per-run outcome of a closed-loop scenario and its truth-guided flight;
     ``sightings``: landmark sightings ``(name, start_s, end_s, sigma_m)``, shaded in green."""
     plt = _plt()
-    from matplotlib.backends.backend_pdf import PdfPages
     from navsim.flight.plots import flight_figures
     runs_plotted = scenario.report.get("runs_plotted", 5)
     import yaml
@@ -530,34 +529,92 @@ def write_report(folder: OutputFolder, scenario, truth, result, metrics: dict, r
         pages += consistency_figure(result.histories, spans)
         pages += bias_figure(result.histories, result.truth_bias)
         pages += calibration_figures(result.calibration, result.histories, metrics, scenario.windows)
-    files = []
-    fmts = scenario.report.get("formats", ["pdf", "png"])
-    out = folder.path
-    if "pdf" in fmts:
-        folder.record([out / "report.pdf"])
-    pdf_tmp = temporary_name(out / "report.pdf")
-    pdf = None
     try:
-        pdf = PdfPages(pdf_tmp) if "pdf" in fmts else None     # renamed once complete
-        for name, fig in pages:
-            if "png" in fmts:
-                files.append(folder.write(f"{name}.png", lambda p: fig.savefig(p, dpi=110)))
-            if pdf is not None:
-                pdf.savefig(fig)
-            plt.close(fig)
-        if pdf is not None:
-            pdf.infodict()["Title"] = f"navsim report: {scenario.name}"
-            pdf.close()
-            pdf = None
-            os.replace(pdf_tmp, out / "report.pdf")
-            files.append(out / "report.pdf")
-    except OSError as exc:
-        raise OutputError(out / "report.pdf" if pdf is not None else out, exc) from None
+        return _render(folder, pages, scenario.report.get("formats", ["pdf", "png"]),
+                       f"navsim report: {scenario.name}")
     finally:
-        if pdf is not None:
-            with contextlib.suppress(Exception):
-                pdf.close()
-        pdf_tmp.unlink(missing_ok=True)
         for _, fig in pages:               # also those not reached when writing failed
             plt.close(fig)
-    return files
+
+
+def _render(folder: OutputFolder, pages: list, fmts, title: str) -> list[Path]:
+    """Each page to ``<name>.png`` and all of them, in order, to ``report.pdf``; returns the
+    files written. Where the machine has a second core and ``fork`` (Linux), a forked child
+    draws the PNGs while this process draws the PDF (about half the time: a page costs as
+    much to draw for either)."""
+    out = folder.path
+    pngs = [(out / f"{name}.png", fig) for name, fig in pages] if "png" in fmts else []
+    pdf_path = out / "report.pdf" if "pdf" in fmts else None
+    folder.record([p for p, _ in pngs] + ([pdf_path] if pdf_path else []))
+    child = _fork_writer(pngs) if pngs and pdf_path and _can_fork() else None
+    if child is None:
+        for path, fig in pngs:
+            write_atomic(path, lambda p, fig=fig: fig.savefig(p, dpi=PNG_DPI))
+    try:
+        if pdf_path is not None:
+            write_atomic(pdf_path, lambda p: _write_pdf(p, pages, title))
+    except BaseException:
+        if child is not None:                 # this error is the one reported
+            _join_writer(*child, report=False)
+        raise
+    if child is not None:
+        _join_writer(*child)
+    return [p for p, _ in pngs] + ([pdf_path] if pdf_path else [])
+
+
+#: the PNGs' resolution, dots per inch
+PNG_DPI = 110
+
+
+def _write_pdf(path: Path, pages: list, title: str) -> None:
+    from matplotlib.backends.backend_pdf import PdfPages
+    with PdfPages(path) as pdf:
+        for _, fig in pages:
+            pdf.savefig(fig)
+        pdf.infodict()["Title"] = title
+
+
+def _can_fork() -> bool:
+    return sys.platform == "linux" and hasattr(os, "fork") and len(os.sched_getaffinity(0)) > 1
+
+
+def _fork_writer(pngs: list):
+    """Fork a child that writes the PNGs ``(path, figure)``; returns its pid and the pipe on
+    which it reports a failure (errno, path and reason of an OS error, or an exception's
+    name and message); nothing on success."""
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid:
+        os.close(w)
+        return pid, r
+    os.close(r)
+    code = 0
+    try:
+        for path, fig in pngs:
+            write_atomic(path, lambda p, fig=fig: fig.savefig(p, dpi=PNG_DPI))
+    except OutputError as exc:
+        os.write(w, f"{exc.errno or 0}\n{exc.path}\n{exc.reason}".encode())
+        code = 4
+    except KeyboardInterrupt:
+        code = 130
+    except BaseException as exc:              # the parent reports it; never return into it
+        os.write(w, f"\n\n{type(exc).__name__}: {exc}".encode())
+        code = 1
+    finally:
+        os._exit(code)
+
+
+def _join_writer(pid: int, pipe: int, report: bool = True) -> None:
+    """Wait for the PNG writer and, with ``report``, raise its failure here."""
+    with os.fdopen(pipe, "rb") as f:
+        message = f.read().decode(errors="replace")
+    _, status = os.waitpid(pid, 0)
+    code = os.waitstatus_to_exitcode(status)
+    if code == 0 or not report:
+        return
+    if code == 130:
+        raise KeyboardInterrupt
+    number, path, why = (message.split("\n", 2) + ["", ""])[:3]
+    if path:
+        raise OutputError(path, OSError(int(number or 0), why))
+    raise RuntimeError(f"the PNG writer failed: {why or f'exit code {code}'}")

@@ -1,0 +1,54 @@
+"""The report's pages to PNGs and one PDF: a forked child draws the PNGs while the parent draws
+the PDF (navsim.report._render); a failure in either is reported as the OutputError it is."""
+
+import errno
+
+import matplotlib
+import matplotlib.figure
+import pytest
+
+from navsim import report
+from navsim.errors import OutputError
+from navsim.outputs import OutputFolder
+
+matplotlib.use("Agg")
+
+
+def pages():
+    out = []
+    for name in ("a", "b", "c"):
+        fig = matplotlib.figure.Figure(figsize=(3, 2))
+        fig.add_subplot().plot([0, 1], [0, len(name)])
+        out.append((name, fig))
+    return out
+
+
+@pytest.mark.parametrize("fork", [True, False])
+def test_every_page_to_a_png_and_the_pdf(tmp_path, monkeypatch, fork):
+    monkeypatch.setattr(report, "_can_fork", lambda: fork)
+    folder = OutputFolder(tmp_path / "out")
+    files = report._render(folder, pages(), ["pdf", "png"], "t")
+    assert sorted(p.name for p in files) == ["a.png", "b.png", "c.png", "report.pdf"]
+    assert all(p.stat().st_size > 1000 for p in files)
+    pdf = (tmp_path / "out" / "report.pdf").read_bytes()
+    assert pdf.count(b"/Type /Page") - pdf.count(b"/Type /Pages") == 3           # one page each
+    assert not [p for p in (tmp_path / "out").iterdir() if ".tmp" in p.name]
+
+
+@pytest.mark.parametrize("fork", [True, False])
+def test_a_png_that_cannot_be_written_is_reported_with_its_path_and_hint(tmp_path, monkeypatch, fork):
+    monkeypatch.setattr(report, "_can_fork", lambda: fork)
+    real = matplotlib.figure.Figure.savefig
+
+    def full(self, fname, *args, **kwargs):
+        if str(fname).endswith(".b.tmp.png"):
+            raise OSError(errno.ENOSPC, "No space left on device", str(fname))
+        return real(self, fname, *args, **kwargs)
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", full)
+    folder = OutputFolder(tmp_path / "out")
+    with pytest.raises(OutputError) as err:
+        report._render(folder, pages(), ["pdf", "png"], "t")
+    assert err.value.path.endswith("b.png") and "No space left on device" in str(err.value)
+    assert "free some space" in str(err.value) and err.value.errno == errno.ENOSPC
+    assert (tmp_path / "out" / "a.png").exists() and not (tmp_path / "out" / "b.png").exists()
+    assert not [p for p in (tmp_path / "out").iterdir() if ".tmp" in p.name]
