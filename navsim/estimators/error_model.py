@@ -25,8 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navsim import earth, kernels
-from navsim.strapdown import skew
+from navsim import kernels
 
 BLOCK_SIZES = {"att": 3, "vel": 3, "pos": 3, "gyro_bias": 3, "accel_bias": 3, "baro": 1,
                "gyro_markov": 3, "accel_markov": 3}
@@ -92,58 +91,26 @@ class ProcessNoise:
 
 
 def system_matrix(layout: Layout, lat, h, vel_n, C_nb, f_n) -> np.ndarray:
-    """Continuous error dynamics ``F`` ``(B, n, n)`` at the navigation state (batched)."""
-    B = lat.shape[0]
+    """Continuous error dynamics ``F`` ``(B, n, n)`` at the navigation state (batched;
+    compiled, run by run: :func:`navsim.kernels.error_dynamics`).
+
+    With ``R_M = r_m + h``, ``R_N = r_n + h``, ``M = d(omega_en)/d(v)`` and
+    ``D = d(omega_ie + omega_en)/d(L, lambda, h)``:
+
+    * attitude: ``F_aa = -[(omega_ie + omega_en) x]``, ``F_av = M``, ``F_ap = D``, and
+      ``-C_nb`` on the gyro bias and Markov blocks;
+    * velocity: ``F_va = [f_n x]``, ``F_vv = -[(2 omega_ie + omega_en) x] + [v x] M``,
+      ``F_vp = [v x] (2 d(omega_ie) + d(omega_en))/d(pos)`` plus the J2 gravity gradient by
+      central differences (1e-5 rad, 1 m), and ``C_nb`` on the accelerometer blocks;
+    * position: ``dL' = dv_N / R_M - v_N dh / R_M^2``, ``dlambda' = dv_E / (R_N cos L) +
+      v_E tan L dL / (R_N cos L) - v_E dh / (R_N^2 cos L)``, ``dh' = -dv_D``.
+    """
     n = layout.n
-    F = np.zeros((B, n, n))
-    A, V, Pp = layout.slice("att"), layout.slice("vel"), layout.slice("pos")
-    r_m, r_n = earth.radii(lat)
-    Rm, Rn = r_m + h, r_n + h
-    sl, cl, tl = np.sin(lat), np.cos(lat), np.tan(lat)
-    vn, ve = vel_n[:, 0], vel_n[:, 1]
-    W = earth.OMEGA_IE_RPS
-    w_ie = np.stack([W * cl, np.zeros(B), -W * sl], -1)
-    w_en = np.stack([ve / Rn, -vn / Rm, -ve * tl / Rn], -1)
-    # d(omega_en)/d(v), d(omega_ie + omega_en)/d(L, lambda, h), d(2 omega_ie + omega_en)/d(pos)
-    Mv = np.zeros((B, 3, 3))
-    Mv[:, 0, 1] = 1.0 / Rn
-    Mv[:, 1, 0] = -1.0 / Rm
-    Mv[:, 2, 1] = -tl / Rn
-    dwie_dp = np.zeros((B, 3, 3))
-    dwie_dp[:, 0, 0] = -W * sl
-    dwie_dp[:, 2, 0] = -W * cl
-    dwen_dp = np.zeros((B, 3, 3))
-    dwen_dp[:, 2, 0] = -ve / (Rn * cl * cl)
-    dwen_dp[:, 0, 2] = -ve / Rn ** 2
-    dwen_dp[:, 1, 2] = vn / Rm ** 2
-    dwen_dp[:, 2, 2] = ve * tl / Rn ** 2
-    # attitude
-    F[:, A, A] = -skew(w_ie + w_en)
-    F[:, A, V] = Mv
-    F[:, A, Pp] = dwie_dp + dwen_dp
-    # velocity
-    Vx = skew(vel_n)
-    F[:, V, A] = skew(f_n)
-    F[:, V, V] = -skew(2.0 * w_ie + w_en) + Vx @ Mv
-    F[:, V, Pp] = Vx @ (2.0 * dwie_dp + dwen_dp)
-    # gravity gradient (J2 model, by central differences): latitude and height
-    dL, dh = 1e-5, 1.0
-    grad = np.empty((B, 3, 2))
-    kernels.gravity_gradient(np.ascontiguousarray(lat, float), np.ascontiguousarray(h, float), dL, dh, grad)
-    F[:, V, Pp.start] += grad[:, :, 0]
-    F[:, V, Pp.start + 2] += grad[:, :, 1]
-    # position
-    F[:, Pp.start, V.start] = 1.0 / Rm
-    F[:, Pp.start, Pp.start + 2] = -vn / Rm ** 2
-    F[:, Pp.start + 1, V.start + 1] = 1.0 / (Rn * cl)
-    F[:, Pp.start + 1, Pp.start] = ve * tl / (Rn * cl)
-    F[:, Pp.start + 1, Pp.start + 2] = -ve / (Rn ** 2 * cl)
-    F[:, Pp.start + 2, V.start + 2] = -1.0
-    # sensor errors
-    for block, target in (("gyro_bias", A), ("gyro_markov", A), ("accel_bias", V), ("accel_markov", V)):
-        if layout.has(block):
-            sign = -1.0 if target == A else 1.0
-            F[:, target, layout.slice(block)] = sign * C_nb
+    F = np.empty((lat.shape[0], n, n))
+    starts = [layout.slice(b).start if layout.has(b) else -1 for b in
+              ("att", "vel", "pos", "gyro_bias", "gyro_markov", "accel_bias", "accel_markov")]
+    f = lambda x: np.ascontiguousarray(x, float)
+    kernels.error_dynamics(f(lat), f(h), f(vel_n), f(C_nb), f(f_n), np.array(starts, np.int64), 1e-5, 1.0, F)
     return F
 
 
