@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import textwrap
+import threading
 import warnings
 from pathlib import Path
 
@@ -575,21 +577,32 @@ def _write_pdf(path: Path, pages: list, title: str) -> None:
 
 
 def _can_fork() -> bool:
-    return sys.platform == "linux" and hasattr(os, "fork") and len(os.sched_getaffinity(0)) > 1
+    return (sys.platform == "linux" and hasattr(os, "fork") and len(os.sched_getaffinity(0)) > 1
+            and threading.current_thread() is threading.main_thread())
 
 
 def _fork_writer(pngs: list):
     """Fork a child that writes the PNGs ``(path, figure)``; returns its pid and the pipe on
     which it reports a failure (errno, path and reason of an OS error, or an exception's
-    name and message); nothing on success."""
+    name and message; nothing on success), or None when the fork fails. Ctrl-C is held back
+    across the fork, so it reaches the child inside its ``try``."""
     r, w = os.pipe()
-    pid = os.fork()
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        pid = os.fork()
+    except OSError:                          # no process to spare: drawn one after the other
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        os.close(r)
+        os.close(w)
+        return None
     if pid:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
         os.close(w)
         return pid, r
-    os.close(r)
     code = 0
     try:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        os.close(r)
         for path, fig in pngs:
             write_atomic(path, lambda p, fig=fig: fig.savefig(p, dpi=PNG_DPI))
     except OutputError as exc:
@@ -606,9 +619,11 @@ def _fork_writer(pngs: list):
 
 def _join_writer(pid: int, pipe: int, report: bool = True) -> None:
     """Wait for the PNG writer and, with ``report``, raise its failure here."""
-    with os.fdopen(pipe, "rb") as f:
-        message = f.read().decode(errors="replace")
-    _, status = os.waitpid(pid, 0)
+    try:
+        with os.fdopen(pipe, "rb") as f:
+            message = f.read().decode(errors="replace")
+    finally:                                  # never a zombie, even on Ctrl-C
+        _, status = os.waitpid(pid, 0)
     code = os.waitstatus_to_exitcode(status)
     if code == 0 or not report:
         return
@@ -616,5 +631,6 @@ def _join_writer(pid: int, pipe: int, report: bool = True) -> None:
         raise KeyboardInterrupt
     number, path, why = (message.split("\n", 2) + ["", ""])[:3]
     if path:
-        raise OutputError(path, OSError(int(number or 0), why))
+        number = int(number or 0)
+        raise OutputError(path, OSError(number, why)) if number else OutputError(path, reason=why)
     raise RuntimeError(f"the PNG writer failed: {why or f'exit code {code}'}")

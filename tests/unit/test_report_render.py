@@ -52,3 +52,16 @@ def test_a_png_that_cannot_be_written_is_reported_with_its_path_and_hint(tmp_pat
     assert "free some space" in str(err.value) and err.value.errno == errno.ENOSPC
     assert (tmp_path / "out" / "a.png").exists() and not (tmp_path / "out" / "b.png").exists()
     assert not [p for p in (tmp_path / "out").iterdir() if ".tmp" in p.name]
+
+
+def test_a_fork_that_fails_falls_back_to_drawing_in_turn(tmp_path, monkeypatch):
+    import os
+    monkeypatch.setattr(report, "_can_fork", lambda: True)
+
+    def no_fork():
+        raise OSError(11, "Resource temporarily unavailable")
+    monkeypatch.setattr(os, "fork", no_fork)
+    before = len(os.listdir("/proc/self/fd"))
+    files = report._render(OutputFolder(tmp_path / "out"), pages(), ["pdf", "png"], "t")
+    assert sorted(p.name for p in files) == ["a.png", "b.png", "c.png", "report.pdf"]
+    assert len(os.listdir("/proc/self/fd")) == before                 # the pipe closed again
