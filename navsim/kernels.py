@@ -102,9 +102,9 @@ def gravity_gradient(lat, h, dlat, dh, out):
 
 # The strapdown works on tiles of _TILE runs, each field of the state a row of _TILE lanes
 # in one flat array, ``X[row * _TILE + b]`` (the names below are the rows' offsets). The rows
-# are fixed at compile time, so each
-# interval is a few loops over the lanes that LLVM vectorises without run-time overlap checks
-# (no calls, no branches, divisions without Python's zero check). Vector lanes round as
+# are fixed at compile time, so each interval is a few loops over the lanes that LLVM
+# vectorises without run-time overlap checks (no calls, no branches, divisions without
+# Python's zero check). Vector lanes round as
 # scalar code does (no fused multiply-add without fastmath), so a run's numbers do not depend
 # on its place in the batch; the last tile's spare lanes repeat its first run. The rare cases
 # (an angle above 0.05 rad, a non-finite value, a latitude far from the last refresh), the
@@ -130,9 +130,10 @@ _MID, _COSM, _DEN, _NUM = _rows(45, 4)                             # the longitu
 #: a run's cache: gravity (3), omega_in (3), 2 omega_ie + omega_en (3), r_m, r_n, and the
 #: refresh's latitude with its sine and cosine
 CACHE_SIZE = 14
+_CACHE_ROW = 49                 # the first row of the cache, after the 49 above
 (_GN, _GE, _GD, _WIN0, _WIN1, _WIN2, _COR0, _COR1, _COR2, _RM, _RN, _LAT0, _SLAT0,
- _CLAT0) = _rows(49, CACHE_SIZE)
-_NX = 49 + CACHE_SIZE
+ _CLAT0) = _rows(_CACHE_ROW, CACHE_SIZE)
+_NX = _CACHE_ROW + CACHE_SIZE
 #: below this offset (rad) from the refresh's latitude, the cosine of the mid latitude is its
 #: Taylor series to the third order (the next term, d^4 / 24 < 5e-18, is below rounding)
 _COS_TAYLOR_RAD = 1e-4
