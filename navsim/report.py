@@ -550,8 +550,7 @@ def _render(folder: OutputFolder, pages: list, fmts, title: str) -> list[Path]:
     folder.record([p for p, _ in pngs] + ([pdf_path] if pdf_path else []))
     child = _fork_writer(pngs) if pngs and pdf_path and _can_fork() else None
     if child is None:
-        for path, fig in pngs:
-            write_atomic(path, lambda p, fig=fig: fig.savefig(p, dpi=PNG_DPI))
+        _write_pngs(pngs)
     try:
         if pdf_path is not None:
             write_atomic(pdf_path, lambda p: _write_pdf(p, pages, title))
@@ -566,6 +565,11 @@ def _render(folder: OutputFolder, pages: list, fmts, title: str) -> list[Path]:
 
 #: the PNGs' resolution, dots per inch
 PNG_DPI = 110
+
+
+def _write_pngs(pngs: list) -> None:
+    for path, fig in pngs:
+        write_atomic(path, lambda p, fig=fig: fig.savefig(p, dpi=PNG_DPI))
 
 
 def _write_pdf(path: Path, pages: list, title: str) -> None:
@@ -603,8 +607,7 @@ def _fork_writer(pngs: list):
     try:
         signal.pthread_sigmask(signal.SIG_SETMASK, held)
         os.close(r)
-        for path, fig in pngs:
-            write_atomic(path, lambda p, fig=fig: fig.savefig(p, dpi=PNG_DPI))
+        _write_pngs(pngs)
     except OutputError as exc:
         os.write(w, f"{exc.errno or 0}\n{exc.path}\n{exc.reason}".encode())
         code = 4
