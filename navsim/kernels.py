@@ -535,85 +535,254 @@ def _solve(S, Y, A, X):
 
 
 @njit(cache=True)
-def joseph_update(x, P, z, H, R, valid, y, S, nis):
-    """Joseph-form update of the runs where ``valid``, in place: ``y = z - H x``,
-    ``S = H P H^T + R`` (symmetrised), ``K = P H^T S^-1``, ``x <- x + K y``,
-    ``P <- (I - K H) P (I - K H)^T + K R K^T`` (symmetrised), evaluated as
-    ``A = P - K (H P)``, ``A - (A H^T) K^T + K R K^T`` (``O(n^2 m)``), and
-    ``nis = y^T S^-1 y``. A valid run whose ``S`` is singular gets NaN state and covariance;
-    an invalid one keeps them, with NaN NIS.
+def propagate_covariance(x, P, F, Qc, T, order):
+    """``x <- Phi x`` and ``P <- Phi P Phi^T + Qd`` of each run over ``T``, in place, by the
+    Taylor series in ``T`` to ``order`` of the covariance equation ``P' = F P + P F^T + Qc``:
+    ``P(T) = sum_k X_k T^k / k!`` with ``X_0 = P``, ``X_1 = F P + (F P)^T + Qc``,
+    ``X_k+1 = F X_k + (F X_k)^T`` (each exactly symmetric), and ``x(T) = sum_k (F T)^k x / k!``.
+
+    This is the series of :func:`discretize_series` followed by :func:`predict` with the terms
+    above ``T^order`` left out: at order 6 over P0's 1 s epochs both agree with Van Loan's exact
+    discretisation to rounding (1e-15 of ``sqrt(P_ii P_jj)``), and it costs ``order`` products
+    with the nonzero entries of ``F`` instead of ``2 order + 1`` products and two dense ones.
+
+    Parameters
+    ----------
+    x : (B, n), P : (B, n, n) arrays
+        State and covariance (symmetric); updated.
+    F : (B, n, n) array
+        The continuous system matrices.
+    Qc : (B, n, n) or (1, n, n) array
+        The continuous process-noise densities, symmetric.
+    T : float
+        The interval, s.
+    order : int
+        The last power of ``T``.
+    """
+    B, n = P.shape[0], P.shape[1]
+    X = np.empty((n, n))
+    FX = np.empty((n, n))
+    xk = np.empty(n)
+    xn = np.empty(n)
+    rows = np.empty(n * n, np.int64)
+    cols = np.empty(n * n, np.int64)
+    vals = np.empty(n * n)
+    for b in range(B):
+        Fb, Pb, Qb = F[b], P[b], Qc[b if Qc.shape[0] > 1 else 0]
+        nz = 0
+        for i in range(n):
+            for k in range(n):
+                if Fb[i, k] != 0.0:
+                    rows[nz], cols[nz], vals[nz] = i, k, Fb[i, k]
+                    nz += 1
+        for i in range(n):
+            xk[i] = x[b, i]
+        for k in range(1, order + 1):
+            s = T / k
+            for i in range(n):
+                xn[i] = 0.0
+            for z in range(nz):
+                xn[rows[z]] += vals[z] * xk[cols[z]]
+            for i in range(n):
+                xk[i] = xn[i] * s
+                x[b, i] += xk[i]
+        _sparse_left(rows, cols, vals, nz, Pb, FX)
+        for i in range(n):
+            for j in range(n):
+                X[i, j] = (FX[i, j] + FX[j, i]) + Qb[i, j]
+        c = T
+        for k in range(1, order + 1):
+            for i in range(n):
+                for j in range(n):
+                    Pb[i, j] += c * X[i, j]
+            if k < order:
+                _sparse_left(rows, cols, vals, nz, X, FX)
+                for i in range(n):
+                    for j in range(n):
+                        X[i, j] = FX[i, j] + FX[j, i]
+                c = c * T / (k + 1)
+        _symmetrize(Pb)
+
+
+@njit(cache=True)
+def joseph_update(x, P, z, H, R, valid, ends, y, S, nis, bad):
+    """Joseph-form updates of the runs where ``valid``, in place, one measurement after the
+    other: measurement ``g`` is the rows ``ends[g]:ends[g+1]`` of ``z``, ``H`` and the diagonal
+    block of ``R``. Each is ``y = z - H x``, ``S = H P H^T + R`` (symmetrised),
+    ``K = P H^T S^-1``, ``x <- x + K y``, ``P <- (I - K H) P (I - K H)^T + K R K^T``
+    (symmetrised), evaluated as ``A = P - K (H P)``, ``A - (A H^T) K^T + K R K^T`` row by row
+    (``O(n^2 m)``, the zeros of ``H`` skipped in ``A H^T``), and ``nis = y^T S^-1 y``. A valid
+    run whose ``S`` is singular gets NaN state and covariance; an invalid one keeps them, with
+    NaN NIS. After each measurement a run whose ``P`` has a non-finite entry or a negative
+    variance is flagged in ``bad``.
 
     Parameters
     ----------
     x : (B, n), P : (B, n, n)
         State and covariance (symmetric); updated.
-    z : (B, m), H : (B, m, n), R : (B, m, m), valid : (B,) bool
-        The measurement.
-    y : (B, m), S : (B, m, m), nis : (B,)
-        Out: innovation, its covariance and the NIS.
+    z : (B, M), H : (B, M, n), R : (B, M, M), valid : (B, G) bool, ends : (G + 1,) int
+        The ``G`` measurements, stacked (``M`` rows in all).
+    y : (B, M), S : (B, M, M), nis : (B, G), bad : (B,) bool
+        Out: innovations, the diagonal blocks of their covariances, the NIS, the flags (set,
+        never cleared).
     """
-    B, n, m = P.shape[0], P.shape[1], H.shape[1]
-    HP = np.empty((m, n))          # H P = (P H^T)^T
-    Kt = np.empty((m, n))          # K^T = S^-1 H P
-    D = np.empty((n, m))           # K R - A H^T
-    Ab = np.empty((n, n))
-    W = np.empty((m, m))
-    yy = np.empty((m, 1))
-    sy = np.empty((m, 1))
-    for b in range(B):
-        Pb, Hb, Rb, Sb = P[b], H[b], R[b], S[b]
-        for i in range(m):
-            s = z[b, i]
-            for k in range(n):
-                s -= Hb[i, k] * x[b, k]
-            y[b, i] = s
-            yy[i, 0] = s
-        _matmul(Hb, Pb, HP)
-        for i in range(m):
-            for j in range(m):
-                s = 0.0
-                for k in range(n):
-                    s += HP[i, k] * Hb[j, k]
-                Sb[i, j] = s + Rb[i, j]
-        _symmetrize(Sb)
-        if not valid[b]:
-            nis[b] = np.nan
-            continue
-        if not (_solve(Sb, HP, W, Kt) and _solve(Sb, yy, W, sy)):
-            x[b, :] = np.nan
-            Pb[:, :] = np.nan
-            nis[b] = np.nan
-            continue
-        s = 0.0
-        for i in range(m):
-            s += yy[i, 0] * sy[i, 0]
-        nis[b] = s
-        for k in range(m):
+    B, n, G = P.shape[0], P.shape[1], ends.shape[0] - 1
+    for g in range(G):
+        r0, m = ends[g], ends[g + 1] - ends[g]
+        zg, yg = np.empty(m), np.empty(m)
+        Hg = np.empty((m, n))
+        Rg, Sg = np.empty((m, m)), np.empty((m, m))
+        HP = np.empty((m, n + 1))      # H P = (P H^T)^T | y
+        Kt = np.empty((m, n + 1))      # K^T = S^-1 H P | S^-1 y
+        work = np.empty(n + n * m + m)
+        index = np.empty(n * m + m + 1, np.int64)
+        W = np.empty((m, m))
+        acc = np.empty(n)
+        for b in range(B):
+            for i in range(m):
+                zg[i] = z[b, r0 + i]
+                for j in range(n):
+                    Hg[i, j] = H[b, r0 + i, j]
+                for j in range(m):
+                    Rg[i, j] = R[b, r0 + i, r0 + j]
+            nis[b, g] = _joseph_run(x[b], P[b], zg, Hg, Rg, valid[b, g], yg, Sg, HP, Kt, W, work, index)
+            for i in range(m):
+                y[b, r0 + i] = yg[i]
+                for j in range(m):
+                    S[b, r0 + i, r0 + j] = Sg[i, j]
+            bad[b] = bad[b] or not _is_covariance_like(P[b], acc)
+
+
+@njit(cache=True)
+def _is_covariance_like(P, acc):
+    """Every entry of ``P`` finite and no variance negative (``acc``: scratch of ``P``'s
+    size). The rows are summed column by column first, in vector lanes: a sum is finite when
+    its terms are, unless it overflows, and only then are the entries looked at one by one."""
+    n = P.shape[0]
+    for j in range(n):
+        acc[j] = 0.0
+    for i in range(n):
+        if P[i, i] < 0.0:
+            return False
+        for j in range(n):
+            acc[j] += P[i, j]
+    for j in range(n):
+        if not math.isfinite(acc[j]):
             for i in range(n):
-                x[b, i] += Kt[k, i] * yy[k, 0]
-        for i in range(n):             # A = P - K H P
+                if not math.isfinite(P[i, j]):
+                    return False
+    return True
+
+
+@njit(cache=True)
+def _joseph_run(x, P, z, H, R, valid, y, S, HP, Kt, W, work, index):
+    """One run's Joseph update of :func:`joseph_update`; returns the NIS. Scratch: ``HP``,
+    ``Kt`` ``(m, n + 1)`` (``H P`` and ``S^-1 H P``, the innovation and ``S^-1 y`` in the last
+    column: one elimination for both), ``W`` ``(m, m)``, ``work`` ``(n + n m + m)`` floats,
+    ``index`` ``(n m + m + 1)`` ints."""
+    n, m = P.shape[0], H.shape[0]
+    row, vals, D = work[:n], work[n:n + n * m], work[n + n * m:n + n * m + m]
+    cols, first = index[:n * m], index[n * m:]
+    _matmul(H, P, HP)              # columns 0..n-1
+    for i in range(m):
+        s = z[i]
+        for k in range(n):
+            s -= H[i, k] * x[k]
+        y[i] = s
+        HP[i, n] = s
+    for i in range(m):
+        for j in range(m):
+            s = 0.0
+            for k in range(n):
+                s += HP[i, k] * H[j, k]
+            S[i, j] = s + R[i, j]
+    _symmetrize(S)
+    if not valid:
+        return np.nan
+    if not _solve(S, HP, W, Kt):
+        x[:] = np.nan
+        P[:, :] = np.nan
+        return np.nan
+    nis = 0.0
+    for i in range(m):
+        nis += y[i] * Kt[i, n]
+    for k in range(m):
+        for i in range(n):
+            x[i] += Kt[k, i] * y[k]
+    nz = 0                         # the nonzero entries of H, row by row, in column order
+    for j in range(m):
+        first[j] = nz
+        for k in range(n):
+            if H[j, k] != 0.0:
+                cols[nz], vals[nz] = k, H[j, k]
+                nz += 1
+    first[m] = nz
+    for i in range(n):
+        for j in range(n):         # row i of A = P - K H P
+            row[j] = P[i, j]
+        for k in range(m):
+            c = Kt[k, i]
             for j in range(n):
-                Ab[i, j] = Pb[i, j]
+                row[j] -= c * HP[k, j]
+        for j in range(m):         # row i of D = K R - A H^T (H's zeros skipped)
+            s = 0.0
             for k in range(m):
-                c = Kt[k, i]
-                for j in range(n):
-                    Ab[i, j] -= c * HP[k, j]
-        for i in range(n):             # D = K R - A H^T
-            for j in range(m):
-                s = 0.0
-                for k in range(m):
-                    s += Kt[k, i] * Rb[k, j]
-                for k in range(n):
-                    s -= Ab[i, k] * Hb[j, k]
-                D[i, j] = s
-        for i in range(n):             # P = A + D K^T
+                s += Kt[k, i] * R[k, j]
+            for z in range(first[j], first[j + 1]):
+                s -= row[cols[z]] * vals[z]
+            D[j] = s
+        for j in range(n):         # row i of P = A + D K^T
+            P[i, j] = row[j]
+        for k in range(m):
+            c = D[k]
             for j in range(n):
-                Pb[i, j] = Ab[i, j]
-            for k in range(m):
-                c = D[i, k]
-                for j in range(n):
-                    Pb[i, j] += c * Kt[k, j]
-        _symmetrize(Pb)
+                P[i, j] += c * Kt[k, j]
+    _symmetrize(P)
+    return nis
+
+
+# --- records ---------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def nav_errors(lat, lon, h, vel, C, truth, out):
+    """The errors (estimate minus truth) of each run's navigation state, into ``out``
+    ``(B, 15)``: the attitude error ``phi`` (``C_nb C_true^T = I - [phi x]``, rad), the velocity
+    error (m/s), the position error in the filter's units (``dL``, ``dlambda`` rad, ``dh`` m),
+    the position error NED (m, on the truth's radii) and roll, pitch, yaw minus the truth's,
+    wrapped to [-pi, pi).
+
+    ``truth`` ``(1 or B, 13)``: one true state for all runs, or one each: latitude, longitude
+    (rad), height (m), velocity NED (m/s), roll, pitch, yaw (rad), ``quat_nb`` (scalar first).
+    """
+    B = lat.shape[0]
+    E = np.empty((3, 3))
+    Ct = np.empty((3, 3))
+    for b in range(B):
+        t = 0 if truth.shape[0] == 1 else b
+        w, x, y, z = truth[t, 9], truth[t, 10], truth[t, 11], truth[t, 12]
+        Ct[0, 0], Ct[0, 1], Ct[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
+        Ct[1, 0], Ct[1, 1], Ct[1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
+        Ct[2, 0], Ct[2, 1], Ct[2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+        for i in range(3):
+            for j in range(3):
+                E[i, j] = C[b, i, 0] * Ct[j, 0] + C[b, i, 1] * Ct[j, 1] + C[b, i, 2] * Ct[j, 2]
+        out[b, 0] = 0.5 * (E[1, 2] - E[2, 1])
+        out[b, 1] = 0.5 * (E[2, 0] - E[0, 2])
+        out[b, 2] = 0.5 * (E[0, 1] - E[1, 0])
+        for i in range(3):
+            out[b, 3 + i] = vel[b, i] - truth[t, 3 + i]
+        lat_t, h_t = truth[t, 0], truth[t, 2]
+        dlat, dlon, dh = lat[b] - lat_t, lon[b] - truth[t, 1], h[b] - h_t
+        out[b, 6], out[b, 7], out[b, 8] = dlat, dlon, dh
+        r_m, r_n = _radii(lat_t)
+        out[b, 9] = dlat * (r_m + h_t)
+        out[b, 10] = dlon * (r_n + h_t) * math.cos(lat_t)
+        out[b, 11] = -dh
+        euler = (math.atan2(C[b, 2, 1], C[b, 2, 2]), math.asin(min(max(-C[b, 2, 0], -1.0), 1.0)),
+                 math.atan2(C[b, 1, 0], C[b, 0, 0]))
+        for i in range(3):
+            out[b, 12 + i] = (euler[i] - truth[t, 6 + i] + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @njit(cache=True)
@@ -627,30 +796,34 @@ def covariance_codes(P, symmetry_tol, psd_tol, codes):
     s = np.empty(n)
     L = np.empty((n, n))
     for b in range(B):
-        Pb = P[b]
-        codes[b] = 0
-        for i in range(n):
-            for j in range(n):
-                if not math.isfinite(Pb[i, j]):
-                    codes[b] = 1
-        if codes[b]:
-            continue
-        negative = False
-        for i in range(n):
-            d = Pb[i, i]
-            s[i] = math.sqrt(d) if d > 0 else 1.0
-            negative = negative or d < 0
-        asym, big = 0.0, 1.0
-        for i in range(n):
-            for j in range(n):
-                a = Pb[i, j] / (s[i] * s[j])
-                asym = max(asym, abs(a - Pb[j, i] / (s[j] * s[i])))
-                big = max(big, abs(a))
-                L[i, j] = 0.5 * (a + Pb[j, i] / (s[j] * s[i])) + (psd_tol if i == j else 0.0)
-        if asym > symmetry_tol * big:
-            codes[b] = 2
-        elif negative or not _cholesky_in_place(L):
-            codes[b] = 3
+        codes[b] = _covariance_code(P[b], symmetry_tol, psd_tol, s, L)
+
+
+@njit(cache=True)
+def _covariance_code(P, symmetry_tol, psd_tol, s, L):
+    """One run's code of :func:`covariance_codes` (``s`` ``(n,)``, ``L`` ``(n, n)``: scratch)."""
+    n = P.shape[0]
+    for i in range(n):
+        for j in range(n):
+            if not math.isfinite(P[i, j]):
+                return 1
+    negative = False
+    for i in range(n):
+        d = P[i, i]
+        s[i] = math.sqrt(d) if d > 0 else 1.0
+        negative = negative or d < 0
+    asym, big = 0.0, 1.0
+    for i in range(n):
+        for j in range(n):
+            a = P[i, j] / (s[i] * s[j])
+            asym = max(asym, abs(a - P[j, i] / (s[j] * s[i])))
+            big = max(big, abs(a))
+            L[i, j] = 0.5 * (a + P[j, i] / (s[j] * s[i])) + (psd_tol if i == j else 0.0)
+    if asym > symmetry_tol * big:
+        return 2
+    if negative or not _cholesky_in_place(L):
+        return 3
+    return 0
 
 
 @njit(cache=True)
@@ -683,15 +856,50 @@ def nees(P, e, out):
     y = np.empty((n, 1))
     x = np.empty((n, 1))
     for b in range(B):
+        out[b] = _nees_run(P[b], e[b], A, y, x)
+
+
+@njit(cache=True)
+def _nees_run(P, e, A, y, x):
+    """One run's NEES of :func:`nees` (``A`` ``(n, n)``, ``y``, ``x`` ``(n, 1)``: scratch)."""
+    n = P.shape[0]
+    for i in range(n):
+        y[i, 0] = e[i]
+    if not _solve(P, y, A, x):
+        return np.nan
+    v = 0.0
+    for i in range(n):
+        v += e[i] * x[i, 0]
+    return v
+
+
+@njit(cache=True)
+def covariance_record(P, errors, truth, limits, sigma, nees, code):
+    """What a record keeps of each run's navigation covariance ``P`` ``(B, 9, 9)`` (attitude
+    rad, velocity m/s, position rad, rad, m) against its ``errors`` (the first 9 columns of
+    :func:`nav_errors`' output): the 1-sigma ``sigma`` ``(B, 9)`` with the position NED in m (on
+    the truth's radii; ``truth`` as in :func:`nav_errors`), the NEES (:func:`nees`) and a
+    divergence ``code``: 4 an error is not finite, else the covariance's code
+    (:func:`covariance_codes`) when above 0, else 5 when the NEES is above ``limits[2]``, else
+    0. ``limits``: the symmetry and positive-definiteness tolerances and the NEES bound."""
+    B, n = P.shape[0], P.shape[1]
+    s = np.empty(n)
+    L = np.empty((n, n))
+    y = np.empty((n, 1))
+    x = np.empty((n, 1))
+    for b in range(B):
+        t = 0 if truth.shape[0] == 1 else b
+        r_m, r_n = _radii(truth[t, 0])
         for i in range(n):
-            y[i, 0] = e[b, i]
-        if _solve(P[b], y, A, x):
-            v = 0.0
-            for i in range(n):
-                v += e[b, i] * x[i, 0]
-            out[b] = v
-        else:
-            out[b] = np.nan
+            sigma[b, i] = math.sqrt(max(P[b, i, i], 0.0))
+        sigma[b, 6] *= r_m + truth[t, 2]
+        sigma[b, 7] *= (r_n + truth[t, 2]) * math.cos(truth[t, 0])
+        nees[b] = _nees_run(P[b], errors[b, :n], L, y, x)
+        finite = True
+        for i in range(errors.shape[1]):
+            finite = finite and math.isfinite(errors[b, i])
+        c = _covariance_code(P[b], limits[0], limits[1], s, L)
+        code[b] = 4 if not finite else c if c > 0 else 5 if nees[b] > limits[2] else 0
 
 
 @njit(cache=True)

@@ -26,7 +26,6 @@ import numpy as np
 from navsim import earth, kernels
 from navsim.sensors.base import run_generators
 from navsim.strapdown import NavState, rotation, state_from_truth
-from navsim.transform import dcm_from_quat, euler_from_dcm, wrap_angle
 
 log = logging.getLogger(__name__)
 ARCSEC = math.pi / 180 / 3600
@@ -80,17 +79,27 @@ def perturbed_start(truth, errors: np.ndarray, k: int = 0) -> NavState:
 
 def nav_errors(nav: NavState, truth, k: int):
     """Errors of ``nav`` against truth sample ``k``: attitude phi (rad, ``(B, 3)``), velocity
-    (m/s), position NED (m), and the position error in the filter's units (dL, dlambda, dh)."""
-    C_true = dcm_from_quat(truth.quat_nb[k])                   # (3, 3), or (B, 3, 3) per run
-    E = nav.C_nb @ np.swapaxes(C_true, -1, -2)                 # = I - [phi x]
-    phi = 0.5 * np.stack([E[:, 1, 2] - E[:, 2, 1], E[:, 2, 0] - E[:, 0, 2], E[:, 0, 1] - E[:, 1, 0]], -1)
-    dv = nav.vel_n_mps - truth.vel_n_mps[k]
-    dlat = nav.lat_rad - truth.lat_rad[k]
-    dlon = nav.lon_rad - truth.lon_rad[k]
-    dh = nav.h_m - truth.h_m[k]
-    r_m, r_n = earth.radii(truth.lat_rad[k])
-    pos_m = np.stack([dlat * (r_m + truth.h_m[k]), dlon * (r_n + truth.h_m[k]) * np.cos(truth.lat_rad[k]), -dh], -1)
-    return phi, dv, pos_m, np.stack([dlat, dlon, dh], -1)
+    (m/s), position NED (m), the position error in the filter's units (dL, dlambda, dh) and
+    roll, pitch, yaw minus the truth's, wrapped to [-pi, pi) (compiled, run by run:
+    :func:`navsim.kernels.nav_errors`). The truth's sample may be one for all runs or ``(B, ...)``."""
+    out = _errors(nav, truth, k)[0]
+    return out[:, 0:3], out[:, 3:6], out[:, 9:12], out[:, 6:9], out[:, 12:15]
+
+
+def _errors(nav: NavState, truth, k: int):
+    """The ``(B, 15)`` output of :func:`navsim.kernels.nav_errors` and the truth's ``(1 or B, 13)``
+    rows it was computed against."""
+    parts = (truth.lat_rad[k], truth.lon_rad[k], truth.h_m[k], truth.vel_n_mps[k], truth.euler_rad[k],
+             truth.quat_nb[k])
+    if np.ndim(parts[0]) == 0:                       # one true state for all runs
+        rows = np.concatenate(parts, axis=None)[None]
+    else:
+        B = np.shape(parts[0])[0]
+        rows = np.concatenate([np.reshape(p, (B, -1)) for p in parts], -1)
+    out = np.empty((nav.lat_rad.shape[0], 15))
+    f = lambda x: np.ascontiguousarray(x, float)
+    kernels.nav_errors(f(nav.lat_rad), f(nav.lon_rad), f(nav.h_m), f(nav.vel_n_mps), f(nav.C_nb), f(rows), out)
+    return out, rows
 
 
 #: the arrays of an :class:`EstimatorHistory` with a run and an epoch axis, ``(B, E, ...)``:
@@ -308,18 +317,8 @@ def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialError
     return driver.histories()
 
 
-def _nees(P: np.ndarray, e: np.ndarray) -> np.ndarray:
-    """``(B,)`` NEES ``e^T P^-1 e``; NaN in a run whose ``P`` is singular (compiled:
-    :func:`navsim.kernels.nees`)."""
-    out = np.empty(P.shape[0])
-    kernels.nees(np.ascontiguousarray(P, float), np.ascontiguousarray(e, float), out)
-    return out
-
-
-def _state_finite(sol, *errors) -> np.ndarray:
-    """``(B,)`` whether a run's errors and estimated biases are all finite."""
-    parts = [x for x in (*errors, sol.gyro_bias, sol.accel_bias) if x is not None]
-    return np.all(np.isfinite(np.concatenate([np.reshape(x, (x.shape[0], -1)) for x in parts], -1)), -1)
+#: the limits of :func:`navsim.kernels.covariance_record`
+_LIMITS = np.array([SYMMETRY_TOL, PSD_TOL, NEES_BOUND])
 
 
 class _Recorder:
@@ -343,19 +342,17 @@ class _Recorder:
     def add(self, est, truth, k, t, innovations):
         """Record the estimator's solution against truth sample ``k`` at time ``t`` (s)."""
         sol = est.solution()
-        phi, dv, pos_m, pos_filter = nav_errors(sol.nav, truth, k)
-        euler = wrap_angle(euler_from_dcm(sol.nav.C_nb) - truth.euler_rad[k])
-        nees = sig = None
+        err, rows = _errors(sol.nav, truth, k)
+        phi, dv, pos_m, euler = err[:, 0:3], err[:, 3:6], err[:, 9:12], err[:, 12:15]
+        B = err.shape[0]
+        code, nees, sig = np.zeros(B, np.int64), None, None
         if sol.P_nav is not None:
-            P = sol.P_nav
-            nees = _nees(P, np.concatenate([phi, dv, pos_filter], -1))
-            d = np.sqrt(np.maximum(np.diagonal(P, axis1=1, axis2=2), 0.0)).copy()
-            r_m, r_n = earth.radii(truth.lat_rad[k])
-            d[:, 6] *= r_m + truth.h_m[k]
-            d[:, 7] *= (r_n + truth.h_m[k]) * np.cos(truth.lat_rad[k])
-            sig = d
+            nees, sig = np.empty(B), np.empty((B, 9))
+            kernels.covariance_record(np.ascontiguousarray(sol.P_nav, float), err, rows, _LIMITS, sig, nees, code)
+        else:
+            code[~np.isfinite(err).all(-1)] = 4
         nis = [(f"{inn.measurement}:{inn.sensor}", inn.nis, inn.y.shape[-1]) for inn in innovations]
-        self._check(t, sol, nees, phi, dv, pos_m, euler)
+        self._check(t, sol, code)
         self.t.append(t)
         self.att.append(phi)
         self.euler.append(euler)
@@ -372,17 +369,20 @@ class _Recorder:
             self.nis_dim[key] = dim
         self.extra = sol.extra
 
-    def _check(self, t, sol, nees, *errors) -> None:
-        """Flag the runs not flagged yet whose solution at ``t`` has diverged, with the cause."""
-        B = errors[0].shape[0]
+    def _check(self, t, sol, code: np.ndarray) -> None:
+        """Flag the runs not flagged yet whose solution at ``t`` has diverged, with the cause:
+        ``code`` (:data:`CAUSES`) from the errors and the covariance, then the estimated
+        biases (not finite: 4) and the estimator's own flag (6)."""
+        B = code.shape[0]
         if self.flagged is None:
             self.runs, self.flagged, self.why = B, np.zeros(B, bool), [None] * B
         if self.flagged.all():
             return
-        cov = covariance_codes(sol.P_nav) if sol.P_nav is not None else np.zeros(B, int)
-        big = nees > NEES_BOUND if nees is not None else np.zeros(B, bool)
-        own = np.broadcast_to(np.asarray(sol.extra.get("diverged", False), bool), (B,))
-        code = np.select([~_state_finite(sol, *errors), cov > 0, big, own], [4, cov, 5, 6], 0)
+        biases = [x for x in (sol.gyro_bias, sol.accel_bias) if x is not None]
+        if biases:
+            code[~np.isfinite(np.concatenate(biases, -1)).all(-1)] = 4
+        own = np.asarray(sol.extra.get("diverged", False), bool)
+        code[(code == 0) & own] = 6
         code[self.flagged] = 0
         self._flag(t, [CAUSES[c] for c in code] if code.any() else [])
 

@@ -152,11 +152,18 @@ class BlockStrapdown:
         for name in ("lat_rad", "lon_rad", "h_m", "vel_n_mps", "C_nb"):
             setattr(s, name, np.ascontiguousarray(getattr(s, name), float))
         kernels.strapdown_block(s.lat_rad, s.lon_rad, s.h_m, s.vel_n_mps, s.C_nb, self.dtheta_prev,
-                                self.dv_prev, self._cache, np.asarray(dtheta_b, float), np.asarray(dv_b, float),
+                                self.dv_prev, self._cache, _rows_in_order(dtheta_b), _rows_in_order(dv_b),
                                 bg, ba, float(dt), self._k, self.gravity_every, self.sum_C_nb, self.sum_dv_n_mps)
         self._k += dtheta_b.shape[1]
         self.steps += dtheta_b.shape[1]
         return s
+
+
+def _rows_in_order(x) -> np.ndarray:
+    """``x`` as a C-contiguous float array: the kernel reads each run's increments in memory
+    order (a view of a whole flight's samples would put the runs megabytes apart; copying the
+    block first is measured 15 % faster on P0)."""
+    return np.ascontiguousarray(x, float)
 
 
 def state_from_truth(truth, k: int = 0, runs: int = 1) -> NavState:

@@ -4,8 +4,9 @@
 The strapdown mechanization (:class:`~navsim.strapdown.BlockStrapdown`, compiled) runs at the
 IMU rate on bias-compensated increments, a block of them per ``propagate``; every
 ``period_s`` the filter predicts with ``F`` built from the navigation state averaged over the
-period (``C_nb`` and the specific force in NED), discretised by the third-order series (P3) or
-Van Loan, then applies each available measurement with the Joseph form, and feeds the
+period (``C_nb`` and the specific force in NED), by the Taylor series of the covariance
+equation (P3's series; compiled, in place) or Van Loan, then applies each available
+measurement with the Joseph form (all of them in one compiled call), and feeds the
 estimated errors back: attitude, velocity and position into the mechanization, biases into the
 IMU compensation. The ``baro`` state (a sensor error) stays in the filter.
 """
@@ -36,8 +37,9 @@ class ErrorStateKF:
     period_s : float
         Filter period (P0, P3: 1 s).
     discretization : {"series", "van_loan"}
-        ``series``: the matrix-exponential series to ``series_order`` (P3 uses 3; over a 1 s
-        period the noise reaching the position through attitude and velocity needs 6);
+        ``series``: the Taylor series in the period to ``series_order`` of the propagated
+        covariance, ``Phi P Phi^T + Qd`` (P3 uses 3; over a 1 s period the noise reaching the
+        position through attitude and velocity needs 6, which is exact to rounding);
         ``van_loan``: exact, about six times slower.
     """
 
@@ -99,17 +101,24 @@ class ErrorStateKF:
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self.predict()
-        out = []
-        for m in self.measurements:
-            data = sensors.get(m.sensor)
-            if data is None:
-                continue
-            j = _sample_index(data.t_s, t)
-            if j is None:
-                continue
-            out.append(self.correct(m, data, j, t))
+        taken = [(m, sensors[m.sensor], j) for m in self.measurements if m.sensor in sensors
+                 for j in [_sample_index(sensors[m.sensor].t_s, t)] if j is not None]
+        if self._own_corrections():         # all of them in one compiled call
+            models = [m.model(self.sd.state, self.layout, data, j) for m, data, j in taken]
+            u = kalman.update_in_place(self.x, self.P, models)
+            self.diverged |= u.bad
+            out = [Innovation(m.name, m.sensor, t, y, S, nis)
+                   for (m, _, _), y, S, nis in zip(taken, u.y, u.S, u.nis)]
+        else:
+            out = [self.correct(m, data, j, t) for m, data, j in taken]
         self.feedback()
         return out
+
+    def _own_corrections(self) -> bool:
+        """Whether ``correct`` and ``measurement_noise`` are this class's (a subclass that
+        adapts them gets its corrections one at a time)."""
+        cls = type(self)
+        return cls.correct is ErrorStateKF.correct and cls.measurement_noise is ErrorStateKF.measurement_noise
 
     def solution(self) -> Solution:
         idx = np.r_[self.layout.slice("att"), self.layout.slice("vel"), self.layout.slice("pos")]
@@ -118,14 +127,17 @@ class ErrorStateKF:
                         extra={"P": self.P, "diverged": self.diverged})
 
     # --- filter steps -------------------------------------------------------------------------
-    def _transition(self):
-        """Phi, Qd over the elapsed period, F from the period's averaged C_nb and f_n."""
+    def _system(self):
+        """``F`` from the period's averaged ``C_nb`` and ``f_n``, and the elapsed period ``T``."""
         s = self.sd.state
         C_mean = self.sd.sum_C_nb / self.sd.steps
         f_mean = self.sd.sum_dv_n_mps / self._elapsed
         F = system_matrix(self.layout, s.lat_rad, s.h_m, s.vel_n_mps, C_mean, f_mean)
-        F = add_markov_decay(F, self.layout, self.noise)
-        T = self._elapsed
+        return add_markov_decay(F, self.layout, self.noise), self._elapsed
+
+    def _transition(self):
+        """Phi, Qd over the elapsed period (for the filters that need them)."""
+        F, T = self._system()
         if self.discretization == "series":
             Phi, Qd = kalman.discretize_series(F, self.Qc, T, order=self.series_order)
         else:
@@ -140,10 +152,15 @@ class ErrorStateKF:
             self.m_accel *= np.exp(-T / self.noise.accel_markov_tau_s)
 
     def predict(self) -> None:
+        """``x``, ``P`` over the elapsed period: the series in place (compiled), or Van Loan."""
         if self.sd.steps == 0:
             return
-        Phi, Qd, T = self._transition()
-        self.x, self.P = kalman.predict(self.x, self.P, Phi, Qd)
+        if self.discretization == "series":
+            F, T = self._system()
+            kalman.propagate_in_place(self.x, self.P, F, self.Qc, T, self.series_order)
+        else:
+            Phi, Qd, T = self._transition()
+            self.x, self.P = kalman.predict(self.x, self.P, Phi, Qd)
         self._decay_markov(T)
         self._reset_accumulators()
 

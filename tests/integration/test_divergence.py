@@ -10,11 +10,12 @@ import pytest
 import yaml
 
 import navsim.estimators.factory
+from navsim import earth, kernels
 from navsim.chunkstore import ChunkStore, part_arrays, part_from_arrays
 from navsim.estimators import kalman
 from navsim.metrics import DIVERGENCE_LISTED, score
 from navsim.metrics_stream import score_parts, score_run
-from navsim.montecarlo import NEES_BOUND, EstimatorHistory, covariance_faults
+from navsim.montecarlo import NEES_BOUND, PSD_TOL, SYMMETRY_TOL, EstimatorHistory, covariance_faults
 from navsim.runner import _merge, run_monte_carlo
 from navsim.scenario import load_scenario
 
@@ -178,17 +179,30 @@ def test_covariance_faults():
     assert covariance_faults(np.stack([healthy, zero])) == [None, None]          # the batch at once
 
 
-def test_nees_against_numpy_and_nan_for_a_singular_covariance():
-    from navsim.montecarlo import _nees
+def test_the_record_of_a_covariance_against_numpy_with_its_divergence_codes():
+    """``kernels.covariance_record``: the NEES against numpy's solve (NaN for a singular P),
+    the 1-sigma with the position in metres, and the code's order of precedence."""
     rng = np.random.default_rng(5)
-    A = rng.normal(size=(4, 9, 9))
+    A = rng.normal(size=(6, 9, 9))
     P = A @ np.swapaxes(A, -1, -2) + 0.1 * np.eye(9)
     P[2] = 0.0
-    e = rng.normal(size=(4, 9))
-    got = _nees(P, e)
-    ok = [0, 1, 3]
-    want = np.einsum("bi,bi->b", e[ok], np.linalg.solve(P[ok], e[ok][..., None])[..., 0])
-    assert np.allclose(got[ok], want, rtol=1e-10, atol=0) and np.isnan(got[2])
+    P[4, 0, 1] += 1.0                                   # not symmetric
+    errors = np.concatenate([rng.normal(size=(6, 9)), np.zeros((6, 6))], -1)
+    errors[3, 10] = np.nan                              # a non-finite error (NED position)
+    errors[5, :9] *= 1e8                                # NEES above the bound
+    truth = np.array([[0.5, 2.0, 300.0, 0, 0, 0, 0, 0, 0]])
+    sigma, nees, code = np.empty((6, 9)), np.empty(6), np.zeros(6, np.int64)
+    kernels.covariance_record(P, errors, truth, np.array([SYMMETRY_TOL, PSD_TOL, NEES_BOUND]), sigma, nees, code)
+    ok = [0, 1, 3, 5]
+    want = np.einsum("bi,bi->b", errors[ok, :9], np.linalg.solve(P[ok], errors[ok, :9, None])[..., 0])
+    np.testing.assert_allclose(nees[ok], want, rtol=1e-10, atol=0)
+    assert np.isnan(nees[2]) and nees[5] > NEES_BOUND
+    r_m, r_n = earth.radii(0.5)
+    want = np.sqrt(np.einsum("bii->bi", P))
+    want[:, 6] *= r_m + 300.0
+    want[:, 7] *= (r_n + 300.0) * np.cos(0.5)
+    np.testing.assert_allclose(sigma, want, rtol=1e-14)
+    assert code.tolist() == [0, 0, 0, 4, 2, 5]          # a zero P is positive semi-definite
 
 
 def test_a_singular_innovation_covariance_spoils_its_own_run_only():

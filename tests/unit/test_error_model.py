@@ -108,6 +108,73 @@ def test_series_and_van_loan_agree():
     np.testing.assert_allclose(P8, P2, atol=1e-9)
 
 
+def _random_covariance(rng, sigma):
+    A = rng.normal(size=(len(sigma), len(sigma))) * 0.3 + np.eye(len(sigma))
+    C = A @ A.T
+    d = np.sqrt(np.diag(C))
+    return C / np.outer(d, d) * np.outer(sigma, sigma)
+
+
+def test_covariance_series_is_the_exact_discretised_predict():
+    """``propagate_in_place`` (the covariance equation's Taylor series) against Van Loan's exact
+    ``Phi P Phi^T + Qd`` over 1 s, on P0's 16 states (the baro Markov decay included)."""
+    layout = Layout(PRESETS["p0_16"])
+    lat, lon, h, v, C, w, f = nominal()
+    F = system_matrix(layout, np.array([lat] * 2), np.array([h] * 2), np.stack([v, -v]), np.stack([C, C.T]),
+                      np.stack([C @ f, f]))
+    F[:, 15, 15] = -1.0 / 600.0
+    Qc = np.diag(np.r_[np.full(3, 1e-12), np.full(3, 1e-6), np.zeros(3), np.full(6, 1e-14), 0.03])
+    rng = np.random.default_rng(11)
+    sigma = np.r_[np.full(3, 1e-4), np.full(3, 0.1), 1e-6, 1e-6, 5.0, np.full(3, 1e-6), np.full(3, 1e-3), 3.0]
+    P0 = np.stack([_random_covariance(rng, sigma) for _ in range(2)])
+    x0 = rng.normal(size=(2, 16)) * sigma
+    Phi, Qd = kalman.discretize_van_loan(F, Qc, 1.0)
+    exact_P = Phi @ P0 @ np.swapaxes(Phi, -1, -2) + Qd
+    exact_x = (Phi @ x0[..., None])[..., 0]
+    scale = np.sqrt(np.einsum("bii->bi", exact_P))
+    errors = {}
+    for order in (3, 6, 8):
+        x, P = x0.copy(), P0.copy()
+        kalman.propagate_in_place(x, P, F, Qc, 1.0, order)
+        assert np.array_equal(P, np.swapaxes(P, -1, -2))
+        errors[order] = np.abs((P - exact_P) / (scale[:, :, None] * scale[:, None, :])).max()
+        np.testing.assert_allclose(x / sigma, exact_x / sigma, atol=1e-6 if order == 3 else 1e-12)
+    assert errors[3] > 1e-9            # the order is honoured: third order truncates visibly
+    assert errors[6] < 1e-12 and errors[8] < 1e-12
+    # the same as the series' Phi and Qd, then predict
+    Phi6, Qd6 = kalman.discretize_series(F, Qc, 1.0, order=8)
+    _, P_series = kalman.predict(x0, P0, Phi6, Qd6)
+    x, P = x0.copy(), P0.copy()
+    kalman.propagate_in_place(x, P, F, Qc, 1.0, 8)
+    np.testing.assert_allclose(P / (scale[:, :, None] * scale[:, None, :]),
+                               P_series / (scale[:, :, None] * scale[:, None, :]), atol=1e-13)
+
+
+def test_updates_in_turn_in_one_call_equal_single_updates():
+    rng = np.random.default_rng(12)
+    P = np.stack([_random_covariance(rng, np.linspace(0.5, 3.0, 6)) for _ in range(3)])
+    x = rng.normal(size=(3, 6))
+    first = (rng.normal(size=(3, 2)), rng.normal(size=(3, 2, 6)), np.broadcast_to(np.diag([0.5, 2.0]), (3, 2, 2)),
+             np.array([True, False, True]))
+    second = (rng.normal(size=(3, 1)), rng.normal(size=(3, 1, 6)), np.full((3, 1, 1), 0.3), None)
+    x1, P1, y1, S1, nis1 = kalman.update(x, P, *first)
+    x2, P2, y2, S2, nis2 = kalman.update(x1, P1, *second)
+    xi, Pi = x.copy(), P.copy()
+    u = kalman.update_in_place(xi, Pi, [first, second])
+    np.testing.assert_allclose(xi, x2, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(Pi, P2, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(u.y[0], y1, rtol=1e-12)
+    np.testing.assert_allclose(u.S[1], S2, rtol=1e-12)
+    np.testing.assert_allclose(u.nis[0], nis1, rtol=1e-12)
+    assert np.isnan(u.nis[0][1]) and not u.bad.any()
+    # a run whose S is singular is spoiled and flagged alone
+    singular = (np.zeros((3, 1)), np.zeros((3, 1, 6)), np.zeros((3, 1, 1)), np.array([False, True, False]))
+    xi, Pi = x.copy(), P.copy()
+    u = kalman.update_in_place(xi, Pi, [singular, second])
+    assert u.bad.tolist() == [False, True, False] and np.isnan(Pi[1]).all()
+    np.testing.assert_allclose(Pi[[0, 2]], kalman.update(x, P, *second)[1][[0, 2]], rtol=1e-12)
+
+
 def test_joseph_update_is_the_optimal_update_and_keeps_P_psd():
     rng = np.random.default_rng(7)
     A = rng.normal(size=(4, 6, 6))

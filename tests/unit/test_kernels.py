@@ -3,10 +3,13 @@
 import numpy as np
 import pytest
 
+from navsim import earth
 from navsim.flight import fly, parse_track
+from navsim.montecarlo import nav_errors
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.imu import emulate_imu
-from navsim.strapdown import BlockStrapdown, state_from_truth
+from navsim.strapdown import BlockStrapdown, rotation, state_from_truth
+from navsim.transform import dcm_from_quat, euler_from_dcm, wrap_angle
 from reference_strapdown import Strapdown
 
 
@@ -183,3 +186,44 @@ def test_the_compiled_kalman_steps_of_a_batch_equal_single_runs_bit_for_bit():
         x1, P1, *_ = kalman.update(x1, P1, z[one], H[one], np.eye(3), None)
         assert np.array_equal(Phi1[0], Phi[b]) and np.array_equal(Qd1[0], Qd[b])
         assert np.array_equal(x1[0], xu[b]) and np.array_equal(P1[0], Pu[b])
+
+
+def test_the_compiled_navigation_errors_equal_their_formulas(imu):
+    """``montecarlo.nav_errors`` (compiled) against the same errors written with numpy, for a
+    truth sample shared by the runs and for one per run, with a yaw error across +-pi."""
+    truth, _ = imu
+    k, B = 1234, 4
+    rng = np.random.default_rng(5)
+    nav = state_from_truth(truth, k, B)
+    nav.C_nb = rotation(rng.normal(size=(B, 3)) * 1e-2) @ nav.C_nb
+    nav.C_nb[3] = rotation(np.array([0.0, 0.0, 3.1])) @ nav.C_nb[3]
+    nav.vel_n_mps = nav.vel_n_mps + rng.normal(size=(B, 3))
+    nav.lat_rad, nav.lon_rad = nav.lat_rad + rng.normal(size=B) * 1e-6, nav.lon_rad + rng.normal(size=B) * 1e-6
+    nav.h_m = nav.h_m + rng.normal(size=B) * 5
+
+    def numpy_errors(C_true, vel, lat, lon, h, euler):
+        E = nav.C_nb @ np.swapaxes(C_true, -1, -2)
+        phi = 0.5 * np.stack([E[:, 1, 2] - E[:, 2, 1], E[:, 2, 0] - E[:, 0, 2], E[:, 0, 1] - E[:, 1, 0]], -1)
+        r_m, r_n = earth.radii(lat)
+        dlat, dlon, dh = nav.lat_rad - lat, nav.lon_rad - lon, nav.h_m - h
+        pos_m = np.stack([dlat * (r_m + h), dlon * (r_n + h) * np.cos(lat), -dh], -1)
+        return (phi, nav.vel_n_mps - vel, pos_m, np.stack([dlat, dlon, dh], -1),
+                wrap_angle(euler_from_dcm(nav.C_nb) - euler))
+
+    got = nav_errors(nav, truth, k)
+    want = numpy_errors(dcm_from_quat(truth.quat_nb[k]), truth.vel_n_mps[k], truth.lat_rad[k], truth.lon_rad[k],
+                        truth.h_m[k], truth.euler_rad[k])
+    for g, w in zip(got, want):
+        np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-15)
+    assert abs(got[4][3, 2]) > 3.0 and abs(got[4][3, 2]) < np.pi      # wrapped, not 3.1 - 2 pi
+
+    class PerRun:            # one true state per run: sample k of the runs are samples k..k+3
+        lat_rad, lon_rad, h_m = (truth.lat_rad[None, k:k + B], truth.lon_rad[None, k:k + B], truth.h_m[None, k:k + B])
+        vel_n_mps, quat_nb, euler_rad = (truth.vel_n_mps[None, k:k + B], truth.quat_nb[None, k:k + B],
+                                         truth.euler_rad[None, k:k + B])
+    got = nav_errors(nav, PerRun, 0)
+    s = slice(k, k + B)
+    want = numpy_errors(dcm_from_quat(truth.quat_nb[s]), truth.vel_n_mps[s], truth.lat_rad[s], truth.lon_rad[s],
+                        truth.h_m[s], truth.euler_rad[s])
+    for g, w in zip(got, want):
+        np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-15)
