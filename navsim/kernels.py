@@ -31,7 +31,7 @@ each to the same formula written with numpy.
 
 IMU errors: :func:`imu_triad` (a triad's rates and increments in one pass), :func:`bias_block`
 (Gauss-Markov and random-walk biases carried from block to block), :func:`draw_normals` and
-:func:`skip_normals` (numpy's standard-normal stream of a run's generator, drawn inside numba).
+:func:`skip_normals` (numpy's standard-normal stream of each run's generator, drawn inside numba).
 
 The compiled code is cached in ``<navsim cache>/numba`` (:func:`navsim.config.cache_dir`), or
 in ``$NUMBA_CACHE_DIR`` when that is set.
@@ -1025,18 +1025,24 @@ def imu_triad(w, noise_scale, M, identity, truth_x, incr_x, bias, dt, rate, incr
 
 
 @njit(cache=True)
-def draw_normals(g, out):
-    """Fill ``out`` (any shape, C order) with standard normals from ``g`` (numpy's stream)."""
-    flat = out.reshape(-1)
-    for k in range(flat.size):
-        flat[k] = g.standard_normal()
+def draw_normals(gens, out, k0, k1):
+    """Rows ``k0`` to ``k1`` of ``out[b]`` (``out`` ``(B, K, 3)``) with standard normals from
+    run ``b``'s generator ``gens[b]`` (numpy's stream; ``gens`` a :class:`numba.typed.List`,
+    built once: the generators are typed once, not at each call), in C order."""
+    for b in range(len(gens)):
+        g = gens[b]
+        for k in range(k0, k1):
+            for i in range(out.shape[2]):
+                out[b, k, i] = g.standard_normal()
 
 
 @njit(cache=True)
-def skip_normals(g, count):
-    """Draw ``count`` standard normals from ``g`` and drop them."""
-    for _ in range(count):
-        g.standard_normal()
+def skip_normals(gens, count):
+    """Draw ``count`` standard normals from each generator of ``gens`` and drop them."""
+    for b in range(len(gens)):
+        g = gens[b]
+        for _ in range(count):
+            g.standard_normal()
 
 
 @njit(cache=True)

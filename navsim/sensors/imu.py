@@ -30,6 +30,7 @@ import copy
 import math
 
 import numpy as np
+from numba.typed import List
 from scipy.signal import butter, sosfilt
 
 from navsim import kernels
@@ -93,13 +94,22 @@ def _three(x) -> np.ndarray:
     return np.ascontiguousarray(np.broadcast_to(np.asarray(x, float), (3,)))
 
 
+def typed_generators(gens) -> List:
+    """The runs' generators as a :class:`numba.typed.List` (the same objects: drawing from it
+    moves them on), for the kernels that draw from every run in one call."""
+    out = List()
+    for g in gens:
+        out.append(g)
+    return out
+
+
 class _Normals:
     """One error process's standard normals ``(B, ., 3)``, drawn from each run's generator a
     block of ``size`` samples at a time, in sample order (so the numbers do not depend on how
     the record is cut into blocks), never beyond sample ``n``."""
 
     def __init__(self, gens, n: int, size: int):
-        self.gens, self.n, self.size = gens, n, size
+        self.gens, self.n, self.size = typed_generators(gens), n, size
         self.buf = np.empty((len(gens), 0, 3))
         self.start = self.end = 0                 # buf rows hold the samples [start, end)
 
@@ -114,8 +124,7 @@ class _Normals:
                 self.buf = np.empty((len(self.gens), size, 3))
             k = keep.shape[1]
             self.buf[:, :k] = keep
-            for b, g in enumerate(self.gens):
-                kernels.draw_normals(g, self.buf[b, k:size])
+            kernels.draw_normals(self.gens, self.buf, k, size)
             self.start, self.end = lo, lo + size
         return self.buf, i0 - self.start
 
@@ -222,8 +231,7 @@ class ImuStream:
                 triad.streams.append(_Normals(self.gens, self.n, triad.block_size))
                 return
             triad.streams.append(_Normals([copy.deepcopy(g) for g in self.gens], self.n, triad.block_size))
-            for g in self.gens:
-                kernels.skip_normals(g, 3 * self.n)
+            kernels.skip_normals(typed_generators(self.gens), 3 * self.n)
 
     def block(self, i0: int, i1: int, keep_rates: bool = False):
         """``(dtheta_b_rad, dv_b_mps)`` ``(B, i1 - i0, 3)`` of the samples ``[i0, i1)``, and the
