@@ -53,7 +53,7 @@ def measure_speed(runs: int, workers: int, executor: str, out: Path) -> dict:
     sc = load_scenario(SCENARIO)
     truth, path, _ = cached_flight(sc.flight)
     key = {"scenario_hash": scenario_hash(sc), "seed": sc.seed, "runs": runs, "chunk_runs": CHUNK_RUNS}
-    store = ChunkStore(out, key)
+    store = ChunkStore(out, key, mode="new")
     t0 = time.perf_counter()
     res = run_monte_carlo(sc, truth, path, runs, sc.seed, workers, store=store, executor=executor, keep_runs=0)
     wall = time.perf_counter() - t0

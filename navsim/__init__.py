@@ -19,6 +19,13 @@ appear only at the edges, with the unit in the name (``alt_ft``, ``gyro_bias_dph
 converted in one place: JSBSim's imperial properties in :mod:`navsim.flight.properties`.
 
 Arrays are batch-first: quantities of several Monte Carlo runs carry a leading run axis ``B``.
+
+The Python API (:mod:`navsim.api`): :func:`load_scenario`, :func:`run` (a :class:`Result`),
+:func:`open_result` (a finished run's folder, read-only) and :func:`write_report`.
 """
 
 __version__ = "0.1.0"
+
+from navsim.api import Result, load_scenario, open_result, run, write_report  # noqa: E402
+
+__all__ = ["Result", "load_scenario", "open_result", "run", "write_report", "__version__"]

@@ -146,27 +146,52 @@ def _shared(key: str) -> bool:
 class ChunkStore:
     """The chunks of one Monte Carlo run in ``folder``, and its ``index.json``.
 
+    A store is opened for one of three things, said explicitly: to write a new run
+    (``mode="new"``: the chunks the folder's index lists are removed first, nothing else), to
+    complete an interrupted one (``mode="resume"``), or to read one back (:meth:`open`: nothing
+    in the folder is written or removed).
+
     Parameters
     ----------
     folder : Path
         Where the chunk files and the index live (created).
     key : dict
         What identifies the run: ``scenario_hash``, ``seed``, ``runs``, ``chunk_runs``.
-    resume : bool
-        Keep the chunks of an earlier, matching run (a :class:`ResumeError` if the folder holds
-        none or another run's); otherwise the folder's earlier chunks are removed.
+    mode : {"new", "resume"}
+        ``resume``: keep the chunks of an earlier, matching run (a :class:`ResumeError` if the
+        folder holds none or another run's); ``new``: the folder's earlier chunks are removed.
     """
 
-    def __init__(self, folder: Path, key: dict, resume: bool = False):
+    def __init__(self, folder: Path, key: dict, mode: str):
+        if mode not in ("new", "resume"):
+            raise ValueError(f"mode {mode!r}: expected 'new' or 'resume' (ChunkStore.open reads a store)")
         self.folder = Path(folder)
         self.key = dict(key)
         self.done: dict = {}         #: chunk name -> file name
         self.failed: dict = {}       #: chunk name -> error message
-        if resume:
+        self.read_only = False
+        if mode == "resume":
             self._reopen()
         else:
             self._clear()
         self._write_index()
+
+    @classmethod
+    def open(cls, folder: Path) -> "ChunkStore":
+        """The store in ``folder``, read-only: its key and failed chunks from the index, the
+        chunks it lists that are whole; nothing is written or removed (:meth:`add` and
+        :meth:`flag` refuse). A :class:`ResumeError` when the folder has no index."""
+        index = cls.read_index(folder)
+        if index is None:
+            raise ResumeError(f"no stored chunks in {folder}: no {INDEX}")
+        store = cls.__new__(cls)
+        store.folder, store.read_only = Path(folder), True
+        store.key = {k: v for k, v in index.items() if k not in ("chunks", "failed")}
+        listed = _chunk_files(index)
+        store.done = {name: file for name, file in listed.items() if _readable(store.folder / file)}
+        failed = index.get("failed")
+        store.failed = dict(failed) if isinstance(failed, dict) else {}
+        return store
 
     @staticmethod
     def read_index(folder: Path) -> dict | None:
@@ -210,7 +235,12 @@ class ChunkStore:
                 except OSError as exc:
                     raise OutputError(path, exc) from None
 
+    def _writable(self) -> None:
+        if self.read_only:
+            raise ResumeError(f"{self.folder}: opened read-only (ChunkStore.open); nothing was written")
+
     def _write_index(self) -> None:
+        self._writable()
         index = {**self.key, "chunks": self.done, "failed": self.failed}
         write_atomic(self.folder / INDEX, lambda p: p.write_text(json.dumps(index, indent=1)), fsync=True)
 
@@ -220,6 +250,7 @@ class ChunkStore:
 
     def add(self, part) -> None:
         """Store a finished chunk part and record it in the index."""
+        self._writable()
         name = chunk_name(part[0])
         file = f"chunk_{name}.npz"
         write_atomic(self.folder / file, lambda p: _savez(p, part_arrays(part)), fsync=True)
@@ -229,6 +260,7 @@ class ChunkStore:
 
     def flag(self, failed_chunks: dict) -> None:
         """Record chunks that failed (chunk name -> error message) in the index."""
+        self._writable()
         self.failed.update(failed_chunks)
         self._write_index()
 

@@ -22,10 +22,14 @@ from pathlib import Path
 
 import numpy as np
 
+from navsim import api
+from navsim.chunkstore import ChunkStore
 from navsim.errors import FlightError, NavsimError, OutputError
 from navsim.flight.plots import plot_flight
-from navsim.montecarlo import ARRAY_FIELDS
+from navsim.metrics import lookup
 from navsim.outputs import OutputFolder
+from navsim.report import closed_loop_lines, divergence_lines, sighting_lines
+from navsim.report_attitude import attitude_lines
 from navsim.provenance import provenance
 from navsim.runner import cached_flight
 from navsim.scenario import MAX_SEED, MAX_WORKERS, RATE_HZ, check_scenario, load_scenario
@@ -137,100 +141,45 @@ def _fly_or_save(scenario, scenario_file, out: OutputFolder):
 
 
 def cmd_run(args) -> int:
-    import yaml
-
-    from navsim.errors import ScenarioError
-    from navsim.metrics import score
-    from navsim.report import write_report
-    from navsim.errors import UsageError
-    from navsim.runner import REPORT_RUNS, chunk_ranges, flight_key, run_closed_loop, run_monte_carlo
-
-    scenario = load_scenario(args.scenario)
-    if not scenario.estimators:
-        raise ScenarioError("has no estimators to run", file=args.scenario, key="estimators",
-                            expected="a list of estimators", hint="'navsim fly' flies a track alone")
-    runs = scenario.runs if args.runs is None else args.runs
-    seed = scenario.seed if args.seed is None else args.seed
-    workers = scenario.workers if args.workers is None else args.workers
-    folder = OutputFolder(Path(args.out) if args.out else Path("reports") / scenario.name)
-    out = folder.path
-    t0 = time.perf_counter()
     from tqdm import tqdm
-    loop = reference = None
+    scenario = load_scenario(args.scenario)
+    runs = scenario.runs if args.runs is None else args.runs
+    folder = OutputFolder(Path(args.out) if args.out else Path("reports") / scenario.name)
+    todo, desc = runs, f"{runs} runs"
     if scenario.closed_loop is not None:
-        if args.executor != "local" or args.resume:
-            raise UsageError("closed-loop scenarios run on the local executor only, without --resume "
-                             "(drop --executor dask and --resume)")
-        cached = False
-        folder.clear_earlier()
-        with tqdm(total=runs, desc=f"{runs} runs, navigation in the loop", unit="run", disable=None) as pbar:
-            result, loop, reference = run_closed_loop(scenario, runs, seed, workers, progress=pbar.update)
-        truth = reference.truth
+        desc += ", navigation in the loop"
     else:
-        truth, truth_path, cached = _fly_or_save(scenario, args.scenario, folder)
-        check_scenario(scenario, truth.duration_s)     # the duration flown, before any sensor
-        if args.executor == "dask":            # before the store clears an earlier run's chunks
-            from navsim.dask_executor import _import_distributed
-            _import_distributed()
-        store = open_store(out, scenario, seed, runs, args.chunk_runs, args.resume)
-        folder.clear_earlier()                # the earlier run's metrics, report, runs.npz
-        todo = sum(len(ch) for ch in store.missing(chunk_ranges(runs, store.key["chunk_runs"])))
-        with tqdm(total=todo, desc=f"{runs} runs" + (f", {todo} left" if args.resume else ""), unit="run",
-                  disable=None) as pbar:
-            result = run_monte_carlo(scenario, truth, truth_path, runs, seed, workers, progress=pbar.update,
-                                     chunk_runs=store.key["chunk_runs"], store=store, executor=args.executor,
-                                     scheduler=args.scheduler, keep_runs=REPORT_RUNS)
-    metrics = {"scenario": scenario.name, "runs": runs, "runs_done": int(len(result.runs)),
-               "seed": seed, "failed_runs": {str(k): v for k, v in result.failed.items()},
-               "interrupted": result.interrupted, "estimators": {}}
-    from navsim.metrics import sighting_metrics, sighting_spans
-    sightings = sighting_spans(truth, scenario) if truth is not None else []
-    if result.store is not None:               # streamed: scored chunk by chunk, flat memory
-        from navsim.metrics_stream import score_run
-        metrics["estimators"], calibration = score_run(result.store.parts, scenario.settle_s,
-                                                       scenario.windows, sightings)
-        if calibration:
-            metrics["calibration"] = calibration
-    else:
-        for label, h in result.histories.items():
-            metrics["estimators"][label] = score(h, scenario.settle_s, scenario.windows, runs=result.runs)
-            if sightings and h.sigma is not None:
-                metrics["estimators"][label]["landmarks"] = sighting_metrics(h, sightings)
-        if result.calibration:
-            from navsim.metrics import calibration_score
-            metrics["calibration"] = {name: calibration_score(c) for name, c in result.calibration.items()}
-    if loop is not None:
-        from navsim.metrics import closed_loop_metrics
-        metrics["closed_loop"] = closed_loop_metrics(loop, reference, scenario.closed_loop, result.histories)
-    wall = time.perf_counter() - t0
-    metrics["wall_s"] = wall
-    record = {"scenario": str(args.scenario), "runs": runs, "runs_done": int(len(result.runs)),
-              "seed": seed, "workers": workers, "failed_runs": result.failed,
-              "interrupted": result.interrupted, "flight_cached": cached,
-              "flight_key": flight_key(scenario.flight), "wall_s": wall, "executor": args.executor,
-              "scheduler": args.scheduler, "resumed": bool(args.resume), **provenance()}
-    plotted = len(result.runs) if result.history_runs is None else len(result.history_runs)
-    record["runs_plotted"] = plotted
-    if scenario.closed_loop is None:
-        record.update(chunk_runs=store.key["chunk_runs"], failed_chunks=store.failed, per_run_data="chunks/")
-    folder.text("metrics.json", json.dumps(metrics, indent=2))
-    resolved = dict(scenario.raw)
-    resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": runs, "seed": seed, "workers": workers}
-    folder.text("scenario.resolved.yaml",
-                f"# resolved by navsim {record['versions']['navsim']} at git {record['git_revision']}\n"
-                + yaml.safe_dump(resolved, sort_keys=False))
-    folder.text("run.json", json.dumps(record, indent=2, default=str))
-    if result.histories and plotted == len(result.runs):     # else the runs are in chunks/ only
-        arrays = {"runs": result.runs}
-        for label, h in result.histories.items():
-            key = label.replace(" ", "_").replace("/", "-")
-            arrays.update({f"{key}.{name}": getattr(h, name) for name in ARRAY_FIELDS
-                           if getattr(h, name) is not None})
-        if loop:
-            arrays.update({f"closed_loop.{k}": np.asarray(v) for k, v in loop.items()})
-        # uncompressed: deflate saved 8 % of 1000 P0 runs (160 MB) and cost 7.6 of the 30 s
-        folder.write("runs.npz", lambda p: np.savez(p, **arrays))
-    files = write_report(folder, scenario, truth, result, metrics, record, loop, reference, sightings)
+        _fly_or_save(scenario, args.scenario, folder)      # cached, or flown with its progress bar
+        if args.resume and (folder.path / "chunks" / "index.json").is_file():
+            todo = runs - len(ChunkStore.open(folder.path / "chunks").runs())
+            desc += f", {todo} left"
+    with tqdm(total=todo, desc=desc, unit="run", disable=None) as pbar:
+        result = api.run(scenario, runs, args.seed, args.workers, out=folder.path, executor=args.executor,
+                         scheduler=args.scheduler, chunk_runs=args.chunk_runs, resume=args.resume,
+                         progress=pbar.update)
+    files = api.write_report(result)
+    print_run_summary(result)
+    note = " (interrupted: partial results)" if result.interrupted else ""
+    if result.failed:
+        run, why = min(result.failed.items())
+        note += f"; {len(result.failed)} run(s) failed, the first (run {run}): {why}"
+    out = folder.path
+    print(f"\n{len(result.runs)}/{runs} runs in {result.record['wall_s']:.1f} s{note}; wrote {out}/ "
+          f"(report.pdf, {len([f for f in files if f.suffix == '.png'])} PNGs, metrics.json"
+          + (", runs.npz)" if (out / "runs.npz").exists() else ", per-run data in chunks/)"))
+    if result.interrupted:
+        return 130
+    if not len(result.runs):
+        print(f"error: no run succeeded (see {out}/run.json)", file=sys.stderr)
+        return 1
+    return 0
+
+
+def print_run_summary(result) -> None:
+    """The summary table of a run, then its divergences, closed-loop outcome, landmark
+    sightings, attitude figures, the published numbers beside ours and the magnetometer
+    calibration."""
+    metrics = result.metrics
     rows = []
     for label, m in metrics["estimators"].items():
         rms = m.get("rms", {})
@@ -243,27 +192,32 @@ def cmd_run(args) -> int:
                      str(m["diverged_runs"])])
     print(_table(["estimator", "RMS pos N E D m", "RMS vel m/s", "RMS att deg", "NEES", "in band %",
                   "converged s", "ms/run", "diverged"], rows))
-    from navsim.report import closed_loop_lines, divergence_lines, sighting_lines
     if divergence_lines(metrics):
         print("\n".join(divergence_lines(metrics)))
-    if loop is not None:
+    if result.loop is not None:
         print("\n".join(closed_loop_lines(metrics["closed_loop"])[1:]))
-    if sightings:
+    if result.sightings:
         print("\n".join(sighting_lines(metrics)[1:]))
-    from navsim.report_attitude import attitude_lines
     att_lines = attitude_lines(metrics, lambda h, r: _table(h, r).splitlines())
     if att_lines:
         print("\n".join(att_lines[1:]))
-    if scenario.reference:
-        from navsim.metrics import lookup
-        ref_rows = []
-        for label, vals in scenario.reference["values"].items():
-            for path, paper in vals.items():
-                ours = lookup(metrics["estimators"].get(label, {}), path)
-                fmt = lambda v: "-" if v is None else (" ".join(f"{x:.3g}" for x in v) if isinstance(v, list) else f"{v:.4g}")
-                ref_rows.append([label, path, fmt(paper), fmt(ours)])
-        print(f"\npublished ({scenario.reference['source']}) versus ours:")
-        print(_table(["estimator", "metric", "paper", "ours"], ref_rows))
+    if result.scenario.reference:
+        _print_reference(result.scenario.reference, metrics)
+    _print_calibration(metrics)
+
+
+def _print_reference(reference: dict, metrics: dict) -> None:
+    rows = []
+    for label, vals in reference["values"].items():
+        for path, paper in vals.items():
+            ours = lookup(metrics["estimators"].get(label, {}), path)
+            fmt = lambda v: "-" if v is None else (" ".join(f"{x:.3g}" for x in v) if isinstance(v, list) else f"{v:.4g}")
+            rows.append([label, path, fmt(paper), fmt(ours)])
+    print(f"\npublished ({reference['source']}) versus ours:")
+    print(_table(["estimator", "metric", "paper", "ours"], rows))
+
+
+def _print_calibration(metrics: dict) -> None:
     for name, c in metrics.get("calibration", {}).items():
         for when, v in ((k, c[k]) for k in ("after_2_turns", "final") if k in c):
             pct = lambda d: "/".join("-" if d[q] is None else f"{d[q]:.2f}" for q in ("mean", "p95", "max"))
@@ -271,34 +225,6 @@ def cmd_run(args) -> int:
                   f"mean/p95/max: hard iron {pct(v['hard_iron_pct'])} % of |m|, soft iron {pct(v['soft_iron_pct'])} %",
                   end="")
         print()
-    note = " (interrupted: partial results)" if result.interrupted else ""
-    if result.failed:
-        run, why = min(result.failed.items())
-        note += f"; {len(result.failed)} run(s) failed, the first (run {run}): {why}"
-    print(f"\n{len(result.runs)}/{runs} runs in {wall:.1f} s{note}; wrote {out}/ "
-          f"(report.pdf, {len([f for f in files if f.suffix == '.png'])} PNGs, metrics.json"
-          + (", runs.npz)" if (out / "runs.npz").exists() else ", per-run data in chunks/)"))
-    if result.interrupted:
-        return 130
-    if not len(result.runs):
-        print(f"error: no run succeeded (see {out}/run.json)", file=sys.stderr)
-        return 1
-    return 0
-
-
-def open_store(out: Path, scenario, seed: int, runs: int, chunk_runs: int | None, resume: bool):
-    """The chunk store of a run in ``out/chunks``; resuming, the chunk size defaults to the
-    stored run's."""
-    import navsim.runner
-    from navsim.chunkstore import ChunkStore, scenario_hash
-    from navsim.runner import chunk_ranges
-    folder = out / "chunks"
-    if chunk_runs is None:
-        index = ChunkStore.read_index(folder) if resume else None
-        chunk_runs = index.get("chunk_runs") if index else navsim.runner.CHUNK_RUNS
-    chunk_ranges(runs, chunk_runs)                  # a bad chunk size stops before anything is cleared
-    key = {"scenario_hash": scenario_hash(scenario), "seed": seed, "runs": runs, "chunk_runs": chunk_runs}
-    return ChunkStore(folder, key, resume=resume)
 
 
 def cmd_sensors(args) -> int:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import navsim
 
-PACKAGES = ("numpy", "scipy", "jsbsim", "matplotlib", "pyyaml", "tqdm", "pyulog")
+PACKAGES = ("numpy", "scipy", "numba", "jsbsim", "matplotlib", "pyyaml", "tqdm", "pyulog", "xarray")
 
 
 def git_revision() -> str | None:

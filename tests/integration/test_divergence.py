@@ -61,7 +61,7 @@ def test_a_blown_up_filter_is_flagged_and_the_sane_one_scored_on_every_run(p0, t
     # once scaled to a unit diagonal (the "indefinite" is rounding in the raw
     # eigenvalues, 1e-24 of the largest): the NEES bound is what catches it.
     sc, truth, truth_path = p0
-    store = ChunkStore(tmp_path / "chunks", {"seed": 1})
+    store = ChunkStore(tmp_path / "chunks", {"seed": 1}, mode="new")
     res = run_monte_carlo(sc, truth, truth_path, 3, 1, 1, chunk_runs=2, store=store)
     assert res.failed == {} and list(res.runs) == [0, 1, 2]
     blown, sane = res.histories[BLOWN], res.histories[SANE]
@@ -251,7 +251,7 @@ def test_divergence_records_round_trip_and_are_listed_with_their_runs(tmp_path, 
     # merged in memory and from a store, with a chunk built without records
     parts = [synthetic(range(14, 17), 2, divergence=False), synthetic(range(10, 14), 1),
              synthetic(range(17, 57), 3)]
-    store = ChunkStore(tmp_path / "chunks", {"seed": 1})
+    store = ChunkStore(tmp_path / "chunks", {"seed": 1}, mode="new")
     for p in parts:
         store.add(p)
     runs, merged, _, _ = _merge(parts)

@@ -111,17 +111,23 @@ def test_a_failing_chunk_is_flagged_and_the_others_complete(short, tmp_path, mon
     assert "2 run(s) failed" in capsys.readouterr().out
 
 
-def test_interrupted_run_keeps_what_finished(short, tmp_path, monkeypatch):
+def interrupt_at(monkeypatch, first_run: int) -> None:
+    """Ctrl-C when the chunk starting at ``first_run`` begins (the chunks run in this process)."""
     import navsim.runner
-    monkeypatch.setattr(navsim.runner, "CHUNK_RUNS", 2)
     real = navsim.runner._chunk
 
     def interrupt(args):
-        if list(args[3])[0] == 4:
+        if list(args[3])[0] == first_run:
             raise KeyboardInterrupt
         return real(args)
 
     monkeypatch.setattr(navsim.runner, "_chunk", interrupt)
+
+
+def test_interrupted_run_keeps_what_finished(short, tmp_path, monkeypatch):
+    import navsim.runner
+    monkeypatch.setattr(navsim.runner, "CHUNK_RUNS", 2)
+    interrupt_at(monkeypatch, 4)
     assert run(short, tmp_path / "out") == 130
     m = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert m["interrupted"] is True and m["runs_done"] == 4

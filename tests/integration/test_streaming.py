@@ -58,7 +58,7 @@ def test_a_part_round_trips_every_field(same_history, tmp_path):
 def test_the_merged_store_equals_the_in_memory_merge(same_history, tmp_path):
     from navsim.runner import _merge
     parts = [synthetic_part(range(2, 4), 2), synthetic_part(range(0, 2), 1)]
-    store = ChunkStore(tmp_path, {"seed": 1})
+    store = ChunkStore(tmp_path, {"seed": 1}, mode="new")
     for part in parts:
         store.add(part)
     (runs_a, hist_a, bias_a, calib_a), (runs_b, hist_b, bias_b, calib_b) = _merge(parts), store.merged()
@@ -74,7 +74,7 @@ def test_stored_chunks_equal_the_in_memory_histories(same_history, short, tmp_pa
     sc = load_scenario(short)
     truth, path, _ = cached_flight(sc.flight)
     key = {"scenario_hash": "x", "seed": 4, "runs": 5, "chunk_runs": 2}
-    store = ChunkStore(tmp_path / "chunks", key)
+    store = ChunkStore(tmp_path / "chunks", key, mode="new")
     memory = run_monte_carlo(sc, truth, path, 5, 4, 1, chunk_runs=2)
     stored = run_monte_carlo(sc, truth, path, 5, 4, 1, chunk_runs=2, store=store)
     assert sorted(p.name for p in (tmp_path / "chunks").iterdir()) == [
@@ -181,7 +181,6 @@ def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short, tmp_pat
     """Metrics chunk by chunk (flat memory) equal the in-memory scores of all runs; the report's
     plots load only the first REPORT_RUNS runs and say so; no runs.npz (the runs are in chunks/)."""
     import navsim.runner
-    from navsim.cli import open_store
     from navsim.metrics import score
     from navsim.scenario import load_scenario
     monkeypatch.setattr(navsim.runner, "REPORT_RUNS", 2)
@@ -191,7 +190,7 @@ def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short, tmp_pat
     assert record["runs_plotted"] == 2 and record["runs_done"] == 6 and record["per_run_data"] == "chunks/"
     assert not (out / "runs.npz").exists() and (out / "report.pdf").stat().st_size > 0
     sc = load_scenario(short)
-    _, hist, _, _ = open_store(out, sc, 4, 6, 2, resume=True).merged()
+    _, hist, _, _ = ChunkStore.open(out / "chunks").merged()
     got = json.loads((out / "metrics.json").read_text())["estimators"]
     for label, h in hist.items():
         want = score(h, sc.settle_s, sc.windows)
