@@ -46,7 +46,8 @@ def measure(runs: int, workers: int, executor: str, out: Path) -> dict:
 
 def measure_speed(runs: int, workers: int, executor: str, out: Path) -> dict:
     """The Monte Carlo alone (chunks streamed; cluster start and close included): wall time."""
-    from navsim.chunkstore import ChunkStore, scenario_hash
+    from navsim.chunkstore import ChunkStore
+    from navsim.runner import scenario_hash
     from navsim.metrics_stream import score_parts
     from navsim.runner import CHUNK_RUNS, cached_flight, run_monte_carlo
     from navsim.scenario import load_scenario

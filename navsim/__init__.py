@@ -24,8 +24,7 @@ The Python API (:mod:`navsim.api`): :func:`load_scenario`, :func:`run` (a :class
 :func:`open_result` (a finished run's folder, read-only) and :func:`write_report`.
 """
 
-__version__ = "0.1.0"
-
+from navsim.version import __version__  # noqa: E402
 from navsim.api import Result, load_scenario, open_result, run, write_report  # noqa: E402
 
 __all__ = ["Result", "load_scenario", "open_result", "run", "write_report", "__version__"]

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from navsim.chunkstore import ChunkStore, scenario_hash
+from navsim.chunkstore import ChunkStore
 from navsim.dask_executor import _import_distributed
 from navsim.errors import ScenarioError, UsageError
 from navsim.metrics import calibration_score, closed_loop_metrics, score, sighting_metrics, sighting_spans
@@ -35,7 +35,8 @@ from navsim.outputs import OutputFolder
 from navsim.provenance import provenance
 from navsim.report import write_report as _write_report
 from navsim import runner
-from navsim.runner import cached_flight, chunk_ranges, flight_key, run_closed_loop, run_monte_carlo
+from navsim.runner import (cached_flight, chunk_ranges, flight_key, run_closed_loop, run_monte_carlo,
+                           scenario_hash)
 from navsim.scenario import Scenario, check_scenario, parse_scenario
 from navsim.scenario import load_scenario as _load_file
 
@@ -136,7 +137,7 @@ def load_scenario(source) -> Scenario:
 
 def run(scenario, runs: int | None = None, seed: int | None = None, workers: int | None = None, *,
         out=None, executor: str = "local", scheduler: str | None = None, chunk_runs: int | None = None,
-        resume: bool = False, progress=None) -> Result:
+        resume: bool = False, progress=None, flight=None) -> Result:
     """Fly the scenario's track (cached), emulate its sensors and run every estimator over the
     Monte Carlo runs; score them.
 
@@ -153,6 +154,9 @@ def run(scenario, runs: int | None = None, seed: int | None = None, workers: int
         As ``navsim run``'s options (``resume`` needs ``out``).
     progress : callable, optional
         ``progress(runs_finished)`` as chunks complete.
+    flight : tuple, optional
+        The scenario's flight already at hand, ``(truth, cached_path, from_cache)`` as
+        :func:`navsim.runner.cached_flight` returns it (default: that call).
 
     Returns
     -------
@@ -170,13 +174,14 @@ def run(scenario, runs: int | None = None, seed: int | None = None, workers: int
     if resume and folder is None:
         raise UsageError("resume needs the folder of the interrupted run (out=...)")
     t0 = time.perf_counter()
-    how = _How(runs, seed, workers, executor, scheduler, chunk_runs, resume, progress)
+    how = _How(runs, seed, workers, executor, scheduler, chunk_runs, resume, progress, flight)
     result = (_closed_loop if scenario.closed_loop is not None else _open_loop)(scenario, how, folder)
-    result.record = {"scenario": str(scenario.path), "runs": runs, "runs_done": int(len(result.runs)),
+    result.record = {"scenario": None if scenario.path is None else str(scenario.path), "runs": runs, "runs_done": int(len(result.runs)),
                      "seed": seed, "workers": workers, **result.record}
     _score(result, time.perf_counter() - t0)
     if folder is not None:
         _write_run(result, folder)
+        result.folder = folder.path
     return result
 
 
@@ -192,6 +197,7 @@ class _How:
     chunk_runs: int | None
     resume: bool
     progress: object
+    flight: tuple | None = None
 
 
 def _closed_loop(scenario, how: _How, folder) -> Result:
@@ -209,7 +215,7 @@ def _closed_loop(scenario, how: _How, folder) -> Result:
 
 
 def _open_loop(scenario, how: _How, folder) -> Result:
-    truth, truth_path, cached = cached_flight(scenario.flight)
+    truth, truth_path, cached = how.flight if how.flight is not None else cached_flight(scenario.flight)
     check_scenario(scenario, truth.duration_s)     # the duration flown, before any sensor
     if how.executor == "dask":               # before the store clears an earlier run's chunks
         _import_distributed()
@@ -271,15 +277,15 @@ def _score(result: Result, wall_s: float) -> None:
                          **provenance(), runs_plotted=plotted)
 
 
-def _write_run(result: Result, folder: OutputFolder) -> None:
-    """``metrics.json``, ``scenario.resolved.yaml``, ``run.json`` and, when every run's history
-    is in memory, ``runs.npz`` into the run's folder."""
-    result.folder = folder.path
+def _write_run(result: Result, folder: OutputFolder, record: dict | None = None) -> None:
+    """``metrics.json``, ``scenario.resolved.yaml``, ``run.json`` (``record``, default the
+    result's) and, when every run's history is in memory, ``runs.npz`` into ``folder``."""
+    record = result.record if record is None else record
     folder.text("metrics.json", json.dumps(result.metrics, indent=2))
     folder.text("scenario.resolved.yaml",
                 f"# resolved by navsim {result.record['versions']['navsim']} at git {result.record['git_revision']}\n"
                 + yaml.safe_dump(resolved_scenario(result), sort_keys=False))
-    folder.text("run.json", json.dumps(result.record, indent=2, default=str))
+    folder.text("run.json", json.dumps(record, indent=2, default=str))
     if result.histories and result.record["runs_plotted"] == len(result.runs):   # else in chunks/ only
         arrays = {"runs": result.runs}
         for label, h in result.histories.items():
@@ -325,7 +331,10 @@ def write_report(result: Result, out=None) -> list[Path]:
         raise UsageError("write_report needs a folder: out=... (the run was held in memory)")
     folder = OutputFolder(Path(out) if out is not None else result.folder)
     if result.folder is None or folder.path.resolve() != Path(result.folder).resolve():
-        _write_run(result, folder)
+        record = result.record                  # the chunks stay where the run wrote them
+        if result.store is not None:
+            record = dict(record, per_run_data=str(Path(result.store.folder).resolve()))
+        _write_run(result, folder, record)
     truth = result.truth
     if truth is None and result.scenario.closed_loop is None:
         truth = cached_flight(result.scenario.flight)[0]
@@ -345,7 +354,10 @@ def open_result(folder) -> Result:
         raw = yaml.safe_load((folder / "scenario.resolved.yaml").read_text())
     except (OSError, ValueError, yaml.YAMLError) as exc:
         raise UsageError(f"{folder}: not a finished navsim run ({exc})") from None
-    scenario = parse_scenario(raw, record.get("scenario"))
+    try:
+        scenario = parse_scenario(raw, record.get("scenario"))
+    except ScenarioError as exc:
+        raise UsageError(f"{folder}: its scenario.resolved.yaml does not parse any more ({exc})") from None
     store = ChunkStore.open(folder / "chunks") if (folder / "chunks" / "index.json").is_file() else None
     histories, runs, bias, calib = {}, np.array([], int), {}, {}
     merged = store.merged(runner.REPORT_RUNS) if store is not None else None

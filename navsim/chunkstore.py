@@ -14,7 +14,6 @@ string inside the same file.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import re
@@ -24,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from navsim.errors import NavsimError, OutputError
-from navsim.montecarlo import ARRAY_FIELDS, EstimatorHistory
+from navsim.montecarlo import ARRAY_FIELDS, EstimatorHistory, sum_cost
 from navsim.outputs import temporary_name, write_atomic
 
 log = logging.getLogger(__name__)
@@ -36,33 +35,6 @@ class ResumeError(NavsimError):
     """An output folder that cannot be resumed: missing, or written for another run."""
 
     exit_code = 2
-
-
-def scenario_hash(scenario) -> str:
-    """Hash of what a scenario's chunks depend on: its content without the ``montecarlo``,
-    ``metrics`` and ``report`` settings (the chunks do not depend on them: a resumed run may
-    be scored with other windows), the sensor and estimator models as resolved from the
-    catalog, navsim's version and the flight.
-
-    Parameters
-    ----------
-    scenario : navsim.scenario.Scenario
-        A parsed scenario.
-
-    Returns
-    -------
-    str
-        20 hex digits.
-    """
-    import navsim
-    from navsim.runner import flight_key, plain
-    raw = {k: v for k, v in scenario.raw.items() if k not in ("montecarlo", "metrics", "report")}
-    h = hashlib.sha256(json.dumps(raw, sort_keys=True, default=str).encode())
-    h.update(json.dumps(plain([scenario.sensors, scenario.estimators, scenario.initial]), sort_keys=True,
-                        default=str).encode())
-    h.update(navsim.__version__.encode())
-    h.update(flight_key(scenario.flight).encode())
-    return h.hexdigest()[:20]
 
 
 def chunk_name(runs) -> str:
@@ -156,7 +128,8 @@ class ChunkStore:
     folder : Path
         Where the chunk files and the index live (created).
     key : dict
-        What identifies the run: ``scenario_hash``, ``seed``, ``runs``, ``chunk_runs``.
+        What identifies the run: ``scenario_hash`` (:func:`navsim.runner.scenario_hash`), ``seed``,
+        ``runs``, ``chunk_runs``.
     mode : {"new", "resume"}
         ``resume``: keep the chunks of an earlier, matching run (a :class:`ResumeError` if the
         folder holds none or another run's); ``new``: the folder's earlier chunks are removed.
@@ -287,7 +260,6 @@ class ChunkStore:
         The chunk files are read one at a time into arrays allocated once for all the runs, so
         the peak memory is the merged result plus one chunk (not twice the result).
         """
-        from navsim.runner import _sum_cost
         files, sizes = [], []
         for file in self._files():
             a, b = file[len("chunk_"):-len(".npz")].split("-")
@@ -316,7 +288,7 @@ class ChunkStore:
                 offset += n
         for i, h in enumerate(meta["histories"]):
             parts = [m["histories"][i] for m in metas]
-            h["cost"] = _sum_cost([m["cost"] for m in parts])
+            h["cost"] = sum_cost([m["cost"] for m in parts])
             h["resets"] = None if h["resets"] is None else [r for m in parts for r in m["resets"]]
             if any(m.get("divergence") is not None for m in parts):
                 h["divergence"] = [r for m, n in zip(parts, sizes) for r in (m.get("divergence") or [None] * n)]

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import shutil
 import sys
 import time
@@ -28,11 +29,11 @@ from navsim.errors import FlightError, NavsimError, OutputError
 from navsim.flight.plots import plot_flight
 from navsim.metrics import lookup
 from navsim.outputs import OutputFolder
-from navsim.report import closed_loop_lines, divergence_lines, sighting_lines
-from navsim.report_attitude import attitude_lines
+from navsim.report import attitude_lines, closed_loop_lines, divergence_lines, sighting_lines
 from navsim.provenance import provenance
 from navsim.runner import cached_flight
 from navsim.scenario import MAX_SEED, MAX_WORKERS, RATE_HZ, check_scenario, load_scenario
+from navsim.version import __version__
 
 
 def _numeric(text: str) -> bool:
@@ -145,18 +146,18 @@ def cmd_run(args) -> int:
     scenario = load_scenario(args.scenario)
     runs = scenario.runs if args.runs is None else args.runs
     folder = OutputFolder(Path(args.out) if args.out else Path("reports") / scenario.name)
-    todo, desc = runs, f"{runs} runs"
+    todo, desc, flight = runs, f"{runs} runs", None
     if scenario.closed_loop is not None:
         desc += ", navigation in the loop"
     else:
-        _fly_or_save(scenario, args.scenario, folder)      # cached, or flown with its progress bar
-        if args.resume and (folder.path / "chunks" / "index.json").is_file():
-            todo = runs - len(ChunkStore.open(folder.path / "chunks").runs())
+        flight = _fly_or_save(scenario, args.scenario, folder)   # cached, or flown with its progress bar
+        if args.resume:
+            todo -= _stored_runs(folder.path / "chunks")
             desc += f", {todo} left"
     with tqdm(total=todo, desc=desc, unit="run", disable=None) as pbar:
         result = api.run(scenario, runs, args.seed, args.workers, out=folder.path, executor=args.executor,
                          scheduler=args.scheduler, chunk_runs=args.chunk_runs, resume=args.resume,
-                         progress=pbar.update)
+                         progress=pbar.update, flight=flight)
     files = api.write_report(result)
     print_run_summary(result)
     note = " (interrupted: partial results)" if result.interrupted else ""
@@ -173,6 +174,17 @@ def cmd_run(args) -> int:
         print(f"error: no run succeeded (see {out}/run.json)", file=sys.stderr)
         return 1
     return 0
+
+
+def _stored_runs(chunks: Path) -> int:
+    """The runs an interrupted run's index lists (for the progress bar; the chunks themselves
+    are checked when the run is resumed)."""
+    try:
+        index = ChunkStore.read_index(chunks) or {}
+    except NavsimError:
+        return 0
+    names = index.get("chunks") if isinstance(index.get("chunks"), dict) else {}
+    return sum(int(b) - int(a) + 1 for a, b in (n.split("-") for n in names if re.fullmatch(r"\d+-\d+", n)))
 
 
 def print_run_summary(result) -> None:
@@ -447,11 +459,33 @@ def _executor_options(p) -> None:
                    "LocalCluster of --workers processes is started")
 
 
+def _replay_parser(sub) -> None:
+    p = sub.add_parser("replay", help="replay a real PX4 flight log through an estimator",
+                       description="Read a PX4 ULog (pyulog), feed its IMU, magnetometer and baro "
+                       "to an estimator from a coarse alignment on the first second, and compare "
+                       "its roll, pitch and yaw with PX4's own vehicle_attitude; write "
+                       "metrics.json, attitude.png and replay.pdf, print the differences. Exit 2 "
+                       "for a log that cannot be replayed.")
+    p.add_argument("log", help="PX4 .ulg file (example: tests/data/px4_quad_real_69s.ulg.gz)")
+    p.add_argument("--estimator", help=f"registered estimator (default {DEFAULT_REPLAY_ESTIMATOR})")
+    p.add_argument("--out", help="output folder (default reports/replay_<log>_<estimator>)")
+    p.add_argument("--settle", type=_number(float, minimum=0.0), default=10.0,
+                   help="seconds left out of the metrics while the estimator converges (default 10)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="estimator parameter (YAML value), repeatable: --set period_s=0.02")
+    p.add_argument("--imu-rate", type=_number(float, exclusive_minimum=0.0, maximum=10000.0),
+                   help="IMU grid rate, Hz (default: the log's, 250 Hz for PX4's sensor_combined)")
+    p.add_argument("--align", type=_number(float, exclusive_minimum=0.0), default=1.0,
+                   help="coarse-alignment window from the first sample, s (default 1)")
+    p.add_argument("--allow-damaged", action="store_true",
+                   help="replay what a truncated or corrupt log still holds instead of refusing it")
+    p.set_defaults(func=cmd_replay)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="navsim", description="UAV integrated-navigation testbed: JSBSim flights, sensor "
         "emulators, estimators, Monte Carlo reports.")
-    from navsim import __version__
     parser.add_argument("--version", action="version", version=f"navsim {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     p = sub.add_parser("fly", help="fly a scenario's track and plot it",
@@ -500,26 +534,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="output folder (default reports/<sweep name>)")
     _executor_options(p)
     p.set_defaults(func=cmd_sweep)
-    p = sub.add_parser("replay", help="replay a real PX4 flight log through an estimator",
-                       description="Read a PX4 ULog (pyulog), feed its IMU, magnetometer and baro "
-                       "to an estimator from a coarse alignment on the first second, and compare "
-                       "its roll, pitch and yaw with PX4's own vehicle_attitude; write "
-                       "metrics.json, attitude.png and replay.pdf, print the differences. Exit 2 "
-                       "for a log that cannot be replayed.")
-    p.add_argument("log", help="PX4 .ulg file (example: tests/data/px4_quad_real_69s.ulg.gz)")
-    p.add_argument("--estimator", help=f"registered estimator (default {DEFAULT_REPLAY_ESTIMATOR})")
-    p.add_argument("--out", help="output folder (default reports/replay_<log>_<estimator>)")
-    p.add_argument("--settle", type=_number(float, minimum=0.0), default=10.0,
-                   help="seconds left out of the metrics while the estimator converges (default 10)")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="estimator parameter (YAML value), repeatable: --set period_s=0.02")
-    p.add_argument("--imu-rate", type=_number(float, exclusive_minimum=0.0, maximum=10000.0),
-                   help="IMU grid rate, Hz (default: the log's, 250 Hz for PX4's sensor_combined)")
-    p.add_argument("--align", type=_number(float, exclusive_minimum=0.0), default=1.0,
-                   help="coarse-alignment window from the first sample, s (default 1)")
-    p.add_argument("--allow-damaged", action="store_true",
-                   help="replay what a truncated or corrupt log still holds instead of refusing it")
-    p.set_defaults(func=cmd_replay)
+    _replay_parser(sub)
     p = sub.add_parser("schema", help="print the JSON Schema of scenario files",
                        description="Print the JSON Schema of scenario files (docs/scenario.schema.json) "
                        "for editors; navsim's own validation is stricter.")

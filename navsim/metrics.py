@@ -110,10 +110,8 @@ def score(h, settle_s: float = 0.0, windows=(), good=None, runs=None) -> dict:
                     "vel_mps": _rms(h.vel_err_mps[good][rows, last], 0).tolist(),
                     "att_deg": _rms(np.degrees(h.att_err_rad[good][rows, last]), 0).tolist()}
     if getattr(h, "euler_err_rad", None) is not None:
-        from navsim.report_attitude import attitude_metrics
         out["attitude"] = attitude_metrics(h.euler_err_rad[good][:, after])
     if getattr(h, "resets", None) is not None:
-        from navsim.report_attitude import reset_metrics
         out["resets"] = reset_metrics([r for r, g in zip(h.resets, good) if g])
     if h.cost is not None and h.cost["runs"]:
         c = h.cost
@@ -316,3 +314,28 @@ def calibration_score(cal: dict, turns: float = 2.0) -> dict:
     out["final"] = {"t_s": float(cal["t_s"][-1]), "hard_iron_pct": stats(cal["hard_iron_err"][:, -1]),
                     "soft_iron_pct": stats(cal["soft_iron_err"][:, -1])}
     return out
+
+
+#: the Euler axes of :func:`attitude_metrics`
+EULER_AXES = ("roll", "pitch", "yaw")
+
+
+def attitude_metrics(euler_err_rad: np.ndarray) -> dict:
+    """Roll, pitch, yaw error statistics (deg) of ``(B, E, 3)`` errors: 95th percentile, RMS and
+    maximum of the absolute error, and the 95th percentile of the error about each run's own
+    mean -- what a reference sharing the vehicle's bench, level and field sees (P4's MTi)."""
+    e = np.degrees(np.asarray(euler_err_rad, float))
+    a = np.abs(e)
+    about = np.abs(e - np.nanmean(e, axis=1, keepdims=True))
+    return {"p95_deg": np.nanpercentile(a, 95, axis=(0, 1)).tolist(),
+            "rms_deg": np.sqrt(np.nanmean(e ** 2, axis=(0, 1))).tolist(),
+            "max_abs_deg": np.nanmax(a, axis=(0, 1)).tolist(),
+            "p95_about_run_mean_deg": np.nanpercentile(about, 95, axis=(0, 1)).tolist()}
+
+
+def reset_metrics(resets: list) -> dict:
+    """The divergence monitor's resets: count, runs reset, per-run times (s) and causes."""
+    return {"count": int(sum(len(r) for r in resets)), "runs_with_reset": int(sum(bool(r) for r in resets)),
+            "mean_per_run": float(np.mean([len(r) for r in resets])) if resets else 0.0,
+            "times_s": [[round(float(t), 2) for t, _ in r] for r in resets],
+            "causes": sorted({c for r in resets for _, c in r})}

@@ -16,7 +16,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
-from navsim.metrics import DivergenceLog, chi2_band, convergence_time, window_quantities
+from navsim.metrics import DivergenceLog, chi2_band, convergence_time, reset_metrics, window_quantities
+from navsim.montecarlo import sum_cost
 
 BINS_PER_DECADE = 400
 _LOG_MIN, _LOG_MAX = -15.0, 15.0
@@ -243,7 +244,6 @@ class EstimatorScore:
 
     def result(self) -> dict:
         """The metrics, as :func:`navsim.metrics.score` returns them."""
-        from navsim.runner import _sum_cost
         t_s = self.t_s
         after = t_s >= self.settle_s
         out = {"runs_counted": self.good, "diverged_runs": self.bad, "settle_s": self.settle_s}
@@ -265,9 +265,8 @@ class EstimatorScore:
                                "max_abs_deg": acc["e_max"].value(3).tolist(),
                                "p95_about_run_mean_deg": [p(("att_about", j)) for j in range(3)]}
         if self.resets is not None:
-            from navsim.report_attitude import reset_metrics
             out["resets"] = reset_metrics(self.resets)
-        cost = _sum_cost(self.costs)
+        cost = sum_cost(self.costs)
         if cost is not None and cost["runs"]:
             out["cost"] = {"ms_per_run": (cost["propagate_s"] + cost["epoch_s"]) / cost["runs"] * 1e3,
                            "propagate_ms_per_run": cost["propagate_s"] / cost["runs"] * 1e3,

@@ -96,7 +96,10 @@ def _errors(nav: NavState, truth, k: int):
     else:
         B = np.shape(parts[0])[0]
         rows = np.concatenate([np.reshape(p, (B, -1)) for p in parts], -1)
-    out = np.empty((nav.lat_rad.shape[0], 15))
+    B = nav.lat_rad.shape[0]
+    if rows.shape[0] not in (1, B):
+        raise ValueError(f"the truth has {rows.shape[0]} runs at sample {k}, the estimate {B}")
+    out = np.empty((B, 15))
     f = lambda x: np.ascontiguousarray(x, float)
     kernels.nav_errors(f(nav.lat_rad), f(nav.lon_rad), f(nav.h_m), f(nav.vel_n_mps), f(nav.C_nb), f(rows), out)
     return out, rows
@@ -139,6 +142,16 @@ class EstimatorHistory:
     #: per run, None or ``(t_s, cause)``: when and why it was first flagged diverged (None: not
     #: recorded, as in histories built by hand)
     divergence: list | None = None
+
+
+def sum_cost(costs):
+    """The :attr:`EstimatorHistory.cost` of several batches added up (None if one is None)."""
+    if any(c is None for c in costs):
+        return None
+    return {"propagate_s": sum(c["propagate_s"] for c in costs), "epoch_s": sum(c["epoch_s"] for c in costs),
+            "runs": sum(c["runs"] for c in costs), "epochs": costs[0]["epochs"],
+            "batches": sum(c["batches"] for c in costs)}
+
 
 
 #: the causes of a divergence flag, by code (0: none); :func:`covariance_codes` gives 1-3

@@ -9,14 +9,14 @@ from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
 
-import navsim
+from navsim.version import __version__
 
 PACKAGES = ("numpy", "scipy", "numba", "jsbsim", "matplotlib", "pyyaml", "tqdm", "pyulog", "xarray")
 
 
 def git_revision() -> str | None:
     """The git commit of the navsim checkout (with ``-dirty`` if modified), if any."""
-    root = Path(navsim.__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[1]
     try:
         rev = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True,
                              text=True, timeout=5)
@@ -30,7 +30,7 @@ def git_revision() -> str | None:
 
 
 def provenance() -> dict:
-    versions = {"navsim": navsim.__version__, "python": platform.python_version()}
+    versions = {"navsim": __version__, "python": platform.python_version()}
     for name in PACKAGES:
         try:
             versions[name] = metadata.version(name)

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from navsim.errors import OutputError
-from navsim.metrics import chi2_band, lookup
+from navsim.metrics import EULER_AXES, chi2_band, lookup
 from navsim.outputs import OutputFolder, write_atomic
 
 AXES = {"pos": ("position error", "m", ["north", "east", "down"]),
@@ -112,7 +112,6 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
     lines += divergence_lines(metrics)
     lines += closed_loop_lines(metrics.get("closed_loop"))
     lines += sighting_lines(metrics)
-    from navsim.report_attitude import attitude_lines
     lines += attitude_lines(metrics, _table_lines)
     if scenario.reference:
         lines += ["", f"published ({scenario.reference['source']}) versus ours:"]
@@ -526,7 +525,6 @@ def write_report(folder: OutputFolder, scenario, truth, result, metrics: dict, r
         pages += error_figures(result.histories, scenario.settle_s, runs_plotted, spans)
         pages += height_figure(result.histories, scenario)
         pages += landmark_figure(result.histories, metrics, sightings, runs_plotted)
-        from navsim.report_attitude import attitude_figure
         pages += attitude_figure(result.histories, scenario.settle_s, runs_plotted, spans)
         pages += consistency_figure(result.histories, spans)
         pages += bias_figure(result.histories, result.truth_bias)
@@ -637,3 +635,68 @@ def _join_writer(pid: int, pipe: int, report: bool = True) -> None:
         number = int(number or 0)
         raise OutputError(path, OSError(number, why)) if number else OutputError(path, reason=why)
     raise RuntimeError(f"the PNG writer failed: {why or f'exit code {code}'}")
+
+
+# --- attitude estimators (P4): the summary's attitude table and the roll/pitch/yaw pages ---
+
+
+def attitude_lines(metrics: dict, table) -> list[str]:
+    """The attitude table of the summary page (estimators with ``attitude`` metrics)."""
+    rows = []
+    for label, m in metrics["estimators"].items():
+        a = m.get("attitude")
+        if not a or "resets" not in m:          # the attitude estimators (every one has Euler errors)
+            continue
+        f = lambda v: "/".join(f"{x:.3g}" for x in v)
+        r = m.get("resets")
+        rows.append([label, f(a["p95_deg"]), f(a["p95_about_run_mean_deg"]), f(a["rms_deg"]),
+                     f(a["max_abs_deg"]), "-" if r is None else f"{r['count']} in {r['runs_with_reset']} runs"])
+    if not rows:
+        return []
+    return ["", "attitude error after the settling time, roll/pitch/yaw in deg (95th percentile of |error|; "
+            "about each run's own mean; RMS; max) and the divergence monitor's resets:", ""] + \
+        table(["estimator", "p95", "p95 about run mean", "RMS", "max", "resets"], rows)
+
+
+def attitude_figure(histories: dict, settle_s: float, runs_plotted: int = 5, spans=()):
+    """Roll, pitch, yaw error of each attitude estimator: a few runs, the 95th percentile of
+    |error| over the runs, and a tick per reset of the divergence monitor (red, with its time
+    listed for the first run)."""
+    labels = [k for k, h in histories.items() if h.euler_err_rad is not None and h.resets is not None]
+    if not labels:
+        return []
+    plt = _plt()
+    figs = []
+    for label in labels:
+        h = histories[label]
+        e = np.degrees(h.euler_err_rad)
+        fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
+        for j, ax in enumerate(axes):
+            for r in range(min(runs_plotted, e.shape[0])):
+                ax.plot(h.t_s, e[r, :, j], lw=0.5, alpha=0.7)
+            p95 = np.nanpercentile(np.abs(e[:, :, j]), 95, axis=0)
+            ax.plot(h.t_s, p95, "k", lw=1.0, label="95th pct of |error| over the runs")
+            ax.plot(h.t_s, -p95, "k", lw=1.0)
+            after = h.t_s >= settle_s
+            lim = max(3 * float(np.nanpercentile(np.abs(e[:, after, j]), 99)), 0.05) if after.any() else None
+            if lim and np.isfinite(lim):
+                ax.set_ylim(-lim, lim)
+            _shade(ax, spans)
+            ax.set_ylabel(f"{EULER_AXES[j]} error, deg")
+            ax.grid(alpha=0.3)
+        times = [t for r in h.resets for t, _ in r]
+        for t in sorted(set(round(t, 1) for t in times)):
+            for ax in axes:
+                ax.axvline(t, color="r", lw=0.6, alpha=0.5)
+        first = ", ".join(f"{t:.0f}" for t, _ in h.resets[0]) if h.resets and h.resets[0] else "none"
+        title = f"{label}: attitude error; resets (red) {len(times)} in {sum(bool(r) for r in h.resets)} runs"
+        axes[0].set_title(title + f"; run 0 at {first} s" if times else title)
+        axes[0].legend(fontsize=7, loc="upper right")
+        axes[-1].set_xlabel("time, s")
+        fig.tight_layout()
+        figs.append((f"attitude_{_slug(label)}", fig))
+    return figs
+
+
+def _slug(label: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in label).strip("_").lower()

@@ -20,13 +20,14 @@ from pathlib import Path
 
 import numpy as np
 
-import navsim
-from navsim.flight.properties import AIRCRAFT_DIR
-from navsim.flight.simulator import fly
+from navsim.chunkstore import chunk_name
 from navsim.config import cache_dir
 from navsim.errors import ScenarioError
+from navsim.flight.properties import AIRCRAFT_DIR
+from navsim.flight.simulator import fly
 from navsim.flight.truth import Truth
-from navsim.montecarlo import EPOCH_ARRAYS, RUN_LISTS, EstimatorHistory
+from navsim.montecarlo import EPOCH_ARRAYS, RUN_LISTS, EstimatorHistory, sum_cost
+from navsim.version import __version__
 
 #: runs per chunk, by measurement (benchmarks/chunk_size.py, P0, 1000 runs, 2 workers): 125 runs
 #: 21.0 s, 250 runs 19.0 s, 500 runs 18.8 s with a worker's peak memory 505 -> 813 MB
@@ -49,10 +50,35 @@ def plain(x):
     return x
 
 
+def scenario_hash(scenario) -> str:
+    """Hash of what a scenario's chunks depend on: its content without the ``montecarlo``,
+    ``metrics`` and ``report`` settings (the chunks do not depend on them: a resumed run may
+    be scored with other windows), the sensor and estimator models as resolved from the
+    catalog, navsim's version and the flight.
+
+    Parameters
+    ----------
+    scenario : navsim.scenario.Scenario
+        A parsed scenario.
+
+    Returns
+    -------
+    str
+        20 hex digits.
+    """
+    raw = {k: v for k, v in scenario.raw.items() if k not in ("montecarlo", "metrics", "report")}
+    h = hashlib.sha256(json.dumps(raw, sort_keys=True, default=str).encode())
+    h.update(json.dumps(plain([scenario.sensors, scenario.estimators, scenario.initial]), sort_keys=True,
+                        default=str).encode())
+    h.update(__version__.encode())
+    h.update(flight_key(scenario.flight).encode())
+    return h.hexdigest()[:20]
+
+
 def flight_key(config) -> str:
     """Hash of everything that determines a flight."""
     h = hashlib.sha256()
-    h.update(json.dumps({"config": plain(config), "version": navsim.__version__}, sort_keys=True,
+    h.update(json.dumps({"config": plain(config), "version": __version__}, sort_keys=True,
                         default=str).encode())
     adir = Path(config.aircraft_dir) if config.aircraft_dir else AIRCRAFT_DIR
     for path in sorted((adir / config.aircraft).glob("*")):
@@ -149,14 +175,6 @@ def mag_calibrations(scenario) -> dict:
     return out
 
 
-def _sum_cost(costs):
-    if any(c is None for c in costs):
-        return None
-    return {"propagate_s": sum(c["propagate_s"] for c in costs), "epoch_s": sum(c["epoch_s"] for c in costs),
-            "runs": sum(c["runs"] for c in costs), "epochs": costs[0]["epochs"],
-            "batches": sum(c["batches"] for c in costs)}
-
-
 def _merge(parts):
     parts = sorted(parts, key=lambda p: p[0][0])
     runs = np.concatenate([p[0] for p in parts])
@@ -171,7 +189,7 @@ def _merge(parts):
         merged[label] = EstimatorHistory(
             label=label, t_s=hs[0].t_s, **{name: cat(name) for name in (*EPOCH_ARRAYS, "diverged")},
             nis={k: np.concatenate([h.nis[k] for h in hs]) for k in hs[0].nis},
-            nis_dim=hs[0].nis_dim, cost=_sum_cost([h.cost for h in hs]), **lists)
+            nis_dim=hs[0].nis_dim, cost=sum_cost([h.cost for h in hs]), **lists)
     bias = {k: np.concatenate([p[2][k] for p in parts]) for k in parts[0][2]}
     calib = {name: {k: v if k in ("t_s", "turns") else np.concatenate([p[3][name][k] for p in parts])
                     for k, v in c.items()} for name, c in parts[0][3].items()}
@@ -230,7 +248,6 @@ def chunk_ranges(runs: int, size: int) -> list[range]:
 
 def _chunk_failures(chunks, failed: dict) -> dict:
     """Chunk name -> error message of the chunks whose runs failed."""
-    from navsim.chunkstore import chunk_name
     return {chunk_name(ch): failed[ch[0]] for ch in chunks if ch[0] in failed}
 
 

@@ -21,10 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
+from navsim.api import run
 from navsim.config import Node, load_yaml
 from navsim.errors import ScenarioError
-from navsim.metrics import lookup, score
-from navsim.runner import cached_flight, run_monte_carlo
+from navsim.metrics import lookup
+from navsim.runner import cached_flight
 from navsim.scenario import check_metric_path, check_scenario, parse_scenario
 
 _INDEX = re.compile(r"^(.*)\[(\d+)\]$")
@@ -109,7 +110,7 @@ class SweepResult:
 
 def run_sweep(path, workers: int | None = None, out: Path | None = None, progress=None,
               executor: str = "local", scheduler: str | None = None) -> SweepResult:
-    """Run every point (its runs on ``executor``, see :func:`navsim.runner.run_monte_carlo`).
+    """Run every point through :func:`navsim.api.run` (its runs on ``executor``), in memory.
 
     Every point is parsed, flown (or read from the flight cache) and checked against the
     duration flown before the first Monte Carlo starts, so a bad point stops the sweep before
@@ -118,30 +119,30 @@ def run_sweep(path, workers: int | None = None, out: Path | None = None, progres
     base_path, runs, metric, points = parse_sweep(path)
     base = load_yaml(base_path)
     where = lambda i: f"{path}: point {i} ({points[i]}) of {base_path}"
-    scenarios, flights = [], []
+    scenarios = []
     for i, point in enumerate(points):
         data = copy.deepcopy(base)
         for key, value in point.items():
             set_path(data, key, value, str(path), f"points[{i}]")
         try:
             sc = parse_scenario(data, str(base_path))
-            flights.append(cached_flight(sc.flight))
-            check_scenario(sc, flights[-1][0].duration_s)
+            check_scenario(sc, cached_flight(sc.flight)[0].duration_s)
         except ScenarioError as exc:
             raise (exc.with_file(where(i)) if exc.file in (None, str(base_path)) else exc) from None
         scenarios.append(sc)
     result = SweepResult([], metric)
-    for i, (point, sc, (truth, truth_path, _)) in enumerate(zip(points, scenarios, flights)):
-        res = run_monte_carlo(sc, truth, truth_path, runs or sc.runs, sc.seed, workers or sc.workers,
-                              executor=executor, scheduler=scheduler)
+    for i, (point, sc) in enumerate(zip(points, scenarios)):
+        # the point as `navsim run` runs it (every scenario feature: closed loop, landmarks,
+        # magnetometer calibration), held in memory
+        res = run(sc, runs or sc.runs, sc.seed, workers or sc.workers, executor=executor, scheduler=scheduler)
         if res.interrupted:
             result.interrupted = True
             break
         if not len(res.runs):
             result.failed_points[i] = min(res.failed.items())[1] if res.failed else "no run"
         values = {}
-        for label, h in res.histories.items():
-            v = lookup(score(h, sc.settle_s, sc.windows), metric)
+        for label, scores in res.metrics["estimators"].items():
+            v = lookup(scores, metric)
             if isinstance(v, dict):
                 raise ScenarioError(f"'{metric}' is a group of metrics ({', '.join(v)})", file=str(path),
                                     key="metric", expected="the path of a number or of a list of three")

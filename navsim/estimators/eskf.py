@@ -4,8 +4,9 @@
 The strapdown mechanization (:class:`~navsim.strapdown.BlockStrapdown`, compiled) runs at the
 IMU rate on bias-compensated increments, a block of them per ``propagate``; every
 ``period_s`` the filter predicts with ``F`` built from the navigation state averaged over the
-period (``C_nb`` and the specific force in NED), by the Taylor series of the covariance
-equation (P3's series; compiled, in place) or Van Loan, then applies each available
+period (``C_nb`` and the specific force in NED), by the matrix-exponential series (P3) or
+Van Loan (from the sixth order, the Taylor series of the covariance equation itself, compiled,
+in place: :func:`_covariance_series_fits`), then applies each available
 measurement with the Joseph form (all of them in one compiled call), and feeds the
 estimated errors back: attitude, velocity and position into the mechanization, biases into the
 IMU compensation. The ``baro`` state (a sensor error) stays in the filter.
@@ -37,9 +38,11 @@ class ErrorStateKF:
     period_s : float
         Filter period (P0, P3: 1 s).
     discretization : {"series", "van_loan"}
-        ``series``: the Taylor series in the period to ``series_order`` of the propagated
-        covariance, ``Phi P Phi^T + Qd`` (P3 uses 3; over a 1 s period the noise reaching the
-        position through attitude and velocity needs 6, which is exact to rounding);
+        ``series``: the matrix-exponential series to ``series_order`` (P3 uses 3; over a 1 s
+        period the noise reaching the position through attitude and velocity needs 6); from
+        order 6, with no state decaying faster than 5 % per period, the propagated covariance
+        is the Taylor series of its own equation instead (the same to rounding, a third of the
+        work: :data:`SERIES_MIN_ORDER`);
         ``van_loan``: exact, about six times slower.
     """
 
@@ -123,7 +126,7 @@ class ErrorStateKF:
     def solution(self) -> Solution:
         idx = np.r_[self.layout.slice("att"), self.layout.slice("vel"), self.layout.slice("pos")]
         if np.array_equal(idx, np.arange(9)):           # the navigation blocks first: one copy
-            P_nav = np.ascontiguousarray(self.P[:, :9, :9])
+            P_nav = self.P[:, :9, :9].copy()
         else:
             P_nav = self.P[:, idx][:, :, idx]
         return Solution(nav=self.sd.state, P_nav=P_nav,
@@ -159,11 +162,14 @@ class ErrorStateKF:
         """``x``, ``P`` over the elapsed period: the series in place (compiled), or Van Loan."""
         if self.sd.steps == 0:
             return
-        if self.discretization == "series":
-            F, T = self._system()
+        F, T = self._system()
+        if self.discretization == "series" and _covariance_series_fits(F, T, self.series_order):
             kalman.propagate_in_place(self.x, self.P, F, self.Qc, T, self.series_order)
         else:
-            Phi, Qd, T = self._transition()
+            if self.discretization == "series":
+                Phi, Qd = kalman.discretize_series(F, self.Qc, T, order=self.series_order)
+            else:
+                Phi, Qd = kalman.discretize_van_loan(F, self.Qc, T)
             self.x, self.P = kalman.predict(self.x, self.P, Phi, Qd)
         self._decay_markov(T)
         self._reset_accumulators()
@@ -205,6 +211,18 @@ class ErrorStateKF:
     def _reset_accumulators(self) -> None:
         self.sd.reset_sums()
         self._elapsed = 0.0
+
+
+#: the covariance's Taylor series is used from this order on, when no state decays faster than
+#: this fraction of the period (Markov states): there it equals Van Loan to rounding (1e-15 at
+#: order 6 on P0); below, a truncated series of P(T) expands in 2 F T and need not stay positive
+#: semi-definite, so Phi P Phi^T + Qd (the series' Phi and Qd) is used instead
+SERIES_MIN_ORDER, SERIES_MAX_DECAY = 6, 0.05
+
+
+def _covariance_series_fits(F: np.ndarray, T: float, order: int) -> bool:
+    """Whether the covariance's Taylor series is as good as ``Phi P Phi^T + Qd`` here."""
+    return order >= SERIES_MIN_ORDER and float(np.abs(np.diagonal(F, axis1=1, axis2=2)).max()) * T <= SERIES_MAX_DECAY
 
 
 def _sample_index(t_s: np.ndarray, t: float, tol: float = 1e-6):

@@ -198,6 +198,9 @@ class ImuStream:
         per process: 12 MB for 250 runs; 5000 took 34 MB more in a P0 chunk and was no faster).
     truth_x : tuple, optional
         ``(omega, incr_g, f, incr_a)`` ``(n, 3)`` instead of the truth's (zeros: the errors alone).
+
+    A stream cannot be pickled or copied (its generators sit in a :class:`numba.typed.List`):
+    build it where it is used, as a chunk does.
     """
 
     def __init__(self, truth, spec: ImuSpec, seed: int, runs, name: str = "imu", block: int = 2000,

@@ -465,9 +465,9 @@ def test_a_file_name_that_is_not_a_plain_name_gives_a_plain_default_name(tmp_pat
 def test_a_sweep_point_without_a_successful_run_is_an_error(workdir, capsys, monkeypatch):
     import numpy as np
 
+    import navsim.api
     import navsim.runner
-    import navsim.sweep
-    monkeypatch.setattr(navsim.sweep, "run_monte_carlo", lambda *a, **k: navsim.runner.RunResult(
+    monkeypatch.setattr(navsim.api, "run_monte_carlo", lambda *a, **k: navsim.runner.RunResult(
         {}, np.array([], int), failed={0: "RuntimeError: filter exploded", 1: "RuntimeError: filter exploded"}))
     (workdir / "case").mkdir()
     (workdir / "case" / S).write_text(scenario())

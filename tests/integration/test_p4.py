@@ -7,7 +7,7 @@ Whole-scenario figures (20 runs, ``navsim run``) are in the README; these tests 
 import numpy as np
 import pytest
 
-from navsim.report_attitude import attitude_metrics
+from navsim.metrics import attitude_metrics
 from navsim.runner import run_monte_carlo
 
 

@@ -74,7 +74,8 @@ def test_run_writes_report_metrics_and_histories(short, tmp_path, capsys):
     assert "published (a test) versus ours" in text and "6/6 runs" in text
     hist = np.load(out / "runs.npz")
     assert hist["KF.pos_err_m"].shape[0::2] == (6, 3) and hist["KF.pos_err_m"].shape[1] >= 45
-    # the second run reads the flight from the cache
+    # the first run flew the track, the second reads the flight from the cache
+    assert json.loads((out / "run.json").read_text())["flight_cached"] is False
     assert run(short, tmp_path / "out2") == 0
     assert json.loads((tmp_path / "out2" / "run.json").read_text())["flight_cached"] is True
 

@@ -161,15 +161,15 @@ def test_closed_loop_refuses_dask(repo_root, tmp_path, capsys):
 
 @pytest.mark.filterwarnings("ignore:No artists with labels")   # the stub returns no runs
 def test_sweep_passes_the_executor_to_every_point(short, tmp_path, monkeypatch):
+    import navsim.api
     import navsim.runner
-    import navsim.sweep
     seen = []
 
     def record(*args, **kwargs):
         seen.append((kwargs["executor"], kwargs["scheduler"]))
         return navsim.runner.RunResult({}, np.array([0, 1]))
 
-    monkeypatch.setattr(navsim.sweep, "run_monte_carlo", record)
+    monkeypatch.setattr(navsim.api, "run_monte_carlo", record)
     sweep = tmp_path / "sweep.yaml"
     sweep.write_text(f"scenario: {short.name}\nruns: 2\npoints: [{{montecarlo.seed: 1}}, {{montecarlo.seed: 2}}]\n")
     assert main(["sweep", str(sweep), "--out", str(tmp_path / "out"), "--executor", "dask",

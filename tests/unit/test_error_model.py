@@ -6,6 +6,7 @@ import pytest
 from navsim import earth
 from navsim.estimators import kalman
 from navsim.estimators.error_model import PRESETS, Layout, system_matrix
+from navsim.estimators.eskf import _covariance_series_fits
 from navsim.estimators.measurements import GnssPosition, Height, Velocity
 from navsim.strapdown import NavState, rates_n, rotation, skew
 
@@ -192,3 +193,16 @@ def test_joseph_update_is_the_optimal_update_and_keeps_P_psd():
     valid = np.array([True, False, True, False])
     x2, P2, _, _, nis2 = kalman.update(x, P, z, H, R, valid)
     assert np.array_equal(x2[1], x[1]) and np.array_equal(P2[3], P[3]) and np.isnan(nis2[1])
+
+
+def test_the_filter_falls_back_to_phi_p_phi_where_the_covariance_series_would_not_hold():
+    """Below order 6, or with a state decaying faster than 5 % per period, the ES-KF predicts
+    with the series' Phi and Qd (P3's third order keeps its numbers); from order 6 on slow
+    states, with the covariance's own series."""
+    layout = Layout(PRESETS["p0_16"])
+    lat, lon, h, v, C, w, f = nominal()
+    F = system_matrix(layout, np.array([lat]), np.array([h]), v[None], C[None], (C @ f)[None])
+    F[:, 15, 15] = -1.0 / 600.0
+    assert _covariance_series_fits(F, 1.0, 6) and not _covariance_series_fits(F, 1.0, 3)
+    F[:, 15, 15] = -1.0                                  # a 1 s Markov state over a 1 s period
+    assert not _covariance_series_fits(F, 1.0, 6)
