@@ -22,17 +22,29 @@ import urllib.parse
 from pathlib import Path
 
 import numpy as np
+import yaml
+from tqdm import tqdm
 
 from navsim import api
 from navsim.chunkstore import ChunkStore
-from navsim.errors import FlightError, NavsimError, OutputError
+from navsim.errors import FlightError, NavsimError, OutputError, UsageError
+from navsim.estimators import base
 from navsim.flight.plots import plot_flight
+from navsim.flight.simulator import fly
+from navsim.flight.track import available_tracks, load_track, nominal_duration_s
 from navsim.metrics import lookup
 from navsim.outputs import OutputFolder
-from navsim.report import attitude_lines, closed_loop_lines, divergence_lines, sighting_lines
 from navsim.provenance import provenance
+from navsim.replay import load_ulog, replay, replay_metrics
+from navsim.replay_report import difference_table, write_replay_report
+from navsim.report import attitude_lines, closed_loop_lines, divergence_lines, sighting_lines
 from navsim.runner import cached_flight
-from navsim.scenario import MAX_SEED, MAX_WORKERS, RATE_HZ, check_scenario, load_scenario
+from navsim.scenario import MAX_SEED, MAX_WORKERS, RATE_HZ, available_aircraft, check_scenario, load_scenario
+from navsim.schema import schema_text
+from navsim.sensors import emulate
+from navsim.sensors.catalog import available
+from navsim.sensors.plots import channels, plot_sensor
+from navsim.sweep import parse_sweep, run_sweep
 from navsim.version import __version__
 
 
@@ -65,7 +77,6 @@ def flight_summary(truth) -> str:
 
 
 def _progress(desc: str):
-    from tqdm import tqdm
     bar = tqdm(total=100, desc=desc, unit="%", disable=None, leave=False,
                bar_format="{l_bar}{bar}| {elapsed}<{remaining}")
 
@@ -77,7 +88,6 @@ def _progress(desc: str):
 
 
 def cmd_fly(args) -> int:
-    from navsim.flight.simulator import fly
 
     scenario = load_scenario(args.scenario)
     if args.rate_hz is not None:
@@ -142,7 +152,6 @@ def _fly_or_save(scenario, scenario_file, out: OutputFolder):
 
 
 def cmd_run(args) -> int:
-    from tqdm import tqdm
     scenario = load_scenario(args.scenario)
     runs = scenario.runs if args.runs is None else args.runs
     folder = OutputFolder(Path(args.out) if args.out else Path("reports") / scenario.name)
@@ -240,8 +249,6 @@ def _print_calibration(metrics: dict) -> None:
 
 
 def cmd_sensors(args) -> int:
-    from navsim.sensors import emulate
-    from navsim.sensors.plots import channels, plot_sensor
 
     scenario = load_scenario(args.scenario)
     if not scenario.sensors:
@@ -271,9 +278,7 @@ def cmd_sensors(args) -> int:
 
 
 def cmd_sweep(args) -> int:
-    from tqdm import tqdm
 
-    from navsim.sweep import parse_sweep, run_sweep
     _, _, _, points = parse_sweep(args.sweep)
     folder = OutputFolder(Path(args.out) if args.out else Path("reports") / Path(args.sweep).stem)
     folder.clear_earlier()
@@ -320,9 +325,7 @@ def cmd_sweep(args) -> int:
 
 def parse_settings(items: list[str] | None) -> dict:
     """``key=value`` strings (values read as YAML) to a dict."""
-    import yaml
 
-    from navsim.errors import UsageError
     out = {}
     for item in items or []:
         key, sep, value = item.partition("=")
@@ -339,10 +342,6 @@ DEFAULT_REPLAY_ESTIMATOR = "cpf_ekf"
 
 
 def cmd_replay(args) -> int:
-    from navsim.errors import UsageError
-    from navsim.estimators import base
-    from navsim.replay import load_ulog, replay, replay_metrics
-    from navsim.replay_report import difference_table, write_replay_report
 
     name = args.estimator or DEFAULT_REPLAY_ESTIMATOR
     if name not in base.available():
@@ -380,7 +379,6 @@ def cmd_replay(args) -> int:
 
 
 def cmd_schema(args) -> int:
-    from navsim.schema import schema_text
     sys.stdout.write(schema_text())
     return 0
 
@@ -394,9 +392,6 @@ def cmd_validate(args) -> int:
 
 
 def cmd_list(args) -> int:
-    from navsim.flight.track import available_tracks, load_track, nominal_duration_s
-    from navsim.scenario import available_aircraft
-    from navsim.sensors.catalog import available
     print("aircraft: " + ", ".join(available_aircraft()))
     print("sensors:")
     for name, kind in available().items():

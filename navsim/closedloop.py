@@ -48,12 +48,15 @@ import numpy as np
 from navsim import atmosphere, earth
 from navsim.config import Node, close_match
 from navsim.errors import FlightError, ScenarioError
+from navsim.estimators import factory
 from navsim.flight import properties as P
 from navsim.flight.segments import State
 from navsim.flight.simulator import Aircraft, Watchdog
 from navsim.flight.track import Segment
 from navsim.flight.truth import Truth, truth_from_rows
-from navsim.montecarlo import EPOCH_ARRAYS
+from navsim.montecarlo import EPOCH_ARRAYS, Driver, perturbed_start
+from navsim.sensors import emulate
+from navsim.sensors.imu import OnlineIncrements, error_increments, quantize_increment
 from navsim.transform import quat_from_euler
 
 SUPPORTED_KINDS = ("imu", "gnss", "baro")
@@ -171,8 +174,6 @@ class LoopBatch:
 
 def _sensor_streams(scenario, seed, runs, dt, n):
     """IMU error increments and the other sensors' data (values to be filled in flight)."""
-    from navsim.sensors import emulate
-    from navsim.sensors.imu import error_increments
     imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
     imu = error_increments(imu_cfg.spec, seed, runs, n, dt, name=imu_cfg.name)
     start = scenario.flight.track.start
@@ -225,9 +226,6 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
     """Fly the runs ``runs`` of ``scenario`` with navigation in the loop (see the module
     docstring); ``on_truth`` flies them on the truth whatever ``fly_on`` says; ``keep_truth``
     keeps the first run's whole truth record (for the flight pages of the report)."""
-    from navsim.estimators.factory import build
-    from navsim.montecarlo import Driver, perturbed_start
-    from navsim.sensors.imu import OnlineIncrements, quantize_increment
     cl = scenario.closed_loop
     rtl = cl.return_to_land
     runs = list(runs)
@@ -247,7 +245,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
         goto = Segment("goto", RETURN_LABEL, {"north_m": point[0], "east_m": point[1],
                                               "acceptance_m": rtl.acceptance_m,
                                               **({"alt_m": rtl.alt_m} if rtl.alt_m is not None else {})})
-    estimators = {e.label: build(e) for e in scenario.estimators}
+    estimators = {e.label: factory.build(e) for e in scenario.estimators}   # looked up at the call
     driver = None if (on_truth or cl.fly_on == "truth") else estimators[cl.fly_on]
 
     rows = np.array([c.io.read_row() for c in craft])

@@ -55,6 +55,8 @@ import itertools
 
 import numpy as np
 
+from navsim.sensors.magnetometer import wmm_field_n_T
+
 N_PARAMS = 9
 #: the monomials of degree <= 2 of (x, y, z) the regressors are written in: 1, x, y, z, x^2,
 #: y^2, z^2, xy, xz, yz
@@ -227,7 +229,6 @@ def field_model_n_T(lat_rad, lon_rad, h_m, date: str, grid: bool = True) -> np.n
     per km) or, with ``grid=False``, at the positions themselves (one evaluation per run: for
     the calibration's scale reference, once); each run's value depends on its own position
     only."""
-    from navsim.sensors.magnetometer import wmm_field_n_T
     lat, lon, h = np.degrees(lat_rad), np.degrees(lon_rad), np.asarray(h_m, float)
     key = np.stack([np.round(lat, 2), np.round(lon, 2), np.round(h, -2)] if grid else [lat, lon, h], -1)
     cells, inverse = np.unique(key, axis=0, return_inverse=True)

@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
+from navsim.closedloop import cep
+from navsim.sensors import emulate
 
 #: diverged runs listed by run in an estimator's ``divergence`` metrics (all are counted)
 DIVERGENCE_LISTED = 20
@@ -217,7 +219,6 @@ def closed_loop_metrics(loop: dict, reference, config, histories: dict | None = 
     :func:`navsim.runner.run_closed_loop`) and the truth-guided ``reference`` flight: how many
     runs landed, reached the recovery area, failed; CEP50/CEP95 of the true miss distance (and
     of the navigation solution's own, which the guidance closed), against the reference."""
-    from navsim.closedloop import cep
     out = {"fly_on": config.fly_on, "time_limit_s": config.time_limit_s}
     if not loop:
         return out
@@ -252,7 +253,6 @@ def sighting_spans(truth, scenario, seed: int = 0) -> list[tuple]:
     """``(name, start_s, end_s, sigma_m)`` of every landmark sighting of the scenario's cameras
     on ``truth`` (the same for every run: the flight is shared), ``sigma_m`` the camera's fix
     noise per axis at the sighting's last fix (``noise + noise_ratio * range``)."""
-    from navsim.sensors import emulate
     out = []
     for c in scenario.sensors:
         if c.kind != "camera":

@@ -13,10 +13,20 @@ results equal :func:`~navsim.metrics.score` of the merged runs up to the roundin
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 from scipy.stats import chi2
 
-from navsim.metrics import DivergenceLog, chi2_band, convergence_time, reset_metrics, window_quantities
+from navsim.metrics import (
+    DivergenceLog,
+    calibration_score,
+    chi2_band,
+    convergence_time,
+    reset_metrics,
+    sighting_metrics,
+    window_quantities,
+)
 from navsim.montecarlo import sum_cost
 
 BINS_PER_DECADE = 400
@@ -355,9 +365,7 @@ def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> tuple[d
     settle_s, windows, sightings
         As :func:`navsim.metrics.score` and :func:`navsim.metrics.sighting_metrics`.
     """
-    from types import SimpleNamespace
 
-    from navsim.metrics import calibration_score, sighting_metrics
     scores, thin, calib = {}, {}, {}
     for part in parts():
         for label, h in part[1].items():

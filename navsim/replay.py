@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from navsim.errors import LogError, UsageError
+from navsim.estimators import base
 from navsim.montecarlo import Driver, InitialErrors
 from navsim.sensors.base import SensorData
 from navsim.strapdown import NavState
@@ -439,7 +440,6 @@ def initial_state(log: ReplayLog, align: Alignment) -> tuple[NavState, dict]:
 def build_estimator(name: str, params: dict, defaults: dict):
     """``base.get(name)(**kw)``: ``defaults`` the constructor accepts, overridden by ``params``;
     a :class:`NavsimError` for an unknown name or a parameter the class does not take."""
-    from navsim.estimators import base
     try:
         cls = base.get(name)
     except KeyError as exc:

@@ -11,8 +11,10 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from navsim.errors import OutputError
+from navsim.flight.plots import flight_figures
 from navsim.metrics import EULER_AXES, chi2_band, lookup
 from navsim.outputs import OutputFolder, write_atomic
 
@@ -505,9 +507,7 @@ def write_report(folder: OutputFolder, scenario, truth, result, metrics: dict, r
     ``reference``: the per-run outcome of a closed-loop scenario and its truth-guided flight;
     ``sightings``: landmark sightings ``(name, start_s, end_s, sigma_m)``, shaded in green."""
     plt = _plt()
-    from navsim.flight.plots import flight_figures
     runs_plotted = scenario.report.get("runs_plotted", 5)
-    import yaml
     pages = [("summary", _text_page(f"navsim report: {scenario.name}", summary_lines(scenario, record, metrics)))]
     resolved = dict(scenario.raw)
     resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": record["runs"],

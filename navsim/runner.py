@@ -21,12 +21,18 @@ from pathlib import Path
 import numpy as np
 
 from navsim.chunkstore import chunk_name
+from navsim.closedloop import end_records, fly_batch
 from navsim.config import cache_dir
-from navsim.errors import ScenarioError
+from navsim.dask_executor import run_chunks_dask
+from navsim.errors import ScenarioError, UsageError
+from navsim.estimators import factory
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import fly
 from navsim.flight.truth import Truth
-from navsim.montecarlo import EPOCH_ARRAYS, RUN_LISTS, EstimatorHistory, sum_cost
+from navsim.magcal import calibration_history
+from navsim.montecarlo import EPOCH_ARRAYS, RUN_LISTS, EstimatorHistory, run_batch, sum_cost
+from navsim.sensors import emulate
+from navsim.sensors.imu import ImuStream, emulate_imu
 from navsim.version import __version__
 
 #: runs per chunk, by measurement (benchmarks/chunk_size.py, P0, 1000 runs, 2 workers): 125 runs
@@ -131,10 +137,6 @@ def _chunk(args):
 def _chunk_work(truth_or_path, scenario, seed, runs):
     """The sensors and estimators of the runs ``runs``: ``(runs, histories, truth_bias, calibration)``."""
     truth = Truth.load(truth_or_path) if isinstance(truth_or_path, (str, Path)) else truth_or_path
-    from navsim.estimators.factory import build
-    from navsim.montecarlo import run_batch
-    from navsim.sensors import emulate
-    from navsim.sensors.imu import ImuStream, emulate_imu
     imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
     if imu_cfg.spec.vibration:       # normalised over the whole record: emulated whole
         imu = emulate_imu(truth, imu_cfg.spec, seed, runs, name=imu_cfg.name, keep_rates=False)
@@ -146,7 +148,7 @@ def _chunk_work(truth_or_path, scenario, seed, runs):
     calibrated = mag_calibrations(scenario)
     others = {c.name: emulate(truth, c, seed, runs) for c in scenario.sensors if c.kind != "imu"}
     others = {name: d if name in calibrated else replace(d, errors={}) for name, d in others.items()}
-    estimators = {e.label: build(e) for e in scenario.estimators}
+    estimators = {e.label: factory.build(e) for e in scenario.estimators}   # looked up at the call
     hist = run_batch(truth, imu, others, estimators, scenario.initial, seed, runs)
     # true IMU biases at the epochs of the first estimator, for the bias plots
     first = next(iter(hist.values()))
@@ -157,7 +159,6 @@ def _chunk_work(truth_or_path, scenario, seed, runs):
         bias = {k: np.broadcast_to(imu.errors[k], (len(runs), max(imu.errors[k].shape[1], 1), 3))
                 for k in ("gyro_bias", "accel_bias")}
         bias = {k: (v[:, idx] if v.shape[1] > 1 else np.repeat(v, len(idx), axis=1)) for k, v in bias.items()}
-    from navsim.magcal import calibration_history
     calib = {name: calibration_history(truth, others[name], s["noise_uT"] * 1e-6, s["forgetting"])
              for name, s in calibrated.items()}
     return list(runs), hist, bias, calib
@@ -241,7 +242,6 @@ def run_chunks(fn, chunks, make_args, workers: int, progress=None, on_part=None)
 def chunk_ranges(runs: int, size: int) -> list[range]:
     """Runs ``0 .. runs-1`` cut into chunks of ``size``."""
     if size < 1:
-        from navsim.errors import UsageError
         raise UsageError(f"chunk size must be at least 1, not {size}")
     return [range(a, min(a + size, runs)) for a in range(0, runs, size)]
 
@@ -282,7 +282,6 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: i
     pending = store.missing(chunks) if store is not None else chunks
     on_part = store.add if store is not None else None
     if executor == "dask":
-        from navsim.dask_executor import run_chunks_dask
         parts, failed, interrupted = run_chunks_dask(
             _chunk, pending, truth, truth_path, (scenario, seed), workers, scheduler, progress, on_part)
     else:
@@ -307,7 +306,6 @@ CLOSED_CHUNK_RUNS = 25
 def _closed_chunk(args):
     """Worker: one chunk of closed-loop runs (each run flies its own aircraft)."""
     scenario, seed, runs = args
-    from navsim.closedloop import end_records, fly_batch
     b = fly_batch(scenario, seed, runs)
     end_records(b, 1.0 / scenario.flight.rate_hz)
     extra = {"outcome": np.array(b.outcome), "abort_t_s": b.abort_t_s, "land_t_s": b.land_t_s,
@@ -343,7 +341,6 @@ def run_closed_loop(scenario, runs: int, seed: int, workers: int, progress=None)
     flight guided on the truth; returns ``(RunResult, extra, reference)``: ``extra`` holds the
     per-run outcome, abort and landing times, miss distances and true paths (runs in order),
     ``reference`` the :class:`~navsim.closedloop.LoopBatch` of the truth-guided flight."""
-    from navsim.closedloop import end_records, fly_batch
     reference = fly_batch(scenario, seed, [0], on_truth=True, keep_truth=True)
     end_records(reference, 1.0 / scenario.flight.rate_hz)
     chunks = chunk_ranges(runs, CLOSED_CHUNK_RUNS)

@@ -22,16 +22,19 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-
-import numpy as np
 from pathlib import Path
 
+import numpy as np
+
+from navsim.closedloop import parse_closed_loop
 from navsim.config import Node, close_match, load_yaml, plain_name
 from navsim.errors import ScenarioError
+from navsim.estimators.factory import parse_estimators
 from navsim.flight.environment import parse_environment
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import FlightConfig
 from navsim.flight.track import nominal_duration_s, parse_track
+from navsim.montecarlo import InitialErrors
 from navsim.sensors import HEIGHT_FIELDS, VELOCITY_FIELDS, output_fields, parse_sensors
 from navsim.sensors.base import check_faults
 
@@ -106,7 +109,6 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
         mc.done()
     estimators = ()
     if "estimators" in node.data:
-        from navsim.estimators.factory import parse_estimators
         node._seen.add("estimators")
         estimators = parse_estimators(node.data["estimators"], {c.name: c.kind for c in sensors}, file)
         imu = [c for c in sensors if c.kind == "imu"]
@@ -144,7 +146,6 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     if cl_node is not None:
         if not estimators:
             raise cl_node.error("needs estimators", "fly_on", expected="an estimators list to fly on")
-        from navsim.closedloop import parse_closed_loop
         closed_loop = parse_closed_loop(cl_node, [e.label for e in estimators], sensors, track,
                                         nominal_s, rate_hz)
     node.done()
@@ -251,7 +252,6 @@ def _three(node, key, default, scale=1.0):
 
 def _initial(node):
     """``initial_errors: {pos_m, vel_mps, att_arcsec, fixed}`` (1-sigma, NED axes)."""
-    from navsim.montecarlo import InitialErrors
     if node is None:
         return InitialErrors()
     out = InitialErrors(pos_m=_three(node, "pos_m", 0.0), vel_mps=_three(node, "vel_mps", 0.0),

@@ -9,9 +9,13 @@ from __future__ import annotations
 import json
 
 from navsim.config import PLAIN_NAME_PATTERN
+from navsim.estimators.attitude_config import CPF_GAINS, INITIAL_KEYS, SIGMA_KEYS
+from navsim.estimators.error_model import BLOCK_SIZES, PRESETS
 from navsim.flight.environment import MAX_WIND_MPS
 from navsim.flight.track import MAX_AIRSPEED_MPS, SEGMENT_KEYS
 from navsim.scenario import MAX_WORKERS, RATE_HZ
+from navsim.sensors.base import FAULT_TYPES
+from navsim.sensors.catalog import available
 
 NUM = {"type": "number"}
 POS = {"type": "number", "exclusiveMinimum": 0}
@@ -42,9 +46,6 @@ def _segment(kind: str) -> dict:
 
 
 def scenario_schema() -> dict:
-    from navsim.estimators.error_model import BLOCK_SIZES, PRESETS
-    from navsim.sensors.base import FAULT_TYPES
-    from navsim.sensors.catalog import available
     start = _obj({"type": {"enum": ["air", "launch", "ground"]}, "lat_deg": NUM, "lon_deg": NUM, "alt_m": NUM,
                   "speed_mps": AIRSPEED, "heading_deg": NUM, "pitch_deg": NUM, "roll_deg": NUM, "launcher_height_m": POS,
                   "booster_thrust_n": NUM, "booster_time_s": NUM},
@@ -157,7 +158,6 @@ def schema_text() -> str:
 
 def _attitude_keys() -> dict:
     """Keys of P4's ``cpf`` / ``cpf_ekf`` entries (see navsim.estimators.attitude_config)."""
-    from navsim.estimators.attitude_config import CPF_GAINS, INITIAL_KEYS, SIGMA_KEYS
     nonneg = {"type": "number", "minimum": 0}
     return {"mag": {"type": "string"}, "gnss": {"type": "string"}, "imu": {"type": "string"},
             "field_uT": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim import earth, kernels
+from navsim.transform import dcm_from_quat
 
 
 @dataclass
@@ -168,7 +169,6 @@ def _rows_in_order(x) -> np.ndarray:
 
 def state_from_truth(truth, k: int = 0, runs: int = 1) -> NavState:
     """The true navigation state at truth sample ``k``, repeated for ``runs``."""
-    from navsim.transform import dcm_from_quat
     rep = lambda x: np.repeat(np.asarray(x, float)[None], runs, axis=0)
     return NavState(rep(truth.lat_rad[k]), rep(truth.lon_rad[k]), rep(truth.h_m[k]),
                     rep(truth.vel_n_mps[k]), rep(dcm_from_quat(truth.quat_nb[k])))

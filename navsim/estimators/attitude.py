@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim import earth
+from navsim.sensors.magnetometer import wmm_field_n_T
 from navsim.strapdown import NavState, cross
 from navsim.transform import dcm_from_quat, quat_multiply
 
@@ -143,7 +144,6 @@ def reference_field_uT(frame: LocalFrame, mag_data, field_n_T=None) -> np.ndarra
     B = frame.lat0.shape[0]
     if field_n_T is not None:
         return np.broadcast_to(np.asarray(field_n_T, float) / UT, (B, 3)).copy()
-    from navsim.sensors.magnetometer import wmm_field_n_T
     date = (mag_data.meta.get("date") if mag_data is not None else None) or "2025-01-01"
     f = [wmm_field_n_T(round(float(np.degrees(a)), 4), round(float(np.degrees(b)), 4),
                        round(float(c), 0), date) for a, b, c in zip(frame.lat0, frame.lon0, frame.h0)]

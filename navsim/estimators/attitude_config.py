@@ -20,6 +20,10 @@ import math
 import numpy as np
 
 from navsim.config import Node, close_match
+from navsim.estimators.cpf import ComplementaryFilter
+from navsim.estimators.cpf_ekf import CpfEkf
+from navsim.sensors.catalog import load_spec
+from navsim.sensors.specs import ImuSpec
 
 SENSOR_KINDS = {"mag": ("magnetometer",), "gnss": ("gnss",), "baro": ("baro",)}
 CPF_GAINS = ("kp_acc", "kp_mag", "ki", "accel_tau_s", "acc_gate", "mag_gate", "dip_gate_deg", "accel_ref_tau_s",
@@ -82,8 +86,6 @@ def attitude_params(node: Node, kind: str, sensors: dict) -> dict:
         return p
     imu = node.get("imu", str, None)
     if imu is not None:
-        from navsim.sensors.catalog import load_spec
-        from navsim.sensors.specs import ImuSpec
         spec = load_spec(imu, None, (), node.file, node.key("imu"))
         if not isinstance(spec, ImuSpec):
             raise node.error(f"'{imu}' is not an IMU", "imu", expected="an imu catalog entry")
@@ -126,12 +128,9 @@ def build_attitude(kind: str, params: dict):
     """A ``cpf`` / ``cpf_ekf`` object from validated parameters."""
     p = dict(params)
     if kind == "cpf":
-        from navsim.estimators.cpf import ComplementaryFilter
         return ComplementaryFilter(**p)
-    from navsim.estimators.cpf_ekf import CpfEkf
     noise, initial = {}, {}
     if p.get("imu"):
-        from navsim.sensors.catalog import load_spec
         noise, initial = imu_noise(load_spec(p["imu"]))
     noise.update(p.get("noise", {}))
     initial.update(p.get("initial", {}))          # gyro_bias_dps (if given) wins over the spec's

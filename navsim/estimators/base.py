@@ -28,6 +28,7 @@ from importlib import metadata
 
 import numpy as np
 
+from navsim.config import close_match
 from navsim.strapdown import NavState
 
 _REGISTRY: dict[str, type] = {}
@@ -72,7 +73,6 @@ def get(name: str) -> type:
     if name not in _REGISTRY:
         _load_entry_points()
     if name not in _REGISTRY:
-        from navsim.config import close_match
         raise KeyError(f"no estimator '{name}' ({close_match(name, _REGISTRY) or 'none registered'})")
     return _REGISTRY[name]
 

@@ -66,8 +66,25 @@ import numpy as np
 from navsim.config import Node, close_match
 from navsim.errors import ScenarioError
 from navsim.estimators import base
+from navsim.estimators.attitude_config import attitude_params, build_attitude
 from navsim.estimators.error_model import BLOCK_SIZES, PRESETS, Layout
-from navsim.estimators.measurements import GnssPosition, Height, Velocity
+from navsim.estimators.eskf import ErrorStateKF
+from navsim.estimators.federated import FederatedKF
+from navsim.estimators.fuzzy_adaptive import FuzzyAdaptiveKF
+from navsim.estimators.measurements import (
+    GnssHorizontal,
+    GnssPosition,
+    Height,
+    LandmarkFix,
+    MagneticHeading,
+    Velocity,
+)
+from navsim.estimators.p2_height import DynamicHeightKF, HeightFusion
+from navsim.estimators.sage_husa import SageHusaKF
+from navsim.estimators.sins import FreeInertial
+from navsim.estimators.two_stage import TwoStageAdaptiveKF
+from navsim.sensors.catalog import load_spec
+from navsim.sensors.specs import ImuSpec
 
 
 @dataclass(frozen=True)
@@ -121,7 +138,6 @@ def parse_estimators(data, sensors: dict, file: str | None = None, path: str = "
         elif kind == "sins":
             params = {"period_s": node.get("period_s", float, 1.0, exclusive_minimum=0.0)}
         elif kind in ("cpf", "cpf_ekf"):
-            from navsim.estimators.attitude_config import attitude_params
             params = attitude_params(node, kind, sensors)
         else:
             params = {k: v for k, v in node.data.items() if k not in ("label", "type")}
@@ -177,9 +193,7 @@ def _eskf_params(node: Node, sensors: dict) -> dict:
     noise = node.child("noise")
     imu = noise.get("imu", str)
     override = noise.child("override", None)
-    from navsim.sensors.catalog import load_spec
     spec = load_spec(imu, override.data if override else None, (), node.file, noise.path)
-    from navsim.sensors.specs import ImuSpec
     if not isinstance(spec, ImuSpec):
         raise noise.error(f"'{imu}' is not an IMU", "imu", expected="an imu catalog entry")
     noise.done()
@@ -346,7 +360,6 @@ def _height_params(node: Node, sensors: dict) -> dict:
 
 
 def _models(entries: list) -> list:
-    from navsim.estimators.measurements import GnssHorizontal, LandmarkFix, MagneticHeading
     models = []
     for m in entries:
         if m["type"] == "gnss_position":
@@ -372,15 +385,11 @@ ESKF_FAMILY = ("eskf", "p2_dynamic_height", "two_stage_adaptive", "sage_husa", "
 def build(config: EstimatorConfig):
     """A fresh estimator object from its configuration."""
     if config.type == "sins":
-        from navsim.estimators.sins import FreeInertial
         return FreeInertial(**config.params)
     if config.type in ("cpf", "cpf_ekf"):
-        from navsim.estimators.attitude_config import build_attitude
         return build_attitude(config.type, config.params)
     if config.type not in ESKF_FAMILY:
         return base.get(config.type)(**config.params)
-    from navsim.estimators.eskf import ErrorStateKF
-    from navsim.sensors.catalog import load_spec
     p = config.params
     spec = load_spec(p["noise"]["imu"], p["noise"]["override"])
     layout = Layout(tuple(p["states"]))
@@ -388,21 +397,16 @@ def build(config: EstimatorConfig):
     kw = dict(baro_sigma_m=p["baro"]["sigma_m"], baro_tau_s=p["baro"]["tau_s"], period_s=p["period_s"],
               discretization=p["discretization"], series_order=p["series_order"])
     if config.type == "federated":
-        from navsim.estimators.federated import FederatedKF
         f = p["federated"]
         locals_ = [{**loc, "measurements": _models(loc["measurements"])} for loc in f["locals"]]
         return FederatedKF.from_imu_spec(layout, spec, locals_, master_beta=f["master_beta"],
                                          reset=f["reset"], isolation=f["isolation"], **kw)
     if config.type == "two_stage_adaptive":
-        from navsim.estimators.two_stage import TwoStageAdaptiveKF
         return TwoStageAdaptiveKF.from_imu_spec(layout, spec, models, **p["adaptive"], **kw)
     if config.type == "sage_husa":
-        from navsim.estimators.sage_husa import SageHusaKF
         return SageHusaKF.from_imu_spec(layout, spec, models, **p["adaptive"], **kw)
     if config.type == "fuzzy_adaptive":
-        from navsim.estimators.fuzzy_adaptive import FuzzyAdaptiveKF
         return FuzzyAdaptiveKF.from_imu_spec(layout, spec, models, **p["adaptive"], **kw)
     if config.type == "p2_dynamic_height":
-        from navsim.estimators.p2_height import DynamicHeightKF, HeightFusion
         return DynamicHeightKF.from_imu_spec(layout, spec, models, fusion=HeightFusion(**p["height"]), **kw)
     return ErrorStateKF.from_imu_spec(layout, spec, models, **kw)

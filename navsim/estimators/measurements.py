@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navsim import earth
+from navsim import earth, magcal
 from navsim.estimators.error_model import Layout
 from navsim.strapdown import NavState
 
@@ -165,7 +165,6 @@ class MagneticHeading:
     _fit: object = dataclasses.field(default=None, init=False, repr=False)     #: the RLS fit, from the first call
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
-        from navsim import magcal
         B = nav.lat_rad.shape[0]
         date = data.meta.get("date", "2025-01-01")
         yaw = np.arctan2(nav.C_nb[:, 1, 0], nav.C_nb[:, 0, 0])

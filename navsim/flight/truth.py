@@ -36,8 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
+from navsim import atmosphere, earth
 from navsim.flight import properties as P
-from navsim.transform import quat_from_euler
+from navsim.transform import dcm_from_quat, quat_from_euler
 
 ARRAY_FIELDS = ("t_s", "lat_rad", "lon_rad", "h_m", "vel_n_mps", "quat_nb", "euler_rad",
                 "omega_ib_b_rps", "f_b_mps2", "tas_mps", "cas_mps", "p_static_pa", "p_total_pa",
@@ -125,13 +126,11 @@ class Truth:
         and ``pitch_deg`` (default level): the specific force is minus gravity, the inertial rate
         the Earth rate. ``h_agl_m`` (array or scalar) overrides the height above the surface (for
         altimeter tests)."""
-        from navsim import atmosphere, earth
         n = int(round(duration_s * rate_hz)) + 1
         lat, lon, yaw = np.radians(lat_deg), np.radians(lon_deg), np.radians(yaw_deg)
         ones = np.ones(n)
         euler = np.column_stack([np.radians(roll_deg) * ones, np.radians(pitch_deg) * ones, yaw * ones])
         quat = quat_from_euler(euler[:, 0], euler[:, 1], euler[:, 2])
-        from navsim.transform import dcm_from_quat
         C_bn = dcm_from_quat(quat[0]).T
         g_n = earth.gravity_n(lat, h_m)
         w_n = earth.OMEGA_IE_RPS * np.array([np.cos(lat), 0.0, -np.sin(lat)])

@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from navsim import earth
-from navsim.sensors.base import (SensorData, apply_outages, gauss_markov, normals,
-                                 sampling)
+from navsim.sensors.base import SensorData, apply_outages, gauss_markov, normals, sampling
 from navsim.sensors.specs import GnssSpec
+from navsim.transform import dcm_from_quat
 
 
 def _interp(t_query, t, x):
@@ -59,7 +59,6 @@ def emulate_gnss(truth, spec: GnssSpec, seed: int, runs, faults=(), name: str = 
                           -(h - truth.h_m[::step])], axis=-1))
     vel_off = vel - truth.vel_n_mps[::step]
     if np.any(spec.lever_arm_b):
-        from navsim.transform import dcm_from_quat
         C_nb = dcm_from_quat(truth.quat_nb[::step])
         offset_n = offset_n + C_nb @ spec.lever_arm_b
         vel_off = vel_off + np.einsum("nij,nj->ni", C_nb,
