@@ -88,7 +88,6 @@ def _progress(desc: str):
 
 
 def cmd_fly(args) -> int:
-
     scenario = load_scenario(args.scenario)
     if args.rate_hz is not None:
         scenario.flight.rate_hz = args.rate_hz
@@ -249,7 +248,6 @@ def _print_calibration(metrics: dict) -> None:
 
 
 def cmd_sensors(args) -> int:
-
     scenario = load_scenario(args.scenario)
     if not scenario.sensors:
         print(f"error: {args.scenario} has no 'sensors'", file=sys.stderr)
@@ -278,7 +276,6 @@ def cmd_sensors(args) -> int:
 
 
 def cmd_sweep(args) -> int:
-
     _, _, _, points = parse_sweep(args.sweep)
     folder = OutputFolder(Path(args.out) if args.out else Path("reports") / Path(args.sweep).stem)
     folder.clear_earlier()
@@ -342,7 +339,6 @@ DEFAULT_REPLAY_ESTIMATOR = "cpf_ekf"
 
 
 def cmd_replay(args) -> int:
-
     name = args.estimator or DEFAULT_REPLAY_ESTIMATOR
     if name not in base.available():
         raise UsageError(f"no estimator '{name}' registered; choose one with --estimator: "
