@@ -91,6 +91,22 @@ def part_from_arrays(data) -> tuple:
 _CHUNK_FILE = re.compile(r"^chunk_\d+-\d+\.npz$")
 
 
+def chunk_runs(name: str) -> range:
+    """The runs of a chunk named ``"<first>-<last>"``."""
+    first, last = name.split("-")
+    return range(int(first), int(last) + 1)
+
+
+def listed_runs(folder: Path) -> list:
+    """The runs the index of ``folder`` lists, in order, read from the index alone (the chunk
+    files are not opened; :meth:`ChunkStore.open` checks them); none without a readable index."""
+    try:
+        index = ChunkStore.read_index(folder) or {}
+    except ResumeError:
+        return []
+    return [r for n in sorted(_chunk_files(index), key=lambda n: chunk_runs(n)[0]) for r in chunk_runs(n)]
+
+
 def _chunk_files(index: dict) -> dict:
     """Chunk name -> file name of the chunks an index lists (plain chunk file names only)."""
     chunks = index.get("chunks") if isinstance(index, dict) else None
@@ -237,8 +253,11 @@ class ChunkStore:
         self.failed.update(failed_chunks)
         self._write_index()
 
+    def _names(self) -> list:
+        return sorted(self.done, key=lambda n: chunk_runs(n)[0])
+
     def _files(self) -> list:
-        return [self.done[n] for n in sorted(self.done, key=lambda n: int(n.split("-")[0]))]
+        return [self.done[n] for n in self._names()]
 
     def parts(self):
         """The stored chunk parts ``(runs, histories, truth_bias, calibration)`` one at a time,
@@ -250,8 +269,7 @@ class ChunkStore:
 
     def runs(self) -> list:
         """The run indices stored, in order."""
-        names = sorted(self.done, key=lambda n: int(n.split("-")[0]))
-        return [r for n in names for r in range(int(n.split("-")[0]), int(n.split("-")[1]) + 1)]
+        return [r for n in self._names() for r in chunk_runs(n)]
 
     def merged(self, limit: int | None = None) -> tuple | None:
         """The stored chunks as one part ``(runs, histories, truth_bias, calibration)``, or None:
@@ -262,11 +280,10 @@ class ChunkStore:
         """
         files, sizes = [], []
         for file in self._files():
-            a, b = file[len("chunk_"):-len(".npz")].split("-")
             if limit is not None and sum(sizes) >= limit:
                 break
             files.append(file)
-            sizes.append(int(b) - int(a) + 1)
+            sizes.append(len(chunk_runs(file[len("chunk_"):-len(".npz")])))
         if not files:
             return None
         with np.load(self.folder / files[0], allow_pickle=False) as first:

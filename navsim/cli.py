@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import shutil
 import sys
 import time
@@ -26,7 +25,7 @@ import yaml
 from tqdm import tqdm
 
 from navsim import api
-from navsim.chunkstore import ChunkStore
+from navsim.chunkstore import listed_runs
 from navsim.errors import FlightError, NavsimError, OutputError, UsageError
 from navsim.estimators import base
 from navsim.flight.plots import plot_flight
@@ -160,7 +159,7 @@ def cmd_run(args) -> int:
     else:
         flight = _fly_or_save(scenario, args.scenario, folder)   # cached, or flown with its progress bar
         if args.resume:
-            todo -= _stored_runs(folder.path / "chunks")
+            todo -= len(listed_runs(folder.path / "chunks"))
             desc += f", {todo} left"
     with tqdm(total=todo, desc=desc, unit="run", disable=None) as pbar:
         result = api.run(scenario, runs, args.seed, args.workers, out=folder.path, executor=args.executor,
@@ -182,17 +181,6 @@ def cmd_run(args) -> int:
         print(f"error: no run succeeded (see {out}/run.json)", file=sys.stderr)
         return 1
     return 0
-
-
-def _stored_runs(chunks: Path) -> int:
-    """The runs an interrupted run's index lists (for the progress bar; the chunks themselves
-    are checked when the run is resumed)."""
-    try:
-        index = ChunkStore.read_index(chunks) or {}
-    except NavsimError:
-        return 0
-    names = index.get("chunks") if isinstance(index.get("chunks"), dict) else {}
-    return sum(int(b) - int(a) + 1 for a, b in (n.split("-") for n in names if re.fullmatch(r"\d+-\d+", n)))
 
 
 def print_run_summary(result) -> None:

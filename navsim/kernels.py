@@ -848,20 +848,9 @@ def _cholesky_in_place(A):
 
 
 @njit(cache=True)
-def nees(P, e, out):
-    """``out[b] = e_b^T P_b^-1 e_b`` of each run (``P`` ``(B, n, n)``, ``e`` ``(B, n)``), by
-    :func:`_solve`; NaN where ``P`` is singular."""
-    B, n = P.shape[0], P.shape[1]
-    A = np.empty((n, n))
-    y = np.empty((n, 1))
-    x = np.empty((n, 1))
-    for b in range(B):
-        out[b] = _nees_run(P[b], e[b], A, y, x)
-
-
-@njit(cache=True)
 def _nees_run(P, e, A, y, x):
-    """One run's NEES of :func:`nees` (``A`` ``(n, n)``, ``y``, ``x`` ``(n, 1)``: scratch)."""
+    """One run's NEES ``e^T P^-1 e`` by :func:`_solve`, NaN where ``P`` is singular (``A``
+    ``(n, n)``, ``y``, ``x`` ``(n, 1)``: scratch)."""
     n = P.shape[0]
     for i in range(n):
         y[i, 0] = e[i]
@@ -878,7 +867,7 @@ def covariance_record(P, errors, truth, limits, sigma, nees, code):
     """What a record keeps of each run's navigation covariance ``P`` ``(B, 9, 9)`` (attitude
     rad, velocity m/s, position rad, rad, m) against its ``errors`` (the first 9 columns of
     :func:`nav_errors`' output): the 1-sigma ``sigma`` ``(B, 9)`` with the position NED in m (on
-    the truth's radii; ``truth`` as in :func:`nav_errors`), the NEES (:func:`nees`) and a
+    the truth's radii; ``truth`` as in :func:`nav_errors`), the NEES (:func:`_nees_run`) and a
     divergence ``code``: 4 an error is not finite, else the covariance's code
     (:func:`covariance_codes`) when above 0, else 5 when the NEES is above ``limits[2]``, else
     0. ``limits``: the symmetry and positive-definiteness tolerances and the NEES bound."""

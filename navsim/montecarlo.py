@@ -83,7 +83,11 @@ def nav_errors(nav: NavState, truth, k: int):
     roll, pitch, yaw minus the truth's, wrapped to [-pi, pi) (compiled, run by run:
     :func:`navsim.kernels.nav_errors`). The truth's sample may be one for all runs or ``(B, ...)``."""
     out = _errors(nav, truth, k)[0]
-    return out[:, 0:3], out[:, 3:6], out[:, 9:12], out[:, 6:9], out[:, 12:15]
+    return tuple(out[:, c] for c in (_PHI, _DV, _POS_M, _POS_FILTER, _EULER))
+
+
+#: the columns of :func:`navsim.kernels.nav_errors`' output
+_PHI, _DV, _POS_FILTER, _POS_M, _EULER = (slice(i, i + 3) for i in range(0, 15, 3))
 
 
 def _errors(nav: NavState, truth, k: int):
@@ -356,7 +360,7 @@ class _Recorder:
         """Record the estimator's solution against truth sample ``k`` at time ``t`` (s)."""
         sol = est.solution()
         err, rows = _errors(sol.nav, truth, k)
-        phi, dv, pos_m, euler = err[:, 0:3], err[:, 3:6], err[:, 9:12], err[:, 12:15]
+        phi, dv, pos_m, euler = err[:, _PHI], err[:, _DV], err[:, _POS_M], err[:, _EULER]
         B = err.shape[0]
         code, nees, sig = np.zeros(B, np.int64), None, None
         if sol.P_nav is not None:
