@@ -48,9 +48,9 @@ def measure_speed(runs: int, workers: int, executor: str, out: Path) -> dict:
     """The Monte Carlo alone (chunks streamed; cluster start and close included): wall time."""
     from navsim.chunkstore import ChunkStore
     from navsim.runner import scenario_hash
-    from navsim.metrics_stream import score_parts
     from navsim.runner import CHUNK_RUNS, cached_flight, run_monte_carlo
     from navsim.scenario import load_scenario
+    from navsim.scoring.scorer import score_parts
     sc = load_scenario(SCENARIO)
     truth, path, _ = cached_flight(sc.flight)
     key = {"scenario_hash": scenario_hash(sc), "seed": sc.seed, "runs": runs, "chunk_runs": CHUNK_RUNS}
@@ -60,7 +60,7 @@ def measure_speed(runs: int, workers: int, executor: str, out: Path) -> dict:
     wall = time.perf_counter() - t0
     m = score_parts(store.parts, sc.settle_s, sc.windows)
     return {"runs": runs, "workers": workers, "executor": executor, "wall_s": wall, "runs_done": len(res.runs),
-            "rms_pos_m": {k: e["rms"]["pos_m"] for k, e in m.items()}}
+            "rms_pos_m": {k: e.rms.pos_m for k, e in m.items()}}
 
 
 def child(mode: str, runs: int, workers: int, executor: str, tmp: Path) -> dict:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from navsim.closedloop import cep
+from navsim.scoring.closed_loop import cep
 from navsim.runner import run_closed_loop
 from navsim.scenario import load_scenario
 

@@ -24,10 +24,10 @@ runs = int(os.environ.get("NAVSIM_EXAMPLE_RUNS", "20"))
 scenario = navsim.load_scenario(ROOT / "scenarios" / "p0_bd_sins_ads.yaml")
 result = navsim.run(scenario, runs=runs, seed=1, workers=2)   # nothing is written
 
-# %% the scores, as metrics.json holds them
-for label, m in result.metrics["estimators"].items():
-    print(f"{label:24s} RMS position N E D {np.round(m['rms']['pos_m'], 2)} m, "
-          f"{m['diverged_runs']} of {result.metrics['runs']} runs diverged")
+# %% the scores, typed (result.to_dict() is metrics.json)
+for label, m in result.metrics.estimators.items():
+    print(f"{label:24s} RMS position N E D {np.round(m.rms.pos_m, 2)} m, "
+          f"{m.diverged_runs} of {result.metrics.runs} runs diverged")
 
 # %% the histories as a Dataset: estimator x run x epoch x axis, units in the attributes
 ds = result.to_xarray()

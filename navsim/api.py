@@ -4,7 +4,7 @@ its report. ``navsim run`` is this API with a progress bar and a summary table.
 >>> import navsim
 >>> scenario = navsim.load_scenario("scenarios/p0_bd_sins_ads.yaml")
 >>> result = navsim.run(scenario, runs=20, workers=2)          # out=None: nothing is written
->>> result.metrics["estimators"]["BD/SINS/ADS ES-KF 16"]["rms"]["pos_m"]
+>>> result.metrics.estimators["BD/SINS/ADS ES-KF 16"].rms.pos_m   # typed (navsim.scoring.metrics)
 >>> ds = result.to_xarray()                                    # run x epoch x axis, with units
 >>> navsim.write_report(result, "reports/p0")                 # report.pdf, PNGs, metrics.json
 >>> again = navsim.open_result("reports/p0")                   # read-only
@@ -28,9 +28,11 @@ import yaml
 from navsim.chunkstore import ChunkStore
 from navsim.dask_executor import _import_distributed
 from navsim.errors import ScenarioError, UsageError
-from navsim.metrics import calibration_score, closed_loop_metrics, score, sighting_metrics, sighting_spans
-from navsim.metrics_stream import score_run
-from navsim.montecarlo import ARRAY_FIELDS, EstimatorHistory
+from navsim.scoring.closed_loop import closed_loop_metrics
+from navsim.scoring.history import ARRAY_FIELDS, ChunkPart, EstimatorHistory
+from navsim.scoring.landmarks import sighting_spans
+from navsim.scoring.metrics import RunMetrics
+from navsim.scoring.scorer import score_run
 from navsim.outputs import OutputFolder
 from navsim.provenance import provenance
 from navsim.report import write_report as _write_report
@@ -58,10 +60,10 @@ class Result:
     runs : (R,) int array
         The indices of the runs that completed.
     histories : dict
-        Estimator label -> :class:`~navsim.montecarlo.EstimatorHistory` (``(R, E, ...)`` arrays;
+        Estimator label -> :class:`~navsim.scoring.history.EstimatorHistory` (``(R, E, ...)`` arrays;
         above :data:`navsim.runner.REPORT_RUNS` runs read from a folder, the first chunks only).
-    metrics : dict
-        The scores, as ``metrics.json`` holds them.
+    metrics : RunMetrics
+        The scores (:mod:`navsim.scoring.metrics`); ``metrics.to_dict()`` is ``metrics.json``.
     record : dict
         How the run was made, as ``run.json`` holds it (seed, runs, workers, versions, git).
     folder : Path or None
@@ -71,7 +73,7 @@ class Result:
     scenario: Scenario
     runs: np.ndarray
     histories: dict
-    metrics: dict
+    metrics: RunMetrics | None
     record: dict
     folder: Path | None = None
     truth: object = None
@@ -88,8 +90,8 @@ class Result:
     history_runs: np.ndarray | None = None
 
     def to_dict(self) -> dict:
-        """The scores as ``metrics.json`` holds them (a copy)."""
-        return json.loads(json.dumps(self.metrics))
+        """The scores as ``metrics.json`` holds them."""
+        return self.metrics.to_dict()
 
     def to_xarray(self, label: str | None = None):
         """The histories as an :class:`xarray.Dataset` with named dimensions ``run``, ``epoch``
@@ -209,7 +211,7 @@ def _closed_loop(scenario, how: _How, folder) -> Result:
     rr, loop, reference = run_closed_loop(scenario, how.runs, how.seed, how.workers, progress=how.progress)
     record = {"flight_cached": False, "flight_key": flight_key(scenario.flight), "executor": how.executor,
               "scheduler": None, "resumed": False}
-    return Result(scenario, rr.runs, rr.histories, {}, record, truth=reference.truth,
+    return Result(scenario, rr.runs, rr.histories, None, record, truth=reference.truth,
                   truth_bias=rr.truth_bias, calibration=rr.calibration, failed=rr.failed,
                   interrupted=rr.interrupted, loop=loop, reference=reference)
 
@@ -231,7 +233,7 @@ def _open_loop(scenario, how: _How, folder) -> Result:
               "scheduler": how.scheduler, "resumed": bool(how.resume), "chunk_runs": size}
     if store is not None:
         record.update(failed_chunks=store.failed, per_run_data="chunks/")
-    return Result(scenario, rr.runs, rr.histories, {}, record, truth=truth, truth_bias=rr.truth_bias,
+    return Result(scenario, rr.runs, rr.histories, None, record, truth=truth, truth_bias=rr.truth_bias,
                   calibration=rr.calibration, failed=rr.failed, interrupted=rr.interrupted, store=rr.store,
                   history_runs=rr.history_runs)
 
@@ -251,28 +253,22 @@ def _open_store(out: Path, scenario, how: _How) -> ChunkStore:
 
 def _score(result: Result, wall_s: float) -> None:
     """``result.metrics`` and the rest of ``result.record``: scored chunk by chunk from the
-    store when there is one (flat memory), else from the histories in memory."""
+    store when there is one (flat memory), else the histories in memory as one chunk."""
     sc = result.scenario
-    m = {"scenario": sc.name, "runs": result.record["runs"], "runs_done": int(len(result.runs)),
-         "seed": result.record["seed"], "failed_runs": {str(k): v for k, v in result.failed.items()},
-         "interrupted": result.interrupted, "estimators": {}}
     result.sightings = sighting_spans(result.truth, sc) if result.truth is not None else []
     if result.store is not None:
-        m["estimators"], calibration = score_run(result.store.parts, sc.settle_s, sc.windows, result.sightings)
-        if calibration:
-            m["calibration"] = calibration
+        parts = result.store.parts
     else:
-        for label, h in result.histories.items():
-            m["estimators"][label] = score(h, sc.settle_s, sc.windows, runs=result.runs)
-            if result.sightings and h.sigma is not None:
-                m["estimators"][label]["landmarks"] = sighting_metrics(h, result.sightings)
-        if result.calibration:
-            m["calibration"] = {name: calibration_score(c) for name, c in result.calibration.items()}
+        held = ChunkPart(list(result.runs), result.histories, calibration=result.calibration)
+        parts = lambda: iter([held] if result.histories else [])
+    estimators, calibration = score_run(parts, sc.settle_s, sc.windows, result.sightings)
+    closed = None
     if result.loop is not None:
-        m["closed_loop"] = closed_loop_metrics(result.loop, result.reference, sc.closed_loop, result.histories)
-    m["wall_s"] = wall_s
+        closed = closed_loop_metrics(result.loop, result.reference, sc.closed_loop, result.histories)
+    result.metrics = RunMetrics(sc.name, result.record["runs"], int(len(result.runs)), result.record["seed"],
+                                {str(k): v for k, v in result.failed.items()}, result.interrupted, estimators,
+                                calibration or None, closed, wall_s)
     plotted = len(result.runs) if result.history_runs is None else len(result.history_runs)
-    result.metrics = m
     result.record.update(failed_runs=result.failed, interrupted=result.interrupted, wall_s=wall_s,
                          **provenance(), runs_plotted=plotted)
 
@@ -281,7 +277,7 @@ def _write_run(result: Result, folder: OutputFolder, record: dict | None = None)
     """``metrics.json``, ``scenario.resolved.yaml``, ``run.json`` (``record``, default the
     result's) and, when every run's history is in memory, ``runs.npz`` into ``folder``."""
     record = result.record if record is None else record
-    folder.text("metrics.json", json.dumps(result.metrics, indent=2))
+    folder.text("metrics.json", json.dumps(result.metrics.to_dict(), indent=2))
     folder.text("scenario.resolved.yaml",
                 f"# resolved by navsim {result.record['versions']['navsim']} at git {result.record['git_revision']}\n"
                 + yaml.safe_dump(resolved_scenario(result), sort_keys=False))
@@ -349,10 +345,10 @@ def open_result(folder) -> Result:
     (:attr:`Result.store`) reads every chunk, one at a time."""
     folder = Path(folder)
     try:
-        metrics = json.loads((folder / "metrics.json").read_text())
+        metrics = RunMetrics.from_dict(json.loads((folder / "metrics.json").read_text()))
         record = json.loads((folder / "run.json").read_text())
         raw = yaml.safe_load((folder / "scenario.resolved.yaml").read_text())
-    except (OSError, ValueError, yaml.YAMLError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, yaml.YAMLError) as exc:
         raise UsageError(f"{folder}: not a finished navsim run ({exc})") from None
     try:
         scenario = parse_scenario(raw, record.get("scenario"))
@@ -362,9 +358,9 @@ def open_result(folder) -> Result:
     histories, runs, bias, calib = {}, np.array([], int), {}, {}
     merged = store.merged(runner.REPORT_RUNS) if store is not None else None
     if merged is not None:
-        runs, histories, bias, calib = np.asarray(merged[0], int), merged[1], merged[2], merged[3]
+        runs, histories, bias, calib = np.asarray(merged.runs, int), merged.histories, merged.truth_bias, merged.calibration
     elif (folder / "runs.npz").is_file():
-        runs, histories = _npz_histories(folder / "runs.npz", metrics.get("estimators", {}))
+        runs, histories = _npz_histories(folder / "runs.npz", metrics.estimators)
     every = np.asarray(store.runs(), int) if store is not None else runs
     return Result(scenario, every, histories, metrics, record, folder=folder, truth_bias=bias, calibration=calib,
                   failed={int(k): v for k, v in record.get("failed_runs", {}).items()},

@@ -6,8 +6,8 @@ belongs to (scenario content hash, seed, runs, chunk size), the chunks done and 
 failed with their error. Chunk files and the index are written to a temporary name and renamed,
 so a run killed at any moment leaves a consistent folder that ``navsim run --resume`` completes.
 
-A chunk is the worker's part ``(runs, histories, truth_bias, calibration)``; every field of
-:class:`~navsim.montecarlo.EstimatorHistory` round-trips exactly: arrays are stored as they are
+A chunk is the worker's :class:`~navsim.scoring.history.ChunkPart`; every field of
+:class:`~navsim.scoring.history.EstimatorHistory` round-trips exactly: arrays are stored as they are
 (no pickle), the per-run reset events, the NIS names and dimensions and the cost go to a JSON
 string inside the same file.
 """
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from navsim.errors import NavsimError, OutputError
-from navsim.montecarlo import ARRAY_FIELDS, EstimatorHistory, sum_cost
+from navsim.scoring.history import ARRAY_FIELDS, ChunkPart, EstimatorHistory, sum_cost
 from navsim.outputs import temporary_name, write_atomic
 
 log = logging.getLogger(__name__)
@@ -48,9 +48,9 @@ def _savez(path: Path, arrays: dict) -> None:
         np.savez(f, **arrays)
 
 
-def part_arrays(part) -> dict:
+def part_arrays(part: ChunkPart) -> dict:
     """The arrays of a chunk part for :func:`numpy.savez`, with a JSON ``meta`` entry."""
-    runs, hist, bias, calib = part
+    runs, hist, bias, calib = part.runs, part.histories, part.truth_bias, part.calibration
     arrays = {"runs": np.asarray(list(runs), dtype=np.int64)}
     meta = {"labels": list(hist), "bias": list(bias), "calibration": {}, "histories": []}
     for i, (label, h) in enumerate(hist.items()):
@@ -68,8 +68,8 @@ def part_arrays(part) -> dict:
     return arrays
 
 
-def part_from_arrays(data) -> tuple:
-    """The chunk part ``(runs, histories, truth_bias, calibration)`` stored by :func:`part_arrays`."""
+def part_from_arrays(data) -> ChunkPart:
+    """The chunk part stored by :func:`part_arrays`."""
     meta = json.loads(str(data["meta"]))
     hist = {}
     for i, (label, m) in enumerate(zip(meta["labels"], meta["histories"])):
@@ -85,7 +85,7 @@ def part_from_arrays(data) -> tuple:
     bias = {k: data[f"bias.{k}"] for k in meta["bias"]}
     calib = {name: {k: data[f"c{i}.{k}"] for k in keys}
              for i, (name, keys) in enumerate(meta["calibration"].items())}
-    return list(data["runs"].tolist()), hist, bias, calib
+    return ChunkPart(list(data["runs"].tolist()), hist, bias, calib)
 
 
 _CHUNK_FILE = re.compile(r"^chunk_\d+-\d+\.npz$")
@@ -240,7 +240,7 @@ class ChunkStore:
     def add(self, part) -> None:
         """Store a finished chunk part and record it in the index."""
         self._writable()
-        name = chunk_name(part[0])
+        name = chunk_name(part.runs)
         file = f"chunk_{name}.npz"
         write_atomic(self.folder / file, lambda p: _savez(p, part_arrays(part)), fsync=True)
         self.done[name] = file
@@ -260,7 +260,7 @@ class ChunkStore:
         return [self.done[n] for n in self._names()]
 
     def parts(self):
-        """The stored chunk parts ``(runs, histories, truth_bias, calibration)`` one at a time,
+        """The stored :class:`~navsim.scoring.history.ChunkPart` one at a time,
         in run order (one chunk in memory at a time)."""
         for file in self._files():
             with np.load(self.folder / file, allow_pickle=False) as data:
@@ -271,8 +271,8 @@ class ChunkStore:
         """The run indices stored, in order."""
         return [r for n in self._names() for r in chunk_runs(n)]
 
-    def merged(self, limit: int | None = None) -> tuple | None:
-        """The stored chunks as one part ``(runs, histories, truth_bias, calibration)``, or None:
+    def merged(self, limit: int | None = None) -> ChunkPart | None:
+        """The stored chunks as one :class:`~navsim.scoring.history.ChunkPart`, or None:
         all of them, or the first chunks (in run order) that hold ``limit`` runs.
 
         The chunk files are read one at a time into arrays allocated once for all the runs, so

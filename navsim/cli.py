@@ -31,7 +31,6 @@ from navsim.estimators import base
 from navsim.flight.plots import plot_flight
 from navsim.flight.simulator import fly
 from navsim.flight.track import available_tracks, load_track, nominal_duration_s
-from navsim.metrics import lookup
 from navsim.outputs import OutputFolder
 from navsim.provenance import provenance
 from navsim.replay import load_ulog, replay, replay_metrics
@@ -189,21 +188,19 @@ def print_run_summary(result) -> None:
     calibration."""
     metrics = result.metrics
     rows = []
-    for label, m in metrics["estimators"].items():
-        rms = m.get("rms", {})
-        f = lambda v: "-" if v is None else " ".join(f"{x:.3g}" for x in v)
-        rows.append([label, f(rms.get("pos_m")), f(rms.get("vel_mps")), f(rms.get("att_deg")),
-                     f"{m['nees']['average']:.2f}" if "nees" in m else "-",
-                     f"{m['nees']['fraction_inside'] * 100:.0f}" if "nees" in m else "-",
-                     "-" if m.get("convergence_s") is None else f"{m['convergence_s']:.0f}",
-                     f"{m['cost']['ms_per_run']:.1f}" if "cost" in m else "-",
-                     str(m["diverged_runs"])])
+    f = lambda v: "-" if v is None else " ".join(f"{x:.3g}" for x in v)
+    for label, m in metrics.estimators.items():
+        rms, nees = m.rms, m.nees
+        rows.append([label, *(f(None if rms is None else getattr(rms, k)) for k in ("pos_m", "vel_mps", "att_deg")),
+                     f"{nees.average:.2f}" if nees else "-", f"{nees.fraction_inside * 100:.0f}" if nees else "-",
+                     "-" if m.convergence_s is None else f"{m.convergence_s:.0f}",
+                     f"{m.cost.ms_per_run:.1f}" if m.cost else "-", str(m.diverged_runs)])
     print(_table(["estimator", "RMS pos N E D m", "RMS vel m/s", "RMS att deg", "NEES", "in band %",
                   "converged s", "ms/run", "diverged"], rows))
     if divergence_lines(metrics):
         print("\n".join(divergence_lines(metrics)))
     if result.loop is not None:
-        print("\n".join(closed_loop_lines(metrics["closed_loop"])[1:]))
+        print("\n".join(closed_loop_lines(metrics.closed_loop)[1:]))
     if result.sightings:
         print("\n".join(sighting_lines(metrics)[1:]))
     att_lines = attitude_lines(metrics, lambda h, r: _table(h, r).splitlines())
@@ -214,24 +211,24 @@ def print_run_summary(result) -> None:
     _print_calibration(metrics)
 
 
-def _print_reference(reference: dict, metrics: dict) -> None:
+def _print_reference(reference: dict, metrics) -> None:
     rows = []
+    fmt = lambda v: "-" if v is None else (" ".join(f"{x:.3g}" for x in v) if isinstance(v, list) else f"{v:.4g}")
     for label, vals in reference["values"].items():
+        m = metrics.estimators.get(label)
         for path, paper in vals.items():
-            ours = lookup(metrics["estimators"].get(label, {}), path)
-            fmt = lambda v: "-" if v is None else (" ".join(f"{x:.3g}" for x in v) if isinstance(v, list) else f"{v:.4g}")
-            rows.append([label, path, fmt(paper), fmt(ours)])
+            rows.append([label, path, fmt(paper), fmt(m.get(path) if m else None)])
     print(f"\npublished ({reference['source']}) versus ours:")
     print(_table(["estimator", "metric", "paper", "ours"], rows))
 
 
-def _print_calibration(metrics: dict) -> None:
-    for name, c in metrics.get("calibration", {}).items():
-        for when, v in ((k, c[k]) for k in ("after_2_turns", "final") if k in c):
-            pct = lambda d: "/".join("-" if d[q] is None else f"{d[q]:.2f}" for q in ("mean", "p95", "max"))
-            print(f"\nmagnetometer '{name}' calibration, {when.replace('_', ' ')} ({v['t_s']:.0f} s), "
-                  f"mean/p95/max: hard iron {pct(v['hard_iron_pct'])} % of |m|, soft iron {pct(v['soft_iron_pct'])} %",
-                  end="")
+def _print_calibration(metrics) -> None:
+    pct = lambda d: "/".join("-" if v is None else f"{v:.2f}" for v in (d.mean, d.p95, d.max))
+    for name, c in (metrics.calibration or {}).items():
+        for when, v in ((f"after {c.turns:g} turns", c.after_turns), ("final", c.final)):
+            if v is not None:
+                print(f"\nmagnetometer '{name}' calibration, {when} ({v.t_s:.0f} s), mean/p95/max: hard iron "
+                      f"{pct(v.hard_iron_pct)} % of |m|, soft iron {pct(v.soft_iron_pct)} %", end="")
         print()
 
 

@@ -54,7 +54,8 @@ from navsim.flight.segments import State
 from navsim.flight.simulator import Aircraft, Watchdog
 from navsim.flight.track import Segment
 from navsim.flight.truth import Truth, truth_from_rows
-from navsim.montecarlo import EPOCH_ARRAYS, Driver, perturbed_start
+from navsim.montecarlo import Driver, perturbed_start
+from navsim.scoring.history import EPOCH_ARRAYS
 from navsim.sensors import emulate
 from navsim.sensors.imu import OnlineIncrements, error_increments, quantize_increment
 from navsim.transform import quat_from_euler
@@ -221,153 +222,239 @@ def _guidance(nav, craft0) -> tuple:
             [-math.asin(min(max(a, -1.0), 1.0)) for a in c20])
 
 
+@dataclass(frozen=True)
+class _Fleet:
+    """The aircraft of a batch of runs and what stays fixed while they fly."""
+
+    runs: list                   #: the Monte Carlo run indices
+    dt: float                    #: flight step, s
+    n_max: int                   #: steps up to the time limit
+    craft: list                  #: one Aircraft per run
+    watch: list                  #: one Watchdog per run
+    imu_cfg: object              #: the IMU's SensorConfig
+    imu_err: dict                #: the IMU's error increments (see error_increments)
+    sensors: dict                #: name -> SensorData of the other sensors, filled in flight
+    rtl: ReturnToLand | None
+    point: tuple | None          #: the recovery point, north/east from the track start
+    goto: Segment | None         #: the segment flown back to it
+
+
+@dataclass(frozen=True)
+class _Tally:
+    """What the runs record as they fly (filled in place, one entry per run)."""
+
+    status: list                 #: flying, aborted (returning), landed, completed, failed
+    failed: dict                 #: run index -> reason
+    abort_t: np.ndarray
+    land_t: np.ndarray
+    fail_t: np.ndarray
+    end_t: np.ndarray
+    landing: np.ndarray          #: (B, 2) true north, east of the landing
+    landing_est: np.ndarray      #: (B, 2) the same, of the navigation solution
+    last_fix: np.ndarray         #: (B,) time of the watched receiver's last fix
+    paths: list
+    path_t: list
+    kept: list | None            #: the first run's truth rows (``keep_truth``)
+    seg_kept: list               #: their segment indices
+
+    @classmethod
+    def empty(cls, B: int, keep_truth: bool) -> _Tally:
+        nan = lambda *shape: np.full(shape, np.nan)
+        return cls(status=["flying"] * B, failed={}, abort_t=nan(B), land_t=nan(B), fail_t=nan(B),
+                   end_t=nan(B), landing=nan(B, 2), landing_est=nan(B, 2), last_fix=np.zeros(B),
+                   paths=[], path_t=[], kept=[] if keep_truth else None, seg_kept=[])
+
+
+def _recovery(rtl: ReturnToLand | None, c0) -> tuple:
+    """The recovery point (north/east from the track start) and the segment back to it."""
+    if rtl is None:
+        return None, None
+    point = ((rtl.point["north_m"], rtl.point["east_m"]) if "north_m" in rtl.point else
+             c0.local_of_latlon(math.radians(rtl.point["lat_deg"]), math.radians(rtl.point["lon_deg"])))
+    goto = Segment("goto", RETURN_LABEL, {"north_m": point[0], "east_m": point[1],
+                                          "acceptance_m": rtl.acceptance_m,
+                                          **({"alt_m": rtl.alt_m} if rtl.alt_m is not None else {})})
+    return point, goto
+
+
+def _fleet(scenario, seed: int, runs: list) -> _Fleet:
+    """Sensor streams, aircraft and watchdogs of the runs ``runs``."""
+    cl, fc = scenario.closed_loop, scenario.flight
+    dt = 1.0 / fc.rate_hz
+    n_max = int(round(cl.time_limit_s / dt)) + 1
+    imu_cfg, imu_err, sensors = _sensor_streams(scenario, seed, runs, dt, n_max)
+    craft = [Aircraft(fc) for _ in runs]
+    watch = [Watchdog(c.limits, dt) for c in craft]
+    point, goto = _recovery(cl.return_to_land, craft[0])
+    return _Fleet(runs=runs, dt=dt, n_max=n_max, craft=craft, watch=watch, imu_cfg=imu_cfg,
+                  imu_err=imu_err, sensors=sensors, rtl=cl.return_to_land, point=point, goto=goto)
+
+
+def _start_navigation(scenario, seed: int, fleet: _Fleet, estimators: dict, rows: np.ndarray) -> tuple:
+    """The estimators' Driver started on the runs' perturbed initial state, and the IMU's
+    online increments primed with the first step."""
+    view = _StepTruth(rows)
+    errors = scenario.initial.draw(seed, fleet.runs)
+    nav0 = perturbed_start(_StepTruth(rows[:1], batched=False), errors, 0)
+    sigma0 = scenario.initial.sigma_blocks(rows[0, P.COL_LAT], rows[0, P.COL_H])
+    loop = Driver(estimators, fleet.dt, len(fleet.runs), isolate=False)   # the guidance needs every step
+    loop.start(nav0, sigma0, view, 0)
+    inc = OnlineIncrements(len(fleet.runs), fleet.dt)
+    inc.update(view.omega_ib_b_rps, view.f_b_mps2)
+    return loop, inc
+
+
+def _advance(fleet: _Fleet, loop, inc, rows: np.ndarray, k: int) -> None:
+    """Step ``k`` of the sensors (the runs' truth ``rows`` plus their errors) and the estimators."""
+    dt, err, spec = fleet.dt, fleet.imu_err, fleet.imu_cfg.spec
+    view = _StepTruth(rows)
+    dth, dv = inc.update(view.omega_ib_b_rps, view.f_b_mps2)
+    dth = _matvec(err["gyro_matrix"], dth) + err["gyro"][:, k]
+    dv = _matvec(err["accel_matrix"], dv) + err["accel"][:, k]
+    dth = quantize_increment(dth, spec.gyro, dt)
+    dv = quantize_increment(dv, spec.accel, dt)
+    for data in fleet.sensors.values():
+        if k % data.meta["step"] == 0:
+            _fill(data, k // data.meta["step"], rows)
+    loop.advance(dth[:, None], dv[:, None], k * dt, fleet.sensors, view, 0)
+
+
+def _record(fleet: _Fleet, tally: _Tally, rows: np.ndarray, k: int, t: float, path_every: int) -> None:
+    """The true paths every ``path_every`` steps and the time of the watched receiver's last fix."""
+    c0 = fleet.craft[0]
+    if k % path_every == 0:
+        tally.path_t.append(t)
+        tally.paths.append(np.stack([(rows[:, P.COL_LAT] - c0.lat0) * c0.k_north,
+                                     (rows[:, P.COL_LON] - c0.lon0) * c0.k_east, rows[:, P.COL_H]], -1))
+    if fleet.rtl is not None:
+        g = fleet.sensors[fleet.rtl.gnss]
+        if k % g.meta["step"] == 0:
+            tally.last_fix[g.valid[:, k // g.meta["step"]]] = t
+
+
+def _sense(s: State, row: np.ndarray, c0, guide, b: int, t: float) -> tuple:
+    """Fill run ``b``'s segment State from its truth ``row`` or, given ``guide``
+    (:func:`_guidance`), from the navigation; return the climb rate, roll and pitch held."""
+    s.t = t
+    s.tas = row[P.COL_TAS]
+    if guide is None:
+        s.north = (row[P.COL_LAT] - c0.lat0) * c0.k_north
+        s.east = (row[P.COL_LON] - c0.lon0) * c0.k_east
+        s.h, vn, ve = row[P.COL_H], row[P.COL_VN], row[P.COL_VE]
+        s.course, s.ground_speed = math.atan2(ve, vn), math.hypot(vn, ve)
+        return -row[P.COL_VD], row[P.COL_ROLL], row[P.COL_PITCH]
+    s.north, s.east, s.h, s.course, s.ground_speed = (guide[0][b], guide[1][b], guide[2][b],
+                                                      guide[3][b], guide[4][b])
+    return guide[5][b], guide[6][b], guide[7][b]
+
+
+def _follow(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, s: State, t: float) -> None:
+    """Run ``b``'s segments for one step: abort on a lost fix, note the end of the track or
+    the landing. Raises FlightError."""
+    c0, runner, st = fleet.craft[0], fleet.craft[b].runner, tally.status
+    reason = fleet.watch[b].check(row)
+    if reason is not None:
+        raise runner.fail(reason, s)
+    if st[b] == "flying" and fleet.rtl is not None and t - tally.last_fix[b] > fleet.rtl.lost_s:
+        st[b], tally.abort_t[b] = "aborted", t
+        runner.segments, runner.index, runner.finished = [fleet.goto], -1, False
+    if runner.index < 0:
+        runner.next(s)
+    if runner.finished:
+        return
+    runner.update(s, fleet.dt)
+    if not runner.finished:
+        return
+    tally.end_t[b] = t
+    if st[b] == "aborted":
+        st[b], tally.land_t[b] = "landed", t
+        tally.landing[b] = ((row[P.COL_LAT] - c0.lat0) * c0.k_north, (row[P.COL_LON] - c0.lon0) * c0.k_east)
+        tally.landing_est[b] = (s.north, s.east)
+    else:
+        st[b] = "completed"
+
+
+def _step_run(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, s: State, guide, t: float) -> None:
+    """One step of run ``b``: segments, failure checks, autopilot and physics."""
+    climb, roll, pitch = _sense(s, row, fleet.craft[0], guide, b, t)
+    c = fleet.craft[b]
+    try:
+        _follow(fleet, tally, b, row, s, t)
+    except FlightError as exc:
+        tally.status[b], tally.fail_t[b], tally.end_t[b] = "failed", t, t
+        tally.failed[fleet.runs[b]] = str(exc)
+        return
+    if tally.kept is not None and b == 0:
+        runner = c.runner
+        tally.kept.append(row.copy())
+        tally.seg_kept.append(len(c.config.track.segments) if tally.status[0] in ("aborted", "landed") else
+                              runner.index - 1 if runner.finished else runner.index)
+    c.io.set_controls(*c.ap.step(fleet.dt, row[P.COL_TAS], s.h, climb, roll, pitch, row[P.COL_P], row[P.COL_Q],
+                                 row[P.COL_BETA], s.course))
+    c.io.run()
+
+
 def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: bool = False,
               progress=None) -> LoopBatch:
     """Fly the runs ``runs`` of ``scenario`` with navigation in the loop (see the module
     docstring); ``on_truth`` flies them on the truth whatever ``fly_on`` says; ``keep_truth``
     keeps the first run's whole truth record (for the flight pages of the report)."""
     cl = scenario.closed_loop
-    rtl = cl.return_to_land
-    runs = list(runs)
-    B = len(runs)
-    fc = scenario.flight
-    dt = 1.0 / fc.rate_hz
-    n_max = int(round(cl.time_limit_s / dt)) + 1
-    imu_cfg, imu_err, sensors = _sensor_streams(scenario, seed, runs, dt, n_max)
-    craft = [Aircraft(fc) for _ in range(B)]
-    watch = [Watchdog(c.limits, dt) for c in craft]
-    c0 = craft[0]
-    n_track = len(fc.track.segments)
-    point = None
-    if rtl is not None:
-        point = ((rtl.point["north_m"], rtl.point["east_m"]) if "north_m" in rtl.point else
-                 c0.local_of_latlon(math.radians(rtl.point["lat_deg"]), math.radians(rtl.point["lon_deg"])))
-        goto = Segment("goto", RETURN_LABEL, {"north_m": point[0], "east_m": point[1],
-                                              "acceptance_m": rtl.acceptance_m,
-                                              **({"alt_m": rtl.alt_m} if rtl.alt_m is not None else {})})
+    fleet = _fleet(scenario, seed, list(runs))
     estimators = {e.label: factory.build(e) for e in scenario.estimators}   # looked up at the call
     driver = None if (on_truth or cl.fly_on == "truth") else estimators[cl.fly_on]
-
+    craft, c0 = fleet.craft, fleet.craft[0]
     rows = np.array([c.io.read_row() for c in craft])
-    view = _StepTruth(rows)
-    errors = scenario.initial.draw(seed, runs)
-    nav0 = perturbed_start(_StepTruth(rows[:1], batched=False), errors, 0)
-    sigma0 = scenario.initial.sigma_blocks(rows[0, P.COL_LAT], rows[0, P.COL_H])
-    loop = Driver(estimators, dt, B, isolate=False)        # the guidance needs every step
-    loop.start(nav0, sigma0, view, 0)
+    loop, inc = _start_navigation(scenario, seed, fleet, estimators, rows)
     path_every = min(loop.every.values())
-    inc = OnlineIncrements(B, dt)
-    inc.update(view.omega_ib_b_rps, view.f_b_mps2)
-    states = [State() for _ in range(B)]
-    status = ["flying"] * B          # flying, aborted (returning), landed, completed, failed
-    failed = {}
-    abort_t = np.full(B, np.nan)
-    land_t = np.full(B, np.nan)
-    fail_t = np.full(B, np.nan)
-    end_t = np.full(B, np.nan)
-    landing = np.full((B, 2), np.nan)
-    landing_est = np.full((B, 2), np.nan)
-    last_fix = np.zeros(B)
-    paths, path_t = [], []
-    kept = [] if keep_truth else None
-    seg_kept = []
-    for k in range(n_max):
-        t = k * dt
+    states = [State() for _ in craft]
+    tally = _Tally.empty(len(craft), keep_truth)
+    status = tally.status
+    for k in range(fleet.n_max):
+        t = k * fleet.dt
         if k > 0:
-            view = _StepTruth(rows)
-            dth, dv = inc.update(view.omega_ib_b_rps, view.f_b_mps2)
-            dth = _matvec(imu_err["gyro_matrix"], dth) + imu_err["gyro"][:, k]
-            dv = _matvec(imu_err["accel_matrix"], dv) + imu_err["accel"][:, k]
-            dth = quantize_increment(dth, imu_cfg.spec.gyro, dt)
-            dv = quantize_increment(dv, imu_cfg.spec.accel, dt)
-            for data in sensors.values():
-                if k % data.meta["step"] == 0:
-                    _fill(data, k // data.meta["step"], rows)
-            loop.advance(dth[:, None], dv[:, None], t, sensors, view, 0)
-        if k % path_every == 0:
-            path_t.append(t)
-            paths.append(np.stack([(rows[:, P.COL_LAT] - c0.lat0) * c0.k_north,
-                                   (rows[:, P.COL_LON] - c0.lon0) * c0.k_east, rows[:, P.COL_H]], -1))
-        if rtl is not None:
-            g = sensors[rtl.gnss]
-            if k % g.meta["step"] == 0:
-                last_fix[g.valid[:, k // g.meta["step"]]] = t
+            _advance(fleet, loop, inc, rows, k)
+        _record(fleet, tally, rows, k, t, path_every)
         nav = driver.solution().nav if driver is not None else None
         guide = _guidance(nav, c0) if nav is not None else None
-        for b, c in enumerate(craft):
-            if status[b] == "failed":
-                continue
-            row = rows[b]
-            s = states[b]
-            s.t = t
-            s.tas = tas = row[P.COL_TAS]
-            if guide is None:
-                s.north = (row[P.COL_LAT] - c0.lat0) * c0.k_north
-                s.east = (row[P.COL_LON] - c0.lon0) * c0.k_east
-                s.h, vn, ve = row[P.COL_H], row[P.COL_VN], row[P.COL_VE]
-                s.course, s.ground_speed = math.atan2(ve, vn), math.hypot(vn, ve)
-                climb, roll, pitch = -row[P.COL_VD], row[P.COL_ROLL], row[P.COL_PITCH]
-            else:
-                s.north, s.east, s.h, s.course, s.ground_speed = (guide[0][b], guide[1][b], guide[2][b],
-                                                                  guide[3][b], guide[4][b])
-                climb, roll, pitch = guide[5][b], guide[6][b], guide[7][b]
-            runner = c.runner
-            try:
-                reason = watch[b].check(row)
-                if reason is not None:
-                    raise runner.fail(reason, s)
-                if status[b] == "flying" and rtl is not None and t - last_fix[b] > rtl.lost_s:
-                    status[b], abort_t[b] = "aborted", t
-                    runner.segments, runner.index, runner.finished = [goto], -1, False
-                if runner.index < 0:
-                    runner.next(s)
-                if not runner.finished:
-                    runner.update(s, dt)
-                    if runner.finished:
-                        end_t[b] = t
-                        if status[b] == "aborted":
-                            status[b], land_t[b] = "landed", t
-                            landing[b] = ((row[P.COL_LAT] - c0.lat0) * c0.k_north,
-                                          (row[P.COL_LON] - c0.lon0) * c0.k_east)
-                            landing_est[b] = (s.north, s.east)
-                        else:
-                            status[b] = "completed"
-            except FlightError as exc:
-                status[b], fail_t[b], end_t[b] = "failed", t, t
-                failed[runs[b]] = str(exc)
-                continue
-            if kept is not None and b == 0:
-                kept.append(row.copy())
-                seg_kept.append(n_track if status[0] in ("aborted", "landed") else
-                                runner.index - 1 if runner.finished else runner.index)
-            c.io.set_controls(*c.ap.step(dt, tas, s.h, climb, roll, pitch, row[P.COL_P], row[P.COL_Q],
-                                         row[P.COL_BETA], s.course))
-            c.io.run()
+        for b in range(len(craft)):
+            if status[b] != "failed":
+                _step_run(fleet, tally, b, rows[b], states[b], guide, t)
         if all(st in ("landed", "completed", "failed") for st in status):
             break
         if progress is not None and k % 1000 == 0:
             progress(t, cl.time_limit_s)
-        new = [c.io.read_row() if status[b] != "failed" else rows[b] for b, c in enumerate(craft)]
-        rows = np.array(new)
-    outcome = ["time limit" if st in ("flying", "aborted") else st for st in status]
-    histories = loop.histories()
+        rows = np.array([c.io.read_row() if status[b] != "failed" else rows[b] for b, c in enumerate(craft)])
+    return _batch(scenario.flight, fleet, tally, loop.histories())
+
+
+def _truth_bias(imu_err: dict, histories: dict, dt: float, B: int) -> dict:
+    """The IMU's true gyro and accelerometer biases ``(B, E, 3)`` at the estimators' epochs."""
     ks = np.round(next(iter(histories.values())).t_s / dt).astype(int)
     bias = {}
     for key in ("gyro_bias", "accel_bias"):
         v = np.broadcast_to(imu_err[key], (B, imu_err[key].shape[1], 3))
         bias[key] = v[:, ks] if v.shape[1] > 1 else np.repeat(v, len(ks), axis=1)
-    miss = np.hypot(*(landing - np.asarray(point)).T) if point is not None else np.full(B, np.nan)
-    miss_est = np.hypot(*(landing_est - np.asarray(point)).T) if point is not None else np.full(B, np.nan)
+    return bias
+
+
+def _batch(fc, fleet: _Fleet, tally: _Tally, histories: dict) -> LoopBatch:
+    """The LoopBatch of the flown runs (``fc``: the scenario's FlightConfig)."""
+    B, dt, point = len(fleet.runs), fleet.dt, fleet.point
+    outcome = ["time limit" if st in ("flying", "aborted") else st for st in tally.status]
+    miss = np.hypot(*(tally.landing - np.asarray(point)).T) if point is not None else np.full(B, np.nan)
+    miss_est = np.hypot(*(tally.landing_est - np.asarray(point)).T) if point is not None else np.full(B, np.nan)
     truth = None
-    if kept:
+    if tally.kept:
         labels = [s.label for s in fc.track.segments] + [RETURN_LABEL]
-        truth = truth_from_rows(np.array(kept), np.arange(len(kept)) * dt, np.array(seg_kept), labels,
-                                {"aircraft": fc.aircraft, "rate_hz": fc.rate_hz, "track": fc.track.name,
-                                 "start": "air", "closed_loop": True})
-    return LoopBatch(histories=histories, outcome=outcome, failed=failed, abort_t_s=abort_t,
-                     land_t_s=land_t, fail_t_s=fail_t, end_t_s=end_t, miss_m=miss, miss_est_m=miss_est, landing_n_m=landing,
-                     path_t_s=np.array(path_t), path_n_m=np.stack(paths, axis=1), point_n_m=point,
-                     truth_bias=bias, truth=truth)
+        truth = truth_from_rows(np.array(tally.kept), np.arange(len(tally.kept)) * dt, np.array(tally.seg_kept),
+                                labels, {"aircraft": fc.aircraft, "rate_hz": fc.rate_hz, "track": fc.track.name,
+                                         "start": "air", "closed_loop": True})
+    return LoopBatch(histories=histories, outcome=outcome, failed=tally.failed, abort_t_s=tally.abort_t,
+                     land_t_s=tally.land_t, fail_t_s=tally.fail_t, end_t_s=tally.end_t, miss_m=miss,
+                     miss_est_m=miss_est, landing_n_m=tally.landing, path_t_s=np.array(tally.path_t),
+                     path_n_m=np.stack(tally.paths, axis=1), point_n_m=point,
+                     truth_bias=_truth_bias(fleet.imu_err, histories, dt, B), truth=truth)
 
 
 def end_records(batch: LoopBatch, dt: float) -> None:
@@ -384,13 +471,3 @@ def end_records(batch: LoopBatch, dt: float) -> None:
             v[after] = np.nan
     after = batch.path_t_s[None, :] > end[:, None] + 0.5 * dt
     batch.path_n_m[after] = np.nan
-
-
-def cep(miss_m: np.ndarray) -> dict:
-    """Circular error probable of horizontal miss distances: the 50 % and 95 % quantiles."""
-    m = np.asarray(miss_m, float)
-    m = m[np.isfinite(m)]
-    if not m.size:
-        return {"cep50_m": None, "cep95_m": None, "mean_m": None, "max_m": None, "n": 0}
-    return {"cep50_m": float(np.percentile(m, 50)), "cep95_m": float(np.percentile(m, 95)),
-            "mean_m": float(m.mean()), "max_m": float(m.max()), "n": int(m.size)}

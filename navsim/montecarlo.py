@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from navsim import earth, kernels
+from navsim.scoring.history import EstimatorHistory
 from navsim.sensors.base import run_generators
 from navsim.strapdown import NavState, rotation, state_from_truth
 
@@ -107,55 +108,6 @@ def _errors(nav: NavState, truth, k: int):
     f = lambda x: np.ascontiguousarray(x, float)
     kernels.nav_errors(f(nav.lat_rad), f(nav.lon_rad), f(nav.h_m), f(nav.vel_n_mps), f(nav.C_nb), f(rows), out)
     return out, rows
-
-
-#: the arrays of an :class:`EstimatorHistory` with a run and an epoch axis, ``(B, E, ...)``:
-#: what chunks concatenate, closed-loop records pad and blank, the chunk store saves
-EPOCH_ARRAYS = ("att_err_rad", "vel_err_mps", "pos_err_m", "sigma", "nees", "gyro_bias", "accel_bias",
-                "euler_err_rad")
-#: every array of an :class:`EstimatorHistory`: the epoch times ``(E,)``, the epoch arrays and
-#: the per-run flag ``diverged`` ``(B,)`` (the NIS are a dict of ``(B, E_m)`` arrays beside)
-ARRAY_FIELDS = ("t_s", *EPOCH_ARRAYS, "diverged")
-#: the per-run lists (one entry per run) of an :class:`EstimatorHistory`, or None
-RUN_LISTS = ("resets", "divergence")
-
-
-@dataclass
-class EstimatorHistory:
-    """What one estimator did over the batch, sampled at its epochs ``t_s`` ``(E,)``."""
-
-    label: str
-    t_s: np.ndarray
-    att_err_rad: np.ndarray        #: (B, E, 3)
-    vel_err_mps: np.ndarray        #: (B, E, 3)
-    pos_err_m: np.ndarray          #: (B, E, 3) NED
-    sigma: np.ndarray | None       #: (B, E, 9) 1-sigma: att (rad), vel (m/s), pos NED (m)
-    nees: np.ndarray | None        #: (B, E) NEES of the 9 navigation errors
-    nis: dict                      #: measurement name -> (B, E_m) NIS, NaN without a sample
-    nis_dim: dict                  #: measurement name -> its dimension
-    diverged: np.ndarray           #: (B,) bool
-    gyro_bias: np.ndarray | None = None    #: (B, E, 3) estimated, rad/s
-    accel_bias: np.ndarray | None = None   #: (B, E, 3) estimated, m/s^2
-    #: CPU seconds spent in ``propagate`` and in the epochs (predict + corrections), summed over
-    #: the batches, and the number of runs and filter epochs they covered
-    cost: dict | None = None
-    #: (B, E, 3) roll, pitch, yaw of the solution minus the truth's, wrapped to [-pi, pi)
-    euler_err_rad: np.ndarray | None = None
-    #: per run, the estimator's reset events ``(t_s, cause)`` (P4's divergence monitor), or None
-    resets: list | None = None
-    #: per run, None or ``(t_s, cause)``: when and why it was first flagged diverged (None: not
-    #: recorded, as in histories built by hand)
-    divergence: list | None = None
-
-
-def sum_cost(costs):
-    """The :attr:`EstimatorHistory.cost` of several batches added up (None if one is None)."""
-    if any(c is None for c in costs):
-        return None
-    return {"propagate_s": sum(c["propagate_s"] for c in costs), "epoch_s": sum(c["epoch_s"] for c in costs),
-            "runs": sum(c["runs"] for c in costs), "epochs": costs[0]["epochs"],
-            "batches": sum(c["batches"] for c in costs)}
-
 
 
 #: the causes of a divergence flag, by code (0: none); :func:`covariance_codes` gives 1-3

@@ -15,7 +15,8 @@ import yaml
 
 from navsim.errors import OutputError
 from navsim.flight.plots import flight_figures
-from navsim.metrics import EULER_AXES, chi2_band, lookup
+from navsim.scoring.metrics import EULER_AXES, RunMetrics
+from navsim.scoring.stats import chi2_band
 from navsim.outputs import OutputFolder, write_atomic
 
 AXES = {"pos": ("position error", "m", ["north", "east", "down"]),
@@ -62,23 +63,23 @@ def _fmt(v):
     return f"{v:.4g}"
 
 
-def divergence_lines(metrics: dict) -> list[str]:
+def divergence_lines(metrics: RunMetrics) -> list[str]:
     """The runs flagged diverged (excluded from the statistics) per estimator: how many, why,
     and the first listed runs with the time each was flagged."""
     lines = []
-    for label, m in metrics["estimators"].items():
-        div = m.get("divergence")
+    for label, m in metrics.estimators.items():
+        div = m.divergence
         if not div:
             continue
-        causes = ", ".join(f"{cause}: {n}" for cause, n in div["causes"].items())
-        listed = [f"run {r['run']}" + ("" if r["t_s"] is None else f" at {r['t_s']:.1f} s") for r in div["runs"][:6]]
-        more = f" (+{div['count'] - len(listed)} more)" if div["count"] > len(listed) else ""
-        lines += ["", f"{label}: {div['count']} of {m['runs_counted'] + m['diverged_runs']} runs flagged diverged "
+        causes = ", ".join(f"{cause}: {n}" for cause, n in div.causes.items())
+        listed = [f"run {r.run}" + ("" if r.t_s is None else f" at {r.t_s:.1f} s") for r in div.runs[:6]]
+        more = f" (+{div.count - len(listed)} more)" if div.count > len(listed) else ""
+        lines += ["", f"{label}: {div.count} of {m.runs_counted + m.diverged_runs} runs flagged diverged "
                   f"and excluded ({causes})", "  " + ", ".join(listed) + more]
     return lines
 
 
-def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
+def summary_lines(scenario, record: dict, metrics: RunMetrics) -> list[str]:
     lines = textwrap.wrap(scenario.description.strip() or "(no description)", 100)
     lines += ["", f"scenario file : {record['scenario']}", f"track         : {scenario.flight.track.name}",
               f"runs          : {record['runs_done']} done of {record['runs']} (seed {record['seed']}, "
@@ -91,28 +92,27 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
               *textwrap.wrap("versions      : " + ", ".join(f"{k} {v}" for k, v in record["versions"].items()),
                              120, subsequent_indent=" " * 16), ""]
     rows = []
-    for label, m in metrics["estimators"].items():
-        rms = m.get("rms", {})
-        rows.append([label, _fmt(rms.get("pos_m")), _fmt(rms.get("vel_mps")), _fmt(rms.get("att_deg")),
-                     _fmt(m.get("nees", {}).get("average")),
-                     f"{m.get('nees', {}).get('fraction_inside', float('nan')) * 100:.0f} %" if "nees" in m else "-",
-                     _fmt(m.get("convergence_s")), _fmt(m.get("cost", {}).get("ms_per_run")),
-                     _fmt(m.get("cost", {}).get("epoch_us_per_run")), str(m["diverged_runs"])])
+    for label, m in metrics.estimators.items():
+        rms, nees, cost = m.rms, m.nees, m.cost
+        rows.append([label, *(_fmt(None if rms is None else getattr(rms, k)) for k in ("pos_m", "vel_mps", "att_deg")),
+                     _fmt(nees and nees.average), f"{nees.fraction_inside * 100:.0f} %" if nees else "-",
+                     _fmt(m.convergence_s), _fmt(cost and cost.ms_per_run), _fmt(cost and cost.epoch_us_per_run),
+                     str(m.diverged_runs)])
     lines += [f"RMS, NEES and NIS after {scenario.settle_s:g} s (N, E, D), over all runs; cost: wall time "
               "per run of the batched filter (propagation + epochs), and of one epoch:", ""]
     lines += _table_lines(["estimator", "pos m", "vel m/s", "att deg", "NEES avg", "NEES in band",
                            "converged s", "ms/run", "epoch us/run", "diverged"], rows)
-    for label, m in metrics["estimators"].items():
-        for name, qs in m.get("windows", {}).items():
+    for label, m in metrics.estimators.items():
+        for name, w in (m.windows or {}).items():
             lines += ["", f"{label}: window '{name}'"]
             lines += _table_lines(["quantity", "max positive", "max negative", "std", "rms"],
-                                  [[q, _fmt(v.get("max_pos")), _fmt(v.get("max_neg")), _fmt(v.get("std")),
-                                    _fmt(v.get("rms"))] for q, v in qs.items() if q != "nees"])
-            if "nees" in qs:
-                lines += [f"  NEES average {qs['nees']['average']:.3g}, "
-                          f"{qs['nees']['fraction_inside'] * 100:.0f} % of the epochs inside the 95 % band"]
+                                  [[q, _fmt(v.max_pos), _fmt(v.max_neg), _fmt(v.std), _fmt(v.rms)]
+                                   for q, v in w.quantities.items()])
+            if w.nees is not None:
+                lines += [f"  NEES average {w.nees.average:.3g}, "
+                          f"{w.nees.fraction_inside * 100:.0f} % of the epochs inside the 95 % band"]
     lines += divergence_lines(metrics)
-    lines += closed_loop_lines(metrics.get("closed_loop"))
+    lines += closed_loop_lines(metrics.closed_loop)
     lines += sighting_lines(metrics)
     lines += attitude_lines(metrics, _table_lines)
     if scenario.reference:
@@ -122,17 +122,16 @@ def summary_lines(scenario, record: dict, metrics: dict) -> list[str]:
         rows = []
         for label, vals in scenario.reference["values"].items():
             for path, paper in vals.items():
-                ours = lookup(metrics["estimators"].get(label, {}), path)
-                rows.append([label, path, _fmt(paper), _fmt(ours)])
+                m = metrics.estimators.get(label)
+                rows.append([label, path, _fmt(paper), _fmt(m.get(path) if m else None)])
         lines += _table_lines(["estimator", "metric", "paper", "ours"], rows)
     return lines
 
 
-def landmark_figure(histories: dict, metrics: dict, sightings, runs_plotted: int = 3):
+def landmark_figure(histories: dict, metrics: RunMetrics, sightings, runs_plotted: int = 3):
     """Horizontal position error of the landmark-aided estimators on a linear scale, the
     sightings shaded, the camera's 3-sigma fix noise marked at the end of each sighting."""
-    labels = [k for k, m in metrics["estimators"].items() if m.get("landmarks") and
-              m["landmarks"]["fraction_within_3sigma"] > 0.5]
+    labels = [k for k, m in metrics.estimators.items() if m.landmarks and m.landmarks.fraction_within_3sigma > 0.5]
     if not labels or not sightings:
         return []
     plt = _plt()
@@ -145,7 +144,7 @@ def landmark_figure(histories: dict, metrics: dict, sightings, runs_plotted: int
             for r in range(min(runs_plotted, e.shape[0])):
                 ax.plot(h.t_s, e[r], lw=0.5, alpha=0.6)
             ax.plot(h.t_s, np.sqrt(_nanmean(e ** 2)), "k", lw=1.2, label=f"{label}: MC RMS")
-        ratio = [s["max_ratio"] for s in metrics["estimators"][label]["landmarks"]["sightings"]]
+        ratio = [s.max_ratio for s in metrics.estimators[label].landmarks.sightings]
         axes[2].plot([s[2] for s in sightings], ratio, "o", ms=3, label=f"{label}: worst run")
     for ax in axes:
         _shade(ax, sightings)
@@ -166,12 +165,11 @@ def landmark_figure(histories: dict, metrics: dict, sightings, runs_plotted: int
     return [("landmarks", fig)]
 
 
-def sighting_lines(metrics: dict) -> list[str]:
+def sighting_lines(metrics: RunMetrics) -> list[str]:
     """The landmark-sighting table (estimators with ``landmarks`` metrics)."""
-    rows = [[label, str(m["landmarks"]["count"]), _fmt(m["landmarks"]["rms_before_m"]["median"]),
-             _fmt(m["landmarks"]["rms_after_m"]), _fmt(m["landmarks"]["max_ratio"]),
-             f"{m['landmarks']['fraction_within_3sigma'] * 100:.1f} %"]
-            for label, m in metrics["estimators"].items() if m.get("landmarks")]
+    rows = [[label, str(lm.count), _fmt(lm.rms_before_m.median), _fmt(lm.rms_after_m), _fmt(lm.max_ratio),
+             f"{lm.fraction_within_3sigma * 100:.1f} %"]
+            for label, lm in ((k, m.landmarks) for k, m in metrics.estimators.items()) if lm]
     if not rows:
         return []
     return ["", "landmark sightings (shaded green): horizontal error just before a sighting (RMS, median over "
@@ -441,7 +439,7 @@ def bias_figure(histories: dict, truth_bias: dict, runs_plotted: int = 3):
     return [("biases", fig)]
 
 
-def calibration_figures(calibration: dict, histories: dict, metrics: dict, spans=(), runs_plotted: int = 3):
+def calibration_figures(calibration: dict, histories: dict, metrics: RunMetrics, spans=(), runs_plotted: int = 3):
     """Per calibrated magnetometer: hard- and soft-iron errors against time (mean and 95th
     percentile over the runs, a few runs thin) with the mark of two full turns and the 2 %
     line, and the heading error of each estimator (Monte Carlo RMS) against time."""
@@ -470,12 +468,12 @@ def calibration_figures(calibration: dict, histories: dict, metrics: dict, spans
             ax2 = ax.twinx()
             ax2.plot(t, cal["turns"], color="tab:green", lw=0.8)
             ax2.set_ylabel("full turns (true heading)", fontsize=7, color="tab:green")
-        score = metrics.get("calibration", {}).get(name, {}).get("after_2_turns")
-        if score:
-            h, s_ = score["hard_iron_pct"], score["soft_iron_pct"]
-            axs[0].set_title(f"after two full turns ({score['t_s']:.0f} s): hard iron {h['mean']:.2f} / "
-                             f"{h['p95']:.2f} / {h['max']:.2f} %, soft iron {s_['mean']:.2f} / {s_['p95']:.2f} / "
-                             f"{s_['max']:.2f} % (mean / 95th percentile / max)", fontsize=8)
+        score = (metrics.calibration or {}).get(name)
+        if score and score.after_turns:
+            at, h, s_ = score.after_turns, score.after_turns.hard_iron_pct, score.after_turns.soft_iron_pct
+            axs[0].set_title(f"after {score.turns:g} full turns ({at.t_s:.0f} s): hard iron {h.mean:.2f} / "
+                             f"{h.p95:.2f} / {h.max:.2f} %, soft iron {s_.mean:.2f} / {s_.p95:.2f} / "
+                             f"{s_.max:.2f} % (mean / 95th percentile / max)", fontsize=8)
         for c, (label, hist) in enumerate(histories.items()):
             good = ~np.asarray(hist.diverged, bool)
             if good.any():
@@ -500,7 +498,7 @@ def calibration_figures(calibration: dict, histories: dict, metrics: dict, spans
     return figs
 
 
-def write_report(folder: OutputFolder, scenario, truth, result, metrics: dict, record: dict,
+def write_report(folder: OutputFolder, scenario, truth, result, metrics: RunMetrics, record: dict,
                  loop: dict | None = None, reference=None, sightings=()) -> list[Path]:
     """Write the PNGs and ``report.pdf`` into the output folder ``folder`` (each name recorded
     in its manifest before it is written); returns the files written. ``loop`` and
@@ -640,17 +638,16 @@ def _join_writer(pid: int, pipe: int, report: bool = True) -> None:
 # --- attitude estimators (P4): the summary's attitude table and the roll/pitch/yaw pages ---
 
 
-def attitude_lines(metrics: dict, table) -> list[str]:
+def attitude_lines(metrics: RunMetrics, table) -> list[str]:
     """The attitude table of the summary page (estimators with ``attitude`` metrics)."""
     rows = []
-    for label, m in metrics["estimators"].items():
-        a = m.get("attitude")
-        if not a or "resets" not in m:          # the attitude estimators (every one has Euler errors)
+    for label, m in metrics.estimators.items():
+        a, r = m.attitude, m.resets
+        if not a or r is None:          # the attitude estimators (every one has Euler errors)
             continue
         f = lambda v: "/".join(f"{x:.3g}" for x in v)
-        r = m.get("resets")
-        rows.append([label, f(a["p95_deg"]), f(a["p95_about_run_mean_deg"]), f(a["rms_deg"]),
-                     f(a["max_abs_deg"]), "-" if r is None else f"{r['count']} in {r['runs_with_reset']} runs"])
+        rows.append([label, f(a.p95_deg), f(a.p95_about_run_mean_deg), f(a.rms_deg), f(a.max_abs_deg),
+                     f"{r.count} in {r.runs_with_reset} runs"])
     if not rows:
         return []
     return ["", "attitude error after the settling time, roll/pitch/yaw in deg (95th percentile of |error|; "

@@ -30,7 +30,8 @@ from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import fly
 from navsim.flight.truth import Truth
 from navsim.magcal import calibration_history
-from navsim.montecarlo import EPOCH_ARRAYS, RUN_LISTS, EstimatorHistory, run_batch, sum_cost
+from navsim.montecarlo import run_batch
+from navsim.scoring.history import EPOCH_ARRAYS, ChunkPart, merge_parts
 from navsim.sensors import emulate
 from navsim.sensors.imu import ImuStream, emulate_imu
 from navsim.version import __version__
@@ -39,7 +40,7 @@ from navsim.version import __version__
 #: 21.0 s, 250 runs 19.0 s, 500 runs 18.8 s with a worker's peak memory 505 -> 813 MB
 CHUNK_RUNS = 250
 #: streamed to a chunk store, the first chunks holding this many runs are loaded for the report's
-#: plots; the metrics are computed from every stored chunk (navsim.metrics_stream)
+#: plots; the metrics are computed from every stored chunk (navsim.scoring.scorer)
 REPORT_RUNS = 1000
 
 
@@ -135,7 +136,7 @@ def _chunk(args):
 
 
 def _chunk_work(truth_or_path, scenario, seed, runs):
-    """The sensors and estimators of the runs ``runs``: ``(runs, histories, truth_bias, calibration)``."""
+    """The sensors and estimators of the runs ``runs``, as a :class:`ChunkPart`."""
     truth = Truth.load(truth_or_path) if isinstance(truth_or_path, (str, Path)) else truth_or_path
     imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
     if imu_cfg.spec.vibration:       # normalised over the whole record: emulated whole
@@ -161,7 +162,7 @@ def _chunk_work(truth_or_path, scenario, seed, runs):
         bias = {k: (v[:, idx] if v.shape[1] > 1 else np.repeat(v, len(idx), axis=1)) for k, v in bias.items()}
     calib = {name: calibration_history(truth, others[name], s["noise_uT"] * 1e-6, s["forgetting"])
              for name, s in calibrated.items()}
-    return list(runs), hist, bias, calib
+    return ChunkPart(list(runs), hist, bias, calib)
 
 
 def mag_calibrations(scenario) -> dict:
@@ -174,27 +175,6 @@ def mag_calibrations(scenario) -> dict:
             if m["type"] == "mag_heading":
                 out.setdefault(m["sensor"], m)
     return out
-
-
-def _merge(parts):
-    parts = sorted(parts, key=lambda p: p[0][0])
-    runs = np.concatenate([p[0] for p in parts])
-    labels = list(parts[0][1])
-    merged = {}
-    for label in labels:
-        hs = [p[1][label] for p in parts]
-        cat = lambda name: None if getattr(hs[0], name) is None else np.concatenate([getattr(h, name) for h in hs])
-        # per-run lists; a history without one (built by hand) has None per run
-        lists = {name: None if all(getattr(h, name) is None for h in hs) else [
-            r for h in hs for r in (getattr(h, name) or [None] * len(h.diverged))] for name in RUN_LISTS}
-        merged[label] = EstimatorHistory(
-            label=label, t_s=hs[0].t_s, **{name: cat(name) for name in (*EPOCH_ARRAYS, "diverged")},
-            nis={k: np.concatenate([h.nis[k] for h in hs]) for k in hs[0].nis},
-            nis_dim=hs[0].nis_dim, cost=sum_cost([h.cost for h in hs]), **lists)
-    bias = {k: np.concatenate([p[2][k] for p in parts]) for k in parts[0][2]}
-    calib = {name: {k: v if k in ("t_s", "turns") else np.concatenate([p[3][name][k] for p in parts])
-                    for k, v in c.items()} for name, c in parts[0][3].items()}
-    return runs, merged, bias, calib
 
 
 def run_chunks(fn, chunks, make_args, workers: int, progress=None, on_part=None):
@@ -292,26 +272,37 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: i
         store.flag(_chunk_failures(pending, failed))
         merged = store.merged(keep_runs)
     else:
-        merged = _merge(parts) if parts else None
-    done, hist, bias, calib = merged if merged is not None else ([], {}, {}, {})
-    done = np.asarray(done, int)
+        merged = merge_parts(parts) if parts else None
+    merged = merged if merged is not None else ChunkPart([], {})
+    done = np.asarray(merged.runs, int)
     every = np.asarray(store.runs(), int) if store is not None else done
-    return RunResult(hist, every, failed, interrupted, bias, calib, store=store, history_runs=done)
+    return RunResult(merged.histories, every, failed, interrupted, merged.truth_bias, merged.calibration,
+                     store=store, history_runs=done)
 
 
 # --- navigation in the loop ---------------------------------------------------------------------
 CLOSED_CHUNK_RUNS = 25
 
 
-def _closed_chunk(args):
+@dataclass
+class LoopChunk:
+    """What a chunk of closed-loop runs returns: its records, the per-run outcomes (miss
+    distances, abort and landing times, true paths) and the runs that failed (run -> error)."""
+
+    part: ChunkPart
+    loop: dict
+    failed: dict
+
+
+def _closed_chunk(args) -> LoopChunk:
     """Worker: one chunk of closed-loop runs (each run flies its own aircraft)."""
     scenario, seed, runs = args
     b = fly_batch(scenario, seed, runs)
     end_records(b, 1.0 / scenario.flight.rate_hz)
-    extra = {"outcome": np.array(b.outcome), "abort_t_s": b.abort_t_s, "land_t_s": b.land_t_s,
-             "fail_t_s": b.fail_t_s, "end_t_s": b.end_t_s, "miss_m": b.miss_m, "miss_est_m": b.miss_est_m,
-             "landing_n_m": b.landing_n_m, "path_t_s": b.path_t_s, "path_n_m": b.path_n_m}
-    return list(runs), b.histories, b.truth_bias, extra, b.failed
+    loop = {"outcome": np.array(b.outcome), "abort_t_s": b.abort_t_s, "land_t_s": b.land_t_s,
+            "fail_t_s": b.fail_t_s, "end_t_s": b.end_t_s, "miss_m": b.miss_m, "miss_est_m": b.miss_est_m,
+            "landing_n_m": b.landing_n_m, "path_t_s": b.path_t_s, "path_n_m": b.path_n_m}
+    return LoopChunk(ChunkPart(list(runs), b.histories, b.truth_bias), loop, b.failed)
 
 
 def _pad(a, E: int, axis: int = 1):
@@ -322,23 +313,22 @@ def _pad(a, E: int, axis: int = 1):
     return np.pad(a.astype(float) if a.dtype.kind != "f" else a, width, constant_values=np.nan)
 
 
-def _pad_part(part, t_full, path_t_full):
+def _pad_part(chunk: LoopChunk, t_full, path_t_full) -> LoopChunk:
     """Extend a chunk's records (which end when its last run landed) to the longest chunk."""
-    runs, hist, bias, extra, failed = part
     E = len(t_full)
-    for h in hist.values():
+    for h in chunk.part.histories.values():
         for name in EPOCH_ARRAYS:
             setattr(h, name, _pad(getattr(h, name), E))
         h.nis = {k: _pad(v, E) for k, v in h.nis.items()}
         h.t_s = t_full
-    bias = {k: _pad(v, E) for k, v in bias.items()}
-    extra = dict(extra, path_n_m=_pad(extra["path_n_m"], len(path_t_full)), path_t_s=path_t_full)
-    return runs, hist, bias, extra, failed
+    bias = {k: _pad(v, E) for k, v in chunk.part.truth_bias.items()}
+    loop = dict(chunk.loop, path_n_m=_pad(chunk.loop["path_n_m"], len(path_t_full)), path_t_s=path_t_full)
+    return LoopChunk(replace(chunk.part, truth_bias=bias), loop, chunk.failed)
 
 
 def run_closed_loop(scenario, runs: int, seed: int, workers: int, progress=None):
     """All runs of a closed-loop scenario in chunks of :data:`CLOSED_CHUNK_RUNS`, and the same
-    flight guided on the truth; returns ``(RunResult, extra, reference)``: ``extra`` holds the
+    flight guided on the truth; returns ``(RunResult, loop, reference)``: ``loop`` holds the
     per-run outcome, abort and landing times, miss distances and true paths (runs in order),
     ``reference`` the :class:`~navsim.closedloop.LoopBatch` of the truth-guided flight."""
     reference = fly_batch(scenario, seed, [0], on_truth=True, keep_truth=True)
@@ -348,14 +338,15 @@ def run_closed_loop(scenario, runs: int, seed: int, workers: int, progress=None)
                                             workers, progress)
     if not parts:
         return RunResult({}, np.array([], int), failed, interrupted), {}, reference
-    longest = max(parts, key=lambda p: len(next(iter(p[1].values())).t_s))
-    t_full = next(iter(longest[1].values())).t_s
-    parts = [_pad_part(p, t_full, longest[3]["path_t_s"]) for p in parts]
-    for p in parts:
-        failed.update(p[4])
-    done, hist, bias, _ = _merge([(*p[:3], {}) for p in parts])
-    order = sorted(parts, key=lambda p: p[0][0])
-    extra = {k: np.concatenate([p[3][k] for p in order]) for k in order[0][3] if k != "path_t_s"}
-    extra["path_t_s"] = longest[3]["path_t_s"]
-    extra["runs"] = done
-    return RunResult(hist, done, failed, interrupted, bias), extra, reference
+    t_of = lambda c: next(iter(c.part.histories.values())).t_s
+    longest = max(parts, key=lambda c: len(t_of(c)))
+    path_t_s = longest.loop["path_t_s"]
+    parts = [_pad_part(c, t_of(longest), path_t_s) for c in parts]
+    for c in parts:
+        failed.update(c.failed)
+    merged = merge_parts([c.part for c in parts])
+    order = sorted(parts, key=lambda c: c.part.runs[0])
+    loop = {k: np.concatenate([c.loop[k] for c in order]) for k in order[0].loop if k != "path_t_s"}
+    done = np.asarray(merged.runs, int)
+    loop.update(path_t_s=path_t_s, runs=done)
+    return RunResult(merged.histories, done, failed, interrupted, merged.truth_bias), loop, reference

@@ -74,73 +74,25 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
         if key not in TOP_KEYS:
             raise ScenarioError("is not a known key", file=file, key=str(key),
                                 hint=close_match(str(key), TOP_KEYS))
-    default = re.sub(r"[^A-Za-z0-9._-]", "_", Path(file).stem).lstrip(".") if file else "scenario"
-    name = node.get("name", str, default or "scenario")
-    if not plain_name(name):
-        raise node.error(f"is '{name}'", "name",
-                         expected="a plain name (letters, digits, '.', '_', '-'; no '/', no '..'): it names "
-                         "the output folder reports/<name>",
-                         hint="name: my_run (and --out DIR to write elsewhere than reports/)")
+    name = _name(node, file)
     description = node.get("description", str, "")
-    aircraft = node.get("aircraft", str, "survey10")
-    if aircraft not in available_aircraft():
-        raise ScenarioError(f"'{aircraft}' is not an aircraft of {AIRCRAFT_DIR}", file=file,
-                            key="aircraft", expected="a folder name of aircraft/",
-                            hint=close_match(aircraft, available_aircraft()))
-    node._seen.add("track")
-    if "track" not in node.data:
-        raise ScenarioError("is missing", file=file, key="track",
-                            expected="a shipped track name (p0, p3, p2_sea) or a mapping")
-    try:
-        track = parse_track(node.data["track"], "track", file)
-    except ScenarioError as exc:
-        raise (exc if exc.file else exc.with_file(file or "<scenario>")) from None
+    aircraft = _aircraft(node, file)
+    track = _track(node, file)
     node._seen.add("environment")
     environment = parse_environment(node.data.get("environment"), "environment", file)
     _check_start(track, environment, file)
     node._seen.add("sensors")
     sensors = parse_sensors(node.data.get("sensors"), file)
-    mc = node.child("montecarlo", None)
-    runs, seed, workers = 1, 0, 1
-    if mc is not None:
-        runs = mc.get("runs", int, 1, minimum=1)
-        seed = mc.get("seed", int, 0, minimum=0, maximum=MAX_SEED)
-        workers = mc.get("workers", int, 1, minimum=1, maximum=MAX_WORKERS)
-        mc.done()
-    estimators = ()
-    if "estimators" in node.data:
-        node._seen.add("estimators")
-        estimators = parse_estimators(node.data["estimators"], {c.name: c.kind for c in sensors}, file)
-        imu = [c for c in sensors if c.kind == "imu"]
-        if len(imu) != 1:
-            raise ScenarioError(f"has {len(imu)} IMUs", file=file, key="sensors",
-                                expected="exactly one sensor of kind imu when estimators are given")
+    runs, seed, workers = _montecarlo(node.child("montecarlo", None))
+    estimators = _estimators(node, sensors, file)
     initial = _initial(node.child("initial_errors", None))
     duration = nominal_s = nominal_duration_s(track)
     if node.data.get("closed_loop") is not None:
         duration = math.inf           # each run's flight ends where its navigation takes it
-    settle_s, windows = 0.0, ()
-    metrics = node.child("metrics", None)
-    if metrics is not None:
-        settle_s = metrics.get("settle_s", float, 0.0, minimum=0.0)
-        windows = _windows(metrics)
-        metrics.done()
+    settle_s, windows = _metrics(node.child("metrics", None))
     reference = _reference(node.child("reference", None), [e.label for e in estimators], windows)
-    report = {"formats": ["pdf", "png"]}
-    rep = node.child("report", None)
-    if rep is not None:
-        rep._seen.add("formats")
-        fmts = rep.data.get("formats", ["pdf", "png"])
-        if not (isinstance(fmts, list) and fmts and all(f in ("pdf", "png") for f in fmts)):
-            raise rep.error(f"is {fmts!r}", "formats", expected="a list of pdf and/or png")
-        report["formats"] = fmts
-        report["runs_plotted"] = rep.get("runs_plotted", int, 5, minimum=0)
-        rep.done()
-    flight_node = node.child("flight", None)
-    rate_hz = 100.0
-    if flight_node is not None:
-        rate_hz = flight_node.get("rate_hz", float, 100.0, minimum=RATE_HZ[0], maximum=RATE_HZ[1])
-        flight_node.done()
+    report = _report(node.child("report", None))
+    rate_hz = _rate_hz(node.child("flight", None))
     closed_loop = None
     cl_node = node.child("closed_loop", None)
     if cl_node is not None:
@@ -156,6 +108,98 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
                         windows=windows, reference=reference, report=report, closed_loop=closed_loop)
     check_scenario(scenario, duration)
     return scenario
+
+
+def _name(node: Node, file: str | None) -> str:
+    """``name``: a plain name, by default the file's stem."""
+    default = re.sub(r"[^A-Za-z0-9._-]", "_", Path(file).stem).lstrip(".") if file else "scenario"
+    name = node.get("name", str, default or "scenario")
+    if not plain_name(name):
+        raise node.error(f"is '{name}'", "name",
+                         expected="a plain name (letters, digits, '.', '_', '-'; no '/', no '..'): it names "
+                         "the output folder reports/<name>",
+                         hint="name: my_run (and --out DIR to write elsewhere than reports/)")
+    return name
+
+
+def _aircraft(node: Node, file: str | None) -> str:
+    """``aircraft``: a folder of aircraft/."""
+    aircraft = node.get("aircraft", str, "survey10")
+    if aircraft not in available_aircraft():
+        raise ScenarioError(f"'{aircraft}' is not an aircraft of {AIRCRAFT_DIR}", file=file,
+                            key="aircraft", expected="a folder name of aircraft/",
+                            hint=close_match(aircraft, available_aircraft()))
+    return aircraft
+
+
+def _track(node: Node, file: str | None):
+    """``track``: a shipped track name or a mapping (required)."""
+    node._seen.add("track")
+    if "track" not in node.data:
+        raise ScenarioError("is missing", file=file, key="track",
+                            expected="a shipped track name (p0, p3, p2_sea) or a mapping")
+    try:
+        return parse_track(node.data["track"], "track", file)
+    except ScenarioError as exc:
+        raise (exc if exc.file else exc.with_file(file or "<scenario>")) from None
+
+
+def _montecarlo(mc: Node | None) -> tuple:
+    """``montecarlo: {runs, seed, workers}`` as a tuple (defaults 1, 0, 1)."""
+    if mc is None:
+        return 1, 0, 1
+    runs = mc.get("runs", int, 1, minimum=1)
+    seed = mc.get("seed", int, 0, minimum=0, maximum=MAX_SEED)
+    workers = mc.get("workers", int, 1, minimum=1, maximum=MAX_WORKERS)
+    mc.done()
+    return runs, seed, workers
+
+
+def _estimators(node: Node, sensors, file: str | None) -> tuple:
+    """``estimators`` (none if absent); with estimators, exactly one IMU among ``sensors``."""
+    if "estimators" not in node.data:
+        return ()
+    node._seen.add("estimators")
+    estimators = parse_estimators(node.data["estimators"], {c.name: c.kind for c in sensors}, file)
+    imu = [c for c in sensors if c.kind == "imu"]
+    if len(imu) != 1:
+        raise ScenarioError(f"has {len(imu)} IMUs", file=file, key="sensors",
+                            expected="exactly one sensor of kind imu when estimators are given")
+    return estimators
+
+
+def _metrics(node: Node | None) -> tuple:
+    """``metrics: {settle_s, windows}`` as ``(settle_s, windows)``."""
+    if node is None:
+        return 0.0, ()
+    settle_s = node.get("settle_s", float, 0.0, minimum=0.0)
+    windows = _windows(node)
+    node.done()
+    return settle_s, windows
+
+
+def _report(node: Node | None) -> dict:
+    """``report: {formats, runs_plotted}`` (formats: pdf and/or png)."""
+    report = {"formats": ["pdf", "png"]}
+    if node is None:
+        return report
+    node._seen.add("formats")
+    fmts = node.data.get("formats", ["pdf", "png"])
+    if not (isinstance(fmts, list) and fmts and all(f in ("pdf", "png") for f in fmts)):
+        raise node.error(f"is {fmts!r}", "formats", expected="a list of pdf and/or png")
+    report["formats"] = fmts
+    report["runs_plotted"] = node.get("runs_plotted", int, 5, minimum=0)
+    node.done()
+    return report
+
+
+def _rate_hz(node: Node | None) -> float:
+    """``flight: {rate_hz}``, the simulation (truth) rate, Hz."""
+    if node is None:
+        return 100.0
+    rate_hz = node.get("rate_hz", float, 100.0, minimum=RATE_HZ[0], maximum=RATE_HZ[1])
+    node.done()
+    return rate_hz
 
 
 def _check_start(track, environment, file) -> None:

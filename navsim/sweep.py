@@ -24,7 +24,6 @@ import numpy as np
 from navsim.api import run
 from navsim.config import Node, load_yaml
 from navsim.errors import ScenarioError
-from navsim.metrics import lookup
 from navsim.runner import cached_flight
 from navsim.scenario import check_metric_path, check_scenario, parse_scenario
 
@@ -141,8 +140,8 @@ def run_sweep(path, workers: int | None = None, out: Path | None = None, progres
         if not len(res.runs):
             result.failed_points[i] = min(res.failed.items())[1] if res.failed else "no run"
         values = {}
-        for label, scores in res.metrics["estimators"].items():
-            v = lookup(scores, metric)
+        for label, scores in res.metrics.estimators.items():
+            v = scores.get(metric)
             if isinstance(v, dict):
                 raise ScenarioError(f"'{metric}' is a group of metrics ({', '.join(v)})", file=str(path),
                                     key="metric", expected="the path of a number or of a list of three")

@@ -164,79 +164,96 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
     if config.track.start.type == "ground":
         return _parked(config)
     craft = Aircraft(config)
-    track, io, ap, runner, dt = config.track, craft.io, craft.ap, craft.runner, craft.dt
-    start = track.start
-    lat0, lon0, k_north, k_east = craft.lat0, craft.lon0, craft.k_north, craft.k_east
+    rec = _Recorder(len(P.RAW_PROPERTIES), 1 << 14)
+    try:
+        _fly_track(craft, rec, progress)
+    except FlightError as exc:
+        rows, seg = rec.arrays()
+        exc.truth = _make_truth(rows, seg, craft.dt, config.track, config) if len(rows) > 1 else None
+        raise
+    rows, seg = rec.arrays()
+    return _make_truth(rows, seg, craft.dt, config.track, config)
+
+
+def _fly_track(craft: Aircraft, rec: _Recorder, progress) -> None:
+    """Step ``craft`` on the truth through the launch (if any) and its segments, recording every
+    row in ``rec``, until the track is flown. Raises FlightError."""
+    io, ap, runner, dt = craft.io, craft.ap, craft.runner, craft.dt
     watch = Watchdog(craft.limits, dt)
     state = State()
-    rec = _Recorder(len(P.RAW_PROPERTIES), 1 << 14)
-    nominal = nominal_duration_s(track)
-    launching = start.type == "launch"
-    booster_steps = int(round(start.booster_time_s / dt)) if launching else 0
+    nominal = nominal_duration_s(craft.config.track)
+    launching = craft.config.track.start.type == "launch"
+    booster_steps = int(round(craft.config.track.start.booster_time_s / dt)) if launching else 0
     k = 0
     next_progress = 0.0
     read_row, set_controls, run, step_ap = io.read_row, io.set_controls, io.run, ap.step
-    try:
-        while True:
-            t = k * dt
-            row = read_row()
-            state.t = t
-            state.north = (row[P.COL_LAT] - lat0) * k_north
-            state.east = (row[P.COL_LON] - lon0) * k_east
-            state.h = h = row[P.COL_H]
-            vn, ve = row[P.COL_VN], row[P.COL_VE]
-            state.ground_speed = math.hypot(vn, ve)
-            state.course = course = math.atan2(ve, vn)
-            state.tas = tas = row[P.COL_TAS]
-            # --- failure checks -----------------------------------------------------------
-            reason = watch.check(row, ground_ok=launching and t < 5.0,
-                                 stall_ok=launching and k <= booster_steps)
-            if reason is not None:
-                raise runner.fail(reason, state)
-            # --- segments -----------------------------------------------------------------
-            if launching:
-                ap.course_cmd = course if state.ground_speed > 1.0 else ap.course_cmd  # wings level
-                if k == booster_steps:
-                    io.set_booster_n(0.0)
-                if craft.turbulence_pending and tas > 8.0:
-                    craft.start_turbulence()
-                if k >= booster_steps and tas >= 0.9 * start.speed_mps and row[P.COL_HAGL] > 10.0:
-                    launching = False
-                    ap.pitch_hold = None
-                    ap.throttle_hold = None
-                    ap.i_climb = row[P.COL_PITCH] - math.asin(min(max(-row[P.COL_VD] / tas, -0.5), 0.5))
-                    ap.i_speed = 0.6
-                    ap.alt_cmd, ap.climb_rate = h, 0.0
-                    runner.next(state)
-                elif t > 30.0:
-                    raise runner.fail("the launch did not reach flying speed within 30 s", state)
-            else:
-                if runner.index < 0:
-                    runner.next(state)
-                if runner.finished:
-                    rec.add(row, runner.index - 1)
-                    break
-                runner.update(state, dt)
-                if runner.finished:
-                    rec.add(row, runner.index - 1)
-                    break
-            rec.add(row, runner.index)
-            if progress is not None and t >= next_progress:
-                progress(t, nominal)
-                next_progress += 1.0
-            # --- control ------------------------------------------------------------------
-            elev, ail, rud, thr = step_ap(dt, tas, h, -row[P.COL_VD], row[P.COL_ROLL],
-                                          row[P.COL_PITCH], row[P.COL_P], row[P.COL_Q],
-                                          row[P.COL_BETA], course)
-            set_controls(elev, ail, rud, thr)
-            run()
-            k += 1
-    except FlightError as exc:
-        rows, seg = rec.arrays()
-        exc.truth = _make_truth(rows, seg, dt, track, config) if len(rows) > 1 else None
-        raise
-    rows, seg = rec.arrays()
-    return _make_truth(rows, seg, dt, track, config)
+    while True:
+        t = k * dt
+        row = read_row()
+        _sense(state, row, craft, t)
+        reason = watch.check(row, ground_ok=launching and t < 5.0, stall_ok=launching and k <= booster_steps)
+        if reason is not None:
+            raise runner.fail(reason, state)
+        if launching:
+            launching = _launch_step(craft, state, row, k, booster_steps)
+        elif _segments_step(runner, state, dt):
+            rec.add(row, runner.index - 1)
+            return
+        rec.add(row, runner.index)
+        if progress is not None and t >= next_progress:
+            progress(t, nominal)
+            next_progress += 1.0
+        elev, ail, rud, thr = step_ap(dt, state.tas, state.h, -row[P.COL_VD], row[P.COL_ROLL],
+                                      row[P.COL_PITCH], row[P.COL_P], row[P.COL_Q],
+                                      row[P.COL_BETA], state.course)
+        set_controls(elev, ail, rud, thr)
+        run()
+        k += 1
+
+
+def _sense(state: State, row, craft: Aircraft, t: float) -> None:
+    """Fill the segments' State from the true ``row`` at time ``t``."""
+    state.t = t
+    state.north = (row[P.COL_LAT] - craft.lat0) * craft.k_north
+    state.east = (row[P.COL_LON] - craft.lon0) * craft.k_east
+    state.h = row[P.COL_H]
+    vn, ve = row[P.COL_VN], row[P.COL_VE]
+    state.ground_speed = math.hypot(vn, ve)
+    state.course = math.atan2(ve, vn)
+    state.tas = row[P.COL_TAS]
+
+
+def _launch_step(craft: Aircraft, state: State, row, k: int, booster_steps: int) -> bool:
+    """One step on the launch: wings level, booster cut, turbulence turned on at speed; at
+    flying speed hand over to the track. Returns whether still launching."""
+    io, ap, runner, start = craft.io, craft.ap, craft.runner, craft.config.track.start
+    tas = state.tas
+    ap.course_cmd = state.course if state.ground_speed > 1.0 else ap.course_cmd  # wings level
+    if k == booster_steps:
+        io.set_booster_n(0.0)
+    if craft.turbulence_pending and tas > 8.0:
+        craft.start_turbulence()
+    if k >= booster_steps and tas >= 0.9 * start.speed_mps and row[P.COL_HAGL] > 10.0:
+        ap.pitch_hold = None
+        ap.throttle_hold = None
+        ap.i_climb = row[P.COL_PITCH] - math.asin(min(max(-row[P.COL_VD] / tas, -0.5), 0.5))
+        ap.i_speed = 0.6
+        ap.alt_cmd, ap.climb_rate = state.h, 0.0
+        runner.next(state)
+        return False
+    if state.t > 30.0:
+        raise runner.fail("the launch did not reach flying speed within 30 s", state)
+    return True
+
+
+def _segments_step(runner: SegmentRunner, state: State, dt: float) -> bool:
+    """One step of the segments; returns whether the track is flown."""
+    if runner.index < 0:
+        runner.next(state)
+    if runner.finished:
+        return True
+    runner.update(state, dt)
+    return runner.finished
 
 
 def _parked(config: FlightConfig) -> Truth:

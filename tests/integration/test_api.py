@@ -36,7 +36,7 @@ def test_the_notebook_example_gives_navsim_runs_numbers(tmp_path, monkeypatch, c
     out = tmp_path / "cli"
     assert run(ROOT / "scenarios" / "p0_bd_sins_ads.yaml", out, "--runs", "4", "--seed", "1", "--workers", "2") == 0
     written = json.loads((out / "metrics.json").read_text())
-    close_metrics(without_cost(example["result"].metrics), without_cost(written))
+    close_metrics(without_cost(example["result"].to_dict()), without_cost(written))
     ds = example["ds"]
     assert dict(ds.sizes) == {"estimator": 2, "run": 4, "epoch": 501, "axis": 3, "state": 9}
     assert ds.pos_err_m.attrs["units"] == "m" and ds.t_s.attrs["units"] == "s"
@@ -71,12 +71,13 @@ def test_open_result_reads_a_finished_and_an_interrupted_run_and_changes_no_byte
         before = checksums(folder)
         result = navsim.open_result(folder)
         assert list(result.runs) == runs and result.interrupted == (name == "cut")
-        assert result.metrics == json.loads((folder / "metrics.json").read_text())
-        stored = [r for part in result.store.parts() for r in part[0]]
+        assert result.to_dict() == json.loads((folder / "metrics.json").read_text())
+        assert result.metrics.estimators["KF"].runs_counted == len(runs)
+        stored = [r for part in result.store.parts() for r in part.runs]
         assert stored == runs
         merged = result.store.merged()
         for label, h in result.histories.items():
-            same_history(h, merged[1][label])
+            same_history(h, merged.histories[label])
         assert result.to_xarray().sizes["run"] == len(runs)
         with pytest.raises(ResumeError, match="read-only"):        # the store refuses to write
             result.store.add(result.store.merged())

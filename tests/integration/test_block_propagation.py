@@ -7,7 +7,8 @@ import pytest
 
 from navsim.estimators.factory import build
 from navsim.estimators.sins import FreeInertial
-from navsim.montecarlo import ARRAY_FIELDS, run_batch
+from navsim.montecarlo import run_batch
+from navsim.scoring.history import ARRAY_FIELDS
 from navsim.sensors import emulate
 from navsim.sensors.imu import emulate_imu
 from reference_strapdown import Strapdown

@@ -148,8 +148,7 @@ def test_return_to_land_acceptance_over_100_runs(repo_root):
     """Issue 8: over 100 runs with GNSS lost mid-flight every run reaches the recovery area
     without stall or impact; the miss distances' CEP is reported against the truth-guided flight,
     and the filter's sigmas at the parachute are consistent with its true error."""
-    from navsim.closedloop import cep
-    from navsim.metrics import landing_consistency
+    from navsim.scoring.closed_loop import cep, landing_consistency
     from navsim.runner import run_closed_loop
     from navsim.scenario import load_scenario
     scenario = load_scenario(repo_root / "scenarios" / "p1_return_to_land.yaml")

@@ -13,10 +13,10 @@ import navsim.estimators.factory
 from navsim import earth, kernels
 from navsim.chunkstore import ChunkStore, part_arrays, part_from_arrays
 from navsim.estimators import kalman
-from navsim.metrics import DIVERGENCE_LISTED, score
-from navsim.metrics_stream import score_parts, score_run
-from navsim.montecarlo import NEES_BOUND, PSD_TOL, SYMMETRY_TOL, EstimatorHistory, covariance_faults
-from navsim.runner import _merge, run_monte_carlo
+from navsim.montecarlo import NEES_BOUND, PSD_TOL, SYMMETRY_TOL, covariance_faults
+from navsim.runner import run_monte_carlo
+from navsim.scoring.history import ChunkPart, EstimatorHistory, merge_parts
+from navsim.scoring.scorer import DIVERGENCE_LISTED, score, score_parts, score_run
 from navsim.scenario import load_scenario
 
 P0 = "p0_bd_sins_ads"
@@ -68,17 +68,17 @@ def test_a_blown_up_filter_is_flagged_and_the_sane_one_scored_on_every_run(p0, t
     assert blown.diverged.all() and blown.divergence == [(1.0, "NEES above bound")] * 3
     assert np.nanmin(blown.nees[:, 1:]) > NEES_BOUND and np.nanmax(blown.nees) > 1e20
     assert not sane.diverged.any() and sane.divergence == [None] * 3 and np.nanmax(sane.nees) < 1e3
-    m = score(blown, 10.0)
+    m = score(blown, 10.0).to_dict()
     assert m["diverged_runs"] == 3 and m["runs_counted"] == 0 and "rms" not in m
     assert m["divergence"] == {"count": 3, "causes": {"NEES above bound": 3},
                                "runs": [{"run": r, "t_s": 1.0, "cause": "NEES above bound"} for r in range(3)]}
-    s = score(sane, 10.0)
+    s = score(sane, 10.0).to_dict()
     assert s["diverged_runs"] == 0 and s["runs_counted"] == 3 and "divergence" not in s
     assert max(s["rms"]["pos_m"]) < 5.0 and max(s["rms"]["att_deg"]) < 0.1
     # the streamed scorer (chunks of 2 and 1 runs) lists the same
     streamed = score_run(store.parts, 10.0)[0]
-    close_metrics(m, streamed[BLOWN])
-    close_metrics(s, streamed[SANE])
+    close_metrics(m, streamed[BLOWN].to_dict())
+    close_metrics(s, streamed[SANE].to_dict())
 
 
 class RaisesOnce:
@@ -120,7 +120,7 @@ def test_an_estimator_that_raises_is_flagged_and_the_others_go_on(same_history, 
     stop = np.searchsorted(bad.t_s, t_s)                  # NaN from the failing epoch on
     assert np.isnan(bad.pos_err_m[:, stop:]).all() and np.isfinite(bad.pos_err_m[:, :stop]).all()
     m = score(bad, 0.0)
-    assert m["runs_counted"] == 0 and m["divergence"]["causes"] == {"LinAlgError: Singular matrix": 3}
+    assert m.runs_counted == 0 and m.divergence.causes == {"LinAlgError: Singular matrix": 3}
 
 
 def test_an_indefinite_covariance_in_one_run_flags_that_run_alone(same_history, p0, monkeypatch):
@@ -154,7 +154,7 @@ def test_an_indefinite_covariance_in_one_run_flags_that_run_alone(same_history, 
     for name in ("pos_err_m", "att_err_rad", "sigma", "nees"):   # runs 0 and 2 as without the spoiling
         assert np.array_equal(getattr(spoiled, name)[[0, 2]], getattr(want, name)[[0, 2]]), name
     same_history(want, res.histories[SANE], timed=False)
-    assert score(spoiled, 0.0)["runs_counted"] == 2
+    assert score(spoiled, 0.0).runs_counted == 2
 
 
 def test_covariance_faults():
@@ -239,28 +239,28 @@ def synthetic(runs, seed, divergence=True):
         sigma=None, nees=None, nis={}, nis_dim={}, diverged=diverged,
         cost={"propagate_s": 0.1, "epoch_s": 0.2, "runs": B, "epochs": E - 1, "batches": 1},
         divergence=div if divergence else None)
-    return list(runs), {"KF": h}, {}, {}
+    return ChunkPart(list(runs), {"KF": h})
 
 
 def test_divergence_records_round_trip_and_are_listed_with_their_runs(tmp_path, close_metrics):
     part = synthetic(range(10, 14), 1)
     np.savez(tmp_path / "p.npz", **part_arrays(part))
     with np.load(tmp_path / "p.npz", allow_pickle=False) as data:
-        back = part_from_arrays(data)[1]["KF"]
-    assert back.divergence == part[1]["KF"].divergence == [None, (1.0, "cause 1"), None, (3.0, "cause 0")]
+        back = part_from_arrays(data).histories["KF"]
+    assert back.divergence == part.histories["KF"].divergence == [None, (1.0, "cause 1"), None, (3.0, "cause 0")]
     # merged in memory and from a store, with a chunk built without records
     parts = [synthetic(range(14, 17), 2, divergence=False), synthetic(range(10, 14), 1),
              synthetic(range(17, 57), 3)]
     store = ChunkStore(tmp_path / "chunks", {"seed": 1}, mode="new")
     for p in parts:
         store.add(p)
-    runs, merged, _, _ = _merge(parts)
-    stored = store.merged()[1]["KF"]
+    runs, merged = (lambda m: (m.runs, m.histories))(merge_parts(parts))
+    stored = store.merged().histories["KF"]
     assert stored.divergence == merged["KF"].divergence and len(merged["KF"].divergence) == 47
     assert merged["KF"].divergence[4:7] == [None] * 3
-    # both scorers list the same runs, by their run numbers
-    want = score(merged["KF"], runs=runs)
-    got = score_parts(lambda: iter(sorted(parts, key=lambda p: p[0][0])))["KF"]
+    # in memory and chunk by chunk, the same runs are listed, by their run numbers
+    want = score(merged["KF"], runs=runs).to_dict()
+    got = score_parts(lambda: iter(sorted(parts, key=lambda p: p.runs[0])))["KF"].to_dict()
     close_metrics(want, got)
     d = got["divergence"]
     assert d["count"] == got["diverged_runs"] == int(merged["KF"].diverged.sum()) == 23

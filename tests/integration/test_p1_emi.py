@@ -6,7 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from navsim.metrics import score
+from navsim.scoring.scorer import score
 from navsim.runner import run_monte_carlo
 
 
@@ -20,7 +20,7 @@ def run(emi, runs, duration_s=None):
     if duration_s is not None:
         truth = truth.slice(0, int(duration_s * 100) + 1)
     res = run_monte_carlo(scenario, truth, path if duration_s is None else None, runs, scenario.seed, 1)
-    return {k: score(h, scenario.settle_s, scenario.windows) for k, h in res.histories.items()}
+    return {k: score(h, scenario.settle_s, scenario.windows).to_dict() for k, h in res.histories.items()}
 
 
 def test_the_gps_noise_grows_near_the_faulty_line(emi):

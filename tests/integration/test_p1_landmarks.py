@@ -7,7 +7,7 @@ from navsim.config import load_yaml
 from navsim.estimators.error_model import PRESETS, Layout
 from navsim.estimators.measurements import LandmarkFix
 from navsim.flight.truth import Truth
-from navsim.metrics import sighting_metrics, sighting_spans
+from navsim.scoring.landmarks import sighting_metrics, sighting_spans
 from navsim.montecarlo import perturbed_start
 from navsim.scenario import parse_scenario
 from navsim.sensors import SensorConfig, emulate, load_spec
@@ -57,9 +57,9 @@ def test_landmarks_bring_the_position_back_to_the_fix_noise_after_each_sighting(
     spans = sighting_spans(truth, scenario)
     assert len(spans) == 9 and all(2.0 < b - a < 10.0 for _, a, b, _ in spans)   # ~6 fixes each
     m = sighting_metrics(result.histories["SINS/landmark/baro"], spans)
-    assert m["fraction_within_3sigma"] == 1.0, m
-    assert m["rms_after_m"] < 3.9                      # below one fix sigma (3 m + 1 % of ~85 m)
-    assert m["rms_before_m"]["median"] > 3 * m["rms_after_m"]   # it had drifted in between
+    assert m.fraction_within_3sigma == 1.0, m
+    assert m.rms_after_m < 3.9                      # below one fix sigma (3 m + 1 % of ~85 m)
+    assert m.rms_before_m.median > 3 * m.rms_after_m   # it had drifted in between
 
 
 def test_free_sins_diverges_and_the_baro_bounds_the_height(short_run):
@@ -93,7 +93,7 @@ def test_p1_gnss_denied_acceptance_over_100_runs(repo_root):
     result = run_monte_carlo(scenario, truth, path, 100, 1, 2)
     h = result.histories["SINS/landmark/baro"]
     m = sighting_metrics(h, sighting_spans(truth, scenario))
-    assert m["count"] == 40 and m["fraction_within_3sigma"] > 0.999 and m["max_ratio"] < 4.5, m
+    assert m.count == 40 and m.fraction_within_3sigma > 0.999 and m.max_ratio < 4.5, m
     after_turn = {13, 26}                                   # the first anchors of legs 2 and 3
     for i, s in enumerate(m["sightings"]):
         if i not in after_turn:

@@ -8,7 +8,8 @@ import pytest
 from navsim import magcal
 from navsim.estimators.error_model import Layout, PRESETS
 from navsim.estimators.measurements import MagneticHeading
-from navsim.metrics import calibration_score, score
+from navsim.scoring.calibration import calibration_score
+from navsim.scoring.scorer import score
 from navsim.runner import mag_calibrations, run_monte_carlo
 from navsim.sensors import emulate
 from navsim.strapdown import state_from_truth
@@ -28,11 +29,11 @@ def result(mag):
 
 def test_two_full_turns_calibrate_within_2_percent(result):
     res, _ = result
-    s = calibration_score(res.calibration["mag"])["after_2_turns"]
+    s = calibration_score(res.calibration["mag"]).after_turns
     # measured (100 runs, navsim run): hard iron mean 0.42, p95 1.02, max 1.25 % of |m|;
     # soft iron 0.28, 0.67, 0.81 % (Frobenius) at 89 s
-    assert s["hard_iron_pct"]["max"] < 2.0 and s["soft_iron_pct"]["max"] < 2.0
-    assert 80 < s["t_s"] < 100
+    assert s.hard_iron_pct.max < 2.0 and s.soft_iron_pct.max < 2.0
+    assert 80 < s.t_s < 100
     # before the second turn the fit is not there yet (the pencil of two circles, then one)
     cal = res.calibration["mag"]
     one_turn = np.flatnonzero(cal["turns"] >= 1.0)[0]
@@ -41,7 +42,7 @@ def test_two_full_turns_calibrate_within_2_percent(result):
 
 def test_magnetometer_heading_beats_gnss_alone_in_the_outage(result):
     res, scenario = result
-    w = {k: score(h, scenario.settle_s, scenario.windows)["windows"]["GNSS outage"]["heading_deg"]["rms"]
+    w = {k: score(h, scenario.settle_s, scenario.windows).windows["GNSS outage"].quantities["heading_deg"].rms
          for k, h in res.histories.items()}
     # measured (100 runs): heading RMS in the outage 2.09 deg GNSS alone, 0.63 deg with the
     # calibrated magnetometer
@@ -75,9 +76,9 @@ def test_the_filter_uses_the_fit_the_report_scores(mag):
 def test_p1_mag_acceptance_over_100_runs(mag):
     scenario, truth, path = mag
     res = run_monte_carlo(scenario, truth, path, 100, scenario.seed, 2)
-    s = calibration_score(res.calibration["mag"])["after_2_turns"]
-    assert s["hard_iron_pct"]["max"] < 2.0 and s["soft_iron_pct"]["max"] < 2.0
-    m = {k: score(h, scenario.settle_s, scenario.windows) for k, h in res.histories.items()}
+    s = calibration_score(res.calibration["mag"]).after_turns
+    assert s.hard_iron_pct.max < 2.0 and s.soft_iron_pct.max < 2.0
+    m = {k: score(h, scenario.settle_s, scenario.windows).to_dict() for k, h in res.histories.items()}
     gnss, both = m["ES-KF GNSS"], m["ES-KF GNSS + magnetometer"]
     assert both["windows"]["GNSS outage"]["heading_deg"]["rms"] < 0.5 * gnss["windows"]["GNSS outage"]["heading_deg"]["rms"]
     assert both["rms"]["att_deg"][2] < gnss["rms"]["att_deg"][2]

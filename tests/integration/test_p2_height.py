@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from navsim.estimators.p2_height import DynamicHeightKF, HeightFusion
-from navsim.metrics import score
+from navsim.scoring.scorer import score
 from navsim.runner import run_monte_carlo
 from navsim.strapdown import NavState
 
@@ -23,7 +23,7 @@ def run(p2, labels, runs):
     scenario, truth, path = p2
     sc = dataclasses.replace(scenario, estimators=tuple(e for e in scenario.estimators if e.label in labels))
     res = run_monte_carlo(sc, truth, path, runs, scenario.seed, 1)
-    return {k: score(h, sc.settle_s, sc.windows) for k, h in res.histories.items()}
+    return {k: score(h, sc.settle_s, sc.windows).to_dict() for k, h in res.histories.items()}
 
 
 class FakeSensor:

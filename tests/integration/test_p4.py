@@ -7,7 +7,7 @@ Whole-scenario figures (20 runs, ``navsim run``) are in the README; these tests 
 import numpy as np
 import pytest
 
-from navsim.metrics import attitude_metrics
+from navsim.scoring.scorer import score
 from navsim.runner import run_monte_carlo
 
 
@@ -20,22 +20,20 @@ def static(shipped_flight):
 def test_static_attitude_reaches_p4s_accuracy(static):
     res, scenario = static
     h = res.histories["CPF-EKF"]
-    after = h.t_s >= scenario.settle_s
-    a = attitude_metrics(h.euler_err_rad[:, after])
+    a = score(h, scenario.settle_s).attitude
     # P4: +/-0.05 deg roll/pitch, +/-0.2 deg yaw against the MTi: the spread about each run's
     # own mean (4 runs, 95th percentile; 20 runs in the README)
-    assert np.all(np.array(a["p95_about_run_mean_deg"]) < [0.05, 0.05, 0.2])
+    assert np.all(np.array(a.p95_about_run_mean_deg) < [0.05, 0.05, 0.2])
     # against the truth the calibration residuals add a constant per run: tilt b/g (0.5 mg ->
     # 0.029 deg, 1 sigma) and misalignment (0.1 mrad -> 0.006 deg): below 3 sigma of that floor
-    assert np.all(np.array(a["p95_deg"][:2]) < 3 * (0.029 + 0.006) + 0.03)
+    assert np.all(np.array(a.p95_deg[:2]) < 3 * (0.029 + 0.006) + 0.03)
     assert not any(h.resets), "a static vehicle with a calibrated magnetometer must not be reset"
 
 
 def test_the_complementary_filter_alone_is_coarser(static):
     res, scenario = static
-    ekf, cpf = (attitude_metrics(res.histories[k].euler_err_rad[:, res.histories[k].t_s >= scenario.settle_s])
-                for k in ("CPF-EKF", "CPF"))
-    assert np.all(np.array(ekf["p95_deg"]) < np.array(cpf["p95_deg"]))
+    ekf, cpf = (score(res.histories[k], scenario.settle_s).attitude for k in ("CPF-EKF", "CPF"))
+    assert np.all(np.array(ekf.p95_deg) < np.array(cpf.p95_deg))
 
 
 @pytest.fixture(scope="module")
@@ -61,11 +59,11 @@ def test_the_cpf_ekf_is_reset_and_tracks_again(divergence):
         assert run, "every run is reset"
         t, cause = run[0]
         assert 320.0 < t < 420.0 and cause == "cpf"
-    late = h.t_s > max(r[-1][0] for r in h.resets) + 120.0
-    assert late.sum() > 100
-    a = attitude_metrics(h.euler_err_rad[:, late])
+    late_s = max(r[-1][0] for r in h.resets) + 120.0
+    assert (h.t_s > late_s).sum() > 100
+    a = score(h, late_s).attitude
     # within P4's dynamic accuracy again two minutes after the reset
-    assert np.all(np.array(a["p95_deg"]) < [0.1, 0.1, 0.5])
+    assert np.all(np.array(a.p95_deg) < [0.1, 0.1, 0.5])
     # and the CPF it was reset from stayed with the truth through the disturbance
     cpf = np.degrees(np.abs(res.histories["CPF"].euler_err_rad[:, res.histories["CPF"].t_s > 60]))
     assert cpf.max() < 2.0

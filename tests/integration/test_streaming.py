@@ -9,7 +9,7 @@ from test_run import run, short  # noqa: F401 (short is the fixture)
 
 from navsim.chunkstore import ChunkStore, part_arrays, part_from_arrays
 from navsim.cli import main
-from navsim.montecarlo import EstimatorHistory
+from navsim.scoring.history import ChunkPart, EstimatorHistory, merge_parts
 
 
 def need_distributed():
@@ -39,33 +39,32 @@ def synthetic_part(runs, seed):
         nis_dim={"mag_heading:mag": 1, "baro:b": 1}, diverged=np.array([False, True]),
         cost={"propagate_s": 0.1, "epoch_s": 0.2, "runs": 2, "epochs": 3, "batches": 1},
         euler_err_rad=rng.normal(size=(2, 4, 3)), resets=[[], [(1.5 + seed, "divergence"), (2.0, "innovation")]])
-    return (list(runs), {"CPF-EKF": h}, {"gyro_bias": rng.normal(size=(2, 4, 3))},
-            {"mag": {"t_s": np.arange(3.0), "turns": np.arange(3.0), "hard_iron_err": rng.random((2, 3))}})
+    return ChunkPart(list(runs), {"CPF-EKF": h}, {"gyro_bias": rng.normal(size=(2, 4, 3))},
+                     {"mag": {"t_s": np.arange(3.0), "turns": np.arange(3.0), "hard_iron_err": rng.random((2, 3))}})
 
 
 def test_a_part_round_trips_every_field(same_history, tmp_path):
     part = synthetic_part([4, 5], 1)
-    h = part[1]["CPF-EKF"]
+    h = part.histories["CPF-EKF"]
     np.savez(tmp_path / "p.npz", **part_arrays(part))
     with np.load(tmp_path / "p.npz", allow_pickle=False) as data:
-        runs, hist, bias, calib = part_from_arrays(data)
-    assert runs == [4, 5]
-    same_history(h, hist["CPF-EKF"])
-    assert np.array_equal(bias["gyro_bias"], part[2]["gyro_bias"])
-    assert all(np.array_equal(calib["mag"][k], v) for k, v in part[3]["mag"].items())
+        back = part_from_arrays(data)
+    assert back.runs == [4, 5]
+    same_history(h, back.histories["CPF-EKF"])
+    assert np.array_equal(back.truth_bias["gyro_bias"], part.truth_bias["gyro_bias"])
+    assert all(np.array_equal(back.calibration["mag"][k], v) for k, v in part.calibration["mag"].items())
 
 
 def test_the_merged_store_equals_the_in_memory_merge(same_history, tmp_path):
-    from navsim.runner import _merge
     parts = [synthetic_part(range(2, 4), 2), synthetic_part(range(0, 2), 1)]
     store = ChunkStore(tmp_path, {"seed": 1}, mode="new")
     for part in parts:
         store.add(part)
-    (runs_a, hist_a, bias_a, calib_a), (runs_b, hist_b, bias_b, calib_b) = _merge(parts), store.merged()
-    assert list(runs_a) == list(runs_b) == [0, 1, 2, 3]
-    same_history(hist_a["CPF-EKF"], hist_b["CPF-EKF"])
-    assert np.array_equal(bias_a["gyro_bias"], bias_b["gyro_bias"])
-    assert all(np.array_equal(calib_a["mag"][k], v) for k, v in calib_b["mag"].items())
+    a, b = merge_parts(parts), store.merged()
+    assert list(a.runs) == list(b.runs) == [0, 1, 2, 3]
+    same_history(a.histories["CPF-EKF"], b.histories["CPF-EKF"])
+    assert np.array_equal(a.truth_bias["gyro_bias"], b.truth_bias["gyro_bias"])
+    assert all(np.array_equal(a.calibration["mag"][k], v) for k, v in b.calibration["mag"].items())
 
 
 def test_stored_chunks_equal_the_in_memory_histories(same_history, short, tmp_path):
@@ -181,8 +180,8 @@ def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short, tmp_pat
     """Metrics chunk by chunk (flat memory) equal the in-memory scores of all runs; the report's
     plots load only the first REPORT_RUNS runs and say so; no runs.npz (the runs are in chunks/)."""
     import navsim.runner
-    from navsim.metrics import score
     from navsim.scenario import load_scenario
+    from navsim.scoring.scorer import score
     monkeypatch.setattr(navsim.runner, "REPORT_RUNS", 2)
     out = tmp_path / "out"
     assert run(short, out, "--chunk-runs", "2") == 0
@@ -190,10 +189,10 @@ def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short, tmp_pat
     assert record["runs_plotted"] == 2 and record["runs_done"] == 6 and record["per_run_data"] == "chunks/"
     assert not (out / "runs.npz").exists() and (out / "report.pdf").stat().st_size > 0
     sc = load_scenario(short)
-    _, hist, _, _ = ChunkStore.open(out / "chunks").merged()
+    hist = ChunkStore.open(out / "chunks").merged().histories
     got = json.loads((out / "metrics.json").read_text())["estimators"]
     for label, h in hist.items():
-        want = score(h, sc.settle_s, sc.windows)
+        want = score(h, sc.settle_s, sc.windows).to_dict()
         close_metrics({k: v for k, v in want.items() if k != "cost"}, {k: v for k, v in got[label].items() if k != "cost"})
     assert got["KF"]["runs_counted"] == 6
 

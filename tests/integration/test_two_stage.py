@@ -8,7 +8,7 @@ from navsim.estimators.eskf import ErrorStateKF
 from navsim.estimators.measurements import GnssPosition, Height, Velocity
 from navsim.estimators.two_stage import TwoStageAdaptiveKF
 from navsim.flight import fly, load_track
-from navsim.metrics import chi2_band
+from navsim.scoring.stats import chi2_band
 from navsim.montecarlo import ARCSEC, InitialErrors, run_batch
 from navsim.sensors import SensorConfig, emulate, load_spec
 

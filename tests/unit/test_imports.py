@@ -1,5 +1,6 @@
 """navsim's modules import each other without a cycle, counting the imports inside functions
-too (so that no import is put in a function to dodge one)."""
+too (so that no import is put in a function to dodge one); no function is longer than
+:data:`LONGEST` lines."""
 
 import ast
 from pathlib import Path
@@ -7,6 +8,8 @@ from pathlib import Path
 import navsim
 
 PACKAGE = Path(navsim.__file__).resolve().parent
+#: the longest a function of the package may be, in lines (its decorators and docstring included)
+LONGEST = 80
 
 
 def module_names() -> dict:
@@ -79,3 +82,20 @@ def test_the_graph_sees_the_imports():
 
 def test_no_import_cycle_inside_functions_included():
     assert cycles(import_graph()) == []
+
+
+def long_functions(path: Path, limit: int) -> list:
+    """``(lines, "file:function")`` of the functions in ``path`` longer than ``limit`` lines."""
+    tree = ast.parse(path.read_text())
+    return [(n.end_lineno - n.lineno + 1, f"{path.parent.name}/{path.name}:{n.name}") for n in ast.walk(tree)
+            if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.end_lineno - n.lineno + 1 > limit]
+
+
+def test_no_function_is_longer_than_the_limit(tmp_path):
+    found = [f for path in sorted(PACKAGE.rglob("*.py")) for f in long_functions(path, LONGEST)]
+    assert found == [], sorted(found, reverse=True)
+    # the walk sees a long function, nested ones too
+    body = "\n".join(f"    x{i} = {i}" for i in range(LONGEST))
+    (tmp_path / "m.py").write_text(f"class A:\n    def f(self):\n    {body.replace(chr(10), chr(10) + '    ')}\n")
+    assert [n for _, n in long_functions(tmp_path / "m.py", LONGEST)] == [f"{tmp_path.name}/m.py:f"]
+

@@ -4,8 +4,10 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from navsim.metrics import chi2_band, convergence_time, lookup, score
-from navsim.montecarlo import EstimatorHistory
+from navsim.scoring.history import EstimatorHistory
+from navsim.scoring.metrics import EstimatorMetrics, lookup
+from navsim.scoring.scorer import score
+from navsim.scoring.stats import chi2_band, convergence_time
 
 
 def test_convergence_time_of_an_exponential_decay():
@@ -35,17 +37,20 @@ def test_score_of_a_known_history():
     sigma = np.concatenate([np.full((B, E, 6), 1.0), np.broadcast_to(sig, (B, E, 3))], -1)
     nees = np.sum((pos / sig) ** 2, -1) + rng.chisquare(6, size=(B, E))
     h = EstimatorHistory("x", t, z, z, pos, sigma, nees, {}, {}, np.zeros(B, bool))
-    m = score(h, settle_s=10.0, windows=(("w", 20.0, 30.0),))
-    np.testing.assert_allclose(m["rms"]["pos_m"], sig, rtol=0.03)
+    typed = score(h, settle_s=10.0, windows=(("w", 20.0, 30.0),))
+    m = typed.to_dict()
+    np.testing.assert_allclose(typed.rms.pos_m, sig, rtol=0.03)
+    assert typed.windows["w"].quantities["height_m"].std == m["windows"]["w"]["height_m"]["std"]
+    assert EstimatorMetrics.from_dict(m) == typed            # the metrics.json mapping round-trips
     assert m["windows"]["w"]["height_m"]["std"] == pytest.approx(0.5, rel=0.05)
     assert m["windows"]["w"]["height_m"]["max_pos"] > 1.0 > 0 > -1.0 > m["windows"]["w"]["height_m"]["max_neg"]
     assert m["nees"]["average"] == pytest.approx(9.0, rel=0.03) and m["nees"]["fraction_inside"] > 0.8
     assert lookup(m, "windows.w.height_m.std") == m["windows"]["w"]["height_m"]["std"]
-    assert lookup(m, "rms.nothing") is None
+    assert lookup(m, "rms.nothing") is None and typed.get("rms.pos_m") == typed.rms.pos_m
     # a diverged run is excluded and counted
     h.diverged[0] = True
     h.pos_err_m[0] = np.nan
-    m = score(h, 10.0)
+    m = score(h, 10.0).to_dict()
     assert m["diverged_runs"] == 1 and m["runs_counted"] == B - 1 and np.isfinite(m["rms"]["pos_m"]).all()
 
 
@@ -58,7 +63,7 @@ def test_nees_is_scored_after_the_settling_time():
     nees[:, :20] *= 50.0                        # an adaptive filter still learning its R
     h = EstimatorHistory("x", t, z, z, z, np.ones((B, E, 9)), nees, {}, {}, np.zeros(B, bool))
     lo, hi = chi2_band(9, B)
-    settled = score(h, settle_s=20.0)["nees"]
-    assert lo < settled["average"] < hi and settled["fraction_inside"] > 0.8
-    assert settled["average_from_start"] > 100.0
-    assert score(h, settle_s=0.0)["nees"]["average"] > 100.0
+    settled = score(h, settle_s=20.0).nees
+    assert lo < settled.average < hi and settled.fraction_inside > 0.8
+    assert settled.average_from_start > 100.0
+    assert score(h, settle_s=0.0).nees.average > 100.0

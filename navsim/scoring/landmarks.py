@@ -1,0 +1,79 @@
+"""Landmark fixes scored: where the cameras of a scenario see a landmark on the flight, and the
+position error of an estimator at the end of each sighting against the camera's fix noise."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from navsim.scoring.metrics import Landmarks, Sighting, SpreadStats
+from navsim.sensors import emulate
+
+
+@dataclass(frozen=True)
+class SightingEpochs:
+    """The epochs of a history that :func:`sighting_metrics` reads (:func:`thin_for_sightings`)."""
+
+    t_s: np.ndarray            #: (K,)
+    pos_err_m: np.ndarray      #: (B, K, 3)
+    diverged: np.ndarray       #: (B,)
+
+
+def sighting_spans(truth, scenario, seed: int = 0) -> list[tuple]:
+    """``(name, start_s, end_s, sigma_m)`` of every landmark sighting of the scenario's cameras
+    on ``truth`` (the same for every run: the flight is shared), ``sigma_m`` the camera's fix
+    noise per axis at the sighting's last fix (``noise + noise_ratio * range``)."""
+    out = []
+    for c in scenario.sensors:
+        if c.kind != "camera":
+            continue
+        data = emulate(truth, c, seed, [0])
+        v = data.valid[0].astype(int)
+        edges = np.flatnonzero(np.diff(np.r_[0, v, 0]))
+        for a, b in zip(edges[::2], edges[1::2]):
+            lm = int(data.values["landmark"][0, a])
+            sigma = c.spec.noise + c.spec.noise_ratio * float(data.errors["range_m"][b - 1])
+            out.append((f"{c.name} landmark {lm}", float(data.t_s[a]), float(data.t_s[b - 1]), sigma))
+    return out
+
+
+def _epochs(t_s, spans) -> tuple[np.ndarray, np.ndarray]:
+    """Per sighting, the epoch of its last fix and the epoch before its start."""
+    E = len(t_s)
+    last = np.clip(np.searchsorted(t_s, [b - 1e-6 for _, _, b, _ in spans]), 0, E - 1)
+    before = np.clip(np.searchsorted(t_s, [a - 1e-6 for _, a, _, _ in spans]) - 1, 0, E - 1)
+    return last.astype(int), before.astype(int)
+
+
+def thin_for_sightings(h, spans) -> SightingEpochs:
+    """The epochs of history ``h`` that :func:`sighting_metrics` reads (and the first and last):
+    on these alone it finds the same."""
+    last, before = _epochs(h.t_s, spans)
+    idx = np.array(sorted({0, len(h.t_s) - 1, *last.tolist(), *before.tolist()}))
+    return SightingEpochs(h.t_s[idx], h.pos_err_m[:, idx], np.asarray(h.diverged))
+
+
+def sighting_metrics(h, spans, good=None) -> Landmarks | None:
+    """Position error of an estimator at the last fix of each landmark sighting against the
+    camera's fix noise ``sigma``: per sighting the RMS over runs of the north and east errors
+    and their largest ratio to ``sigma``; over all, the share of (run, sighting, axis) inside
+    3 sigma, and the RMS horizontal error just before the sightings (the growth between them).
+    None without sightings or counted runs."""
+    if good is None:
+        good = ~np.asarray(h.diverged, bool)
+    if not spans or not good.any():
+        return None
+    last, before_k = _epochs(h.t_s, spans)
+    per, inside, before = [], [], []
+    for (name, _, _, sigma), k, k0 in zip(spans, last, before_k):
+        e = h.pos_err_m[good][:, k, :2]
+        ratio = np.abs(e) / max(sigma, 1e-9)
+        inside.append(ratio <= 3.0)
+        before.append(float(np.sqrt(np.mean(np.sum(h.pos_err_m[good][:, k0, :2] ** 2, -1)))))
+        per.append(Sighting(name, float(h.t_s[k]), sigma, np.sqrt(np.mean(e ** 2, axis=0)).tolist(),
+                            float(ratio.max()), before[-1]))
+    inside = np.concatenate([x.ravel() for x in inside])
+    return Landmarks(len(spans), float(inside.mean()), float(max(p.max_ratio for p in per)),
+                     float(np.sqrt(np.mean([np.mean(np.square(p.rms_ne_m)) for p in per]))),
+                     SpreadStats(float(np.median(before)), float(np.max(before))), per)

@@ -1,0 +1,167 @@
+"""Statistics of values fed in pieces (chunk by chunk), and the chi-square bands and the
+convergence time the scores use.
+
+Sums, counts, extremes and per-epoch sums over the runs accumulate as the pieces go by; the
+standard deviations combine the pieces' means and squared deviations (Chan et al.); the
+percentiles of absolute values are exact, in two passes over the pieces: the first counts the
+values in fixed logarithmic bins (:data:`BINS_PER_DECADE`), the second keeps only the values in
+the bins that hold the wanted ranks and picks them (numpy's linear interpolation).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import chi2
+
+#: the resolution of the first pass of :class:`AbsPercentiles`: bins per decade, from 1e-15 to 1e15
+BINS_PER_DECADE = 400
+_LOG_MIN, _LOG_MAX = -15.0, 15.0
+_NBINS = int((_LOG_MAX - _LOG_MIN) * BINS_PER_DECADE) + 2
+
+
+def _bins(v):
+    """Bin of each absolute value (0: below 1e-15 or zero; last: above 1e15 or inf)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = (np.log10(v) - _LOG_MIN) * BINS_PER_DECADE + 1
+    return np.clip(np.nan_to_num(x, nan=0.0, neginf=0.0, posinf=_NBINS - 1), 0, _NBINS - 1).astype(np.int64)
+
+
+def _lerp(a, b, t):
+    """numpy's linear interpolation between neighbouring order statistics."""
+    diff = b - a
+    return b - diff * (1 - t) if t >= 0.5 else a + diff * t
+
+
+class AbsPercentiles:
+    """Exact ``np.nanpercentile(np.abs(x), q)`` of values fed in pieces, in two passes.
+
+    Feed every piece with :meth:`add` (pass 1), call :meth:`second_pass`, feed the same pieces
+    again, then read :meth:`value`. Each key has its own percentile ``q``.
+    """
+
+    def __init__(self):
+        self.q: dict = {}
+        self.hist: dict = {}
+        self.window: dict | None = None      # key -> (first bin, last bin, values below, ranks, t)
+        self.kept: dict = {}
+
+    def add(self, key, x, q: float) -> None:
+        v = np.abs(np.asarray(x, float)).ravel()
+        v = v[~np.isnan(v)]
+        b = _bins(v)
+        if self.window is None:
+            self.q[key] = q
+            counts = np.bincount(b, minlength=_NBINS)
+            self.hist[key] = self.hist[key] + counts if key in self.hist else counts
+        elif key in self.window and self.window[key] is not None:
+            lo, hi = self.window[key][:2]
+            self.kept.setdefault(key, []).append(v[(b >= lo) & (b <= hi)])
+
+    def second_pass(self) -> None:
+        self.window = {}
+        for key, hist in self.hist.items():
+            n = int(hist.sum())
+            if n == 0:
+                self.window[key] = None
+                continue
+            pos = self.q[key] / 100.0 * (n - 1)
+            r_lo = int(np.floor(pos))
+            r_hi = min(r_lo + 1, n - 1)              # numpy interpolates with the next value even at t = 0
+            cum = np.cumsum(hist)
+            b_lo, b_hi = (int(np.searchsorted(cum, r, side="right")) for r in (r_lo, r_hi))
+            below = int(cum[b_lo - 1]) if b_lo > 0 else 0
+            self.window[key] = (b_lo, b_hi, below, (r_lo, r_hi), pos - r_lo)
+
+    def value(self, key) -> float:
+        w = self.window.get(key)
+        if w is None:
+            return float("nan")
+        _, _, below, (r_lo, r_hi), t = w
+        vals = np.sort(np.concatenate(self.kept.get(key, [np.empty(0)])))
+        return float(_lerp(vals[r_lo - below], vals[r_hi - below], t))
+
+
+class Moments:
+    """Count, mean and squared deviations of the non-NaN values, combined across pieces."""
+
+    def __init__(self):
+        self.n, self.mean, self.m2 = 0, 0.0, 0.0
+
+    def add(self, x) -> None:
+        v = x[~np.isnan(x)]
+        n = v.size
+        if n == 0:
+            return
+        mean = float(np.mean(v))
+        m2 = float(np.sum((v - mean) ** 2))
+        delta = mean - self.mean
+        tot = self.n + n
+        self.mean += delta * n / tot
+        self.m2 += m2 + delta ** 2 * self.n * n / tot
+        self.n = tot
+
+    def std(self) -> float:
+        return float(np.sqrt(self.m2 / self.n)) if self.n else float("nan")
+
+
+class Sum:
+    """``np.nansum`` and the non-NaN count over the run axis (and more leading axes)."""
+
+    def __init__(self):
+        self.s = self.n = None
+
+    def add(self, x, axis) -> None:
+        s, n = np.nansum(x, axis=axis), np.sum(~np.isnan(x), axis=axis)
+        self.s, self.n = (s, n) if self.s is None else (self.s + s, self.n + n)
+
+    def mean(self):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.s / self.n
+
+
+class Extreme:
+    def __init__(self, fn):
+        self.fn, self.v = fn, None
+
+    def value(self, shape=()):
+        """The extreme; NaN (of ``shape``) where every value was NaN, as ``np.nanmax``."""
+        return np.full(shape, np.nan) if self.v is None else self.v
+
+    def add(self, x, axis=None) -> None:
+        if np.all(np.isnan(x)):
+            return
+        v = self.fn(x, axis=axis)
+        self.v = v if self.v is None else self.fn(np.stack([self.v, v]), axis=0)
+
+
+def chi2_band(dim: int, runs: int, p: float = 0.95) -> tuple[float, float]:
+    """Two-sided band of the average of ``runs`` NEES/NIS of dimension ``dim``."""
+    a = (1 - p) / 2
+    lo, hi = chi2.ppf([a, 1 - a], dim * runs) / runs
+    return float(lo), float(hi)
+
+
+def convergence_time(t_s, err, factor: float = 2.0, hold_s: float = 60.0):
+    """First time from which ``err`` (the Monte Carlo RMS of the position error norm) stays
+    below ``factor`` times its steady value (the median over the second half of the run) for
+    ``hold_s`` (or to the end of the run), so that a later fault window does not count as
+    a failure to converge; None if it never does, or if the steady error is not below the
+    initial one (an error that grows, as free inertial navigation's, has not converged)."""
+    t_s, err = np.asarray(t_s, float), np.asarray(err, float)
+    steady = np.nanmedian(err[len(err) // 2:])
+    if not steady < err[0]:
+        return None
+    ok = err <= factor * steady
+    bad_t = t_s[~ok]
+    for i in np.flatnonzero(ok):
+        later_bad = bad_t[bad_t > t_s[i]]
+        if later_bad.size == 0 or later_bad[0] - t_s[i] >= hold_s:
+            return float(t_s[i])
+    return None
+
+
+def chi2_bands(dim: int, counts, p: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`chi2_band` of each of ``counts`` (the runs behind each epoch's average)."""
+    counts = np.asarray(counts)
+    a = (1 - p) / 2
+    return chi2.ppf(a, dim * counts) / counts, chi2.ppf(1 - a, dim * counts) / counts
