@@ -16,10 +16,10 @@ import time
 
 import numpy as np
 
-from navsim.estimators.attitude_config import imu_noise
-from navsim.estimators.cpf_ekf import CpfEkf
+from navsim.experiment.driver import InitialErrors, run_batch
 from navsim.flight.truth import Truth
-from navsim.montecarlo import InitialErrors, run_batch
+from navsim.navigation.estimators.attitude_config import imu_noise
+from navsim.navigation.estimators.cpf_ekf import CpfEkf
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.gnss import emulate_gnss
 from navsim.sensors.imu import emulate_imu

@@ -46,10 +46,9 @@ def measure(runs: int, workers: int, executor: str, out: Path) -> dict:
 
 def measure_speed(runs: int, workers: int, executor: str, out: Path) -> dict:
     """The Monte Carlo alone (chunks streamed; cluster start and close included): wall time."""
-    from navsim.chunkstore import ChunkStore
-    from navsim.runner import scenario_hash
-    from navsim.runner import CHUNK_RUNS, cached_flight, run_monte_carlo
-    from navsim.scenario import load_scenario
+    from navsim.experiment.chunkstore import ChunkStore
+    from navsim.experiment.runner import CHUNK_RUNS, cached_flight, run_monte_carlo, scenario_hash
+    from navsim.experiment.scenario import load_scenario
     from navsim.scoring.scorer import score_parts
     sc = load_scenario(SCENARIO)
     truth, path, _ = cached_flight(sc.flight)
@@ -86,8 +85,8 @@ def main() -> None:
         return
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["NAVSIM_CACHE"] = str(Path(tmp) / "cache")
-        from navsim.runner import cached_flight
-        from navsim.scenario import load_scenario
+        from navsim.experiment.runner import cached_flight
+        from navsim.experiment.scenario import load_scenario
         cached_flight(load_scenario(SCENARIO).flight)
         if args.only != "speed":
             memory(args, Path(tmp))

@@ -18,10 +18,10 @@ from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from pathlib import Path
 
-from navsim.estimators.factory import build
-from navsim.montecarlo import run_batch
-from navsim.runner import _chunk_work, cached_flight
-from navsim.scenario import load_scenario
+from navsim.experiment.driver import run_batch
+from navsim.experiment.runner import _chunk_work, cached_flight
+from navsim.experiment.scenario import load_scenario
+from navsim.navigation.estimators.factory import build
 from navsim.sensors import emulate
 from navsim.sensors.imu import ImuStream, emulate_imu
 

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
+from navsim.experiment.runner import run_closed_loop
+from navsim.experiment.scenario import load_scenario
 from navsim.scoring.closed_loop import cep
-from navsim.runner import run_closed_loop
-from navsim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,5 +1,5 @@
 """Free-inertial strapdown of B runs on one core: the numpy reference ``Strapdown`` of the tests
-(``tests/reference_strapdown.py``, one call per IMU sample; navsim's own until issue 18) against the compiled :class:`~navsim.strapdown.BlockStrapdown` (one
+(``tests/reference_strapdown.py``, one call per IMU sample; navsim's own until issue 18) against the compiled :class:`~navsim.navigation.strapdown.BlockStrapdown` (one
 call per block of samples), and the kernel's compile time (first call, cold and cached).
 
     python benchmarks/strapdown_speed.py [--runs 250] [--seconds 50] [--block 100]
@@ -10,20 +10,19 @@ import os
 import subprocess
 import sys
 import time
-
 from pathlib import Path
 
 import numpy as np
 
 from navsim.flight import fly, load_track
+from navsim.navigation.strapdown import BlockStrapdown, state_from_truth
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.imu import emulate_imu
-from navsim.strapdown import BlockStrapdown, state_from_truth
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from reference_strapdown import Strapdown  # noqa: E402
 
-FIRST_CALL = ("import time, numpy as np; t = time.perf_counter(); from navsim.strapdown import BlockStrapdown, "
+FIRST_CALL = ("import time, numpy as np; t = time.perf_counter(); from navsim.navigation.strapdown import BlockStrapdown, "
               "NavState; s = NavState(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((1, 3)), "
               "np.eye(3)[None].copy()); BlockStrapdown(s).block(np.zeros((1, 2, 3)), np.zeros((1, 2, 3)), 0.01); "
               "print(time.perf_counter() - t)")

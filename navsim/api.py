@@ -25,28 +25,28 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from navsim.chunkstore import ChunkStore
-from navsim.dask_executor import _import_distributed
-from navsim.errors import ScenarioError, UsageError
+from navsim.experiment import runner
+from navsim.experiment.chunkstore import ChunkStore
+from navsim.experiment.executors import _import_distributed
+from navsim.experiment.records import ARRAY_FIELDS, ARRAYS, EPOCH_ARRAYS, SIGMA_STATES, ChunkPart, EstimatorHistory
+from navsim.experiment.runner import (
+    cached_flight,
+    chunk_ranges,
+    flight_key,
+    run_closed_loop,
+    run_monte_carlo,
+    scenario_hash,
+)
+from navsim.experiment.scenario import Scenario, check_scenario, load_scenario as _load_file, parse_scenario
+from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
+from navsim.foundations.errors import ScenarioError, UsageError
+from navsim.foundations.outputs import OutputFolder
+from navsim.foundations.provenance import provenance
+from navsim.report.pages import write_report as _write_report
 from navsim.scoring.closed_loop import closed_loop_metrics
-from navsim.scoring.history import ARRAY_FIELDS, ChunkPart, EstimatorHistory
 from navsim.scoring.landmarks import sighting_spans
 from navsim.scoring.metrics import RunMetrics
 from navsim.scoring.scorer import score_run
-from navsim.outputs import OutputFolder
-from navsim.provenance import provenance
-from navsim.report import write_report as _write_report
-from navsim import runner
-from navsim.runner import (cached_flight, chunk_ranges, flight_key, run_closed_loop, run_monte_carlo,
-                           scenario_hash)
-from navsim.scenario import Scenario, check_scenario, parse_scenario
-from navsim.scenario import load_scenario as _load_file
-
-#: what a history's arrays hold along their last axis, for :meth:`Result.to_xarray`
-_AXES = {"att_err_rad": ("axis", "rad"), "vel_err_mps": ("axis", "m/s"), "pos_err_m": ("axis", "m"),
-         "euler_err_rad": ("axis", "rad"), "gyro_bias": ("axis", "rad/s"), "accel_bias": ("axis", "m/s^2"),
-         "sigma": ("state", "rad, m/s, m"), "nees": (None, "1")}
-_STATES = ["att_N", "att_E", "att_D", "vel_N", "vel_E", "vel_D", "pos_N", "pos_E", "pos_D"]
 
 
 @dataclass
@@ -60,8 +60,8 @@ class Result:
     runs : (R,) int array
         The indices of the runs that completed.
     histories : dict
-        Estimator label -> :class:`~navsim.scoring.history.EstimatorHistory` (``(R, E, ...)`` arrays;
-        above :data:`navsim.runner.REPORT_RUNS` runs read from a folder, the first chunks only).
+        Estimator label -> :class:`~navsim.experiment.records.EstimatorHistory` (``(R, E, ...)`` arrays;
+        above :data:`navsim.experiment.runner.REPORT_RUNS` runs read from a folder, the first chunks only).
     metrics : RunMetrics
         The scores (:mod:`navsim.scoring.metrics`); ``metrics.to_dict()`` is ``metrics.json``.
     record : dict
@@ -100,7 +100,7 @@ class Result:
 
         Every estimator's variables are named ``<field>`` with an ``estimator`` dimension when
         all estimators share their epochs; otherwise pass ``label`` for one estimator."""
-        import xarray as xr                    # heavy to import (pandas): only when asked
+        import xarray as xr  # heavy to import (pandas): only when asked
         hists = self.histories if label is None else {label: self.histories[label]}
         t = {k: tuple(h.t_s) for k, h in hists.items()}
         if len(set(t.values())) > 1:
@@ -108,18 +108,18 @@ class Result:
                              "pass label= for one of them")
         first = next(iter(hists.values()))
         data = {}
-        for name, (last, unit) in _AXES.items():
+        for name in EPOCH_ARRAYS:
+            dims, unit = ARRAYS[name]
             arrays = [getattr(h, name) for h in hists.values()]
             if all(a is None for a in arrays):
                 continue
             like = next(a for a in arrays if a is not None)       # NaN for an estimator without it
             arrays = [np.full(like.shape, np.nan) if a is None else a for a in arrays]
-            dims = ("estimator", "run", "epoch") + ((last,) if last else ())
-            data[name] = xr.Variable(dims, np.stack(arrays), attrs={"units": unit})
+            data[name] = xr.Variable(("estimator", *dims), np.stack(arrays), attrs={"units": unit})
         runs = self.runs if self.history_runs is None else self.history_runs
         coords = {"estimator": list(hists), "run": np.asarray(runs),
                   "t_s": ("epoch", np.asarray(first.t_s), {"units": "s"}), "axis": ["N", "E", "D"],
-                  "state": _STATES}
+                  "state": list(SIGMA_STATES)}
         ds = xr.Dataset(data, coords={k: v for k, v in coords.items()
                                       if k in ("estimator", "run", "t_s") or any(k in v.dims for v in data.values())})
         ds["diverged"] = (("estimator", "run"), np.stack([h.diverged for h in hists.values()]))
@@ -158,7 +158,7 @@ def run(scenario, runs: int | None = None, seed: int | None = None, workers: int
         ``progress(runs_finished)`` as chunks complete.
     flight : tuple, optional
         The scenario's flight already at hand, ``(truth, cached_path, from_cache)`` as
-        :func:`navsim.runner.cached_flight` returns it (default: that call).
+        :func:`navsim.experiment.runner.cached_flight` returns it (default: that call).
 
     Returns
     -------
@@ -340,7 +340,7 @@ def write_report(result: Result, out=None) -> list[Path]:
 
 def open_result(folder) -> Result:
     """The run written to ``folder`` (by ``navsim run`` or :func:`run`), read-only: nothing in
-    the folder is written or removed. The histories of up to :data:`navsim.runner.REPORT_RUNS`
+    the folder is written or removed. The histories of up to :data:`navsim.experiment.runner.REPORT_RUNS`
     runs are loaded (from ``runs.npz`` or the first stored chunks); the store
     (:attr:`Result.store`) reads every chunk, one at a time."""
     folder = Path(folder)
@@ -366,3 +366,41 @@ def open_result(folder) -> Result:
                   failed={int(k): v for k, v in record.get("failed_runs", {}).items()},
                   interrupted=bool(record.get("interrupted")), store=store,
                   history_runs=None if len(runs) == len(every) else runs)
+
+
+def sweep(path, workers: int | None = None, *, executor: str = "local", scheduler: str | None = None,
+          progress=None) -> SweepResult:
+    """Every point of a sweep file (``navsim sweep``) through :func:`run`, held in memory, so
+    every scenario feature works at every point (closed loop, landmarks, magnetometer
+    calibration). All points are parsed and checked before the first runs.
+
+    Parameters
+    ----------
+    path : path
+        The sweep file (:mod:`navsim.experiment.sweep`).
+    workers : int, optional
+        Default: each point's scenario's.
+    executor, scheduler
+        As :func:`run`.
+    progress : callable, optional
+        ``progress(1)`` after each point.
+
+    Returns
+    -------
+    SweepResult
+        The rows ``(point, {label: value})``; the points none of whose runs succeeded; whether
+        it was interrupted (the points after it are not run).
+    """
+    plan = plan_sweep(path)
+    result = SweepResult([], plan.metric)
+    for i, (point, sc) in enumerate(zip(plan.points, plan.scenarios)):
+        res = run(sc, plan.runs or sc.runs, sc.seed, workers or sc.workers, executor=executor, scheduler=scheduler)
+        if res.interrupted:
+            result.interrupted = True
+            break
+        if not len(res.runs):
+            result.failed_points[i] = min(res.failed.items())[1] if res.failed else "no run"
+        result.rows.append((point, point_values(plan, res.metrics.estimators)))
+        if progress:
+            progress(1)
+    return result

@@ -25,24 +25,32 @@ import yaml
 from tqdm import tqdm
 
 from navsim import api
-from navsim.chunkstore import listed_runs
-from navsim.errors import FlightError, NavsimError, OutputError, UsageError
-from navsim.estimators import base
+from navsim.experiment.chunkstore import listed_runs
+from navsim.experiment.runner import cached_flight
+from navsim.experiment.scenario import (
+    MAX_SEED,
+    MAX_WORKERS,
+    RATE_HZ,
+    available_aircraft,
+    check_scenario,
+    load_scenario,
+)
+from navsim.experiment.schema import schema_text
+from navsim.experiment.sweep import parse_sweep
 from navsim.flight.plots import plot_flight
 from navsim.flight.simulator import fly
 from navsim.flight.track import available_tracks, load_track, nominal_duration_s
-from navsim.outputs import OutputFolder
-from navsim.provenance import provenance
+from navsim.foundations.errors import FlightError, NavsimError, OutputError, UsageError
+from navsim.foundations.outputs import OutputFolder
+from navsim.foundations.provenance import provenance
+from navsim.navigation.estimators import base
 from navsim.replay import load_ulog, replay, replay_metrics
-from navsim.replay_report import difference_table, write_replay_report
-from navsim.report import attitude_lines, closed_loop_lines, divergence_lines, sighting_lines
-from navsim.runner import cached_flight
-from navsim.scenario import MAX_SEED, MAX_WORKERS, RATE_HZ, available_aircraft, check_scenario, load_scenario
-from navsim.schema import schema_text
+from navsim.report.pages import attitude_lines, closed_loop_lines, divergence_lines, sighting_lines
+from navsim.report.replay import difference_table, write_replay_report
+from navsim.report.sweep import write_sweep_figure
 from navsim.sensors import emulate
 from navsim.sensors.catalog import available
 from navsim.sensors.plots import channels, plot_sensor
-from navsim.sweep import parse_sweep, run_sweep
 from navsim.version import __version__
 
 
@@ -264,43 +272,22 @@ def cmd_sweep(args) -> int:
     _, _, _, points = parse_sweep(args.sweep)
     folder = OutputFolder(Path(args.out) if args.out else Path("reports") / Path(args.sweep).stem)
     folder.clear_earlier()
-    out = folder.path
     with tqdm(total=len(points), desc="sweep points", disable=None) as bar:
-        sweep = run_sweep(args.sweep, args.workers, out, progress=bar.update,
-                          executor=args.executor, scheduler=args.scheduler)
-    rows, metric = sweep.rows, sweep.metric
-    labels = list(rows[0][1]) if rows else []
+        sweep = api.sweep(args.sweep, args.workers, progress=bar.update, executor=args.executor,
+                          scheduler=args.scheduler)
+    labels = list(sweep.rows[0][1]) if sweep.rows else []
     table = [[", ".join(f"{k}={v}" for k, v in p.items())] + [f"{vals.get(lb, float('nan')):.4g}"
-             if vals.get(lb) is not None else "-" for lb in labels] for p, vals in rows]
-    print(_table(["point"] + [f"{lb}: {metric}" for lb in labels], table))
-    folder.text("sweep.json", json.dumps({"metric": metric, "points": [
-        {"point": p, "values": v} for p, v in rows], "failed_points": sweep.failed_points,
+             if vals.get(lb) is not None else "-" for lb in labels] for p, vals in sweep.rows]
+    print(_table(["point"] + [f"{lb}: {sweep.metric}" for lb in labels], table))
+    folder.text("sweep.json", json.dumps({"metric": sweep.metric, "points": [
+        {"point": p, "values": v} for p, v in sweep.rows], "failed_points": sweep.failed_points,
         "interrupted": sweep.interrupted}, indent=2, default=str))
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(rows)), 4.5))
-    for lb in labels:
-        ax.plot(range(len(rows)), [v.get(lb, np.nan) if v.get(lb) is not None else np.nan for _, v in rows],
-                "o-", label=lb)
-    ax.set_xticks(range(len(rows)))
-    ax.set_xticklabels(["\n".join(f"{k.split('.')[-1]}={v}" for k, v in p.items()) for p, _ in rows],
-                       fontsize=7)
-    ax.set_ylabel(metric + " (norm)")
-    if any(v is not None and v > 0 for _, vals in rows for v in vals.values()):
-        ax.set_yscale("log")
-    ax.grid(alpha=0.3)
-    if labels:
-        ax.legend(fontsize=8)
-    ax.set_title(f"sweep {Path(args.sweep).name}: {metric}")
-    fig.tight_layout()
-    folder.write("sweep.png", lambda p: fig.savefig(p, dpi=110))
-    plt.close(fig)
-    print(f"\nwrote {out}/ (sweep.json, sweep.png)")
+    write_sweep_figure(folder, sweep, f"sweep {Path(args.sweep).name}: {sweep.metric}")
+    print(f"\nwrote {folder.path}/ (sweep.json, sweep.png)")
     for i, why in sweep.failed_points.items():
         print(f"error: no run of point {i} succeeded: {why}", file=sys.stderr)
     if sweep.interrupted:
-        print(f"interrupted after {len(rows)} of {len(points)} points", file=sys.stderr)
+        print(f"interrupted after {len(sweep.rows)} of {len(points)} points", file=sys.stderr)
         return 130
     return 1 if sweep.failed_points else 0
 

@@ -18,9 +18,9 @@ def pytest_configure(config):
     when the cache is warm."""
     if hasattr(config, "workerinput") or config.option.collectonly:
         return
+    from navsim.experiment.runner import _chunk_work
+    from navsim.experiment.scenario import load_scenario
     from navsim.flight import fly, parse_track
-    from navsim.runner import _chunk_work
-    from navsim.scenario import load_scenario
     scenario = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "p0_bd_sins_ads.yaml")
     truth = fly(parse_track({"start": {"lat_deg": 30.0, "lon_deg": 122.5, "alt_m": 150, "speed_mps": 15,
                                        "heading_deg": 0}, "segments": [{"type": "straight", "time_s": 3}]}))
@@ -36,8 +36,8 @@ def repo_root() -> Path:
 def shipped_flight(repo_root, tmp_path_factory):
     """``get(name)`` -> (scenario, truth, truth path) of a shipped scenario; flights are cached
     in a per-session folder unless NAVSIM_CACHE is set."""
-    from navsim.runner import cached_flight
-    from navsim.scenario import load_scenario
+    from navsim.experiment.runner import cached_flight
+    from navsim.experiment.scenario import load_scenario
     os.environ.setdefault("NAVSIM_CACHE", str(tmp_path_factory.mktemp("cache")))
 
     def get(name):
@@ -52,8 +52,8 @@ def assert_scenario_error():
     """``check(data, key, words)``: parsing the scenario mapping ``data`` raises a ScenarioError
     that names ``bad.yaml``, the key path ``key`` and contains ``words``."""
     def check(data, key, words):
-        from navsim.errors import ScenarioError
-        from navsim.scenario import parse_scenario
+        from navsim.experiment.scenario import parse_scenario
+        from navsim.foundations.errors import ScenarioError
         with pytest.raises(ScenarioError) as exc:
             parse_scenario(data, "bad.yaml")
         assert f"bad.yaml: {key}:" in str(exc.value) and words in str(exc.value), str(exc.value)

@@ -1,11 +1,12 @@
 """The numpy strapdown mechanization, one call per IMU interval: the reference the compiled
-:class:`navsim.strapdown.BlockStrapdown` is held to (the same algorithm, written with numpy
-array operations instead of one loop per run; see :mod:`navsim.strapdown`)."""
+:class:`navsim.navigation.strapdown.BlockStrapdown` is held to (the same algorithm, written with numpy
+array operations instead of one loop per run; see :mod:`navsim.navigation.strapdown`)."""
 
 import numpy as np
 
-from navsim import earth
-from navsim.strapdown import NavState, cross, rates_n, rotation, skew
+from navsim.foundations import earth
+from navsim.foundations.transform import cross, rotation, skew
+from navsim.navigation.strapdown import NavState, rates_n
 
 
 class Strapdown:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from navsim.config import Node
-from navsim.errors import ScenarioError
+from navsim.foundations.config import Node
+from navsim.foundations.errors import ScenarioError
 
 #: Beaufort force -> (low, high) mean wind speed, m/s (WMO).
 BEAUFORT_MPS = {0: (0.0, 0.2), 1: (0.3, 1.5), 2: (1.6, 3.3), 3: (3.4, 5.4), 4: (5.5, 7.9),

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from navsim.earth import local_ne
 from navsim.flight.truth import Truth
-from navsim.outputs import write_atomic
+from navsim.foundations.earth import local_ne
+from navsim.foundations.outputs import write_atomic
 
 
 def _segments(truth: Truth, ax, label: bool = True) -> None:

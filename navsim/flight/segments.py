@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from navsim.errors import FlightError
-from navsim.flight.autopilot import G, Autopilot, line_course, orbit_course
+from navsim.flight.autopilot import Autopilot, G, line_course, orbit_course
 from navsim.flight.track import Segment
+from navsim.foundations.errors import FlightError
 
 TWO_PI = 2.0 * math.pi
 

@@ -3,7 +3,7 @@
 :func:`fly` is the entry point: it starts the aircraft (trimmed in the air, or on a launcher),
 runs the segments one after the other, checks every step for stall, impact, loss of control and
 NaN, and returns a :class:`~navsim.flight.truth.Truth`. A failure raises
-:class:`~navsim.errors.FlightError` naming the segment and the time; the partial truth rides on
+:class:`~navsim.foundations.errors.FlightError` naming the segment and the time; the partial truth rides on
 the exception as ``truth``.
 """
 
@@ -16,14 +16,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from navsim.errors import FlightError
 from navsim.flight import properties as P
 from navsim.flight.autopilot import Autopilot, Gains
 from navsim.flight.environment import Environment
 from navsim.flight.segments import Limits, SegmentRunner, State
 from navsim.flight.track import Track, nominal_duration_s
 from navsim.flight.truth import Truth, truth_from_rows
-from navsim.earth import radii
+from navsim.foundations.earth import radii
+from navsim.foundations.errors import FlightError
 
 SETTLE_S = 30.0          #: air start: seconds flown before the track to settle the trim
 SPINUP_S = 2.0           #: seconds the motor runs up with the airframe held
@@ -84,7 +84,7 @@ class _Recorder:
 class Aircraft:
     """One JSBSim aircraft under the autopilot, started (trimmed in the air or on its launcher)
     and ready to be stepped: :func:`fly` steps one on the truth; the closed loop
-    (:mod:`navsim.closedloop`) steps one per Monte Carlo run on a navigation solution."""
+    (:mod:`navsim.experiment.closed_loop`) steps one per Monte Carlo run on a navigation solution."""
 
     def __init__(self, config: FlightConfig):
         track, env = config.track, config.environment

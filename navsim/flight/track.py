@@ -28,8 +28,8 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from navsim.config import Node, close_match, load_yaml, resolve_file
-from navsim.errors import ScenarioError
+from navsim.foundations.config import Node, close_match, load_yaml, resolve_file
+from navsim.foundations.errors import ScenarioError
 
 TRACKS_DIR = Path(__file__).resolve().parents[1] / "tracks"
 
@@ -116,7 +116,7 @@ _DEFAULT_ONE = {"turn": {"bank_deg": 20.0}}
 
 def parse_track(data, path: str = "track", file: str | None = None) -> Track:
     """A :class:`Track` from a YAML mapping, or a string naming a shipped track or a track
-    file beside or below the scenario ``file`` (:func:`navsim.config.resolve_file`)."""
+    file beside or below the scenario ``file`` (:func:`navsim.foundations.config.resolve_file`)."""
     if isinstance(data, str):
         track_file = resolve_file(data, catalog=TRACKS_DIR, file=file, key=path or "track",
                                   what="a shipped track", choices=available_tracks())

@@ -36,9 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
-from navsim import atmosphere, earth
 from navsim.flight import properties as P
-from navsim.transform import dcm_from_quat, quat_from_euler
+from navsim.foundations import atmosphere, earth
+from navsim.foundations.transform import dcm_from_quat, quat_from_euler
 
 ARRAY_FIELDS = ("t_s", "lat_rad", "lon_rad", "h_m", "vel_n_mps", "quat_nb", "euler_rad",
                 "omega_ib_b_rps", "f_b_mps2", "tas_mps", "cas_mps", "p_static_pa", "p_total_pa",

@@ -1,6 +1,6 @@
 """Scoring: the estimators' errors over the Monte Carlo runs turned into typed metrics.
 
-:mod:`~navsim.scoring.history` holds what the driver records (``EstimatorHistory``, ``ChunkPart``),
+:mod:`~navsim.experiment.records` holds what the driver records (``EstimatorHistory``, ``ChunkPart``),
 :mod:`~navsim.scoring.scorer` the one scorer (chunk by chunk; in memory is one chunk),
 :mod:`~navsim.scoring.metrics` the typed results and their ``metrics.json`` mapping,
 :mod:`~navsim.scoring.stats` the streaming statistics and chi-square bands, and
@@ -9,7 +9,7 @@
 navigation in the loop.
 """
 
-from navsim.scoring.history import ChunkPart, EstimatorHistory
+from navsim.experiment.records import ChunkPart, EstimatorHistory
 from navsim.scoring.metrics import CalibrationScore, EstimatorMetrics, RunMetrics
 from navsim.scoring.scorer import EstimatorScore, score, score_run
 

@@ -1,4 +1,4 @@
-"""A magnetometer's online calibration (:func:`navsim.magcal.calibration_history`) scored against
+"""A magnetometer's online calibration (:func:`navsim.navigation.magcal.calibration_history`) scored against
 the truth's hard and soft iron."""
 
 from __future__ import annotations

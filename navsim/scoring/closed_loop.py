@@ -41,7 +41,7 @@ def landing_consistency(h, land_t_s) -> dict:
 
 def closed_loop_metrics(loop: dict, reference, config, histories: dict | None = None) -> dict:
     """Outcome of navigation-in-the-loop runs (``loop``: the per-run arrays of
-    :func:`navsim.runner.run_closed_loop`) and the truth-guided ``reference`` flight: how many
+    :func:`navsim.experiment.runner.run_closed_loop`) and the truth-guided ``reference`` flight: how many
     runs landed, reached the recovery area, failed; CEP50/CEP95 of the true miss distance (and
     of the navigation solution's own, which the guidance closed), against the reference."""
     out = {"fly_on": config.fly_on, "time_limit_s": config.time_limit_s}

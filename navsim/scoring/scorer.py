@@ -19,8 +19,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from navsim.experiment.records import CALIBRATION_SHARED, EstimatorHistory, sum_cost
 from navsim.scoring.calibration import calibration_score, thin_calibration
-from navsim.scoring.history import CALIBRATION_SHARED, EstimatorHistory, sum_cost
 from navsim.scoring.landmarks import SightingEpochs, sighting_metrics, thin_for_sightings
 from navsim.scoring.metrics import (
     AttitudeStats,
@@ -37,7 +37,15 @@ from navsim.scoring.metrics import (
     Window,
     WindowNees,
 )
-from navsim.scoring.stats import AbsPercentiles, Extreme, Moments, Sum, chi2_band, chi2_bands, convergence_time
+from navsim.scoring.stats import (
+    AbsPercentiles,
+    Extreme,
+    Moments,
+    Sum,
+    chi2_band,
+    chi2_bands,
+    convergence_time,
+)
 
 #: diverged runs listed by run in an estimator's ``divergence`` metrics (all are counted)
 DIVERGENCE_LISTED = 20
@@ -50,7 +58,7 @@ NEES_DIM = 9
 class DivergenceLog:
     """The runs of an estimator left out of its statistics, fed one history at a time: their
     count, the count per cause, and the first :data:`DIVERGENCE_LISTED` with when and why
-    (:attr:`~navsim.scoring.history.EstimatorHistory.divergence`; ``"not recorded"`` where the
+    (:attr:`~navsim.experiment.records.EstimatorHistory.divergence`; ``"not recorded"`` where the
     history has no record)."""
 
     def __init__(self):
@@ -324,7 +332,7 @@ def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> tuple[d
     Parameters
     ----------
     parts : callable
-        ``parts()`` yields the :class:`~navsim.scoring.history.ChunkPart` in run order; called
+        ``parts()`` yields the :class:`~navsim.experiment.records.ChunkPart` in run order; called
         twice.
     settle_s, windows
         As :class:`EstimatorScore`.

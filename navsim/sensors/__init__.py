@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from navsim.config import Node, plain_name
+from navsim.foundations.config import Node, plain_name
 from navsim.sensors import specs
 from navsim.sensors.airdata import emulate_ads, emulate_baro
 from navsim.sensors.base import Fault, SensorData, check_faults, parse_faults

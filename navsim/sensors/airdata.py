@@ -20,11 +20,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from navsim import atmosphere as atm
-from navsim.sensors.base import (SensorData, apply_outages, gauss_markov, normals,
-                                 sampling)
+from navsim.foundations import atmosphere as atm
+from navsim.foundations.transform import dcm_from_quat
+from navsim.sensors.base import SensorData, apply_outages, gauss_markov, normals, sampling
 from navsim.sensors.specs import AdsSpec, BaroSpec
-from navsim.transform import dcm_from_quat
 
 
 def emulate_baro(truth, spec: BaroSpec, seed: int, runs, faults=(), name: str = "baro") -> SensorData:

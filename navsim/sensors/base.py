@@ -10,8 +10,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import lfilter
 
-from navsim.config import Node
-from navsim.errors import ScenarioError
+from navsim.foundations.config import Node
+from navsim.foundations.errors import ScenarioError
 
 
 @dataclass

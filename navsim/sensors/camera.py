@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from navsim import earth
+from navsim.foundations import earth
+from navsim.foundations.transform import dcm_from_quat
 from navsim.sensors.base import SensorData, apply_outages, normals, sampling
 from navsim.sensors.specs import CameraSpec
-from navsim.transform import dcm_from_quat
 
 
 def emulate_camera(truth, spec: CameraSpec, seed: int, runs, faults=(), name: str = "camera") -> SensorData:

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from navsim.config import close_match, load_yaml, resolve_file
-from navsim.errors import ScenarioError
+from navsim.foundations.config import close_match, load_yaml, resolve_file
+from navsim.foundations.errors import ScenarioError
 from navsim.sensors import specs as S
 from navsim.sensors.units import UnitError, to_si
 
@@ -125,7 +125,7 @@ def merge(base: dict, override: dict) -> dict:
 
 def load_datasheet(name: str, key: str = "model", file: str | None = None) -> tuple[dict, Path]:
     """The datasheet ``name`` names (a catalog entry, or a ``.yaml`` file beside or below the
-    scenario ``file``, see :func:`navsim.config.resolve_file`) and its path."""
+    scenario ``file``, see :func:`navsim.foundations.config.resolve_file`) and its path."""
     path = resolve_file(name, catalog=CATALOG_DIR, file=file, key=key, what="in the sensor catalog",
                         choices=available())
     data = load_yaml(path)

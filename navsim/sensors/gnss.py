@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from navsim import earth
+from navsim.foundations import earth
+from navsim.foundations.transform import dcm_from_quat
 from navsim.sensors.base import SensorData, apply_outages, gauss_markov, normals, sampling
 from navsim.sensors.specs import GnssSpec
-from navsim.transform import dcm_from_quat
 
 
 def _interp(t_query, t, x):

@@ -19,7 +19,7 @@ saturation at ``range`` and quantization to ``quantization``. ``errors`` holds `
 samples up to each filter epoch), so that no ``(B, n, 3)`` array is held: each time-varying
 error process draws from its own copy of the run's generator, positioned where the whole
 record starts drawing it, and carries its state from block to block
-(:func:`navsim.kernels.bias_block`, :func:`navsim.kernels.imu_triad`). :func:`emulate_imu` is
+(:func:`navsim.sensors.kernels.bias_block`, :func:`navsim.sensors.kernels.imu_triad`). :func:`emulate_imu` is
 the stream in one block, plus the vibration (band-limited vibration is normalised over the
 whole record, so an IMU with vibration is emulated whole).
 """
@@ -33,11 +33,11 @@ import numpy as np
 from numba.typed import List
 from scipy.signal import butter, sosfilt
 
-from navsim import kernels
-from navsim.errors import ScenarioError
+from navsim.foundations.errors import ScenarioError
+from navsim.foundations.transform import cross, rotation
+from navsim.sensors import kernels
 from navsim.sensors.base import SensorData, decimation, normals, run_generators
 from navsim.sensors.specs import AxisErrors, ImuSpec
-from navsim.strapdown import cross, rotation
 
 #: Allan-deviation peak of a first-order Gauss-Markov process, in units of its std
 #: (max over T of sigma_A(T) / sigma); bias instability B is modelled by a Gauss-Markov process
@@ -74,7 +74,7 @@ def _constants(gens, e: AxisErrors):
 
 def _processes(e: AxisErrors, dt: float) -> list:
     """The triad's time-varying errors in the order their normals are drawn, each
-    ``(kind, first_scale, step_scale, a)`` for :func:`navsim.kernels.bias_block` (kind 0
+    ``(kind, first_scale, step_scale, a)`` for :func:`navsim.sensors.kernels.bias_block` (kind 0
     Gauss-Markov, 1 random walk, 2 white noise): bias instability (a Gauss-Markov process
     whose Allan peak is the flicker floor), Markov bias, random walk, white noise."""
     out = []

@@ -15,9 +15,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from navsim.foundations.transform import dcm_from_quat
 from navsim.sensors.base import SensorData, apply_outages, normals, sampling
 from navsim.sensors.specs import MagnetometerSpec
-from navsim.transform import dcm_from_quat
 
 WMM_SPACING_S = 10.0      #: the field is evaluated this often along the track and interpolated
 

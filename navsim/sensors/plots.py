@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from navsim import earth
-from navsim.outputs import write_atomic
+from navsim.foundations import earth
+from navsim.foundations.outputs import write_atomic
+from navsim.foundations.transform import dcm_from_quat
 from navsim.sensors.base import SensorData
-from navsim.transform import dcm_from_quat
 
 
 def channels(data: SensorData, truth, run: int = 0):

@@ -12,7 +12,7 @@ import pytest
 from test_run import interrupt_at, run, short  # noqa: F401 (short is the fixture)
 
 import navsim
-from navsim.chunkstore import ChunkStore, ResumeError
+from navsim.experiment.chunkstore import ChunkStore, ResumeError
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from navsim.cli import main
-from navsim.sweep import set_path
+from navsim.experiment.sweep import set_path
 
 BASE = {
     "name": "tiny",
@@ -353,11 +353,11 @@ def test_run_on_an_unflyable_track_saves_the_part_flown(workdir, capsys):
 
 
 def test_no_run_succeeding_is_an_error_that_shows_why(workdir, capsys, monkeypatch):
-    import navsim.runner
+    import navsim.experiment.runner
 
     def broken(args):
         raise RuntimeError("emulator exploded")
-    monkeypatch.setattr(navsim.runner, "_chunk", broken)
+    monkeypatch.setattr(navsim.experiment.runner, "_chunk", broken)
     (workdir / "case").mkdir()
     (workdir / "case" / S).write_text(scenario())
     assert call(RUN + ["--out", "out"]) == 1
@@ -456,7 +456,7 @@ def test_a_run_touches_only_its_output_folder_the_cache_and_its_inputs(tmp_path,
 
 
 def test_a_file_name_that_is_not_a_plain_name_gives_a_plain_default_name(tmp_path):
-    from navsim.scenario import load_scenario
+    from navsim.experiment.scenario import load_scenario
     path = tmp_path / "my copy (2).yaml"
     path.write_text(scenario(name=None))
     assert load_scenario(path).name == "my_copy__2_"
@@ -466,8 +466,8 @@ def test_a_sweep_point_without_a_successful_run_is_an_error(workdir, capsys, mon
     import numpy as np
 
     import navsim.api
-    import navsim.runner
-    monkeypatch.setattr(navsim.api, "run_monte_carlo", lambda *a, **k: navsim.runner.RunResult(
+    import navsim.experiment.runner
+    monkeypatch.setattr(navsim.api, "run_monte_carlo", lambda *a, **k: navsim.experiment.runner.RunResult(
         {}, np.array([], int), failed={0: "RuntimeError: filter exploded", 1: "RuntimeError: filter exploded"}))
     (workdir / "case").mkdir()
     (workdir / "case" / S).write_text(scenario())

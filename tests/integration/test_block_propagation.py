@@ -4,20 +4,20 @@ every history field over the whole p0 track."""
 
 import numpy as np
 import pytest
+from reference_strapdown import Strapdown
 
-from navsim.estimators.factory import build
-from navsim.estimators.sins import FreeInertial
-from navsim.montecarlo import run_batch
-from navsim.scoring.history import ARRAY_FIELDS
+from navsim.experiment.driver import run_batch
+from navsim.experiment.records import ARRAY_FIELDS
+from navsim.navigation.estimators.factory import build
+from navsim.navigation.estimators.sins import FreeInertial
 from navsim.sensors import emulate
 from navsim.sensors.imu import emulate_imu
-from reference_strapdown import Strapdown
 
 RUNS = range(3)
 
 
 class PerSample:
-    """:class:`navsim.strapdown.BlockStrapdown`'s interface over the numpy reference, one call
+    """:class:`navsim.navigation.strapdown.BlockStrapdown`'s interface over the numpy reference, one call
     per IMU interval."""
 
     def __init__(self, state):

@@ -9,9 +9,9 @@ import pytest
 import yaml
 
 from navsim.cli import main
-from navsim.closedloop import fly_batch
+from navsim.experiment.closed_loop import fly_batch
+from navsim.experiment.scenario import parse_scenario
 from navsim.flight.simulator import fly
-from navsim.scenario import parse_scenario
 from navsim.sensors.imu import OnlineIncrements, emulate_imu, error_increments, truth_increments
 
 SHORT = """
@@ -148,9 +148,9 @@ def test_return_to_land_acceptance_over_100_runs(repo_root):
     """Issue 8: over 100 runs with GNSS lost mid-flight every run reaches the recovery area
     without stall or impact; the miss distances' CEP is reported against the truth-guided flight,
     and the filter's sigmas at the parachute are consistent with its true error."""
+    from navsim.experiment.runner import run_closed_loop
+    from navsim.experiment.scenario import load_scenario
     from navsim.scoring.closed_loop import cep, landing_consistency
-    from navsim.runner import run_closed_loop
-    from navsim.scenario import load_scenario
     scenario = load_scenario(repo_root / "scenarios" / "p1_return_to_land.yaml")
     result, loop, ref = run_closed_loop(scenario, 100, 1, 2)
     assert not result.failed and set(loop["outcome"]) == {"landed"}
@@ -164,7 +164,7 @@ def test_return_to_land_acceptance_over_100_runs(repo_root):
 def test_runs_that_fly_the_whole_track_end_at_their_own_end(short):
     """Without a GNSS loss every run completes the track; each run's records stop at its own
     end, so batching does not change what it contributes."""
-    from navsim.closedloop import end_records
+    from navsim.experiment.closed_loop import end_records
     data = yaml.safe_load(SHORT)
     data["sensors"]["gps"]["faults"] = []
     scenario = parse_scenario(data, "x.yaml")

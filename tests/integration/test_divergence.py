@@ -9,15 +9,16 @@ import numpy as np
 import pytest
 import yaml
 
-import navsim.estimators.factory
-from navsim import earth, kernels
-from navsim.chunkstore import ChunkStore, part_arrays, part_from_arrays
-from navsim.estimators import kalman
-from navsim.montecarlo import NEES_BOUND, PSD_TOL, SYMMETRY_TOL, covariance_faults
-from navsim.runner import run_monte_carlo
-from navsim.scoring.history import ChunkPart, EstimatorHistory, merge_parts
+import navsim.navigation.estimators.factory
+from navsim.experiment.chunkstore import ChunkStore, part_arrays, part_from_arrays
+from navsim.experiment.driver import NEES_BOUND, PSD_TOL, SYMMETRY_TOL, covariance_faults
+from navsim.experiment.records import ChunkPart, EstimatorHistory, merge_parts
+from navsim.experiment.runner import run_monte_carlo
+from navsim.experiment.scenario import load_scenario
+from navsim.foundations import earth
+from navsim.navigation import kernels
+from navsim.navigation.estimators import kalman
 from navsim.scoring.scorer import DIVERGENCE_LISTED, score, score_parts, score_run
-from navsim.scenario import load_scenario
 
 P0 = "p0_bd_sins_ads"
 SANE = "BD/SINS/ADS ES-KF 16"
@@ -39,7 +40,7 @@ def p0(repo_root, tmp_path_factory):
     sigma 1e-12 m as a second ES-KF beside the sane one."""
     import os
 
-    from navsim.runner import cached_flight
+    from navsim.experiment.runner import cached_flight
     os.environ.setdefault("NAVSIM_CACHE", str(tmp_path_factory.mktemp("cache")))
     raw = yaml.safe_load((repo_root / "scenarios" / f"{P0}.yaml").read_text())
     sane = next(e for e in raw["estimators"] if e["label"] == SANE)
@@ -108,8 +109,8 @@ def test_an_estimator_that_raises_is_flagged_and_the_others_go_on(same_history, 
     truth = truth.slice(0, 1201)
     sc, alone = with_twin(sc)
     want = run_monte_carlo(alone, truth, truth_path, 3, 1, 1).histories[SANE]
-    real = navsim.estimators.factory.build
-    monkeypatch.setattr(navsim.estimators.factory, "build",
+    real = navsim.navigation.estimators.factory.build
+    monkeypatch.setattr(navsim.navigation.estimators.factory, "build",
                         lambda e: RaisesOnce(real(e), method, call) if e.label == TWIN else real(e))
     res = run_monte_carlo(sc, truth, truth_path, 3, 1, 1)
     assert res.failed == {}                              # the chunk is not lost
@@ -128,7 +129,7 @@ def test_an_indefinite_covariance_in_one_run_flags_that_run_alone(same_history, 
     truth = truth.slice(0, 1201)
     sc, alone = with_twin(sc)
     want = run_monte_carlo(alone, truth, truth_path, 3, 1, 1).histories[SANE]
-    real = navsim.estimators.factory.build
+    real = navsim.navigation.estimators.factory.build
 
     class Spoiled:
         """The sane ES-KF, whose covariance in run 1 gets a correlation of 2 at 4 s."""
@@ -145,7 +146,7 @@ def test_an_indefinite_covariance_in_one_run_flags_that_run_alone(same_history, 
                 P = self.inner.P
                 P[1, 0, 1] = P[1, 1, 0] = 2.0 * np.sqrt(P[1, 0, 0] * P[1, 1, 1])
             return out
-    monkeypatch.setattr(navsim.estimators.factory, "build",
+    monkeypatch.setattr(navsim.navigation.estimators.factory, "build",
                         lambda e: Spoiled(real(e)) if e.label == TWIN else real(e))
     res = run_monte_carlo(sc, truth, truth_path, 3, 1, 1)
     spoiled = res.histories[TWIN]

@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from navsim.estimators import available, get
-from navsim.estimators.error_model import PRESETS, Layout
-from navsim.estimators.eskf import ErrorStateKF
-from navsim.estimators.measurements import GnssPosition, Velocity
-from navsim.estimators.sins import FreeInertial
+from navsim.experiment.driver import ARCSEC, InitialErrors, run_batch
 from navsim.flight import fly, load_track
 from navsim.flight.truth import Truth
-from navsim.montecarlo import ARCSEC, InitialErrors, run_batch
+from navsim.navigation.estimators import available, get
+from navsim.navigation.estimators.error_model import PRESETS, Layout
+from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.measurements import GnssPosition, Velocity
+from navsim.navigation.estimators.sins import FreeInertial
 from navsim.sensors import SensorConfig, emulate, load_spec
 from navsim.sensors.specs import AxisErrors, ImuSpec
 
@@ -142,8 +142,8 @@ def test_van_loan_and_series_filters_agree(p0_truth):
 
 TOY = '''
 import numpy as np
-from navsim.estimators.base import Solution
-from navsim.strapdown import BlockStrapdown
+from navsim.navigation.estimators.base import Solution
+from navsim.navigation.strapdown import BlockStrapdown
 
 class Toy:
     """A third-party estimator: free inertial that ignores the gyros' Earth-rate part."""

@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from navsim.estimators.error_model import PRESETS, Layout
-from navsim.estimators.eskf import ErrorStateKF
-from navsim.estimators.federated import FederatedKF
-from navsim.estimators.measurements import GnssPosition, Height
+from navsim.experiment.driver import ARCSEC, InitialErrors, run_batch
 from navsim.flight import fly, load_track
-from navsim.montecarlo import ARCSEC, InitialErrors, run_batch
+from navsim.navigation.estimators.error_model import PRESETS, Layout
+from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.federated import FederatedKF
+from navsim.navigation.estimators.measurements import GnssPosition, Height
 from navsim.sensors import SensorConfig, emulate, load_spec
 from navsim.sensors.base import Fault
 

@@ -5,11 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from navsim import earth
-from navsim.errors import FlightError
 from navsim.flight import FlightConfig, Truth, fly, load_track, parse_track
 from navsim.flight.environment import Environment
-from navsim.transform import dcm_from_quat, quat_from_rotvec, quat_multiply
+from navsim.foundations import earth
+from navsim.foundations.errors import FlightError
+from navsim.foundations.transform import dcm_from_quat, quat_from_rotvec, quat_multiply
 
 SETTLE_S = 20.0   # level segments are judged after this settling time
 

@@ -6,8 +6,8 @@ import dataclasses
 import numpy as np
 import pytest
 
+from navsim.experiment.runner import run_monte_carlo
 from navsim.scoring.scorer import score
-from navsim.runner import run_monte_carlo
 
 
 @pytest.fixture(scope="module")

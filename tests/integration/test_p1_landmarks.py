@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from navsim.config import load_yaml
-from navsim.estimators.error_model import PRESETS, Layout
-from navsim.estimators.measurements import LandmarkFix
+from navsim.experiment.driver import perturbed_start
+from navsim.experiment.scenario import parse_scenario
 from navsim.flight.truth import Truth
+from navsim.foundations.config import load_yaml
+from navsim.navigation.estimators.error_model import PRESETS, Layout
+from navsim.navigation.estimators.measurements import LandmarkFix
 from navsim.scoring.landmarks import sighting_metrics, sighting_spans
-from navsim.montecarlo import perturbed_start
-from navsim.scenario import parse_scenario
 from navsim.sensors import SensorConfig, emulate, load_spec
 
 
@@ -39,7 +39,7 @@ def short_run(repo_root, tmp_path_factory):
     """The shipped scenario cut to its first leg (400 s, 9 anchors), 8 runs."""
     import os
     os.environ.setdefault("NAVSIM_CACHE", str(tmp_path_factory.mktemp("cache")))
-    from navsim.runner import cached_flight, run_monte_carlo
+    from navsim.experiment.runner import cached_flight, run_monte_carlo
     data = load_yaml(repo_root / "scenarios" / "p1_gnss_denied_landmarks.yaml")
     data["track"] = {"name": "p1_leg", "start": {"type": "air", "lat_deg": 30.5, "lon_deg": 114.3, "alt_m": 80,
                                                   "speed_mps": 14.0, "heading_deg": 0},
@@ -86,8 +86,8 @@ def test_p1_gnss_denied_acceptance_over_100_runs(repo_root):
     sighting x axis; the worst, 3.8 sigma, ends the first sighting after a 180 deg turn, which
     turns the unobservable heading error into ~600 m of position error) and the height error
     stays inside 3 sigma of the baro error model."""
-    from navsim.runner import cached_flight, run_monte_carlo
-    from navsim.scenario import load_scenario
+    from navsim.experiment.runner import cached_flight, run_monte_carlo
+    from navsim.experiment.scenario import load_scenario
     scenario = load_scenario(repo_root / "scenarios" / "p1_gnss_denied_landmarks.yaml")
     truth, path, _ = cached_flight(scenario.flight)
     result = run_monte_carlo(scenario, truth, path, 100, 1, 2)

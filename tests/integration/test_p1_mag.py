@@ -5,14 +5,14 @@ the heading with the calibrated magnetometer against GNSS alone in the GNSS outa
 import numpy as np
 import pytest
 
-from navsim import magcal
-from navsim.estimators.error_model import Layout, PRESETS
-from navsim.estimators.measurements import MagneticHeading
+from navsim.experiment.runner import mag_calibrations, run_monte_carlo
+from navsim.navigation import magcal
+from navsim.navigation.estimators.error_model import PRESETS, Layout
+from navsim.navigation.estimators.measurements import MagneticHeading
+from navsim.navigation.strapdown import state_from_truth
 from navsim.scoring.calibration import calibration_score
 from navsim.scoring.scorer import score
-from navsim.runner import mag_calibrations, run_monte_carlo
 from navsim.sensors import emulate
-from navsim.strapdown import state_from_truth
 
 
 @pytest.fixture(scope="module")

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from navsim.estimators.p2_height import DynamicHeightKF, HeightFusion
+from navsim.experiment.runner import run_monte_carlo
+from navsim.navigation.estimators.p2_height import DynamicHeightKF, HeightFusion
+from navsim.navigation.strapdown import NavState
 from navsim.scoring.scorer import score
-from navsim.runner import run_monte_carlo
-from navsim.strapdown import NavState
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +34,7 @@ class FakeSensor:
 
 
 def test_weights_follow_inverse_variances_and_the_switch_has_hysteresis():
-    from navsim.estimators.error_model import PRESETS, Layout
+    from navsim.navigation.estimators.error_model import PRESETS, Layout
     from navsim.sensors.catalog import load_spec
     kf = DynamicHeightKF.from_imu_spec(Layout(PRESETS["p2_18"]), load_spec("p2_imu"), [],
                                        fusion=HeightFusion("gps", "radar", "baro", window_s=1.0))
@@ -57,7 +57,7 @@ def test_weights_follow_inverse_variances_and_the_switch_has_hysteresis():
 
 
 def test_gating_drops_a_faulty_sensor():
-    from navsim.estimators.error_model import PRESETS, Layout
+    from navsim.navigation.estimators.error_model import PRESETS, Layout
     from navsim.sensors.catalog import load_spec
     kf = DynamicHeightKF.from_imu_spec(Layout(PRESETS["p2_18"]), load_spec("p2_imu"), [],
                                        fusion=HeightFusion("gps", "radar", "baro", window_s=1.0, gating_sigma=3.0))

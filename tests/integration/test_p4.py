@@ -7,8 +7,8 @@ Whole-scenario figures (20 runs, ``navsim run``) are in the README; these tests 
 import numpy as np
 import pytest
 
+from navsim.experiment.runner import run_monte_carlo
 from navsim.scoring.scorer import score
-from navsim.runner import run_monte_carlo
 
 
 @pytest.fixture(scope="module")

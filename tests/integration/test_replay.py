@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 from navsim.cli import main
-from navsim.estimators import base
-from navsim.estimators.sins import FreeInertial
-from navsim.replay import coarse_alignment, load_ulog, px4_euler_at, replay
+from navsim.navigation.estimators import base
+from navsim.navigation.estimators.sins import FreeInertial
+from navsim.replay.run import coarse_alignment, px4_euler_at, replay
+from navsim.replay.ulog import load_ulog
 
 
 @pytest.fixture(scope="module")
@@ -158,7 +159,7 @@ def test_unreplayable_logs_exit_2_naming_the_problem(log_path, tmp_path, capsys,
 
 
 def test_missing_topic_exits_2_without_traceback(log_path, tmp_path, monkeypatch, capsys):
-    import navsim.replay as rp
+    import navsim.replay.ulog as rp
     real = rp._topics
     monkeypatch.setattr(rp, "_topics", lambda u: {k: v for k, v in real(u).items() if k != "vehicle_attitude"})
     assert main(["replay", str(log_path), "--estimator", "sins", "--out", str(tmp_path / "o")]) == 2
@@ -183,7 +184,7 @@ def test_p4_attitude_estimators_follow_px4_on_the_real_log(log, estimator, bound
     5 deg in yaw, after the 10 s settling (measured: cpf_ekf 0.91/1.14/0.55 deg -- slower to
     re-level after the hand tilting than PX4's complementary filter, as it levels on a zero
     horizontal velocity of 1 m/s sigma without GNSS; cpf 0.02/0.03/0.45 deg). No reset."""
-    from navsim.replay import replay_metrics
+    from navsim.replay.metrics import replay_metrics
     m = replay_metrics(replay(log, estimator, imu_rate_hz=125.0))
     rms = [m["attitude_diff_deg"][ax]["rms"] for ax in ("roll", "pitch", "yaw")]
     assert np.all(np.array(rms) < bounds), rms

@@ -81,8 +81,8 @@ def test_run_writes_report_metrics_and_histories(short, tmp_path, capsys):
 
 
 def test_workers_do_not_change_the_numbers(short, tmp_path, monkeypatch):
-    import navsim.runner
-    monkeypatch.setattr(navsim.runner, "CHUNK_RUNS", 2)          # 3 chunks for 6 runs
+    import navsim.experiment.runner
+    monkeypatch.setattr(navsim.experiment.runner, "CHUNK_RUNS", 2)          # 3 chunks for 6 runs
     assert run(short, tmp_path / "w1", "--workers", "1") == 0
     assert run(short, tmp_path / "w2", "--workers", "2") == 0
     a = json.loads((tmp_path / "w1" / "metrics.json").read_text())
@@ -95,16 +95,16 @@ def test_workers_do_not_change_the_numbers(short, tmp_path, monkeypatch):
 
 
 def test_a_failing_chunk_is_flagged_and_the_others_complete(short, tmp_path, monkeypatch, capsys):
-    import navsim.runner
-    monkeypatch.setattr(navsim.runner, "CHUNK_RUNS", 2)
-    real = navsim.runner._chunk
+    import navsim.experiment.runner
+    monkeypatch.setattr(navsim.experiment.runner, "CHUNK_RUNS", 2)
+    real = navsim.experiment.runner._chunk
 
     def flaky(args):
         if list(args[3])[0] == 2:
             raise MemoryError("worker killed")
         return real(args)
 
-    monkeypatch.setattr(navsim.runner, "_chunk", flaky)
+    monkeypatch.setattr(navsim.experiment.runner, "_chunk", flaky)
     assert run(short, tmp_path / "out") == 0
     m = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert m["runs_done"] == 4 and set(m["failed_runs"]) == {"2", "3"}
@@ -114,20 +114,20 @@ def test_a_failing_chunk_is_flagged_and_the_others_complete(short, tmp_path, mon
 
 def interrupt_at(monkeypatch, first_run: int) -> None:
     """Ctrl-C when the chunk starting at ``first_run`` begins (the chunks run in this process)."""
-    import navsim.runner
-    real = navsim.runner._chunk
+    import navsim.experiment.runner
+    real = navsim.experiment.runner._chunk
 
     def interrupt(args):
         if list(args[3])[0] == first_run:
             raise KeyboardInterrupt
         return real(args)
 
-    monkeypatch.setattr(navsim.runner, "_chunk", interrupt)
+    monkeypatch.setattr(navsim.experiment.runner, "_chunk", interrupt)
 
 
 def test_interrupted_run_keeps_what_finished(short, tmp_path, monkeypatch):
-    import navsim.runner
-    monkeypatch.setattr(navsim.runner, "CHUNK_RUNS", 2)
+    import navsim.experiment.runner
+    monkeypatch.setattr(navsim.experiment.runner, "CHUNK_RUNS", 2)
     interrupt_at(monkeypatch, 4)
     assert run(short, tmp_path / "out") == 130
     m = json.loads((tmp_path / "out" / "metrics.json").read_text())

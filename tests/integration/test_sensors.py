@@ -5,13 +5,13 @@ import math
 import numpy as np
 import pytest
 
-from navsim import atmosphere, earth
 from navsim.flight import fly, parse_track
+from navsim.foundations import atmosphere, earth
+from navsim.foundations.transform import dcm_from_quat
 from navsim.sensors import SensorConfig, emulate, load_spec, parse_sensors
 from navsim.sensors.base import parse_faults
 from navsim.sensors.magnetometer import field_along
 from navsim.sensors.specs import ideal
-from navsim.transform import dcm_from_quat
 
 ALL = {"imu": "mpu6050", "gnss": "neo_m8n", "baro": "p0_baro", "ads": "p0_ads",
        "radar_altimeter": "p2_radar", "magnetometer": "lsm303d", "camera": "p1_camera"}

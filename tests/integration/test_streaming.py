@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from test_run import run, short  # noqa: F401 (short is the fixture)
 
-from navsim.chunkstore import ChunkStore, part_arrays, part_from_arrays
 from navsim.cli import main
-from navsim.scoring.history import ChunkPart, EstimatorHistory, merge_parts
+from navsim.experiment.chunkstore import ChunkStore, part_arrays, part_from_arrays
+from navsim.experiment.records import ChunkPart, EstimatorHistory, merge_parts
 
 
 def need_distributed():
@@ -68,8 +68,8 @@ def test_the_merged_store_equals_the_in_memory_merge(same_history, tmp_path):
 
 
 def test_stored_chunks_equal_the_in_memory_histories(same_history, short, tmp_path):
-    from navsim.runner import cached_flight, run_monte_carlo
-    from navsim.scenario import load_scenario
+    from navsim.experiment.runner import cached_flight, run_monte_carlo
+    from navsim.experiment.scenario import load_scenario
     sc = load_scenario(short)
     truth, path, _ = cached_flight(sc.flight)
     key = {"scenario_hash": "x", "seed": 4, "runs": 5, "chunk_runs": 2}
@@ -87,9 +87,9 @@ def test_stored_chunks_equal_the_in_memory_histories(same_history, short, tmp_pa
 
 
 def test_resume_runs_only_the_missing_chunks_and_gives_the_same_metrics(short, tmp_path, monkeypatch):
-    import navsim.runner
+    import navsim.experiment.runner
     assert run(short, tmp_path / "whole", "--chunk-runs", "2") == 0
-    real, calls, stop = navsim.runner._chunk, [], [True]
+    real, calls, stop = navsim.experiment.runner._chunk, [], [True]
 
     def interrupt(args):
         calls.append(list(args[3])[0])
@@ -97,7 +97,7 @@ def test_resume_runs_only_the_missing_chunks_and_gives_the_same_metrics(short, t
             raise KeyboardInterrupt
         return real(args)
 
-    monkeypatch.setattr(navsim.runner, "_chunk", interrupt)
+    monkeypatch.setattr(navsim.experiment.runner, "_chunk", interrupt)
     assert run(short, tmp_path / "cut", "--chunk-runs", "2") == 130
     assert numbers(tmp_path / "cut")[1]["runs_done"] == 4
     calls.clear()
@@ -132,8 +132,8 @@ def test_dask_local_cluster_gives_the_local_numbers(short, tmp_path, monkeypatch
 
 def test_dask_retries_a_chunk_once_and_flags_one_that_fails_twice(short, tmp_path, monkeypatch):
     need_distributed()
-    import navsim.runner
-    real, marker = navsim.runner._chunk, tmp_path / "failed_once"
+    import navsim.experiment.runner
+    real, marker = navsim.experiment.runner._chunk, tmp_path / "failed_once"
 
     def flaky(args):
         first = list(args[3])[0]
@@ -144,7 +144,7 @@ def test_dask_retries_a_chunk_once_and_flags_one_that_fails_twice(short, tmp_pat
             raise MemoryError("worker killed")
         return real(args)
 
-    monkeypatch.setattr(navsim.runner, "_chunk", flaky)
+    monkeypatch.setattr(navsim.experiment.runner, "_chunk", flaky)
     assert run(short, tmp_path / "out", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
     _, m = numbers(tmp_path / "out")
     assert m["runs_done"] == 4 and set(m["failed_runs"]) == {"2", "3"} and marker.exists()
@@ -161,12 +161,12 @@ def test_closed_loop_refuses_dask(repo_root, tmp_path, capsys):
 @pytest.mark.filterwarnings("ignore:No artists with labels")   # the stub returns no runs
 def test_sweep_passes_the_executor_to_every_point(short, tmp_path, monkeypatch):
     import navsim.api
-    import navsim.runner
+    import navsim.experiment.runner
     seen = []
 
     def record(*args, **kwargs):
         seen.append((kwargs["executor"], kwargs["scheduler"]))
-        return navsim.runner.RunResult({}, np.array([0, 1]))
+        return navsim.experiment.runner.RunResult({}, np.array([0, 1]))
 
     monkeypatch.setattr(navsim.api, "run_monte_carlo", record)
     sweep = tmp_path / "sweep.yaml"
@@ -179,10 +179,10 @@ def test_sweep_passes_the_executor_to_every_point(short, tmp_path, monkeypatch):
 def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short, tmp_path, monkeypatch, close_metrics):
     """Metrics chunk by chunk (flat memory) equal the in-memory scores of all runs; the report's
     plots load only the first REPORT_RUNS runs and say so; no runs.npz (the runs are in chunks/)."""
-    import navsim.runner
-    from navsim.scenario import load_scenario
+    import navsim.experiment.runner
+    from navsim.experiment.scenario import load_scenario
     from navsim.scoring.scorer import score
-    monkeypatch.setattr(navsim.runner, "REPORT_RUNS", 2)
+    monkeypatch.setattr(navsim.experiment.runner, "REPORT_RUNS", 2)
     out = tmp_path / "out"
     assert run(short, out, "--chunk-runs", "2") == 0
     record = json.loads((out / "run.json").read_text())
@@ -203,8 +203,8 @@ def test_dask_retries_a_chunk_whose_worker_dies_and_flags_one_that_kills_it_twic
     need_distributed()
     import os
 
-    import navsim.runner
-    real, log = navsim.runner._chunk, tmp_path / "attempts"
+    import navsim.experiment.runner
+    real, log = navsim.experiment.runner._chunk, tmp_path / "attempts"
     log.mkdir()
 
     def deadly(args):
@@ -214,7 +214,7 @@ def test_dask_retries_a_chunk_whose_worker_dies_and_flags_one_that_kills_it_twic
             os._exit(1)
         return real(args)
 
-    monkeypatch.setattr(navsim.runner, "_chunk", deadly)
+    monkeypatch.setattr(navsim.experiment.runner, "_chunk", deadly)
     assert run(short, tmp_path / "out", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
     _, m = numbers(tmp_path / "out")
     attempts = [p.name.split("-")[0] for p in log.iterdir()]
@@ -274,7 +274,7 @@ def test_the_local_pool_keeps_no_part_once_it_is_handed_on():
     import gc
     import weakref
 
-    from navsim.runner import run_chunks
+    from navsim.experiment.runner import run_chunks
     refs, alive = [], []
 
     def on_part(part):
@@ -298,11 +298,11 @@ def test_a_bad_chunk_size_clears_nothing(short, tmp_path, capsys):
 def test_resume_rescores_with_other_metric_settings_without_running_again(short, tmp_path, monkeypatch):
     """The chunks do not depend on the ``metrics`` block: a resume with another settling time runs
     nothing and scores the stored runs anew."""
-    import navsim.runner
+    import navsim.experiment.runner
     assert run(short, tmp_path / "out", "--chunk-runs", "3") == 0
     before = json.loads((tmp_path / "out" / "metrics.json").read_text())["estimators"]["KF"]
     calls = []
-    monkeypatch.setattr(navsim.runner, "_chunk", lambda args: calls.append(args))
+    monkeypatch.setattr(navsim.experiment.runner, "_chunk", lambda args: calls.append(args))
     rescored = short.with_name("rescored.yaml")
     rescored.write_text(short.read_text().replace("settle_s: 10", "settle_s: 20"))
     assert run(rescored, tmp_path / "out", "--resume") == 0

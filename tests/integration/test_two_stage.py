@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from navsim.estimators.error_model import PRESETS, Layout
-from navsim.estimators.eskf import ErrorStateKF
-from navsim.estimators.measurements import GnssPosition, Height, Velocity
-from navsim.estimators.two_stage import TwoStageAdaptiveKF
+from navsim.experiment.driver import ARCSEC, InitialErrors, run_batch
 from navsim.flight import fly, load_track
+from navsim.navigation.estimators.error_model import PRESETS, Layout
+from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.measurements import GnssPosition, Height, Velocity
+from navsim.navigation.estimators.two_stage import TwoStageAdaptiveKF
 from navsim.scoring.stats import chi2_band
-from navsim.montecarlo import ARCSEC, InitialErrors, run_batch
 from navsim.sensors import SensorConfig, emulate, load_spec
 
 P0_INITIAL = InitialErrors(pos_m=np.array([5.0, 5.0, 10.0]), vel_mps=np.full(3, 0.1),

@@ -6,8 +6,8 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from navsim.estimators.fuzzy_adaptive import DEFAULT_RULES, FuzzyAdaptiveKF, infer, memberships
-from navsim.estimators.sage_husa import SageHusaKF
+from navsim.navigation.estimators.fuzzy_adaptive import DEFAULT_RULES, FuzzyAdaptiveKF, infer, memberships
+from navsim.navigation.estimators.sage_husa import SageHusaKF
 
 
 @dataclass

@@ -4,17 +4,23 @@ quaternion normalisation, the divergence monitor and its angle wrapping, batch =
 import numpy as np
 import pytest
 
-from navsim.estimators.attitude import dcm_homogeneous, euler_distance2, rk4_step
-from navsim.estimators.cpf import ComplementaryFilter
-from navsim.estimators.cpf_ekf import AZ, MB, ME, N_STATES, Q, WB, CpfEkf, dcm_times_vec_jacobian
+from navsim.experiment.driver import InitialErrors, run_batch
 from navsim.flight.truth import Truth
-from navsim.montecarlo import InitialErrors, run_batch
+from navsim.foundations.transform import (
+    dcm_from_quat,
+    euler_from_quat,
+    quat_from_euler,
+    quat_from_rotvec,
+    quat_multiply,
+)
+from navsim.navigation.estimators.attitude import dcm_homogeneous, euler_distance2, rk4_step
+from navsim.navigation.estimators.cpf import ComplementaryFilter
+from navsim.navigation.estimators.cpf_ekf import AZ, MB, ME, N_STATES, WB, CpfEkf, Q, dcm_times_vec_jacobian
+from navsim.navigation.strapdown import NavState
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.gnss import emulate_gnss
 from navsim.sensors.imu import emulate_imu
 from navsim.sensors.magnetometer import emulate_magnetometer
-from navsim.strapdown import NavState
-from navsim.transform import dcm_from_quat, euler_from_quat, quat_from_euler, quat_from_rotvec, quat_multiply
 
 
 def _unit(rng, B):
@@ -33,7 +39,7 @@ def test_rk4_quaternion_step_matches_the_exact_rotation():
 
 
 def test_rk4_closed_form_equals_the_four_stages():
-    from navsim.estimators.attitude import normalize, omega_matrix
+    from navsim.navigation.estimators.attitude import normalize, omega_matrix
     rng = np.random.default_rng(4)
     q, w, dt = _unit(rng, 5), rng.normal(size=(5, 3)), 0.02
     A = 0.5 * dt * omega_matrix(w)
@@ -133,7 +139,7 @@ def test_a_batch_of_three_equals_three_single_runs():
 
     def run(runs, imu, sensors):
         est = CpfEkf(mag="mag", gnss="gps", monitor="cpf", noise={"accel_mps2_rthz": 0.004})
-        from navsim.montecarlo import perturbed_start
+        from navsim.experiment.driver import perturbed_start
         nav0 = perturbed_start(truth, initial.draw(7, runs), 0)
         est.initialize(nav0, initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0]))
         hit = np.asarray(list(runs)) == 1
@@ -197,7 +203,7 @@ def test_the_cpf_monitor_resets_a_diverged_ekf_to_the_cpf_attitude():
 
 
 def _start(truth, initial):
-    from navsim.montecarlo import perturbed_start
+    from navsim.experiment.driver import perturbed_start
     nav0 = perturbed_start(truth, initial.draw(7, [0]), 0)
     return nav0, initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0])
 
@@ -229,7 +235,7 @@ def test_the_complementary_filter_levels_itself():
 def _p4_scenario(**estimator):
     from pathlib import Path
 
-    from navsim.config import load_yaml
+    from navsim.foundations.config import load_yaml
     data = load_yaml(Path(__file__).resolve().parents[2] / "scenarios" / "p4_static.yaml")
     data["estimators"] = [{"label": "x", "type": "cpf_ekf", "mag": "mag", "gnss": "gps", **estimator}]
     return data

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from navsim import earth
+from navsim.foundations import earth
 
 
 def test_ecef_of_reference_points():

@@ -3,12 +3,13 @@
 import numpy as np
 import pytest
 
-from navsim import earth
-from navsim.estimators import kalman
-from navsim.estimators.error_model import PRESETS, Layout, system_matrix
-from navsim.estimators.eskf import _covariance_series_fits
-from navsim.estimators.measurements import GnssPosition, Height, Velocity
-from navsim.strapdown import NavState, rates_n, rotation, skew
+from navsim.foundations import earth
+from navsim.foundations.transform import rotation, skew
+from navsim.navigation.estimators import kalman
+from navsim.navigation.estimators.error_model import PRESETS, Layout, system_matrix
+from navsim.navigation.estimators.eskf import _covariance_series_fits
+from navsim.navigation.estimators.measurements import GnssPosition, Height, Velocity
+from navsim.navigation.strapdown import NavState, rates_n
 
 LAYOUT = Layout(PRESETS["p3_15"])
 

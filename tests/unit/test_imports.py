@@ -8,6 +8,11 @@ from pathlib import Path
 import navsim
 
 PACKAGE = Path(navsim.__file__).resolve().parent
+#: the layers of the package in the order of the data flow: a module imports only from its own
+#: layer and the layers before it (the longest prefix of a module's name gives its layer)
+LAYERS = ("navsim.version", "navsim.foundations", "navsim.flight", "navsim.sensors", "navsim.navigation",
+          "navsim.experiment", "navsim.scoring", "navsim.replay", "navsim.report", "navsim.api", "navsim.cli",
+          "navsim.__main__", "navsim")
 #: the longest a function of the package may be, in lines (its decorators and docstring included)
 LONGEST = 80
 
@@ -76,12 +81,31 @@ def cycles(graph: dict) -> list:
 
 def test_the_graph_sees_the_imports():
     graph = import_graph()
-    assert "navsim.api" in graph["navsim"] and "navsim.kernels" in graph["navsim.strapdown"]
+    assert "navsim.api" in graph["navsim"] and "navsim.navigation.kernels" in graph["navsim.navigation.strapdown"]
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
 def test_no_import_cycle_inside_functions_included():
     assert cycles(import_graph()) == []
+
+
+def layer(module: str) -> int:
+    """The index in :data:`LAYERS` of a module's layer."""
+    matches = [i for i, p in enumerate(LAYERS) if module == p or module.startswith(p + ".")]
+    return max(matches, key=lambda i: len(LAYERS[i]))
+
+
+def upward(graph: dict) -> list:
+    """The imports ``(module, imported)`` that point up the layers."""
+    return sorted((m, t) for m, ts in graph.items() for t in ts if layer(t) > layer(m))
+
+
+def test_imports_point_down_the_data_flow():
+    graph = import_graph()
+    assert set(module_names()) - {"navsim"} <= {m for m in graph if layer(m) < len(LAYERS) - 1}
+    assert upward(graph) == []
+    # the check sees an upward import
+    assert upward({"navsim.sensors.imu": {"navsim.experiment.runner"}}) == [("navsim.sensors.imu", "navsim.experiment.runner")]
 
 
 def long_functions(path: Path, limit: int) -> list:

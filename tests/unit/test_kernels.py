@@ -1,16 +1,16 @@
-"""The compiled strapdown (navsim.kernels) against the numpy reference (tests/reference_strapdown.py)."""
+"""The compiled strapdown (navsim.navigation.kernels) against the numpy reference (tests/reference_strapdown.py)."""
 
 import numpy as np
 import pytest
+from reference_strapdown import Strapdown
 
-from navsim import earth
+from navsim.experiment.driver import nav_errors
 from navsim.flight import fly, parse_track
-from navsim.montecarlo import nav_errors
+from navsim.foundations import earth
+from navsim.foundations.transform import dcm_from_quat, euler_from_dcm, rotation, wrap_angle
+from navsim.navigation.strapdown import BlockStrapdown, state_from_truth
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.imu import emulate_imu
-from navsim.strapdown import BlockStrapdown, rotation, state_from_truth
-from navsim.transform import dcm_from_quat, euler_from_dcm, wrap_angle
-from reference_strapdown import Strapdown
 
 
 @pytest.fixture(scope="module")
@@ -112,7 +112,7 @@ def test_rotation_matches_scipy_and_does_not_depend_on_the_batch():
     or a stack; a rotation in a stack with a large one equals it alone, bit for bit."""
     from scipy.spatial.transform import Rotation
 
-    from navsim.strapdown import rotation
+    from navsim.foundations.transform import rotation
     v = np.random.default_rng(4).normal(size=(50, 3)) * np.logspace(-9, 0.5, 50)[:, None]
     ref = Rotation.from_rotvec(v).as_matrix()
     assert np.abs(rotation(v) - ref).max() < 1e-15 and np.abs(rotation(v[None]) - ref[None]).max() < 1e-15
@@ -140,7 +140,7 @@ def test_the_compiled_kalman_steps_equal_their_formulas():
     without a sample keeps its state and gets NaN NIS."""
     import math
 
-    from navsim.estimators import kalman
+    from navsim.navigation.estimators import kalman
     F, Qc, P, x, H, z, rng = _kalman_case()
     n, T, order = F.shape[-1], 1.0, 6
     Phi, Qd = kalman.discretize_series(F, Qc, T, order)
@@ -174,7 +174,7 @@ def test_the_compiled_kalman_steps_equal_their_formulas():
 
 
 def test_the_compiled_kalman_steps_of_a_batch_equal_single_runs_bit_for_bit():
-    from navsim.estimators import kalman
+    from navsim.navigation.estimators import kalman
     F, Qc, P, x, H, z, _ = _kalman_case()
     Phi, Qd = kalman.discretize_series(F, Qc, 1.0, 6)
     xp, Pp = kalman.predict(x, P, Phi, Qd)

@@ -1,13 +1,13 @@
-"""The online magnetometer calibration (navsim.magcal) on synthetic data of known hard and soft
+"""The online magnetometer calibration (navsim.navigation.magcal) on synthetic data of known hard and soft
 iron, and the magnetic-heading measurement's H against finite differences."""
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from navsim import magcal
-from navsim.estimators.measurements import magnetic_heading
-from navsim.strapdown import rotation
+from navsim.foundations.transform import rotation
+from navsim.navigation import magcal
+from navsim.navigation.estimators.measurements import magnetic_heading
 
 FIELD_N_T = np.array([33.8e-6, -2.9e-6, 36.9e-6])         # WMM near Wuhan, |m| = 50.1 uT
 R_T = float(np.linalg.norm(FIELD_N_T))

@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from navsim.errors import LogError
-from navsim.replay import _position, check_structure, imu_increments, on_grid, require
+from navsim.foundations.errors import LogError
+from navsim.replay.run import imu_increments, on_grid
+from navsim.replay.ulog import _position, check_structure, require
 
 
 def _jittered(n=2000, rate=250.0, seed=4):

@@ -1,5 +1,5 @@
 """The report's pages to PNGs and one PDF: a forked child draws the PNGs while the parent draws
-the PDF (navsim.report._render); a failure in either is reported as the OutputError it is."""
+the PDF (navsim.report.pages._render); a failure in either is reported as the OutputError it is."""
 
 import errno
 
@@ -7,9 +7,9 @@ import matplotlib
 import matplotlib.figure
 import pytest
 
-from navsim import report
-from navsim.errors import OutputError
-from navsim.outputs import OutputFolder
+from navsim.foundations.errors import OutputError
+from navsim.foundations.outputs import OutputFolder
+from navsim.report import pages as report
 
 matplotlib.use("Agg")
 

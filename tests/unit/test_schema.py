@@ -4,8 +4,8 @@ import jsonschema
 import pytest
 import yaml
 
-from navsim.config import SafeLoader
-from navsim.schema import scenario_schema, schema_text
+from navsim.experiment.schema import scenario_schema, schema_text
+from navsim.foundations.config import SafeLoader
 
 
 def test_published_schema_is_current(repo_root):
@@ -27,7 +27,7 @@ def test_schema_rejects_malformed(bad):
 
 
 def test_yaml_reads_off_as_a_string_and_keeps_true_false(tmp_path):
-    from navsim.config import load_yaml
+    from navsim.foundations.config import load_yaml
     path = tmp_path / "x.yaml"
     path.write_text("off: [bias]\non: yes\nflag: true\nother: False\nobj: !!python/object:os.system ls\n")
     with pytest.raises(Exception):                 # no object construction (safe loader)

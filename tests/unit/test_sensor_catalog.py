@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from navsim.errors import ScenarioError
+from navsim.foundations.errors import ScenarioError
 from navsim.sensors import parse_sensors
 from navsim.sensors.catalog import available, load_spec
 from navsim.sensors.specs import ERROR_FIELDS, ImuSpec, ideal

@@ -89,7 +89,7 @@ def test_radar_slant_error_grows_with_bank():
     truth = Truth.static(100.0, rate_hz=10.0, h_agl_m=200.0)
     level = emulate_radar_altimeter(truth, RadarAltimeterSpec(), 1, range(2))
     truth.euler_rad[:, 0] = math.radians(35.0)
-    from navsim.transform import quat_from_euler
+    from navsim.foundations.transform import quat_from_euler
     truth.quat_nb = quat_from_euler(*truth.euler_rad.T)
     banked = emulate_radar_altimeter(truth, RadarAltimeterSpec(), 1, range(2))
     slant = 200.0 / math.cos(math.radians(15.0)) - 200.0

@@ -1,9 +1,9 @@
 import pytest
 
-from navsim.errors import ScenarioError
+from navsim.experiment.scenario import load_scenario, parse_scenario
 from navsim.flight.environment import parse_environment
 from navsim.flight.track import available_tracks, load_track, nominal_duration_s, parse_track
-from navsim.scenario import load_scenario, parse_scenario
+from navsim.foundations.errors import ScenarioError
 
 START = {"lat_deg": 37.0, "lon_deg": 118.0, "alt_m": 300, "speed_mps": 14}
 

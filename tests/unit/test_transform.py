@@ -1,7 +1,7 @@
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from navsim import transform as tf
+from navsim.foundations import transform as tf
 
 
 def test_euler_quat_dcm_agree_with_scipy():

@@ -1,0 +1,313 @@
+"""Streaming Monte Carlo results: each finished chunk of runs on disk as it completes.
+
+A :class:`ChunkStore` is a folder (``<out>/chunks`` for ``navsim run``) holding one
+``chunk_<first>-<last>.npz`` per finished chunk and an ``index.json`` that names the run it
+belongs to (scenario content hash, seed, runs, chunk size), the chunks done and the chunks that
+failed with their error. Chunk files and the index are written to a temporary name and renamed,
+so a run killed at any moment leaves a consistent folder that ``navsim run --resume`` completes.
+
+A chunk is the worker's :class:`~navsim.experiment.records.ChunkPart`; every field of
+:class:`~navsim.experiment.records.EstimatorHistory` round-trips exactly: arrays are stored as they are
+(no pickle), the per-run reset events, the NIS names and dimensions and the cost go to a JSON
+string inside the same file.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import re
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from navsim.experiment.records import ARRAY_FIELDS, ChunkPart, EstimatorHistory, sum_cost
+from navsim.foundations.errors import NavsimError, OutputError
+from navsim.foundations.outputs import temporary_name, write_atomic
+
+log = logging.getLogger(__name__)
+INDEX = "index.json"
+_ARRAYS = ARRAY_FIELDS
+
+
+class ResumeError(NavsimError):
+    """An output folder that cannot be resumed: missing, or written for another run."""
+
+    exit_code = 2
+
+
+def chunk_name(runs) -> str:
+    """``"<first>-<last>"`` of a chunk of run indices."""
+    runs = list(runs)
+    return f"{runs[0]}-{runs[-1]}"
+
+
+def _savez(path: Path, arrays: dict) -> None:
+    with open(path, "wb") as f:
+        np.savez(f, **arrays)
+
+
+def part_arrays(part: ChunkPart) -> dict:
+    """The arrays of a chunk part for :func:`numpy.savez`, with a JSON ``meta`` entry."""
+    runs, hist, bias, calib = part.runs, part.histories, part.truth_bias, part.calibration
+    arrays = {"runs": np.asarray(list(runs), dtype=np.int64)}
+    meta = {"labels": list(hist), "bias": list(bias), "calibration": {}, "histories": []}
+    for i, (label, h) in enumerate(hist.items()):
+        present = [name for name in _ARRAYS if getattr(h, name) is not None]
+        arrays.update({f"h{i}.{name}": getattr(h, name) for name in present})
+        arrays.update({f"h{i}.nis{j}": v for j, v in enumerate(h.nis.values())})
+        meta["histories"].append({
+            "arrays": present, "nis": list(h.nis), "nis_dim": h.nis_dim, "cost": h.cost,
+            "resets": h.resets, "divergence": getattr(h, "divergence", None)})
+    arrays.update({f"bias.{k}": np.asarray(v) for k, v in bias.items()})
+    for i, (name, c) in enumerate(calib.items()):
+        meta["calibration"][name] = list(c)
+        arrays.update({f"c{i}.{k}": np.asarray(v) for k, v in c.items()})
+    arrays["meta"] = np.array(json.dumps(meta, default=float))
+    return arrays
+
+
+def part_from_arrays(data) -> ChunkPart:
+    """The chunk part stored by :func:`part_arrays`."""
+    meta = json.loads(str(data["meta"]))
+    hist = {}
+    for i, (label, m) in enumerate(zip(meta["labels"], meta["histories"])):
+        fields = {name: data[f"h{i}.{name}"] for name in m["arrays"]}
+        resets, divergence = m["resets"], m.get("divergence")
+        hist[label] = EstimatorHistory(
+            label=label, **{name: fields.get(name) for name in _ARRAYS},
+            nis={k: data[f"h{i}.nis{j}"] for j, k in enumerate(m["nis"])}, nis_dim=m["nis_dim"],
+            cost=m["cost"],
+            resets=None if resets is None else [[tuple(e) for e in run] for run in resets],
+            divergence=None if divergence is None else [None if r is None else (float(r[0]), str(r[1]))
+                                                        for r in divergence])
+    bias = {k: data[f"bias.{k}"] for k in meta["bias"]}
+    calib = {name: {k: data[f"c{i}.{k}"] for k in keys}
+             for i, (name, keys) in enumerate(meta["calibration"].items())}
+    return ChunkPart(list(data["runs"].tolist()), hist, bias, calib)
+
+
+_CHUNK_FILE = re.compile(r"^chunk_\d+-\d+\.npz$")
+
+
+def chunk_runs(name: str) -> range:
+    """The runs of a chunk named ``"<first>-<last>"``."""
+    first, last = name.split("-")
+    return range(int(first), int(last) + 1)
+
+
+def listed_runs(folder: Path) -> list:
+    """The runs the index of ``folder`` lists, in order, read from the index alone (the chunk
+    files are not opened; :meth:`ChunkStore.open` checks them); none without a readable index."""
+    try:
+        index = ChunkStore.read_index(folder) or {}
+    except ResumeError:
+        return []
+    return [r for n in sorted(_chunk_files(index), key=lambda n: chunk_runs(n)[0]) for r in chunk_runs(n)]
+
+
+def _chunk_files(index: dict) -> dict:
+    """Chunk name -> file name of the chunks an index lists (plain chunk file names only)."""
+    chunks = index.get("chunks") if isinstance(index, dict) else None
+    if not isinstance(chunks, dict):
+        return {}
+    return {n: f for n, f in chunks.items()
+            if isinstance(f, str) and _CHUNK_FILE.fullmatch(f) and f == f"chunk_{n}.npz"}
+
+
+def _readable(path: Path) -> bool:
+    """Whether a stored chunk file is whole (its zip CRCs check); a truncated or damaged one is
+    run again on resume."""
+    try:
+        with zipfile.ZipFile(path) as z:
+            return z.testzip() is None
+    except (OSError, zipfile.BadZipFile, EOFError, ValueError):
+        return False
+
+
+def _shared(key: str) -> bool:
+    """Whether an array of a stored part is the same for every chunk (no leading run axis)."""
+    return key == "meta" or key.endswith((".t_s", ".turns"))
+
+
+class ChunkStore:
+    """The chunks of one Monte Carlo run in ``folder``, and its ``index.json``.
+
+    A store is opened for one of three things, said explicitly: to write a new run
+    (``mode="new"``: the chunks the folder's index lists are removed first, nothing else), to
+    complete an interrupted one (``mode="resume"``), or to read one back (:meth:`open`: nothing
+    in the folder is written or removed).
+
+    Parameters
+    ----------
+    folder : Path
+        Where the chunk files and the index live (created).
+    key : dict
+        What identifies the run: ``scenario_hash`` (:func:`navsim.experiment.runner.scenario_hash`), ``seed``,
+        ``runs``, ``chunk_runs``.
+    mode : {"new", "resume"}
+        ``resume``: keep the chunks of an earlier, matching run (a :class:`ResumeError` if the
+        folder holds none or another run's); ``new``: the folder's earlier chunks are removed.
+    """
+
+    def __init__(self, folder: Path, key: dict, mode: str):
+        if mode not in ("new", "resume"):
+            raise ValueError(f"mode {mode!r}: expected 'new' or 'resume' (ChunkStore.open reads a store)")
+        self.folder = Path(folder)
+        self.key = dict(key)
+        self.done: dict = {}         #: chunk name -> file name
+        self.failed: dict = {}       #: chunk name -> error message
+        self.read_only = False
+        if mode == "resume":
+            self._reopen()
+        else:
+            self._clear()
+        self._write_index()
+
+    @classmethod
+    def open(cls, folder: Path) -> "ChunkStore":
+        """The store in ``folder``, read-only: its key and failed chunks from the index, the
+        chunks it lists that are whole; nothing is written or removed (:meth:`add` and
+        :meth:`flag` refuse). A :class:`ResumeError` when the folder has no index."""
+        index = cls.read_index(folder)
+        if index is None:
+            raise ResumeError(f"no stored chunks in {folder}: no {INDEX}")
+        store = cls.__new__(cls)
+        store.folder, store.read_only = Path(folder), True
+        store.key = {k: v for k, v in index.items() if k not in ("chunks", "failed")}
+        listed = _chunk_files(index)
+        store.done = {name: file for name, file in listed.items() if _readable(store.folder / file)}
+        failed = index.get("failed")
+        store.failed = dict(failed) if isinstance(failed, dict) else {}
+        return store
+
+    @staticmethod
+    def read_index(folder: Path) -> dict | None:
+        """The index of ``folder``, or None when there is none."""
+        path = Path(folder) / INDEX
+        if not path.is_file():
+            return None
+        try:
+            index = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            raise ResumeError(f"{path}: unreadable index ({exc})") from None
+        if not isinstance(index, dict):
+            raise ResumeError(f"{path}: not a chunk index (expected a JSON object)")
+        return index
+
+    def _reopen(self) -> None:
+        index = self.read_index(self.folder)
+        if index is None:
+            raise ResumeError(f"nothing to resume in {self.folder}: no {INDEX} (run without --resume)")
+        diff = [f"{k} {index.get(k)!r} there, {v!r} now" for k, v in self.key.items() if index.get(k) != v]
+        if diff:
+            raise ResumeError(f"{self.folder} holds another run ({'; '.join(diff)}); resume it with the same "
+                              "scenario, seed, runs and chunk size, or run without --resume")
+        listed = _chunk_files(index)
+        self.done = {name: file for name, file in listed.items() if _readable(self.folder / file)}
+        for name in sorted(set(listed) - set(self.done)):
+            log.warning("%s: chunk %s is missing or damaged; its runs are run again", self.folder, name)
+
+    def _clear(self) -> None:
+        """Remove the chunk files the folder's index lists (and their temporary files), nothing
+        else: a folder without an index is left as it is."""
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            index = self.read_index(self.folder)
+        except (OSError, ResumeError):
+            index = None
+        for file in _chunk_files(index or {}).values():
+            for path in (self.folder / file, temporary_name(self.folder / file)):
+                try:
+                    path.unlink(missing_ok=True)
+                except OSError as exc:
+                    raise OutputError(path, exc) from None
+
+    def _writable(self) -> None:
+        if self.read_only:
+            raise ResumeError(f"{self.folder}: opened read-only (ChunkStore.open); nothing was written")
+
+    def _write_index(self) -> None:
+        self._writable()
+        index = {**self.key, "chunks": self.done, "failed": self.failed}
+        write_atomic(self.folder / INDEX, lambda p: p.write_text(json.dumps(index, indent=1)), fsync=True)
+
+    def missing(self, chunks: list) -> list:
+        """The chunks of ``chunks`` (ranges of run indices) not stored yet."""
+        return [ch for ch in chunks if chunk_name(ch) not in self.done]
+
+    def add(self, part) -> None:
+        """Store a finished chunk part and record it in the index."""
+        self._writable()
+        name = chunk_name(part.runs)
+        file = f"chunk_{name}.npz"
+        write_atomic(self.folder / file, lambda p: _savez(p, part_arrays(part)), fsync=True)
+        self.done[name] = file
+        self.failed.pop(name, None)
+        self._write_index()
+
+    def flag(self, failed_chunks: dict) -> None:
+        """Record chunks that failed (chunk name -> error message) in the index."""
+        self._writable()
+        self.failed.update(failed_chunks)
+        self._write_index()
+
+    def _names(self) -> list:
+        return sorted(self.done, key=lambda n: chunk_runs(n)[0])
+
+    def _files(self) -> list:
+        return [self.done[n] for n in self._names()]
+
+    def parts(self):
+        """The stored :class:`~navsim.experiment.records.ChunkPart` one at a time,
+        in run order (one chunk in memory at a time)."""
+        for file in self._files():
+            with np.load(self.folder / file, allow_pickle=False) as data:
+                part = part_from_arrays({k: data[k] for k in data.files})
+            yield part
+
+    def runs(self) -> list:
+        """The run indices stored, in order."""
+        return [r for n in self._names() for r in chunk_runs(n)]
+
+    def merged(self, limit: int | None = None) -> ChunkPart | None:
+        """The stored chunks as one :class:`~navsim.experiment.records.ChunkPart`, or None:
+        all of them, or the first chunks (in run order) that hold ``limit`` runs.
+
+        The chunk files are read one at a time into arrays allocated once for all the runs, so
+        the peak memory is the merged result plus one chunk (not twice the result).
+        """
+        files, sizes = [], []
+        for file in self._files():
+            if limit is not None and sum(sizes) >= limit:
+                break
+            files.append(file)
+            sizes.append(len(chunk_runs(file[len("chunk_"):-len(".npz")])))
+        if not files:
+            return None
+        with np.load(self.folder / files[0], allow_pickle=False) as first:
+            meta = json.loads(str(first["meta"]))
+            total = sum(sizes)
+            out = {k: first[k] if _shared(k) else np.empty((total, *first[k].shape[1:]), first[k].dtype)
+                   for k in first.files}
+        metas, offset = [], 0
+        for file in files:
+            with np.load(self.folder / file, allow_pickle=False) as data:
+                if set(data.files) != set(out):     # else rows would stay uninitialised
+                    raise ResumeError(f"{self.folder / file}: holds other fields than {files[0]} "
+                                      f"({', '.join(sorted(set(data.files) ^ set(out)))})")
+                n = len(data["runs"])
+                for k in data.files:
+                    if not _shared(k):
+                        out[k][offset:offset + n] = data[k]
+                metas.append(json.loads(str(data["meta"])))
+                offset += n
+        for i, h in enumerate(meta["histories"]):
+            parts = [m["histories"][i] for m in metas]
+            h["cost"] = sum_cost([m["cost"] for m in parts])
+            h["resets"] = None if h["resets"] is None else [r for m in parts for r in m["resets"]]
+            if any(m.get("divergence") is not None for m in parts):
+                h["divergence"] = [r for m, n in zip(parts, sizes) for r in (m.get("divergence") or [None] * n)]
+        out["meta"] = np.array(json.dumps(meta))
+        return part_from_arrays(out)

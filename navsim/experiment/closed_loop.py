@@ -1,0 +1,473 @@
+"""Navigation in the loop: the autopilot and the guidance fly on an estimator's solution.
+
+An open-loop scenario flies once and corrupts that one truth for every run. With a
+``closed_loop`` block each Monte Carlo run flies its own aircraft: at every step the guidance
+(position, course, ground speed) and the height, climb-rate, roll and pitch the autopilot holds
+come from the navigation solution of the estimator named by ``fly_on``, so navigation errors
+move the aircraft. Airspeed, body rates and sideslip stay on the truth (the air-data and gyro
+signals an autopilot reads directly). ``fly_on: truth`` flies the same loop on the truth.
+
+P1's safety strategy (Jiang & Chen) is ``return_to_land``: when the watched GNSS receiver has
+had no fix for longer than ``lost_s``, the mission is abandoned and the aircraft flies, on the
+navigation solution with whatever aids remain, to the recovery point; when the solution says
+it is there (within ``acceptance_m`` along the leg), the parachute opens and the run's miss
+distance is the true horizontal distance to the recovery point. Each run is scored up to its
+own end (landing, end of the track, failure; :func:`end_records` blanks what follows), so what a
+run contributes does not depend on the runs it was batched with::
+
+    closed_loop:
+      fly_on: SINS/GNSS/baro           # an estimator label, or truth
+      time_limit_s: 1500               # the loop stops here at the latest
+      return_to_land:
+        gnss: gps                      # the receiver watched (a gnss sensor of the scenario)
+        lost_s: 10                     # no fix for longer than this: abort the mission
+        lat_deg: 30.5                  # the recovery point (or north_m / east_m from the start)
+        lon_deg: 114.3
+        alt_m: 120                     # height of the way back (default: the height commanded)
+        acceptance_m: 0                # the parachute opens this far before the point (estimate)
+        area_m: 150                    # a landing within this of the point reached the area
+
+Sensors: every run's sensor errors are its own random streams, drawn as in open loop by the
+same emulators (on a static record as long as ``time_limit_s``: the errors of the supported
+sensors do not depend on the trajectory) and added to the run's own truth as it is flown: IMU
+(scale factor, misalignment, biases, noise, vibration, quantization; the IMU rate must be the
+flight rate), GNSS (no latency, lever arm or interference: they depend on the trajectory) and
+barometer. Other kinds are refused with a clear error.
+
+JSBSim holds one aircraft per instance, so the physics and the scalar autopilot step each run
+in turn; sensors and estimators are batched over the runs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from navsim.experiment.driver import Driver, perturbed_start
+from navsim.experiment.records import EPOCH_ARRAYS
+from navsim.flight import properties as P
+from navsim.flight.segments import State
+from navsim.flight.simulator import Aircraft, Watchdog
+from navsim.flight.track import Segment
+from navsim.flight.truth import Truth, truth_from_rows
+from navsim.foundations import atmosphere, earth
+from navsim.foundations.config import Node, close_match
+from navsim.foundations.errors import FlightError, ScenarioError
+from navsim.foundations.transform import quat_from_euler
+from navsim.navigation.estimators import factory
+from navsim.sensors import emulate
+from navsim.sensors.imu import OnlineIncrements, error_increments, quantize_increment
+
+SUPPORTED_KINDS = ("imu", "gnss", "baro")
+RETURN_LABEL = "return to land"
+
+
+@dataclass(frozen=True)
+class ReturnToLand:
+    gnss: str
+    lost_s: float
+    point: dict                  #: lat_deg/lon_deg or north_m/east_m
+    alt_m: float | None
+    acceptance_m: float
+    area_m: float
+
+
+@dataclass(frozen=True)
+class ClosedLoopConfig:
+    fly_on: str                  #: estimator label, or "truth"
+    time_limit_s: float
+    return_to_land: ReturnToLand | None = None
+
+
+def parse_closed_loop(node: Node, labels: list[str], sensors, track, duration_s: float,
+                      rate_hz: float) -> ClosedLoopConfig:
+    """Validate a scenario's ``closed_loop`` block (``sensors``: the scenario's SensorConfigs)."""
+    fly_on = node.get("fly_on", str)
+    if fly_on != "truth" and fly_on not in labels:
+        raise node.error(f"'{fly_on}' is not an estimator of this scenario", "fly_on",
+                         expected="an estimator label or 'truth'", hint=close_match(fly_on, labels))
+    default_limit = (duration_s * 1.5 + 300.0) if math.isfinite(duration_s) else 3600.0
+    limit = node.get("time_limit_s", float, default_limit, exclusive_minimum=0.0)
+    if track.start.type != "air":
+        what = "starts on a launcher" if track.start.type == "launch" else "is parked on the ground"
+        raise ScenarioError(what, file=node.file, key="track.start.type", expected="with closed_loop, an air start",
+                            hint="launches and parked vehicles are open loop only")
+    imu = [c for c in sensors if c.kind == "imu"]
+    for c in sensors:
+        key = f"sensors.{c.name}"
+        if c.kind not in SUPPORTED_KINDS:
+            raise ScenarioError(f"is a {c.kind}, whose errors depend on the trajectory: it cannot be "
+                                "flown in the loop", file=node.file, key=key,
+                                expected="with closed_loop, sensors of kinds " + ", ".join(SUPPORTED_KINDS),
+                                hint="remove it from this scenario or fly it open loop")
+        if c.kind == "gnss" and (c.spec.latency_s or np.any(c.spec.lever_arm_b)
+                                 or any(f.type == "interference" for f in c.faults)):
+            raise ScenarioError("has latency, a lever arm or interference, which depend on the "
+                                "trajectory", file=node.file, key=key,
+                                expected="with closed_loop, a GNSS whose errors do not",
+                                hint="override latency: 0 s and lever_arm: [0, 0, 0] m")
+    if imu and abs(imu[0].spec.rate_hz - rate_hz) > 1e-9:
+        raise ScenarioError(f"runs at {imu[0].spec.rate_hz:g} Hz, the flight at {rate_hz:g} Hz",
+                            file=node.file, key=f"sensors.{imu[0].name}",
+                            expected="with closed_loop, an IMU at the flight rate (flight.rate_hz)",
+                            hint=f"flight: {{rate_hz: {imu[0].spec.rate_hz:g}}}")
+    rtl = None
+    sub = node.child("return_to_land", None)
+    if sub is not None:
+        gnss = sub.get("gnss", str)
+        kinds = {c.name: c.kind for c in sensors}
+        if kinds.get(gnss) != "gnss":
+            raise sub.error(f"'{gnss}' is not a gnss sensor of this scenario", "gnss",
+                            hint=close_match(gnss, [k for k, v in kinds.items() if v == "gnss"]))
+        if "lat_deg" in sub.data or "lon_deg" in sub.data:
+            point = {"lat_deg": sub.get("lat_deg", float, minimum=-90.0, maximum=90.0),
+                     "lon_deg": sub.get("lon_deg", float, minimum=-180.0, maximum=180.0)}
+        else:
+            point = {"north_m": sub.get("north_m", float), "east_m": sub.get("east_m", float)}
+        rtl = ReturnToLand(gnss=gnss, lost_s=sub.get("lost_s", float, 10.0, exclusive_minimum=0.0),
+                           point=point, alt_m=sub.get("alt_m", float, None),
+                           acceptance_m=sub.get("acceptance_m", float, 0.0, minimum=0.0),
+                           area_m=sub.get("area_m", float, 150.0, exclusive_minimum=0.0))
+        sub.done()
+    node.done()
+    return ClosedLoopConfig(fly_on=fly_on, time_limit_s=limit, return_to_land=rtl)
+
+
+class _StepTruth:
+    """The true state of ``B`` runs at one step, shaped as a one-sample truth record
+    (``[0]`` gives ``(B, ...)``) for :func:`navsim.experiment.driver.nav_errors`."""
+
+    def __init__(self, rows: np.ndarray, batched: bool = True):
+        r = rows
+        one = (lambda x: x[None]) if batched else (lambda x: x)   # unbatched: ``[k]`` is run k
+        self.lat_rad = one(r[:, P.COL_LAT])
+        self.lon_rad = one(r[:, P.COL_LON])
+        self.h_m = one(r[:, P.COL_H])
+        self.vel_n_mps = one(r[:, P.COL_VN:P.COL_VD + 1])
+        self.quat_nb = one(quat_from_euler(r[:, P.COL_ROLL], r[:, P.COL_PITCH], r[:, P.COL_YAW]))
+        self.euler_rad = one(r[:, [P.COL_ROLL, P.COL_PITCH, P.COL_YAW]])
+        self.omega_ib_b_rps = r[:, P.COL_PI:P.COL_RI + 1]
+        self.f_b_mps2 = r[:, P.COL_FX:P.COL_FZ + 1] / r[:, P.COL_MASS:P.COL_MASS + 1]
+
+
+@dataclass
+class LoopBatch:
+    """What :func:`fly_batch` returns for its runs."""
+
+    histories: dict              #: label -> EstimatorHistory
+    outcome: list                #: per run: landed, completed (track flown), failed, time limit
+    failed: dict                 #: run index -> reason
+    abort_t_s: np.ndarray        #: (B,) time the mission was abandoned (NaN: never)
+    land_t_s: np.ndarray         #: (B,) time the parachute opened (NaN: never)
+    fail_t_s: np.ndarray         #: (B,) time the flight failed (NaN: never)
+    end_t_s: np.ndarray          #: (B,) time the run ended: landed, track flown, failed (NaN: time limit)
+    miss_m: np.ndarray           #: (B,) true horizontal distance of the landing to the point
+    miss_est_m: np.ndarray       #: (B,) the same, of the navigation solution
+    landing_n_m: np.ndarray      #: (B, 2) true north, east of the landing from the track start
+    path_t_s: np.ndarray         #: (E,) times of the recorded paths (the estimators' epochs)
+    path_n_m: np.ndarray         #: (B, E, 3) true north, east, height from the track start
+    point_n_m: tuple | None      #: the recovery point, north/east from the track start
+    truth_bias: dict             #: gyro_bias/accel_bias (B, E, 3) at the epochs
+    truth: Truth | None = None   #: the whole truth of the first run (``keep_truth``)
+
+
+def _sensor_streams(scenario, seed, runs, dt, n):
+    """IMU error increments and the other sensors' data (values to be filled in flight)."""
+    imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
+    imu = error_increments(imu_cfg.spec, seed, runs, n, dt, name=imu_cfg.name)
+    start = scenario.flight.track.start
+    static = Truth.static((n - 1) * dt, 1.0 / dt, start.lat_deg, start.lon_deg, start.alt_m)
+    others = {c.name: emulate(static, c, seed, runs) for c in scenario.sensors if c.kind != "imu"}
+    for data in others.values():
+        data.meta["step"] = int(round(1.0 / (data.meta["rate_hz"] * dt)))
+    return imu_cfg, imu, others
+
+
+def _matvec(M: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``M @ v`` for stacks ``(B, 3, 3)``, ``(B, 3)`` with the same operations whatever ``B``
+    (einsum may pick another summation path for another batch size)."""
+    return M[:, :, 0] * v[:, None, 0] + M[:, :, 1] * v[:, None, 1] + M[:, :, 2] * v[:, None, 2]
+
+
+def _fill(data, j: int, rows: np.ndarray) -> None:
+    """Sample ``j`` of a sensor from the runs' true state ``rows`` plus the run's own error."""
+    lat, lon, h = rows[:, P.COL_LAT], rows[:, P.COL_LON], rows[:, P.COL_H]
+    v = data.values
+    if data.kind == "gnss":
+        err = data.errors["pos_error_n_m"][:, j]
+        r_m, r_n = earth.radii(lat)
+        v["lat_rad"][:, j] = lat + err[:, 0] / (r_m + h)
+        v["lon_rad"][:, j] = lon + err[:, 1] / ((r_n + h) * np.cos(lat))
+        v["h_m"][:, j] = h - err[:, 2]
+        if "vel_n_mps" in v:
+            v["vel_n_mps"][:, j] = rows[:, P.COL_VN:P.COL_VD + 1] + data.errors["vel_error_n_mps"][:, j]
+    elif data.kind == "baro":
+        v["h_baro_m"][:, j] = h + data.errors["h_error_m"][:, j]
+        v["p_static_pa"][:, j] = atmosphere.pressure(v["h_baro_m"][:, j])
+
+
+def _guidance(nav, craft0) -> tuple:
+    """North, east, height, course, ground speed, climb rate, roll, pitch of a NavState, as
+    lists (one value per run). The angles are taken run by run with :mod:`math`: numpy's
+    vectorised transcendental functions may round differently for another batch size."""
+    vel = nav.vel_n_mps.tolist()
+    C = nav.C_nb
+    c20, c21, c22 = C[:, 2, 0].tolist(), C[:, 2, 1].tolist(), C[:, 2, 2].tolist()
+    return (((nav.lat_rad - craft0.lat0) * craft0.k_north).tolist(),
+            ((nav.lon_rad - craft0.lon0) * craft0.k_east).tolist(), nav.h_m.tolist(),
+            [math.atan2(v[1], v[0]) for v in vel], [math.hypot(v[0], v[1]) for v in vel],
+            [-v[2] for v in vel], [math.atan2(a, b) for a, b in zip(c21, c22)],
+            [-math.asin(min(max(a, -1.0), 1.0)) for a in c20])
+
+
+@dataclass(frozen=True)
+class _Fleet:
+    """The aircraft of a batch of runs and what stays fixed while they fly."""
+
+    runs: list                   #: the Monte Carlo run indices
+    dt: float                    #: flight step, s
+    n_max: int                   #: steps up to the time limit
+    craft: list                  #: one Aircraft per run
+    watch: list                  #: one Watchdog per run
+    imu_cfg: object              #: the IMU's SensorConfig
+    imu_err: dict                #: the IMU's error increments (see error_increments)
+    sensors: dict                #: name -> SensorData of the other sensors, filled in flight
+    rtl: ReturnToLand | None
+    point: tuple | None          #: the recovery point, north/east from the track start
+    goto: Segment | None         #: the segment flown back to it
+
+
+@dataclass(frozen=True)
+class _Tally:
+    """What the runs record as they fly (filled in place, one entry per run)."""
+
+    status: list                 #: flying, aborted (returning), landed, completed, failed
+    failed: dict                 #: run index -> reason
+    abort_t: np.ndarray
+    land_t: np.ndarray
+    fail_t: np.ndarray
+    end_t: np.ndarray
+    landing: np.ndarray          #: (B, 2) true north, east of the landing
+    landing_est: np.ndarray      #: (B, 2) the same, of the navigation solution
+    last_fix: np.ndarray         #: (B,) time of the watched receiver's last fix
+    paths: list
+    path_t: list
+    kept: list | None            #: the first run's truth rows (``keep_truth``)
+    seg_kept: list               #: their segment indices
+
+    @classmethod
+    def empty(cls, B: int, keep_truth: bool) -> _Tally:
+        nan = lambda *shape: np.full(shape, np.nan)
+        return cls(status=["flying"] * B, failed={}, abort_t=nan(B), land_t=nan(B), fail_t=nan(B),
+                   end_t=nan(B), landing=nan(B, 2), landing_est=nan(B, 2), last_fix=np.zeros(B),
+                   paths=[], path_t=[], kept=[] if keep_truth else None, seg_kept=[])
+
+
+def _recovery(rtl: ReturnToLand | None, c0) -> tuple:
+    """The recovery point (north/east from the track start) and the segment back to it."""
+    if rtl is None:
+        return None, None
+    point = ((rtl.point["north_m"], rtl.point["east_m"]) if "north_m" in rtl.point else
+             c0.local_of_latlon(math.radians(rtl.point["lat_deg"]), math.radians(rtl.point["lon_deg"])))
+    goto = Segment("goto", RETURN_LABEL, {"north_m": point[0], "east_m": point[1],
+                                          "acceptance_m": rtl.acceptance_m,
+                                          **({"alt_m": rtl.alt_m} if rtl.alt_m is not None else {})})
+    return point, goto
+
+
+def _fleet(scenario, seed: int, runs: list) -> _Fleet:
+    """Sensor streams, aircraft and watchdogs of the runs ``runs``."""
+    cl, fc = scenario.closed_loop, scenario.flight
+    dt = 1.0 / fc.rate_hz
+    n_max = int(round(cl.time_limit_s / dt)) + 1
+    imu_cfg, imu_err, sensors = _sensor_streams(scenario, seed, runs, dt, n_max)
+    craft = [Aircraft(fc) for _ in runs]
+    watch = [Watchdog(c.limits, dt) for c in craft]
+    point, goto = _recovery(cl.return_to_land, craft[0])
+    return _Fleet(runs=runs, dt=dt, n_max=n_max, craft=craft, watch=watch, imu_cfg=imu_cfg,
+                  imu_err=imu_err, sensors=sensors, rtl=cl.return_to_land, point=point, goto=goto)
+
+
+def _start_navigation(scenario, seed: int, fleet: _Fleet, estimators: dict, rows: np.ndarray) -> tuple:
+    """The estimators' Driver started on the runs' perturbed initial state, and the IMU's
+    online increments primed with the first step."""
+    view = _StepTruth(rows)
+    errors = scenario.initial.draw(seed, fleet.runs)
+    nav0 = perturbed_start(_StepTruth(rows[:1], batched=False), errors, 0)
+    sigma0 = scenario.initial.sigma_blocks(rows[0, P.COL_LAT], rows[0, P.COL_H])
+    loop = Driver(estimators, fleet.dt, len(fleet.runs), isolate=False)   # the guidance needs every step
+    loop.start(nav0, sigma0, view, 0)
+    inc = OnlineIncrements(len(fleet.runs), fleet.dt)
+    inc.update(view.omega_ib_b_rps, view.f_b_mps2)
+    return loop, inc
+
+
+def _advance(fleet: _Fleet, loop, inc, rows: np.ndarray, k: int) -> None:
+    """Step ``k`` of the sensors (the runs' truth ``rows`` plus their errors) and the estimators."""
+    dt, err, spec = fleet.dt, fleet.imu_err, fleet.imu_cfg.spec
+    view = _StepTruth(rows)
+    dth, dv = inc.update(view.omega_ib_b_rps, view.f_b_mps2)
+    dth = _matvec(err["gyro_matrix"], dth) + err["gyro"][:, k]
+    dv = _matvec(err["accel_matrix"], dv) + err["accel"][:, k]
+    dth = quantize_increment(dth, spec.gyro, dt)
+    dv = quantize_increment(dv, spec.accel, dt)
+    for data in fleet.sensors.values():
+        if k % data.meta["step"] == 0:
+            _fill(data, k // data.meta["step"], rows)
+    loop.advance(dth[:, None], dv[:, None], k * dt, fleet.sensors, view, 0)
+
+
+def _record(fleet: _Fleet, tally: _Tally, rows: np.ndarray, k: int, t: float, path_every: int) -> None:
+    """The true paths every ``path_every`` steps and the time of the watched receiver's last fix."""
+    c0 = fleet.craft[0]
+    if k % path_every == 0:
+        tally.path_t.append(t)
+        tally.paths.append(np.stack([(rows[:, P.COL_LAT] - c0.lat0) * c0.k_north,
+                                     (rows[:, P.COL_LON] - c0.lon0) * c0.k_east, rows[:, P.COL_H]], -1))
+    if fleet.rtl is not None:
+        g = fleet.sensors[fleet.rtl.gnss]
+        if k % g.meta["step"] == 0:
+            tally.last_fix[g.valid[:, k // g.meta["step"]]] = t
+
+
+def _sense(s: State, row: np.ndarray, c0, guide, b: int, t: float) -> tuple:
+    """Fill run ``b``'s segment State from its truth ``row`` or, given ``guide``
+    (:func:`_guidance`), from the navigation; return the climb rate, roll and pitch held."""
+    s.t = t
+    s.tas = row[P.COL_TAS]
+    if guide is None:
+        s.north = (row[P.COL_LAT] - c0.lat0) * c0.k_north
+        s.east = (row[P.COL_LON] - c0.lon0) * c0.k_east
+        s.h, vn, ve = row[P.COL_H], row[P.COL_VN], row[P.COL_VE]
+        s.course, s.ground_speed = math.atan2(ve, vn), math.hypot(vn, ve)
+        return -row[P.COL_VD], row[P.COL_ROLL], row[P.COL_PITCH]
+    s.north, s.east, s.h, s.course, s.ground_speed = (guide[0][b], guide[1][b], guide[2][b],
+                                                      guide[3][b], guide[4][b])
+    return guide[5][b], guide[6][b], guide[7][b]
+
+
+def _follow(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, s: State, t: float) -> None:
+    """Run ``b``'s segments for one step: abort on a lost fix, note the end of the track or
+    the landing. Raises FlightError."""
+    c0, runner, st = fleet.craft[0], fleet.craft[b].runner, tally.status
+    reason = fleet.watch[b].check(row)
+    if reason is not None:
+        raise runner.fail(reason, s)
+    if st[b] == "flying" and fleet.rtl is not None and t - tally.last_fix[b] > fleet.rtl.lost_s:
+        st[b], tally.abort_t[b] = "aborted", t
+        runner.segments, runner.index, runner.finished = [fleet.goto], -1, False
+    if runner.index < 0:
+        runner.next(s)
+    if runner.finished:
+        return
+    runner.update(s, fleet.dt)
+    if not runner.finished:
+        return
+    tally.end_t[b] = t
+    if st[b] == "aborted":
+        st[b], tally.land_t[b] = "landed", t
+        tally.landing[b] = ((row[P.COL_LAT] - c0.lat0) * c0.k_north, (row[P.COL_LON] - c0.lon0) * c0.k_east)
+        tally.landing_est[b] = (s.north, s.east)
+    else:
+        st[b] = "completed"
+
+
+def _step_run(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, s: State, guide, t: float) -> None:
+    """One step of run ``b``: segments, failure checks, autopilot and physics."""
+    climb, roll, pitch = _sense(s, row, fleet.craft[0], guide, b, t)
+    c = fleet.craft[b]
+    try:
+        _follow(fleet, tally, b, row, s, t)
+    except FlightError as exc:
+        tally.status[b], tally.fail_t[b], tally.end_t[b] = "failed", t, t
+        tally.failed[fleet.runs[b]] = str(exc)
+        return
+    if tally.kept is not None and b == 0:
+        runner = c.runner
+        tally.kept.append(row.copy())
+        tally.seg_kept.append(len(c.config.track.segments) if tally.status[0] in ("aborted", "landed") else
+                              runner.index - 1 if runner.finished else runner.index)
+    c.io.set_controls(*c.ap.step(fleet.dt, row[P.COL_TAS], s.h, climb, roll, pitch, row[P.COL_P], row[P.COL_Q],
+                                 row[P.COL_BETA], s.course))
+    c.io.run()
+
+
+def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: bool = False,
+              progress=None) -> LoopBatch:
+    """Fly the runs ``runs`` of ``scenario`` with navigation in the loop (see the module
+    docstring); ``on_truth`` flies them on the truth whatever ``fly_on`` says; ``keep_truth``
+    keeps the first run's whole truth record (for the flight pages of the report)."""
+    cl = scenario.closed_loop
+    fleet = _fleet(scenario, seed, list(runs))
+    estimators = {e.label: factory.build(e) for e in scenario.estimators}   # looked up at the call
+    driver = None if (on_truth or cl.fly_on == "truth") else estimators[cl.fly_on]
+    craft, c0 = fleet.craft, fleet.craft[0]
+    rows = np.array([c.io.read_row() for c in craft])
+    loop, inc = _start_navigation(scenario, seed, fleet, estimators, rows)
+    path_every = min(loop.every.values())
+    states = [State() for _ in craft]
+    tally = _Tally.empty(len(craft), keep_truth)
+    status = tally.status
+    for k in range(fleet.n_max):
+        t = k * fleet.dt
+        if k > 0:
+            _advance(fleet, loop, inc, rows, k)
+        _record(fleet, tally, rows, k, t, path_every)
+        nav = driver.solution().nav if driver is not None else None
+        guide = _guidance(nav, c0) if nav is not None else None
+        for b in range(len(craft)):
+            if status[b] != "failed":
+                _step_run(fleet, tally, b, rows[b], states[b], guide, t)
+        if all(st in ("landed", "completed", "failed") for st in status):
+            break
+        if progress is not None and k % 1000 == 0:
+            progress(t, cl.time_limit_s)
+        rows = np.array([c.io.read_row() if status[b] != "failed" else rows[b] for b, c in enumerate(craft)])
+    return _batch(scenario.flight, fleet, tally, loop.histories())
+
+
+def _truth_bias(imu_err: dict, histories: dict, dt: float, B: int) -> dict:
+    """The IMU's true gyro and accelerometer biases ``(B, E, 3)`` at the estimators' epochs."""
+    ks = np.round(next(iter(histories.values())).t_s / dt).astype(int)
+    bias = {}
+    for key in ("gyro_bias", "accel_bias"):
+        v = np.broadcast_to(imu_err[key], (B, imu_err[key].shape[1], 3))
+        bias[key] = v[:, ks] if v.shape[1] > 1 else np.repeat(v, len(ks), axis=1)
+    return bias
+
+
+def _batch(fc, fleet: _Fleet, tally: _Tally, histories: dict) -> LoopBatch:
+    """The LoopBatch of the flown runs (``fc``: the scenario's FlightConfig)."""
+    B, dt, point = len(fleet.runs), fleet.dt, fleet.point
+    outcome = ["time limit" if st in ("flying", "aborted") else st for st in tally.status]
+    miss = np.hypot(*(tally.landing - np.asarray(point)).T) if point is not None else np.full(B, np.nan)
+    miss_est = np.hypot(*(tally.landing_est - np.asarray(point)).T) if point is not None else np.full(B, np.nan)
+    truth = None
+    if tally.kept:
+        labels = [s.label for s in fc.track.segments] + [RETURN_LABEL]
+        truth = truth_from_rows(np.array(tally.kept), np.arange(len(tally.kept)) * dt, np.array(tally.seg_kept),
+                                labels, {"aircraft": fc.aircraft, "rate_hz": fc.rate_hz, "track": fc.track.name,
+                                         "start": "air", "closed_loop": True})
+    return LoopBatch(histories=histories, outcome=outcome, failed=tally.failed, abort_t_s=tally.abort_t,
+                     land_t_s=tally.land_t, fail_t_s=tally.fail_t, end_t_s=tally.end_t, miss_m=miss,
+                     miss_est_m=miss_est, landing_n_m=tally.landing, path_t_s=np.array(tally.path_t),
+                     path_n_m=np.stack(tally.paths, axis=1), point_n_m=point,
+                     truth_bias=_truth_bias(fleet.imu_err, histories, dt, B), truth=truth)
+
+
+def end_records(batch: LoopBatch, dt: float) -> None:
+    """Blank (NaN) every run's records after its own end (landing, end of the track, failure), so
+    that what a run contributes does not depend on the runs it was batched with."""
+    end = np.where(np.isfinite(batch.end_t_s), batch.end_t_s, np.inf)
+    for h in batch.histories.values():
+        after = h.t_s[None, :] > end[:, None] + 0.5 * dt            # (B, E)
+        for name in EPOCH_ARRAYS:
+            a = getattr(h, name)
+            if a is not None:
+                a[after] = np.nan
+        for v in h.nis.values():
+            v[after] = np.nan
+    after = batch.path_t_s[None, :] > end[:, None] + 0.5 * dt
+    batch.path_n_m[after] = np.nan

@@ -1,0 +1,352 @@
+"""``navsim run``: fly (cached), emulate, estimate and score a scenario's Monte Carlo runs.
+
+The flight is flown once per distinct flight configuration and cached on disk
+(``$NAVSIM_CACHE``, default ``~/.cache/navsim``), keyed by a hash of everything that determines
+it (track, environment, aircraft model files, rate, navsim version). Runs are cut into chunks of
+a fixed size (so the numbers do not depend on the number of workers); chunks go to a process
+pool. A chunk that fails marks its runs as failed and the others complete; Ctrl-C keeps the
+chunks that finished.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from navsim.experiment.chunkstore import chunk_name
+from navsim.experiment.closed_loop import end_records, fly_batch
+from navsim.experiment.driver import run_batch
+from navsim.experiment.executors import run_chunks_dask
+from navsim.experiment.records import EPOCH_ARRAYS, ChunkPart, merge_parts
+from navsim.flight.properties import AIRCRAFT_DIR
+from navsim.flight.simulator import fly
+from navsim.flight.truth import Truth
+from navsim.foundations.config import cache_dir
+from navsim.foundations.errors import ScenarioError, UsageError
+from navsim.navigation.estimators import factory
+from navsim.navigation.magcal import calibration_history
+from navsim.sensors import emulate
+from navsim.sensors.imu import ImuStream, emulate_imu
+from navsim.version import __version__
+
+#: runs per chunk, by measurement (benchmarks/chunk_size.py, P0, 1000 runs, 2 workers): 125 runs
+#: 21.0 s, 250 runs 19.0 s, 500 runs 18.8 s with a worker's peak memory 505 -> 813 MB
+CHUNK_RUNS = 250
+#: streamed to a chunk store, the first chunks holding this many runs are loaded for the report's
+#: plots; the metrics are computed from every stored chunk (navsim.scoring.scorer)
+REPORT_RUNS = 1000
+
+
+def plain(x):
+    """Dataclasses, containers and arrays as plain JSON-able values (for content hashes)."""
+    if dataclasses.is_dataclass(x):
+        return {f.name: plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
+    if isinstance(x, (list, tuple)):
+        return [plain(v) for v in x]
+    if isinstance(x, dict):
+        return {str(k): plain(v) for k, v in x.items()}
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return x
+
+
+def scenario_hash(scenario) -> str:
+    """Hash of what a scenario's chunks depend on: its content without the ``montecarlo``,
+    ``metrics`` and ``report`` settings (the chunks do not depend on them: a resumed run may
+    be scored with other windows), the sensor and estimator models as resolved from the
+    catalog, navsim's version and the flight.
+
+    Parameters
+    ----------
+    scenario : navsim.experiment.scenario.Scenario
+        A parsed scenario.
+
+    Returns
+    -------
+    str
+        20 hex digits.
+    """
+    raw = {k: v for k, v in scenario.raw.items() if k not in ("montecarlo", "metrics", "report")}
+    h = hashlib.sha256(json.dumps(raw, sort_keys=True, default=str).encode())
+    h.update(json.dumps(plain([scenario.sensors, scenario.estimators, scenario.initial]), sort_keys=True,
+                        default=str).encode())
+    h.update(__version__.encode())
+    h.update(flight_key(scenario.flight).encode())
+    return h.hexdigest()[:20]
+
+
+def flight_key(config) -> str:
+    """Hash of everything that determines a flight."""
+    h = hashlib.sha256()
+    h.update(json.dumps({"config": plain(config), "version": __version__}, sort_keys=True,
+                        default=str).encode())
+    adir = Path(config.aircraft_dir) if config.aircraft_dir else AIRCRAFT_DIR
+    for path in sorted((adir / config.aircraft).glob("*")):
+        if path.is_file():
+            h.update(path.read_bytes())
+    return h.hexdigest()[:20]
+
+
+def cached_flight(config, progress=None) -> tuple[Truth, Path, bool]:
+    """The truth of ``config``, flown or read from the cache; returns (truth, path, was_cached)."""
+    path = cache_dir() / "flights" / f"{flight_key(config)}.npz"
+    if path.is_file():
+        try:
+            return Truth.load(path), path, True
+        except (OSError, ValueError, KeyError):
+            path.unlink(missing_ok=True)
+    truth = fly(config, progress=progress)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    truth.save(tmp)
+    os.replace(tmp, path)
+    return truth, path, False
+
+
+@dataclass
+class RunResult:
+    histories: dict                      #: label -> EstimatorHistory over the finished runs
+    runs: np.ndarray                     #: run indices finished
+    failed: dict = field(default_factory=dict)   #: run -> error message
+    interrupted: bool = False
+    truth_bias: dict = field(default_factory=dict)   #: gyro/accel true bias at epochs (B, E, 3)
+    #: magnetometer name -> its online calibration scored against the truth (navsim.navigation.magcal)
+    calibration: dict = field(default_factory=dict)
+    #: the chunk store every finished run is in (streamed runs), or None (all runs in memory)
+    store: object = None
+    #: the runs ``histories``, ``truth_bias`` and ``calibration`` hold (streamed: the first
+    #: :data:`REPORT_RUNS`); None: all of ``runs``
+    history_runs: np.ndarray | None = None
+
+
+def _chunk(args):
+    """Worker: sensors and estimators of one chunk of runs; a :class:`ScenarioError` raised
+    there names the scenario's file."""
+    try:
+        return _chunk_work(*args)
+    except ScenarioError as exc:
+        raise (exc.with_file(str(args[1].path)) if exc.file is None and args[1].path else exc) from None
+
+
+def _chunk_work(truth_or_path, scenario, seed, runs):
+    """The sensors and estimators of the runs ``runs``, as a :class:`ChunkPart`."""
+    truth = Truth.load(truth_or_path) if isinstance(truth_or_path, (str, Path)) else truth_or_path
+    imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
+    if imu_cfg.spec.vibration:       # normalised over the whole record: emulated whole
+        imu = emulate_imu(truth, imu_cfg.spec, seed, runs, name=imu_cfg.name, keep_rates=False)
+    else:                            # generated block by block inside the loop
+        imu = ImuStream(truth, imu_cfg.spec, seed, runs, name=imu_cfg.name)
+        imu.record_bias()
+    # the true errors the emulators also return are dropped (air data: 50 of its 140 MB for 250
+    # runs) but for the magnetometers whose online calibration is scored against them
+    calibrated = mag_calibrations(scenario)
+    others = {c.name: emulate(truth, c, seed, runs) for c in scenario.sensors if c.kind != "imu"}
+    others = {name: d if name in calibrated else replace(d, errors={}) for name, d in others.items()}
+    estimators = {e.label: factory.build(e) for e in scenario.estimators}   # looked up at the call
+    hist = run_batch(truth, imu, others, estimators, scenario.initial, seed, runs)
+    # true IMU biases at the epochs of the first estimator, for the bias plots
+    first = next(iter(hist.values()))
+    idx = np.searchsorted(imu.t_s, first.t_s - 1e-9)
+    if isinstance(imu, ImuStream):
+        bias = imu.bias(idx)
+    else:
+        bias = {k: np.broadcast_to(imu.errors[k], (len(runs), max(imu.errors[k].shape[1], 1), 3))
+                for k in ("gyro_bias", "accel_bias")}
+        bias = {k: (v[:, idx] if v.shape[1] > 1 else np.repeat(v, len(idx), axis=1)) for k, v in bias.items()}
+    calib = {name: calibration_history(truth, others[name], s["noise_uT"] * 1e-6, s["forgetting"])
+             for name, s in calibrated.items()}
+    return ChunkPart(list(runs), hist, bias, calib)
+
+
+def mag_calibrations(scenario) -> dict:
+    """Magnetometer name -> the settings of the first ``mag_heading`` measurement reading it."""
+    out = {}
+    for e in scenario.estimators:
+        groups = [e.params.get("measurements", [])] + [loc["measurements"] for loc in
+                                                      e.params.get("federated", {}).get("locals", [])]
+        for m in (m for g in groups for m in g):
+            if m["type"] == "mag_heading":
+                out.setdefault(m["sensor"], m)
+    return out
+
+
+def run_chunks(fn, chunks, make_args, workers: int, progress=None, on_part=None):
+    """Run ``fn(make_args(chunk, in_worker))`` for each chunk of run indices, in this process or
+    a pool of ``workers``; a chunk that raises marks its runs as failed and the others complete;
+    Ctrl-C keeps what finished. Returns ``(parts, failed, interrupted)``; with ``on_part``, each
+    finished part is handed to ``on_part(part)`` as it arrives instead of being kept in ``parts``."""
+    parts, failed, interrupted = [], {}, False
+    keep = on_part or parts.append
+    try:
+        if workers <= 1:
+            for ch in chunks:
+                try:
+                    part = fn(make_args(ch, False))
+                except Exception as exc:  # a failing chunk must not lose the others
+                    failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
+                else:
+                    keep(part)
+                if progress:
+                    progress(len(ch))
+        else:
+            with ProcessPoolExecutor(max_workers=workers) as pool:
+                futures = {pool.submit(fn, make_args(ch, True)): ch for ch in chunks}
+                try:
+                    for fut in as_completed(futures):
+                        ch = futures.pop(fut)          # a finished future keeps its part: drop it
+                        part = None
+                        try:
+                            part = fut.result()
+                        except Exception as exc:
+                            failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
+                        else:
+                            keep(part)
+                        del fut, part
+                        if progress:
+                            progress(len(ch))
+                except KeyboardInterrupt:
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    raise
+    except KeyboardInterrupt:
+        interrupted = True
+    return parts, failed, interrupted
+
+
+def chunk_ranges(runs: int, size: int) -> list[range]:
+    """Runs ``0 .. runs-1`` cut into chunks of ``size``."""
+    if size < 1:
+        raise UsageError(f"chunk size must be at least 1, not {size}")
+    return [range(a, min(a + size, runs)) for a in range(0, runs, size)]
+
+
+def _chunk_failures(chunks, failed: dict) -> dict:
+    """Chunk name -> error message of the chunks whose runs failed."""
+    return {chunk_name(ch): failed[ch[0]] for ch in chunks if ch[0] in failed}
+
+
+def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: int, workers: int,
+                    progress=None, *, chunk_runs: int | None = None, store=None, executor: str = "local",
+                    scheduler: str | None = None, keep_runs: int | None = None) -> RunResult:
+    """All runs of ``scenario`` on ``truth``, in chunks of ``chunk_runs`` (default :data:`CHUNK_RUNS`).
+
+    Parameters
+    ----------
+    scenario, truth, truth_path, runs, seed, workers, progress
+        The scenario, its flight (in memory and its cached ``.npz``), the number of runs, the
+        seed, the worker processes and a callback ``progress(runs_finished)``.
+    chunk_runs : int, optional
+        Runs per chunk; the numbers do not depend on it.
+    store : navsim.experiment.chunkstore.ChunkStore, optional
+        Streams each finished chunk to disk; only the chunks it lacks are run (resume) and the
+        result is rebuilt from the stored chunks.
+    executor : {"local", "dask"}
+        A process pool on this machine, or Dask distributed (:mod:`navsim.experiment.executors`).
+    scheduler : str, optional
+        Dask scheduler address; without it a ``LocalCluster`` of ``workers`` processes.
+    keep_runs : int, optional
+        With ``store``: load the histories of the first chunks holding this many runs only
+        (memory independent of ``runs``; the whole result stays in ``result.store``).
+
+    Returns
+    -------
+    RunResult
+    """
+    chunks = chunk_ranges(runs, chunk_runs or CHUNK_RUNS)
+    pending = store.missing(chunks) if store is not None else chunks
+    on_part = store.add if store is not None else None
+    if executor == "dask":
+        parts, failed, interrupted = run_chunks_dask(
+            _chunk, pending, truth, truth_path, (scenario, seed), workers, scheduler, progress, on_part)
+    else:
+        parts, failed, interrupted = run_chunks(
+            _chunk, pending, lambda ch, remote: (str(truth_path) if remote else truth, scenario, seed, ch),
+            workers, progress, on_part)
+    if store is not None:
+        store.flag(_chunk_failures(pending, failed))
+        merged = store.merged(keep_runs)
+    else:
+        merged = merge_parts(parts) if parts else None
+    merged = merged if merged is not None else ChunkPart([], {})
+    done = np.asarray(merged.runs, int)
+    every = np.asarray(store.runs(), int) if store is not None else done
+    return RunResult(merged.histories, every, failed, interrupted, merged.truth_bias, merged.calibration,
+                     store=store, history_runs=done)
+
+
+# --- navigation in the loop ---------------------------------------------------------------------
+CLOSED_CHUNK_RUNS = 25
+
+
+@dataclass
+class LoopChunk:
+    """What a chunk of closed-loop runs returns: its records, the per-run outcomes (miss
+    distances, abort and landing times, true paths) and the runs that failed (run -> error)."""
+
+    part: ChunkPart
+    loop: dict
+    failed: dict
+
+
+def _closed_chunk(args) -> LoopChunk:
+    """Worker: one chunk of closed-loop runs (each run flies its own aircraft)."""
+    scenario, seed, runs = args
+    b = fly_batch(scenario, seed, runs)
+    end_records(b, 1.0 / scenario.flight.rate_hz)
+    loop = {"outcome": np.array(b.outcome), "abort_t_s": b.abort_t_s, "land_t_s": b.land_t_s,
+            "fail_t_s": b.fail_t_s, "end_t_s": b.end_t_s, "miss_m": b.miss_m, "miss_est_m": b.miss_est_m,
+            "landing_n_m": b.landing_n_m, "path_t_s": b.path_t_s, "path_n_m": b.path_n_m}
+    return LoopChunk(ChunkPart(list(runs), b.histories, b.truth_bias), loop, b.failed)
+
+
+def _pad(a, E: int, axis: int = 1):
+    if a is None or a.shape[axis] == E:
+        return a
+    width = [(0, 0)] * a.ndim
+    width[axis] = (0, E - a.shape[axis])
+    return np.pad(a.astype(float) if a.dtype.kind != "f" else a, width, constant_values=np.nan)
+
+
+def _pad_part(chunk: LoopChunk, t_full, path_t_full) -> LoopChunk:
+    """Extend a chunk's records (which end when its last run landed) to the longest chunk."""
+    E = len(t_full)
+    for h in chunk.part.histories.values():
+        for name in EPOCH_ARRAYS:
+            setattr(h, name, _pad(getattr(h, name), E))
+        h.nis = {k: _pad(v, E) for k, v in h.nis.items()}
+        h.t_s = t_full
+    bias = {k: _pad(v, E) for k, v in chunk.part.truth_bias.items()}
+    loop = dict(chunk.loop, path_n_m=_pad(chunk.loop["path_n_m"], len(path_t_full)), path_t_s=path_t_full)
+    return LoopChunk(replace(chunk.part, truth_bias=bias), loop, chunk.failed)
+
+
+def run_closed_loop(scenario, runs: int, seed: int, workers: int, progress=None):
+    """All runs of a closed-loop scenario in chunks of :data:`CLOSED_CHUNK_RUNS`, and the same
+    flight guided on the truth; returns ``(RunResult, loop, reference)``: ``loop`` holds the
+    per-run outcome, abort and landing times, miss distances and true paths (runs in order),
+    ``reference`` the :class:`~navsim.experiment.closed_loop.LoopBatch` of the truth-guided flight."""
+    reference = fly_batch(scenario, seed, [0], on_truth=True, keep_truth=True)
+    end_records(reference, 1.0 / scenario.flight.rate_hz)
+    chunks = chunk_ranges(runs, CLOSED_CHUNK_RUNS)
+    parts, failed, interrupted = run_chunks(_closed_chunk, chunks, lambda ch, remote: (scenario, seed, ch),
+                                            workers, progress)
+    if not parts:
+        return RunResult({}, np.array([], int), failed, interrupted), {}, reference
+    t_of = lambda c: next(iter(c.part.histories.values())).t_s
+    longest = max(parts, key=lambda c: len(t_of(c)))
+    path_t_s = longest.loop["path_t_s"]
+    parts = [_pad_part(c, t_of(longest), path_t_s) for c in parts]
+    for c in parts:
+        failed.update(c.failed)
+    merged = merge_parts([c.part for c in parts])
+    order = sorted(parts, key=lambda c: c.part.runs[0])
+    loop = {k: np.concatenate([c.loop[k] for c in order]) for k in order[0].loop if k != "path_t_s"}
+    done = np.asarray(merged.runs, int)
+    loop.update(path_t_s=path_t_s, runs=done)
+    return RunResult(merged.histories, done, failed, interrupted, merged.truth_bias), loop, reference

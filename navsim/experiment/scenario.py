@@ -1,0 +1,386 @@
+"""Scenario files: one YAML file describes an experiment.
+
+So far a scenario describes the flight::
+
+    name: p0_flight
+    description: P0's track in calm air
+    aircraft: survey10          # a folder of aircraft/
+    track: p0                   # a shipped track, or a mapping with start and segments
+    environment: {wind: {force: 3, from_deg: 270}}
+    flight: {rate_hz: 100}
+    sensors:                    # name -> catalog entry, overrides, error sources off, faults
+      imu: {model: p0_imu}
+      gnss: {model: p0_bd2, faults: [{type: outage, start_s: 200, end_s: 260}]}
+    montecarlo: {runs: 100, seed: 1}
+
+Every key is checked before anything runs; a mistake raises :class:`ScenarioError` naming the
+file, the key path, what was expected and a hint.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from navsim.experiment.closed_loop import parse_closed_loop
+from navsim.experiment.driver import InitialErrors
+from navsim.flight.environment import parse_environment
+from navsim.flight.properties import AIRCRAFT_DIR
+from navsim.flight.simulator import FlightConfig
+from navsim.flight.track import nominal_duration_s, parse_track
+from navsim.foundations.config import Node, close_match, load_yaml, plain_name
+from navsim.foundations.errors import ScenarioError
+from navsim.navigation.estimators.factory import parse_estimators
+from navsim.sensors import HEIGHT_FIELDS, VELOCITY_FIELDS, output_fields, parse_sensors
+from navsim.sensors.base import check_faults
+
+
+@dataclass
+class Scenario:
+    name: str
+    description: str
+    flight: FlightConfig
+    path: Path | None
+    raw: dict
+    sensors: tuple = ()
+    runs: int = 1
+    seed: int = 0
+    workers: int = 1
+    estimators: tuple = ()
+    initial: object = None
+    settle_s: float = 0.0
+    windows: tuple = ()                  #: (name, start_s, end_s)
+    reference: dict | None = None
+    report: dict = field(default_factory=dict)
+    closed_loop: object = None           #: navsim.experiment.closed_loop.ClosedLoopConfig, or None (open loop)
+
+
+def available_aircraft() -> list[str]:
+    return sorted(p.name for p in AIRCRAFT_DIR.iterdir() if (p / f"{p.name}.xml").is_file())
+
+
+TOP_KEYS = ("name", "description", "aircraft", "track", "environment", "flight", "sensors",
+            "montecarlo", "estimators", "initial_errors", "metrics", "reference", "report",
+            "closed_loop")
+
+
+def parse_scenario(data, file: str | None = None) -> Scenario:
+    node = Node(data, "", file)
+    for key in node.data:
+        if key not in TOP_KEYS:
+            raise ScenarioError("is not a known key", file=file, key=str(key),
+                                hint=close_match(str(key), TOP_KEYS))
+    name = _name(node, file)
+    description = node.get("description", str, "")
+    aircraft = _aircraft(node, file)
+    track = _track(node, file)
+    node._seen.add("environment")
+    environment = parse_environment(node.data.get("environment"), "environment", file)
+    _check_start(track, environment, file)
+    node._seen.add("sensors")
+    sensors = parse_sensors(node.data.get("sensors"), file)
+    runs, seed, workers = _montecarlo(node.child("montecarlo", None))
+    estimators = _estimators(node, sensors, file)
+    initial = _initial(node.child("initial_errors", None))
+    duration = nominal_s = nominal_duration_s(track)
+    if node.data.get("closed_loop") is not None:
+        duration = math.inf           # each run's flight ends where its navigation takes it
+    settle_s, windows = _metrics(node.child("metrics", None))
+    reference = _reference(node.child("reference", None), [e.label for e in estimators], windows)
+    report = _report(node.child("report", None))
+    rate_hz = _rate_hz(node.child("flight", None))
+    closed_loop = None
+    cl_node = node.child("closed_loop", None)
+    if cl_node is not None:
+        if not estimators:
+            raise cl_node.error("needs estimators", "fly_on", expected="an estimators list to fly on")
+        closed_loop = parse_closed_loop(cl_node, [e.label for e in estimators], sensors, track,
+                                        nominal_s, rate_hz)
+    node.done()
+    config = FlightConfig(track=track, environment=environment, aircraft=aircraft, rate_hz=rate_hz)
+    scenario = Scenario(name=name, description=description, flight=config,
+                        path=Path(file) if file else None, raw=data, sensors=sensors, runs=runs, seed=seed,
+                        workers=workers, estimators=estimators, initial=initial, settle_s=settle_s,
+                        windows=windows, reference=reference, report=report, closed_loop=closed_loop)
+    check_scenario(scenario, duration)
+    return scenario
+
+
+def _name(node: Node, file: str | None) -> str:
+    """``name``: a plain name, by default the file's stem."""
+    default = re.sub(r"[^A-Za-z0-9._-]", "_", Path(file).stem).lstrip(".") if file else "scenario"
+    name = node.get("name", str, default or "scenario")
+    if not plain_name(name):
+        raise node.error(f"is '{name}'", "name",
+                         expected="a plain name (letters, digits, '.', '_', '-'; no '/', no '..'): it names "
+                         "the output folder reports/<name>",
+                         hint="name: my_run (and --out DIR to write elsewhere than reports/)")
+    return name
+
+
+def _aircraft(node: Node, file: str | None) -> str:
+    """``aircraft``: a folder of aircraft/."""
+    aircraft = node.get("aircraft", str, "survey10")
+    if aircraft not in available_aircraft():
+        raise ScenarioError(f"'{aircraft}' is not an aircraft of {AIRCRAFT_DIR}", file=file,
+                            key="aircraft", expected="a folder name of aircraft/",
+                            hint=close_match(aircraft, available_aircraft()))
+    return aircraft
+
+
+def _track(node: Node, file: str | None):
+    """``track``: a shipped track name or a mapping (required)."""
+    node._seen.add("track")
+    if "track" not in node.data:
+        raise ScenarioError("is missing", file=file, key="track",
+                            expected="a shipped track name (p0, p3, p2_sea) or a mapping")
+    try:
+        return parse_track(node.data["track"], "track", file)
+    except ScenarioError as exc:
+        raise (exc if exc.file else exc.with_file(file or "<scenario>")) from None
+
+
+def _montecarlo(mc: Node | None) -> tuple:
+    """``montecarlo: {runs, seed, workers}`` as a tuple (defaults 1, 0, 1)."""
+    if mc is None:
+        return 1, 0, 1
+    runs = mc.get("runs", int, 1, minimum=1)
+    seed = mc.get("seed", int, 0, minimum=0, maximum=MAX_SEED)
+    workers = mc.get("workers", int, 1, minimum=1, maximum=MAX_WORKERS)
+    mc.done()
+    return runs, seed, workers
+
+
+def _estimators(node: Node, sensors, file: str | None) -> tuple:
+    """``estimators`` (none if absent); with estimators, exactly one IMU among ``sensors``."""
+    if "estimators" not in node.data:
+        return ()
+    node._seen.add("estimators")
+    estimators = parse_estimators(node.data["estimators"], {c.name: c.kind for c in sensors}, file)
+    imu = [c for c in sensors if c.kind == "imu"]
+    if len(imu) != 1:
+        raise ScenarioError(f"has {len(imu)} IMUs", file=file, key="sensors",
+                            expected="exactly one sensor of kind imu when estimators are given")
+    return estimators
+
+
+def _metrics(node: Node | None) -> tuple:
+    """``metrics: {settle_s, windows}`` as ``(settle_s, windows)``."""
+    if node is None:
+        return 0.0, ()
+    settle_s = node.get("settle_s", float, 0.0, minimum=0.0)
+    windows = _windows(node)
+    node.done()
+    return settle_s, windows
+
+
+def _report(node: Node | None) -> dict:
+    """``report: {formats, runs_plotted}`` (formats: pdf and/or png)."""
+    report = {"formats": ["pdf", "png"]}
+    if node is None:
+        return report
+    node._seen.add("formats")
+    fmts = node.data.get("formats", ["pdf", "png"])
+    if not (isinstance(fmts, list) and fmts and all(f in ("pdf", "png") for f in fmts)):
+        raise node.error(f"is {fmts!r}", "formats", expected="a list of pdf and/or png")
+    report["formats"] = fmts
+    report["runs_plotted"] = node.get("runs_plotted", int, 5, minimum=0)
+    node.done()
+    return report
+
+
+def _rate_hz(node: Node | None) -> float:
+    """``flight: {rate_hz}``, the simulation (truth) rate, Hz."""
+    if node is None:
+        return 100.0
+    rate_hz = node.get("rate_hz", float, 100.0, minimum=RATE_HZ[0], maximum=RATE_HZ[1])
+    node.done()
+    return rate_hz
+
+
+def _check_start(track, environment, file) -> None:
+    """An air start at least :data:`MIN_START_AGL_M` above the surface; a launch or a parked
+    vehicle not below it."""
+    start = track.start
+    margin = MIN_START_AGL_M if start.type == "air" else 0.0
+    if start.alt_m < environment.surface_m + margin:
+        where = "below" if start.alt_m < environment.surface_m else "just above"
+        raise ScenarioError(f"is {start.alt_m:g} m, {where} the surface at {environment.surface_m:g} m",
+                            file=file, key="track.start.alt_m",
+                            expected=f"a start at least {margin:g} m above environment.surface_m")
+
+
+def check_scenario(scenario: Scenario, duration_s: float) -> None:
+    """The checks that need the whole scenario and its flight's duration: sensor faults and
+    ``metrics.settle_s`` within the flight, each estimator's period a whole number of IMU
+    steps, each measurement's ``field`` one its sensor produces.
+
+    :func:`parse_scenario` runs it with the track's nominal duration; ``navsim run`` runs it
+    again with the duration actually flown, before any sensor is emulated. Raises
+    :class:`ScenarioError` naming the scenario file and the key.
+    """
+    file = str(scenario.path) if scenario.path else None
+    for cfg in scenario.sensors:
+        try:
+            check_faults(cfg.faults, cfg.kind, duration_s, cfg.name)
+        except ScenarioError as exc:
+            raise exc.with_file(file or "<scenario>") from None
+    if scenario.settle_s >= duration_s:
+        raise ScenarioError(f"is {scenario.settle_s:g} s, not before the end of the flight ({duration_s:.0f} s)",
+                            file=file, key="metrics.settle_s",
+                            expected=f"a time within the flight (0-{duration_s:.0f} s)")
+    for name, a, b in scenario.windows:
+        if b > duration_s + 1e-6:
+            i = [w[0] for w in scenario.windows].index(name)
+            raise ScenarioError(f"is {b:g} s, after the end of the flight ({duration_s:.0f} s)", file=file,
+                                key=f"metrics.windows[{i}].end_s",
+                                expected=f"a time within the flight (0-{duration_s:.0f} s)")
+    imu = [c for c in scenario.sensors if c.kind == "imu"]
+    if not scenario.estimators or not imu:
+        return
+    dt = 1.0 / imu[0].spec.rate_hz
+    outputs = {c.name: output_fields(c.spec) for c in scenario.sensors}
+    for i, est in enumerate(scenario.estimators):
+        period = est.params.get("period_s")
+        steps = None if period is None else period / dt
+        if steps is not None and (round(steps) < 1 or abs(steps - round(steps)) > 1e-6 * steps):
+            raise ScenarioError(f"is {period:g} s", file=file, key=f"estimators[{i}].period_s",
+                                expected=f"a whole number of the IMU's steps ({dt:g} s at {imu[0].spec.rate_hz:g} Hz)")
+        for key, m in _measurement_entries(est.params, f"estimators[{i}]"):
+            _check_field(m, outputs[m["sensor"]], file, key)
+
+
+def _measurement_entries(params: dict, path: str):
+    """``(key path, entry)`` of every measurement of an estimator, its federated locals' too."""
+    for j, m in enumerate(params.get("measurements", [])):
+        yield f"{path}.measurements[{j}]", m
+    for k, loc in enumerate((params.get("federated") or {}).get("locals", [])):
+        for j, m in enumerate(loc["measurements"]):
+            yield f"{path}.federated.locals[{k}].measurements[{j}]", m
+
+
+def _check_field(m: dict, produced: tuple, file, key: str) -> None:
+    if "field" not in m:
+        return
+    family = VELOCITY_FIELDS if m["type"] == "velocity" else HEIGHT_FIELDS
+    usable = [f for f in produced if f in family]
+    if m["field"] not in usable:
+        raise ScenarioError(f"'{m['field']}' is not a {'velocity' if family is VELOCITY_FIELDS else 'height'} "
+                            f"that sensor '{m['sensor']}' produces", file=file, key=f"{key}.field",
+                            expected="one of " + ", ".join(usable) if usable else "another sensor",
+                            hint=close_match(m["field"], usable) if usable else None)
+
+
+ARCSEC = math.pi / 180 / 3600
+#: the most worker processes, the largest seed, the simulation (truth) rate range in Hz
+MAX_WORKERS = 256
+MAX_SEED = 2**63 - 1
+RATE_HZ = (20.0, 1000.0)
+#: the lowest an air start may be above the surface, m
+MIN_START_AGL_M = 10.0
+
+
+def _three(node, key, default, scale=1.0):
+    node._seen.add(key)
+    v = node.data.get(key, default)
+    ok = isinstance(v, (int, float)) and not isinstance(v, bool) or (
+        isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v))
+    if not ok or not np.all(np.isfinite(v)) or np.any(np.asarray(v, float) < 0):
+        raise node.error(f"is {v!r}", key, expected="a non-negative number or a list of three (N, E, D)")
+    return np.broadcast_to(np.asarray(v, float) * scale, (3,)).copy()
+
+
+def _initial(node):
+    """``initial_errors: {pos_m, vel_mps, att_arcsec, fixed}`` (1-sigma, NED axes)."""
+    if node is None:
+        return InitialErrors()
+    out = InitialErrors(pos_m=_three(node, "pos_m", 0.0), vel_mps=_three(node, "vel_mps", 0.0),
+                        att_rad=_three(node, "att_arcsec", 0.0, ARCSEC),
+                        fixed=node.get("fixed", bool, False))
+    node.done()
+    return out
+
+
+def _windows(node):
+    node._seen.add("windows")
+    raw = node.data.get("windows", [])
+    if not isinstance(raw, list):
+        raise node.error("is not a list", "windows", expected="a list of {name, start_s, end_s}")
+    out, names = [], set()
+    for i, item in enumerate(raw):
+        w = Node(item, node.key(f"windows[{i}]"), node.file)
+        name = w.get("name", str)
+        if name in names:
+            raise w.error(f"'{name}' is used twice", "name", expected="a unique window name")
+        names.add(name)
+        a = w.get("start_s", float, minimum=0.0)
+        b = w.get("end_s", float, exclusive_minimum=a)
+        w.done()
+        out.append((name, a, b))
+    return tuple(out)
+
+
+#: the first part of a metric path (``rms.pos_m``, ``windows.<name>.pos_m.rms``) in metrics.json
+METRIC_HEADS = ("rms", "final", "max_abs", "p99", "windows", "attitude", "resets", "nees", "nis", "cost")
+#: the metrics of an estimator that are one number (no dotted rest)
+SCALAR_METRICS = ("runs_counted", "diverged_runs", "convergence_s")
+_QUANTITIES = {head: ("pos_m", "vel_mps", "att_deg") for head in ("rms", "final", "max_abs", "p99")}
+
+
+def check_metric_path(path: str, windows, *, file: str | None, key: str) -> None:
+    """Raise :class:`ScenarioError` unless ``path`` names a metric of an estimator's
+    metrics.json (:data:`METRIC_HEADS`; ``windows.<name>`` a window of ``windows``)."""
+    head, _, rest = path.partition(".")
+    if head in SCALAR_METRICS and not rest:
+        return
+    if head not in METRIC_HEADS or not rest:
+        raise ScenarioError(f"'{path}' is not a metric", file=file, key=key,
+                            expected=" or ".join([f"{h}.*" for h in METRIC_HEADS] + list(SCALAR_METRICS)),
+                            hint=close_match(head, METRIC_HEADS + SCALAR_METRICS))
+    quantity = rest.split(".")[0]
+    if head in _QUANTITIES and quantity not in _QUANTITIES[head]:
+        raise ScenarioError(f"'{path}' is not a metric", file=file, key=key,
+                            expected=" or ".join(f"{head}.{q}" for q in _QUANTITIES[head]),
+                            hint=close_match(quantity, _QUANTITIES[head]))
+    if head == "windows":
+        name = rest.split(".")[0]
+        if name not in [w[0] for w in windows]:
+            raise ScenarioError(f"window '{name}' is not defined under metrics.windows", file=file, key=key,
+                                hint=close_match(name, [w[0] for w in windows]))
+
+
+def _reference(node, labels, windows):
+    """``reference: {source, note, values: {estimator label: {metric path: number or [3]}}}``."""
+    if node is None:
+        return None
+    ref = {"source": node.get("source", str), "note": node.get("note", str, ""), "values": {}}
+    vals = node.child("values")
+    for label, metrics in vals.data.items():
+        if label not in labels:
+            raise vals.error(f"'{label}' is not an estimator label", str(label),
+                             expected="one of " + ", ".join(labels), hint=close_match(str(label), labels))
+        vals._seen.add(label)
+        m = Node(metrics, vals.key(str(label)), node.file)
+        for path, value in m.data.items():
+            m._seen.add(path)
+            check_metric_path(str(path), windows, file=node.file, key=m.key(str(path)))
+            number = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+            ok = number(value) or (isinstance(value, list) and len(value) == 3 and all(map(number, value)))
+            if not ok:
+                raise m.error(f"is {value!r}", str(path), expected="a finite number or a list of three")
+        ref["values"][label] = dict(m.data)
+    vals.done()
+    node.done()
+    return ref
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file."""
+    data = load_yaml(path)
+    if data is None:
+        raise ScenarioError("is empty", file=str(path), expected="a mapping with at least 'track'")
+    return parse_scenario(data, str(path))

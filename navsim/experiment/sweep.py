@@ -1,0 +1,152 @@
+"""``navsim sweep``: a grid (or list) of changes to a scenario, each point a Monte Carlo run.
+
+A sweep file::
+
+    scenario: p3_sins_gps.yaml        # relative to the sweep file
+    runs: 10                          # per point (default: the scenario's)
+    grid:                             # Cartesian product over dotted key paths
+      sensors.imu.override.gyro.bias_sigma: [0.01 deg/h, 0.1 deg/h]
+      estimators[1].series_order: [3, 6]
+    # or points: [{key: value, ...}, ...]
+    metric: rms.pos_m                 # a metrics.json path; vectors are shown by their norm
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from navsim.experiment.runner import cached_flight
+from navsim.experiment.scenario import check_metric_path, check_scenario, parse_scenario
+from navsim.foundations.config import Node, load_yaml
+from navsim.foundations.errors import ScenarioError
+
+_INDEX = re.compile(r"^(.*)\[(\d+)\]$")
+
+
+def set_path(data, path: str, value, file=None, where="grid"):
+    """Set ``value`` at dotted ``path`` (``a.b[2].c``) in nested mappings and lists."""
+    parts = path.split(".")
+    node = data
+    for i, part in enumerate(parts):
+        m = _INDEX.match(part)
+        key, idx = (m.group(1), int(m.group(2))) if m else (part, None)
+        last = i == len(parts) - 1
+        if idx is None:
+            if last:
+                node[key] = value
+                return
+            node = node.setdefault(key, {})
+            if not isinstance(node, dict):
+                raise ScenarioError(f"'{key}' is not a mapping", file=file, key=f"{where}.{path}")
+        else:
+            seq = node.get(key)
+            if not isinstance(seq, list) or idx >= len(seq):
+                raise ScenarioError(f"'{key}[{idx}]' does not exist in the scenario", file=file,
+                                    key=f"{where}.{path}")
+            if last:
+                seq[idx] = value
+                return
+            node = seq[idx]
+
+
+def parse_sweep(path: str | Path):
+    path = Path(path)
+    node = Node(load_yaml(path), "", str(path))
+    scenario = node.get("scenario", str)
+    base_path = (path.parent / scenario)
+    if Path(scenario).is_absolute() or Path(scenario).suffix.lower() not in (".yaml", ".yml") \
+            or not base_path.is_file():
+        raise node.error(f"'{scenario}' not found next to the sweep file", "scenario",
+                         expected="a scenario YAML path relative to the sweep file")
+    runs = node.get("runs", int, None, minimum=1)
+    metric = node.get("metric", str, "rms.pos_m")
+    check_metric_path(metric, [(w, 0, 0) for w in _window_names(base_path)], file=str(path), key="metric")
+    grid = node.child("grid", None)
+    node._seen.add("points")
+    points = node.data.get("points")
+    if (grid is None) == (points is None):
+        raise node.error("needs exactly one of 'grid' or 'points'")
+    if grid is not None:
+        keys = list(grid.data)
+        for k in keys:
+            grid._seen.add(k)
+            if not isinstance(grid.data[k], list) or not grid.data[k]:
+                raise grid.error("is not a non-empty list of values", str(k))
+        points = [dict(zip(keys, combo)) for combo in itertools.product(*(grid.data[k] for k in keys))]
+        grid.done()
+    elif not (isinstance(points, list) and points and all(isinstance(p, dict) for p in points)):
+        raise node.error("is not a list of mappings", "points")
+    node.done()
+    return base_path, runs, metric, points
+
+
+def _window_names(scenario_path: Path) -> list[str]:
+    """The names of the windows under the scenario's ``metrics.windows`` (read loosely: the
+    scenario itself is checked point by point)."""
+    data = load_yaml(scenario_path)
+    windows = ((data or {}).get("metrics") or {}).get("windows") if isinstance(data, dict) else None
+    return [w.get("name") for w in windows if isinstance(w, dict)] if isinstance(windows, list) else []
+
+
+@dataclass
+class SweepResult:
+    """The rows ``(point, {label: metric value})`` of the points run, the metric, the first
+    error of each point none of whose runs succeeded (point index -> message), and whether the
+    sweep was interrupted (the points after it are not run)."""
+
+    rows: list
+    metric: str
+    failed_points: dict = field(default_factory=dict)
+    interrupted: bool = False
+
+
+@dataclass(frozen=True)
+class SweepPlan:
+    """A parsed sweep: its points, each as a checked scenario, the runs per point (None: the
+    scenario's) and the metric compared."""
+
+    points: list
+    scenarios: list
+    runs: int | None
+    metric: str
+    path: Path
+
+
+def plan_sweep(path) -> SweepPlan:
+    """Every point of the sweep file ``path`` parsed, flown (or read from the flight cache) and
+    checked against the duration flown, so a bad point stops the sweep before any Monte Carlo
+    starts; a :class:`ScenarioError` names the sweep file and the point."""
+    base_path, runs, metric, points = parse_sweep(path)
+    base = load_yaml(base_path)
+    where = lambda i: f"{path}: point {i} ({points[i]}) of {base_path}"
+    scenarios = []
+    for i, point in enumerate(points):
+        data = copy.deepcopy(base)
+        for key, value in point.items():
+            set_path(data, key, value, str(path), f"points[{i}]")
+        try:
+            sc = parse_scenario(data, str(base_path))
+            check_scenario(sc, cached_flight(sc.flight)[0].duration_s)
+        except ScenarioError as exc:
+            raise (exc.with_file(where(i)) if exc.file in (None, str(base_path)) else exc) from None
+        scenarios.append(sc)
+    return SweepPlan(points, scenarios, runs, metric, Path(path))
+
+
+def point_values(plan: SweepPlan, estimators: dict) -> dict:
+    """Estimator label -> the sweep's metric of one point (vectors by their norm), from the
+    point's :class:`~navsim.scoring.metrics.EstimatorMetrics`."""
+    values = {}
+    for label, scores in estimators.items():
+        v = scores.get(plan.metric)
+        if isinstance(v, dict):
+            raise ScenarioError(f"'{plan.metric}' is a group of metrics ({', '.join(v)})", file=str(plan.path),
+                                key="metric", expected="the path of a number or of a list of three")
+        values[label] = float(np.linalg.norm(v)) if isinstance(v, list) else v
+    return values

@@ -1,0 +1,186 @@
+"""P4's complementary filter (CPF): a quaternion attitude filter of the Mahony type, batched.
+
+The gyro (high frequency) is integrated by Runge-Kutta; the low-frequency references pull the
+attitude back with a proportional-integral correction of the body rate::
+
+    w = w_gyro - b - C_bn w_ie + kp_acc e_acc + kp_mag e_mag,    b_dot = -ki (e_acc + e_mag)
+
+* ``e_acc = a_meas x a_ref``: the low-passed specific force (``accel_tau_s``) against the one the
+  attitude predicts, ``C_bn (a_n - g_n)``, where ``a_n`` is the vehicle's acceleration from the
+  GNSS velocity (P4: the CPF fuses accelerometer, magnetometer and GPS) -- without it a banked
+  turn would pull the roll toward zero. Skipped while ``| |f| - |a_n - g| | > acc_gate g``.
+* ``e_mag``: the heading error only (about the NED down axis, so the magnetometer cannot tilt
+  the attitude): the angle between the measured field turned into NED and the reference field
+  (the WMM, or ``field_n_T``). A sample whose magnitude departs from the reference by more than
+  ``mag_gate`` (relative) or whose dip angle (in the CPF's levelled frame) by more than
+  ``dip_gate_deg`` is rejected -- standard complementary-filter checks, and what keeps the CPF
+  usable as P4's reference when a magnetic disturbance misleads the EKF.
+* with ``course_min_speed_mps`` set, the heading error is taken from the GNSS course instead of
+  the magnetometer whenever the ground speed exceeds it: a fixed-wing in calm air flies with
+  (nearly) zero sideslip, so its course is its heading (not true of P4's octocopter, which
+  keeps the magnetometer: leave it unset).
+
+Registered as ``cpf``; :mod:`.cpf_ekf` runs one beside its EKF as the divergence monitor.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from navsim.foundations.transform import cross, dcm_from_quat, euler_from_quat
+from navsim.navigation.estimators.attitude import (
+    UT,
+    LocalFrame,
+    quat_of_dcm,
+    reference_field_uT,
+    rk4_step,
+    rotate_n_to_b,
+    sample,
+)
+from navsim.navigation.estimators.base import Innovation, Solution, register
+from navsim.navigation.strapdown import NavState
+
+
+class ComplementaryCore:
+    """The CPF's state and steps (used by the ``cpf`` estimator and inside ``cpf_ekf``)."""
+
+    def __init__(self, kp_acc: float = 0.5, kp_mag: float = 0.5, ki: float = 0.05,
+                 accel_tau_s: float = 0.2, acc_gate: float = 0.1, mag_gate: float = 0.05,
+                 dip_gate_deg: float = 3.0, accel_ref_tau_s: float = 0.5,
+                 course_min_speed_mps: float | None = None):
+        self.kp_acc, self.kp_mag, self.ki = kp_acc, kp_mag, ki
+        self.accel_tau_s, self.acc_gate, self.mag_gate = accel_tau_s, acc_gate, mag_gate
+        self.accel_ref_tau_s = accel_ref_tau_s
+        self.dip_gate = np.radians(dip_gate_deg)
+        self.course_min_speed_mps = course_min_speed_mps
+
+    def start(self, q0: np.ndarray, frame: LocalFrame) -> None:
+        B = q0.shape[0]
+        self.q, self.frame = q0.copy(), frame
+        self.b = np.zeros((B, 3))
+        self.f_lp = None
+        self.e_mag = np.zeros((B, 3))
+        self.a_n = np.zeros((B, 3))
+        self._v_prev = self._t_prev = None
+        self.mag_rejected = np.zeros(B, int)
+        self.on_course = np.zeros(B, bool)
+        self.heading_t = np.zeros(B)          #: when it last had a heading reference, s
+        self.field_uT = None
+
+    def step(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
+        f = dv_b / dt
+        self.f_lp = f.copy() if self.f_lp is None else self.f_lp + (f - self.f_lp) * min(dt / self.accel_tau_s, 1.0)
+        f_ref_n = self.a_n - self.frame.g_n
+        f_ref_b = rotate_n_to_b(self.q, f_ref_n)
+        nm, nr = np.linalg.norm(self.f_lp, axis=-1), np.linalg.norm(f_ref_b, axis=-1)
+        use = (np.abs(nm - nr) <= self.acc_gate * np.linalg.norm(self.frame.g_n, axis=-1)) & (nm > 0) & (nr > 0)
+        safe = lambda n: np.where(use, n, 1.0)[:, None]          # free fall, a zeroed sample: no NaN
+        e_acc = np.where(use[:, None], cross(self.f_lp / safe(nm), f_ref_b / safe(nr)), 0.0)
+        w = dtheta_b / dt - self.b - rotate_n_to_b(self.q, self.frame.w_ie_n)
+        w = w + self.kp_acc * e_acc + self.kp_mag * self.e_mag
+        self.b = self.b - self.ki * (e_acc + self.e_mag) * dt
+        self.q = rk4_step(self.q, w, dt)
+
+    def aid(self, t: float, sensors: dict, mag: str | None, gnss: str | None, field_n_T=None,
+            t_prev: float | None = None) -> None:
+        """Take the latest magnetometer and GNSS samples in ``(t_prev, t]`` (if any) as the new
+        references."""
+        data, j = sample(sensors, gnss, t, t_prev)
+        if data is not None and "vel_n_mps" in data.values:
+            v, ok = data.values["vel_n_mps"][:, j], data.valid[:, j]
+            if self._v_prev is not None and t > self._t_prev:
+                a = (v - self._v_prev) / (t - self._t_prev)
+                k = min((t - self._t_prev) / self.accel_ref_tau_s, 1.0)
+                self.a_n = np.where(ok[:, None] & self._ok_prev[:, None], self.a_n + (a - self.a_n) * k, self.a_n)
+            self._v_prev, self._t_prev, self._ok_prev = v, t, ok
+            if self.course_min_speed_mps is not None:
+                self._course_yaw(v, ok)
+                self.heading_t = np.where(self.on_course, t, self.heading_t)
+        data, j = sample(sensors, mag, t, t_prev)
+        if data is None:
+            return
+        if self.field_uT is None:
+            self.field_uT = reference_field_uT(self.frame, data, field_n_T)
+        m_b = data.values["mag_b_T"][:, j] / UT
+        ref = self.field_uT
+        m_n = np.einsum("bij,bj->bi", dcm_from_quat(self.q), m_b)
+        dpsi = np.arctan2(m_n[:, 1], m_n[:, 0]) - np.arctan2(ref[:, 1], ref[:, 0])
+        dpsi = (dpsi + np.pi) % (2 * np.pi) - np.pi
+        dip = lambda v: np.arctan2(v[:, 2], np.hypot(v[:, 0], v[:, 1]))
+        ok = (data.valid[:, j] & (np.abs(np.linalg.norm(m_b, axis=-1) / np.linalg.norm(ref, axis=-1) - 1.0)
+                                  <= self.mag_gate) & (np.abs(dip(m_n) - dip(ref)) <= self.dip_gate))
+        self.mag_rejected += data.valid[:, j] & ~ok
+        self.heading_t = np.where(ok, t, self.heading_t)
+        e_n = np.zeros_like(m_b)
+        e_n[:, 2] = -np.where(ok, dpsi, 0.0)
+        self.e_mag = np.where(self.on_course[:, None], self.e_mag, rotate_n_to_b(self.q, e_n))
+
+    def _course_yaw(self, vel_n: np.ndarray, ok: np.ndarray) -> None:
+        """Heading error from the GNSS course where the ground speed is high enough."""
+        self.on_course = ok & (np.hypot(vel_n[:, 0], vel_n[:, 1]) > self.course_min_speed_mps)
+        yaw = euler_from_quat(self.q)[:, 2]
+        d = (yaw - np.arctan2(vel_n[:, 1], vel_n[:, 0]) + np.pi) % (2 * np.pi) - np.pi
+        e_n = np.zeros_like(vel_n)
+        e_n[:, 2] = -d
+        self.e_mag = np.where(self.on_course[:, None], rotate_n_to_b(self.q, e_n), self.e_mag)
+
+    def euler(self) -> np.ndarray:
+        return euler_from_quat(self.q)
+
+
+@register("cpf")
+class ComplementaryFilter:
+    """P4's complementary filter on its own (see the module docstring).
+
+    Parameters
+    ----------
+    mag, gnss : str or None
+        The magnetometer and GNSS sensors it reads (names in the scenario).
+    period_s : float
+        How often it takes the magnetometer and GNSS references (their rates: 10 Hz).
+    cpf : dict
+        Keyword arguments of :class:`ComplementaryCore`: the gains ``kp_acc``, ``kp_mag``, ``ki``
+        (rad/s per unit error; time constants ``1/kp``), the gates, ``course_min_speed_mps``.
+    field_n_T : list of 3 or None
+        The Earth field it assumes (NED, T); None: the WMM at the start.
+
+    Its solution's velocity and position are the last GNSS fix (it estimates only the attitude);
+    ``P_nav`` is None.
+    """
+
+    def __init__(self, mag: str | None = "mag", gnss: str | None = None, baro: str | None = None,
+                 period_s: float = 0.1, field_n_T=None, cpf: dict | None = None):
+        self.mag, self.gnss, self.baro, self.period_s = mag, gnss, baro, period_s
+        self.field_n_T = field_n_T
+        self.core = ComplementaryCore(**(cpf or {}))
+
+    def initialize(self, nav0: NavState, sigma0: dict | None = None) -> None:
+        self.frame = LocalFrame(nav0.lat_rad.copy(), nav0.lon_rad.copy(), nav0.h_m.copy())
+        self.core.start(quat_of_dcm(nav0.C_nb), self.frame)
+        self.vel_n = nav0.vel_n_mps.copy()
+        self.pos_n = np.zeros_like(self.vel_n)
+        self.diverged = np.zeros(nav0.lat_rad.shape[0], bool)
+        self.t_prev = -self.period_s
+
+    def propagate(self, dtheta_b, dv_b, dt: float) -> None:
+        """The ``K`` IMU intervals of ``(B, K, 3)`` increments, one at a time."""
+        for j in range(dtheta_b.shape[1]):
+            self.core.step(dtheta_b[:, j], dv_b[:, j], dt)
+
+    def epoch(self, t: float, sensors: dict) -> list[Innovation]:
+        self.core.aid(t, sensors, self.mag, self.gnss, self.field_n_T, self.t_prev)
+        data, j = sample(sensors, self.gnss, t, self.t_prev)
+        self.t_prev = t
+        if data is not None:
+            ok = data.valid[:, j, None]
+            fix = self.frame.ned(data.values["lat_rad"][:, j], data.values["lon_rad"][:, j], data.values["h_m"][:, j])
+            self.pos_n = np.where(ok, fix, self.pos_n)
+            if "vel_n_mps" in data.values:
+                self.vel_n = np.where(ok, data.values["vel_n_mps"][:, j], self.vel_n)
+        self.diverged |= ~np.all(np.isfinite(self.core.q), axis=-1)
+        return []
+
+    def solution(self) -> Solution:
+        return Solution(nav=self.frame.nav_state(self.core.q, self.vel_n, self.pos_n),
+                        gyro_bias=self.core.b.copy(), accel_bias=np.zeros_like(self.core.b),
+                        extra={"diverged": self.diverged})

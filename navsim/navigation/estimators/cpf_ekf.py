@@ -1,0 +1,411 @@
+"""P4's 20-state quaternion EKF for attitude, with the complementary-filter divergence monitor
+(CPF-EKF), batched over runs.
+
+State (``x`` ``(B, 20)``; the magnetic states in uT to keep ``P`` well scaled):
+
+====== ===== ============================================================================
+slice  size  state
+====== ===== ============================================================================
+0:4    4     ``q_nb``, scalar first (body FRD to NED)
+4:7    3     velocity NED, m/s
+7:10   3     position NED about the start point, m (flat Earth, P4's ``S``)
+10     1     z-accelerometer bias, m/s^2
+11:14  3     magnetometer bias (hard iron), body, uT
+14:17  3     gyro bias, rad/s
+17:20  3     Earth magnetic field NED, uT
+====== ===== ============================================================================
+
+Prediction (every IMU sample): the quaternion by a fourth-order Runge-Kutta step of the
+bias- and Earth-rate-corrected gyro (P4 eq. 5), velocity from the accelerometer turned by the
+mid-step attitude plus gravity and Coriolis (eq. 6), position by the trapezoid (eq. 7), the
+other states constant. The covariance is predicted every ``period_s`` with the Jacobian ``F``
+(eq. 8) at the period's mean rate and specific force, discretised to second order, and the
+process noise ``G Q G^T`` of the gyro and accelerometer noise (eq. 9-10; the accelerometer's
+includes the vibration the filter's IMU model declares) plus random walks of the bias and
+field states and P4's stabilising ``Qs`` on the quaternion.
+
+Corrections:
+
+* magnetometer, axis by axis (sequential scalar EKF updates, eq. 11-16):
+  ``m_b = C_bn(q) M + m_bias``, each axis relinearised at the estimate left by the previous one;
+* GNSS velocity (3) and horizontal position (2), baro height, by the linear Kalman filter
+  (eq. 17-19): ``z = H x`` with ``H`` a selection.
+
+The quaternion is kept on the unit sphere: after every correction ``q <- q / |q|`` and its
+covariance is projected onto the sphere's tangent space, ``P <- J P J^T`` with
+``J = blockdiag(I - q q^T, I)`` (the normalisation's Jacobian), so the filter never carries
+uncertainty in a norm it cannot observe. ``P_nav`` for the runner maps ``dq`` to the NED
+attitude error by ``phi = -2 Psi(q)^T dq``.
+
+Divergence monitor (``monitor``):
+
+* ``cpf`` (P4): a :class:`~navsim.navigation.estimators.cpf.ComplementaryCore` runs beside the EKF on the
+  same data; when ``(roll1-roll2)^2 + (pitch1-pitch2)^2 + (yaw1-yaw2)^2 > threshold_rad2``
+  (differences wrapped; P4: N = 0.27416, about 30 deg) for ``cycles`` consecutive epochs (P4: 3)
+  -- and the CPF has had a heading reference (an accepted magnetometer sample or the GNSS
+  course) within ``cpf_trust_s``, a coasting CPF being no reference -- the EKF is declared
+  divergent and re-initialised: the CPF's attitude and gyro bias (the
+  EKF's own was corrupted by the divergence), the initial covariance
+  (with ``reset_sigma`` overriding the initial sigmas of the sensor states: a divergence says
+  the magnetic model is wrong, so its uncertainty may be re-opened), the Earth-field state
+  back to the reference field; velocity, position, the accelerometer and magnetometer bias
+  estimates are kept with their variances (their cross-covariances with the rest dropped).
+* ``innovation``: the classical test ``nu^T nu > r tr(H P H^T + R)`` on the three magnetometer
+  innovations (P4 eq. 20, ``r = innovation_ratio``) for ``cycles`` consecutive magnetometer
+  epochs, same reset;
+* ``none``: P4's EKF alone.
+
+Each reset is an event ``(t_s, cause)`` in ``solution().extra["resets"]`` (one list per run).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from navsim.foundations.transform import cross, dcm_from_quat, euler_from_quat, skew
+from navsim.navigation.estimators import kalman
+from navsim.navigation.estimators.attitude import (
+    UT,
+    LocalFrame,
+    dcm_homogeneous,
+    euler_distance2,
+    normalize,
+    omega_matrix,
+    psi,
+    quat_of_dcm,
+    reference_field_uT,
+    rk4_step,
+    rotate_b_to_n,
+    rotate_n_to_b,
+    sample,
+    xi,
+)
+from navsim.navigation.estimators.base import Innovation, Solution, register
+from navsim.navigation.estimators.cpf import ComplementaryCore
+from navsim.navigation.strapdown import NavState
+
+N_STATES = 20
+Q, V, S, AZ, MB, WB, ME = slice(0, 4), slice(4, 7), slice(7, 10), 10, slice(11, 14), slice(14, 17), slice(17, 20)
+MONITORS = ("cpf", "innovation", "none")
+INITIAL_DEFAULTS = {"gyro_bias_rad_s": np.radians(1.0), "accel_z_bias_mps2": 0.2, "mag_bias_uT": 5.0,
+                    "field_uT": 0.05}
+
+
+def _dps(d: dict) -> dict:
+    """``gyro_bias_dps`` (datasheet unit) as ``gyro_bias_rad_s``."""
+    d = dict(d)
+    if "gyro_bias_dps" in d:
+        d["gyro_bias_rad_s"] = np.radians(d.pop("gyro_bias_dps"))
+    return d
+
+
+def _merge_known(what: str, defaults: dict, given: dict | None) -> dict:
+    """``defaults`` updated with ``given``; an unknown key is a ValueError naming the known ones."""
+    given = _dps(given or {})
+    unknown = sorted(set(given) - set(defaults))
+    if unknown:
+        raise ValueError(f"{what}: unknown key(s) {', '.join(unknown)} (known: {', '.join(defaults)})")
+    return {**defaults, **{k: float(v) for k, v in given.items()}}
+
+
+def dcm_times_vec_jacobian(q: np.ndarray, f: np.ndarray, transpose: bool = False) -> np.ndarray:
+    """``d (C(q) f) / dq`` ``(B, 3, 4)`` for ``C(q) = (w^2 - v.v) I + 2 v v^T + 2 w [v x]``
+    (``C_nb``), or of ``C(q)^T f`` (``C_bn``) with ``transpose``."""
+    w, v = q[:, 0], q[:, 1:]
+    s = -1.0 if transpose else 1.0
+    vf = np.einsum("bi,bi->b", v, f)
+    d_w = 2.0 * w[:, None] * f + s * 2.0 * cross(v, f)
+    eye = np.eye(3)
+    d_v = (-2.0 * np.einsum("bi,bj->bij", f, v) + 2.0 * vf[:, None, None] * eye
+           + 2.0 * np.einsum("bi,bj->bij", v, f) - s * 2.0 * w[:, None, None] * skew(f))
+    return np.concatenate([d_w[:, :, None], d_v], axis=-1)
+
+
+@register("cpf_ekf")
+class CpfEkf:
+    """P4's CPF-EKF (see the module docstring).
+
+    Parameters
+    ----------
+    mag, gnss, baro : str or None
+        The sensors it reads (names in the scenario). Without GNSS (a replayed log), a zero
+        horizontal velocity with ``no_gnss_sigma_mps`` (off unless given; ``navsim replay`` uses
+        1 m/s) keeps the tilt observable, as PX4 does without aiding.
+    noise : dict
+        The filter's own IMU model, 1-sigma densities: ``gyro_rad_s_rthz``, ``accel_mps2_rthz``
+        (white, vibration included), ``gyro_bias_walk`` (rad/s/rt s), ``accel_bias_walk``
+        (m/s^2/rt s), ``mag_bias_walk_uT``, ``field_walk_uT`` (uT/rt s), ``quat_stab`` (P4's
+        ``Qs``, per rt s).
+    initial : dict
+        1-sigma of the initial sensor states: ``gyro_bias_rad_s``, ``accel_z_bias_mps2``,
+        ``mag_bias_uT``, ``field_uT``.
+    mag_sigma_uT, gnss_pos_sigma_m, gnss_vel_sigma_mps, baro_sigma_m : float
+        The measurement noise the filter assumes.
+    monitor : {"cpf", "innovation", "none"}
+    threshold_rad2, cycles, innovation_ratio : float, int, float
+        P4's N (0.27416), the consecutive cycles (3) and the classical test's ``r``.
+    cpf_trust_s : float
+        How long the CPF stays a reference after its last heading reference.
+    reset_sigma : dict
+        Sigmas (keys of ``initial``) a reset re-opens instead of keeping the state's own.
+    cpf : dict
+        Gains of the complementary filter (:class:`~navsim.navigation.estimators.cpf.ComplementaryCore`).
+    field_n_T : list of 3 or None
+        The reference Earth field (NED, T); None: the WMM at the start.
+    """
+
+    def __init__(self, mag: str | None = "mag", gnss: str | None = "gps", baro: str | None = None,
+                 period_s: float = 0.1, noise: dict | None = None, initial: dict | None = None,
+                 mag_sigma_uT: float = 0.5, gnss_pos_sigma_m: float = 2.0, gnss_vel_sigma_mps: float = 0.1,
+                 baro_sigma_m: float = 1.0, no_gnss_sigma_mps: float | None = None, monitor: str = "cpf",
+                 threshold_rad2: float = 0.27416, cycles: int = 3, innovation_ratio: float = 3.0,
+                 cpf: dict | None = None, field_n_T=None, reset_sigma: dict | None = None,
+                 cpf_trust_s: float = 30.0):
+        if monitor not in MONITORS:
+            raise ValueError(f"monitor '{monitor}': expected one of {', '.join(MONITORS)}")
+        self.mag, self.gnss, self.baro, self.period_s = mag, gnss, baro, period_s
+        self.noise = _merge_known("noise", {"gyro_rad_s_rthz": 1.5e-4, "accel_mps2_rthz": 0.4,
+                                            "gyro_bias_walk": 1e-5, "accel_bias_walk": 1e-4,
+                                            "mag_bias_walk_uT": 0.01, "field_walk_uT": 0.001,
+                                            "quat_stab": 1e-5}, noise)
+        self.initial = _merge_known("initial", dict(INITIAL_DEFAULTS), initial)
+        self.mag_sigma_uT, self.baro_sigma_m = mag_sigma_uT, baro_sigma_m
+        self.gnss_pos_sigma_m, self.gnss_vel_sigma_mps = gnss_pos_sigma_m, gnss_vel_sigma_mps
+        self.no_gnss_sigma_mps = no_gnss_sigma_mps
+        self.monitor, self.threshold_rad2, self.cycles = monitor, threshold_rad2, int(cycles)
+        self.innovation_ratio, self.field_n_T = innovation_ratio, field_n_T
+        self.cpf_gains = dict(cpf or {})
+        self.reset_sigma = {k: v for k, v in _merge_known("reset_sigma", dict(INITIAL_DEFAULTS),
+                                                          reset_sigma).items() if k in _dps(reset_sigma or {})}
+        self.cpf_trust_s = cpf_trust_s
+
+    # --- contract -----------------------------------------------------------------------------
+    def initialize(self, nav0: NavState, sigma0: dict) -> None:
+        B = nav0.lat_rad.shape[0]
+        self.B = B
+        self.frame = LocalFrame(nav0.lat_rad.copy(), nav0.lon_rad.copy(), nav0.h_m.copy())
+        self.x = np.zeros((B, N_STATES))
+        self.x[:, Q] = quat_of_dcm(nav0.C_nb)
+        self.x[:, V] = nav0.vel_n_mps
+        self.sigma0 = sigma0
+        self.P = self._initial_P(self.x[:, Q])
+        self.field_ready = False
+        self.cpf = ComplementaryCore(**self.cpf_gains)
+        self.cpf.start(self.x[:, Q], self.frame)
+        self._sum_w = np.zeros((B, 3))
+        self._sum_f = np.zeros((B, 3))
+        self._elapsed = 0.0
+        self.count = np.zeros(B, int)
+        self.resets = [[] for _ in range(B)]
+        self.diverged = np.zeros(B, bool)
+        self.distance2 = np.zeros(B)
+        self.t_prev = -self.period_s
+
+    def _initial_P(self, q: np.ndarray, reset: bool = False) -> np.ndarray:
+        s0, ini = self.sigma0, {**self.initial, **(self.reset_sigma if reset else {})}
+        B = q.shape[0]
+        P = np.zeros((B, N_STATES, N_STATES))
+        Ps = psi(q)
+        P[:, Q, Q] = 0.25 * Ps @ (np.asarray(s0["att"], float) ** 2 * np.eye(3)) @ np.swapaxes(Ps, -1, -2)
+        P[:, V, V] = np.diag(np.asarray(s0["vel"], float) ** 2)
+        pos_m = np.asarray(s0["pos"], float) / np.abs(self.frame.pos_to_filter_units())
+        P[:, S, S] = pos_m[:, :, None] ** 2 * np.eye(3)
+        P[:, AZ, AZ] = ini["accel_z_bias_mps2"] ** 2
+        P[:, MB, MB] = np.eye(3) * ini["mag_bias_uT"] ** 2
+        P[:, WB, WB] = np.eye(3) * ini["gyro_bias_rad_s"] ** 2
+        P[:, ME, ME] = np.eye(3) * ini["field_uT"] ** 2
+        return P
+
+    def propagate(self, dtheta_b, dv_b, dt: float) -> None:
+        """The ``K`` IMU intervals of ``(B, K, 3)`` increments, one at a time (RK4 attitude,
+        velocity and position; the CPF beside)."""
+        for j in range(dtheta_b.shape[1]):
+            self._step(dtheta_b[:, j], dv_b[:, j], dt)
+
+    def _step(self, dtheta_b, dv_b, dt: float) -> None:
+        x = self.x
+        q = x[:, Q]
+        w_b = dtheta_b / dt - x[:, WB] - rotate_n_to_b(q, self.frame.w_ie_n)
+        f_b = dv_b / dt
+        f_b[:, 2] -= x[:, AZ]
+        q_new = rk4_step(q, w_b, dt)
+        v = x[:, V]
+        a_n = rotate_b_to_n(normalize(q + q_new), f_b) + self.frame.g_n - 2.0 * cross(self.frame.w_ie_n, v)
+        v_new = v + a_n * dt
+        x[:, S] += 0.5 * (v + v_new) * dt
+        x[:, V] = v_new
+        x[:, Q] = q_new
+        self._sum_w += w_b * dt
+        self._sum_f += f_b * dt
+        self._elapsed += dt
+        self.cpf.step(dtheta_b, dv_b, dt)
+
+    def epoch(self, t: float, sensors: dict) -> list[Innovation]:
+        self._predict()
+        out = []
+        t_prev, self.t_prev = self.t_prev, t
+        mag_data, j = sample(sensors, self.mag, t, t_prev)
+        if not self.field_ready and (mag_data is not None or self.field_n_T is not None):
+            self.field_ref = reference_field_uT(self.frame, mag_data, self.field_n_T)
+            self.x[:, ME] = self.field_ref
+            self.field_ready = True
+        if mag_data is not None:
+            out.append(self._correct_mag(t, mag_data, j))
+        out += self._correct_linear(t, sensors, t_prev, mag_data is not None)
+        self.cpf.aid(t, sensors, self.mag, self.gnss, self.field_n_T, t_prev)
+        if self.monitor == "cpf":
+            self.distance2 = euler_distance2(euler_from_quat(self.x[:, Q]), self.cpf.euler())
+            trusted = t - self.cpf.heading_t <= self.cpf_trust_s
+            self._count((self.distance2 > self.threshold_rad2) & trusted, t, "cpf")
+        self.diverged |= ~(np.all(np.isfinite(self.x), -1) & np.all(np.isfinite(self.P), (-1, -2))
+                           & np.all(np.isfinite(self.cpf.q), -1)
+                           & np.all(np.diagonal(self.P, axis1=1, axis2=2) >= -1e-12, -1))
+        return out
+
+    def solution(self) -> Solution:
+        x = self.x
+        q = x[:, Q]
+        T = np.zeros((self.B, 9, N_STATES))
+        T[:, 0:3, Q] = -2.0 * np.swapaxes(psi(q), -1, -2)
+        T[:, 3:6, V] = np.eye(3)
+        T[:, 6:9, S] = self.frame.pos_to_filter_units()[:, :, None] * np.eye(3)
+        P_nav = T @ self.P @ np.swapaxes(T, -1, -2)
+        accel_bias = np.zeros((self.B, 3))
+        accel_bias[:, 2] = x[:, AZ]
+        return Solution(nav=self.frame.nav_state(normalize(q), x[:, V], x[:, S]), P_nav=P_nav,
+                        gyro_bias=x[:, WB].copy(), accel_bias=accel_bias,
+                        extra={"diverged": self.diverged, "resets": self.resets, "P": self.P,
+                               "mag_bias_T": x[:, MB] * UT, "field_n_T": x[:, ME] * UT,
+                               "cpf_euler_rad": self.cpf.euler(), "distance2_rad2": self.distance2})
+
+    # --- filter steps -------------------------------------------------------------------------
+    def _predict(self) -> None:
+        T = self._elapsed
+        if T <= 0.0:
+            return
+        x, B, nz = self.x, self.B, self.noise
+        q = x[:, Q]
+        w = self._sum_w / T
+        f = self._sum_f / T
+        F = np.zeros((B, N_STATES, N_STATES))
+        Xi = xi(q)
+        F[:, Q, Q] = 0.5 * omega_matrix(w)
+        F[:, Q, WB] = -0.5 * Xi
+        F[:, V, Q] = dcm_times_vec_jacobian(q, f)
+        F[:, V, AZ] = -dcm_from_quat(q)[:, :, 2]
+        F[:, V, V] = -2.0 * skew(self.frame.w_ie_n)
+        F[:, S, V] = np.eye(3)
+        Qc = np.zeros((B, N_STATES, N_STATES))
+        Qc[:, Q, Q] = (0.25 * nz["gyro_rad_s_rthz"] ** 2) * Xi @ np.swapaxes(Xi, -1, -2) \
+            + nz["quat_stab"] ** 2 * np.eye(4)
+        Qc[:, V, V] = nz["accel_mps2_rthz"] ** 2 * np.eye(3)
+        Qc[:, AZ, AZ] = nz["accel_bias_walk"] ** 2
+        Qc[:, MB, MB] = nz["mag_bias_walk_uT"] ** 2 * np.eye(3)
+        Qc[:, WB, WB] = nz["gyro_bias_walk"] ** 2 * np.eye(3)
+        Qc[:, ME, ME] = nz["field_walk_uT"] ** 2 * np.eye(3)
+        Phi, Qd = kalman.discretize_series(F, Qc, T, order=2)
+        self.P = kalman.symmetrize(Phi @ self.P @ np.swapaxes(Phi, -1, -2) + Qd)
+        self._sum_w[:] = 0.0
+        self._sum_f[:] = 0.0
+        self._elapsed = 0.0
+
+    def _renormalize(self) -> None:
+        q = self.x[:, Q]
+        n = np.linalg.norm(q, axis=-1)
+        u = q / n[:, None]
+        J = np.broadcast_to(np.eye(N_STATES), (self.B, N_STATES, N_STATES)).copy()
+        J[:, Q, Q] = (np.eye(4) - np.einsum("bi,bj->bij", u, u)) / n[:, None, None]
+        self.x[:, Q] = u
+        self.P = kalman.symmetrize(J @ self.P @ np.swapaxes(J, -1, -2))
+
+    def _mag_model(self):
+        """``h = C_bn M + m_bias`` (uT) and its Jacobian ``(B, 3, 20)``."""
+        x = self.x
+        q, M = x[:, Q], x[:, ME]
+        C_bn = np.swapaxes(dcm_homogeneous(q), -1, -2)
+        h = np.einsum("bij,bj->bi", C_bn, M) + x[:, MB]
+        H = np.zeros((self.B, 3, N_STATES))
+        H[:, :, Q] = dcm_times_vec_jacobian(q, M, transpose=True)
+        H[:, :, MB] = np.eye(3)
+        H[:, :, ME] = C_bn
+        return h, H
+
+    def _correct_mag(self, t: float, data, j: int) -> Innovation:
+        z = data.values["mag_b_T"][:, j] / UT
+        valid = data.valid[:, j]
+        r = self.mag_sigma_uT ** 2
+        h, H = self._mag_model()
+        nu_all = z - h
+        S_all = H @ self.P @ np.swapaxes(H, -1, -2) + r * np.eye(3)
+        if self.monitor == "innovation":
+            test = np.einsum("bi,bi->b", nu_all, nu_all) > self.innovation_ratio * np.trace(S_all, axis1=1, axis2=2)
+            self._count(test & valid, t, "innovation")
+        y, s = np.zeros((self.B, 3)), np.zeros((self.B, 3))
+        for axis in range(3):
+            h, H = self._mag_model()
+            Hi = H[:, axis:axis + 1]
+            self.x, self.P, yi, Si, _ = kalman.update(self.x, self.P, z[:, axis:axis + 1] - h[:, axis:axis + 1]
+                                                      + (Hi @ self.x[..., None])[..., 0], Hi,
+                                                      np.full((self.B, 1, 1), r), valid)
+            y[:, axis], s[:, axis] = yi[:, 0], Si[:, 0, 0]
+        self._renormalize()
+        nis = np.where(valid, np.sum(y * y / s, -1), np.nan)
+        return Innovation("mag", self.mag, t, y, s[:, :, None] * np.eye(3), nis)
+
+    def _correct_linear(self, t: float, sensors: dict, t_prev: float, mag_epoch: bool) -> list[Innovation]:
+        """GNSS velocity + horizontal position, baro height: the linear KF (P4 eq. 17-19)."""
+        out = []
+        data, j = sample(sensors, self.gnss, t, t_prev)
+        B = self.B
+        if data is not None:
+            pos = self.frame.ned(data.values["lat_rad"][:, j], data.values["lon_rad"][:, j], data.values["h_m"][:, j])
+            rows, zs, rs = [7, 8], [pos[:, :2]], [self.gnss_pos_sigma_m ** 2] * 2
+            if "vel_n_mps" in data.values:
+                rows, zs, rs = [4, 5, 6] + rows, [data.values["vel_n_mps"][:, j]] + zs, [self.gnss_vel_sigma_mps ** 2] * 3 + rs
+            out.append(self._linear("gnss", self.gnss, t, rows, np.concatenate(zs, -1), rs, data.valid[:, j]))
+        elif self.gnss is None and mag_epoch and self.no_gnss_sigma_mps:
+            # no GNSS at all (a replayed log): a zero horizontal velocity keeps the tilt observable
+            out.append(self._linear("zero_velocity", "-", t, [4, 5], np.zeros((B, 2)),
+                                    [self.no_gnss_sigma_mps ** 2] * 2, np.ones(B, bool)))
+        data, j = sample(sensors, self.baro, t, t_prev)
+        if data is not None:
+            z = (self.frame.h0 - data.values["h_baro_m"][:, j])[:, None]
+            out.append(self._linear("height", self.baro, t, [9], z, [self.baro_sigma_m ** 2], data.valid[:, j]))
+        return out
+
+    def _linear(self, name, sensor, t, rows, z, r, valid) -> Innovation:
+        B, m = self.B, len(rows)
+        H = np.zeros((B, m, N_STATES))
+        H[:, np.arange(m), rows] = 1.0
+        R = np.broadcast_to(np.diag(r), (B, m, m))
+        self.x, self.P, y, S_, nis = kalman.update(self.x, self.P, z, H, R, valid)
+        self._renormalize()
+        return Innovation(name, sensor, t, y, S_, nis)
+
+    def _count(self, test: np.ndarray, t: float, cause: str) -> None:
+        """Consecutive-cycle counter of the divergence test; reset the runs that reach ``cycles``."""
+        self.count = np.where(test, self.count + 1, 0)
+        hit = self.count >= self.cycles
+        if np.any(hit):
+            self._reset(hit, t, cause)
+            self.count[hit] = 0
+
+    def _reset(self, hit: np.ndarray, t: float, cause: str) -> None:
+        """Re-initialise the EKF of the runs ``hit`` from the CPF's attitude (P4)."""
+        q = self.cpf.q
+        self.x[hit, 0:4] = q[hit]
+        self.x[hit, 14:17] = self.cpf.b[hit]            # its covariance re-initialised below
+        if self.field_ready:
+            self.x[hit, 17:20] = self.field_ref[hit]
+        keep = self.P.copy()
+        P0 = self._initial_P(self.x[:, Q], reset=True)
+        # the accelerometer and magnetometer bias estimates are kept, with the uncertainty they had
+        # unless reset_sigma re-opens it; the gyro bias, taken from the CPF, gets its initial sigma
+        for blk, key in ((AZ, "accel_z_bias_mps2"), (MB, "mag_bias_uT")):
+            if key not in self.reset_sigma:
+                P0[:, blk, blk] = keep[:, blk, blk]
+        P0[:, V, V], P0[:, S, S] = keep[:, V, V], keep[:, S, S]
+        self.P = np.where(hit[:, None, None], P0, self.P)
+        for b in np.flatnonzero(hit):
+            self.resets[b].append((float(t), cause))
+

@@ -1,0 +1,238 @@
+"""Closed-loop error-state Kalman filter for SINS aided by any set of measurement models
+(P3's 15 states, P0's 16, P2's 18, or any :class:`Layout`).
+
+The strapdown mechanization (:class:`~navsim.navigation.strapdown.BlockStrapdown`, compiled) runs at the
+IMU rate on bias-compensated increments, a block of them per ``propagate``; every
+``period_s`` the filter predicts with ``F`` built from the navigation state averaged over the
+period (``C_nb`` and the specific force in NED), by the matrix-exponential series (P3) or
+Van Loan (from the sixth order, the Taylor series of the covariance equation itself, compiled,
+in place: :func:`_covariance_series_fits`), then applies each available
+measurement with the Joseph form (all of them in one compiled call), and feeds the
+estimated errors back: attitude, velocity and position into the mechanization, biases into the
+IMU compensation. The ``baro`` state (a sensor error) stays in the filter.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from navsim.foundations.transform import rotation
+from navsim.navigation.estimators import kalman
+from navsim.navigation.estimators.base import Innovation, Solution, register
+from navsim.navigation.estimators.error_model import (
+    Layout,
+    ProcessNoise,
+    add_markov_decay,
+    process_noise,
+    system_matrix,
+)
+from navsim.navigation.strapdown import BlockStrapdown, NavState
+
+FEEDBACK = ("att", "vel", "pos", "gyro_bias", "accel_bias", "gyro_markov", "accel_markov")
+
+
+@register("eskf")
+class ErrorStateKF:
+    """Parameters
+    ----------
+    layout : Layout
+        The error-state blocks.
+    noise : ProcessNoise
+        The filter's own noise model.
+    measurements : list
+        Measurement models (see :mod:`navsim.navigation.estimators.measurements`).
+    period_s : float
+        Filter period (P0, P3: 1 s).
+    discretization : {"series", "van_loan"}
+        ``series``: the matrix-exponential series to ``series_order`` (P3 uses 3; over a 1 s
+        period the noise reaching the position through attitude and velocity needs 6); from
+        order 6, with no state decaying faster than 5 % per period, the propagated covariance
+        is the Taylor series of its own equation instead (the same to rounding, a third of the
+        work: :data:`SERIES_MIN_ORDER`);
+        ``van_loan``: exact, about six times slower.
+    """
+
+    def __init__(self, layout: Layout, noise: ProcessNoise, measurements, period_s: float = 1.0,
+                 discretization: str = "series", initial_sigma: dict | None = None,
+                 series_order: int = 6):
+        if discretization not in ("series", "van_loan"):
+            raise ValueError(f"discretization '{discretization}': expected series or van_loan")
+        self.layout, self.noise, self.measurements = layout, noise, list(measurements)
+        self.period_s, self.discretization = period_s, discretization
+        self.series_order = series_order
+        self.initial_sigma = dict(initial_sigma or {})
+        self.Qc = process_noise(layout, noise)
+
+    @classmethod
+    def from_imu_spec(cls, layout: Layout, imu_spec, measurements, baro_sigma_m: float = 0.0,
+                      baro_tau_s: float = 300.0, **kw):
+        """A filter whose noise model and initial bias uncertainty come from an IMU spec (a
+        catalog entry of its own: it need not be the spec that corrupted the data)."""
+        g, a = imu_spec.gyro, imu_spec.accel
+        noise = ProcessNoise(
+            gyro_white=g.noise_density, accel_white=a.noise_density,
+            gyro_bias_walk=g.random_walk, accel_bias_walk=a.random_walk,
+            gyro_markov_sigma=np.maximum(g.markov_sigma, 1e-12), gyro_markov_tau_s=g.markov_tau_s,
+            accel_markov_sigma=np.maximum(a.markov_sigma, 1e-12), accel_markov_tau_s=a.markov_tau_s,
+            baro_sigma=baro_sigma_m, baro_tau_s=baro_tau_s)
+        sigma = {"gyro_bias": np.hypot(g.bias_sigma, g.bias), "accel_bias": np.hypot(a.bias_sigma, a.bias),
+                 "gyro_markov": g.markov_sigma, "accel_markov": a.markov_sigma,
+                 "baro": np.array([baro_sigma_m])}
+        return cls(layout, noise, measurements, initial_sigma=sigma, **kw)
+
+    def noise_sigma0(self) -> dict:
+        """Initial 1-sigma of the sensor-error blocks (the runner adds the navigation blocks)."""
+        return self.initial_sigma
+
+    # --- contract -----------------------------------------------------------------------------
+    def initialize(self, nav0: NavState, sigma0: dict) -> None:
+        """``sigma0``: 1-sigma per block (arrays of the block's size), e.g. ``{"att": ...}``."""
+        B = nav0.lat_rad.shape[0]
+        self.sd = BlockStrapdown(nav0.copy())
+        n = self.layout.n
+        self.x = np.zeros((B, n))
+        var = np.zeros(n)
+        for block in self.layout.blocks:
+            if block in sigma0:
+                var[self.layout.slice(block)] = np.asarray(sigma0[block], float) ** 2
+        self.P = np.broadcast_to(np.diag(var), (B, n, n)).copy()
+        self.b_gyro = np.zeros((B, 3))
+        self.b_accel = np.zeros((B, 3))
+        self.m_gyro = np.zeros((B, 3))      # Markov parts, decaying
+        self.m_accel = np.zeros((B, 3))
+        self._reset_accumulators()
+        self.diverged = np.zeros(B, bool)
+
+    def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
+        """Mechanize the increments ``(B, K, 3)`` less the estimated biases."""
+        self.sd.block(dtheta_b, dv_b, dt, self.b_gyro + self.m_gyro, self.b_accel + self.m_accel)
+        self._elapsed = self.sd.steps * dt          # whatever the blocks the period was cut into
+
+    def epoch(self, t: float, sensors: dict) -> list[Innovation]:
+        self.predict()
+        taken = [(m, sensors[m.sensor], j) for m in self.measurements if m.sensor in sensors
+                 for j in [_sample_index(sensors[m.sensor].t_s, t)] if j is not None]
+        if self._own_corrections():         # all of them in one compiled call
+            models = [m.model(self.sd.state, self.layout, data, j) for m, data, j in taken]
+            u = kalman.update_in_place(self.x, self.P, models)
+            self.diverged |= u.bad
+            out = [Innovation(m.name, m.sensor, t, y, S, nis)
+                   for (m, _, _), y, S, nis in zip(taken, u.y, u.S, u.nis)]
+        else:
+            out = [self.correct(m, data, j, t) for m, data, j in taken]
+        self.feedback()
+        return out
+
+    def _own_corrections(self) -> bool:
+        """Whether ``correct`` and ``measurement_noise`` are this class's (a subclass that
+        adapts them gets its corrections one at a time)."""
+        cls = type(self)
+        return cls.correct is ErrorStateKF.correct and cls.measurement_noise is ErrorStateKF.measurement_noise
+
+    def solution(self) -> Solution:
+        idx = np.r_[self.layout.slice("att"), self.layout.slice("vel"), self.layout.slice("pos")]
+        if np.array_equal(idx, np.arange(9)):           # the navigation blocks first: one copy
+            P_nav = self.P[:, :9, :9].copy()
+        else:
+            P_nav = self.P[:, idx][:, :, idx]
+        return Solution(nav=self.sd.state, P_nav=P_nav,
+                        gyro_bias=self.b_gyro + self.m_gyro, accel_bias=self.b_accel + self.m_accel,
+                        extra={"P": self.P, "diverged": self.diverged})
+
+    # --- filter steps -------------------------------------------------------------------------
+    def _system(self):
+        """``F`` from the period's averaged ``C_nb`` and ``f_n``, and the elapsed period ``T``."""
+        s = self.sd.state
+        C_mean = self.sd.sum_C_nb / self.sd.steps
+        f_mean = self.sd.sum_dv_n_mps / self._elapsed
+        F = system_matrix(self.layout, s.lat_rad, s.h_m, s.vel_n_mps, C_mean, f_mean)
+        return add_markov_decay(F, self.layout, self.noise), self._elapsed
+
+    def _transition(self):
+        """Phi, Qd over the elapsed period (for the filters that need them)."""
+        F, T = self._system()
+        if self.discretization == "series":
+            Phi, Qd = kalman.discretize_series(F, self.Qc, T, order=self.series_order)
+        else:
+            Phi, Qd = kalman.discretize_van_loan(F, self.Qc, T)
+        return Phi, Qd, T
+
+    def _decay_markov(self, T: float) -> None:
+        """The fed-back Markov bias estimates decay like the process."""
+        if self.layout.has("gyro_markov"):
+            self.m_gyro *= np.exp(-T / self.noise.gyro_markov_tau_s)
+        if self.layout.has("accel_markov"):
+            self.m_accel *= np.exp(-T / self.noise.accel_markov_tau_s)
+
+    def predict(self) -> None:
+        """``x``, ``P`` over the elapsed period: the series in place (compiled), or Van Loan."""
+        if self.sd.steps == 0:
+            return
+        F, T = self._system()
+        if self.discretization == "series" and _covariance_series_fits(F, T, self.series_order):
+            kalman.propagate_in_place(self.x, self.P, F, self.Qc, T, self.series_order)
+        else:
+            if self.discretization == "series":
+                Phi, Qd = kalman.discretize_series(F, self.Qc, T, order=self.series_order)
+            else:
+                Phi, Qd = kalman.discretize_van_loan(F, self.Qc, T)
+            self.x, self.P = kalman.predict(self.x, self.P, Phi, Qd)
+        self._decay_markov(T)
+        self._reset_accumulators()
+
+    def correct(self, model, data, j: int, t: float) -> Innovation:
+        z, H, R, valid = model.model(self.sd.state, self.layout, data, j)
+        R = self.measurement_noise(model, z, H, R, valid)
+        self.x, self.P, y, S, nis = kalman.update(self.x, self.P, z, H, R, valid)
+        bad = ~np.all(np.isfinite(self.P), axis=(1, 2)) | (np.diagonal(self.P, axis1=1, axis2=2) < 0).any(-1)
+        self.diverged |= bad
+        return Innovation(model.name, model.sensor, t, y, S, nis)
+
+    def measurement_noise(self, model, z, H, R, valid):
+        """The R used for this update: the model's own here; adaptive filters override it
+        (``z, H`` are the model's, ``valid`` the runs that have a sample)."""
+        return R
+
+    def feedback(self) -> None:
+        """Inject the estimated errors into the mechanization and the IMU compensation."""
+        L, x = self.layout, self.x
+        s = self.sd.state
+        phi = x[:, L.slice("att")]
+        s.C_nb = rotation(phi) @ s.C_nb
+        s.vel_n_mps = s.vel_n_mps - x[:, L.slice("vel")]
+        p = x[:, L.slice("pos")]
+        s.lat_rad, s.lon_rad, s.h_m = s.lat_rad - p[:, 0], s.lon_rad - p[:, 1], s.h_m - p[:, 2]
+        if L.has("gyro_bias"):
+            self.b_gyro = self.b_gyro + x[:, L.slice("gyro_bias")]
+        if L.has("accel_bias"):
+            self.b_accel = self.b_accel + x[:, L.slice("accel_bias")]
+        if L.has("gyro_markov"):
+            self.m_gyro = self.m_gyro + x[:, L.slice("gyro_markov")]
+        if L.has("accel_markov"):
+            self.m_accel = self.m_accel + x[:, L.slice("accel_markov")]
+        for block in FEEDBACK:
+            if L.has(block):
+                x[:, L.slice(block)] = 0.0
+
+    def _reset_accumulators(self) -> None:
+        self.sd.reset_sums()
+        self._elapsed = 0.0
+
+
+#: the covariance's Taylor series is used from this order on, when no state decays faster than
+#: this fraction of the period (Markov states): there it equals Van Loan to rounding (1e-15 at
+#: order 6 on P0); below, a truncated series of P(T) expands in 2 F T and need not stay positive
+#: semi-definite, so Phi P Phi^T + Qd (the series' Phi and Qd) is used instead
+SERIES_MIN_ORDER, SERIES_MAX_DECAY = 6, 0.05
+
+
+def _covariance_series_fits(F: np.ndarray, T: float, order: int) -> bool:
+    """Whether the covariance's Taylor series is as good as ``Phi P Phi^T + Qd`` here."""
+    return order >= SERIES_MIN_ORDER and float(np.abs(np.diagonal(F, axis1=1, axis2=2)).max()) * T <= SERIES_MAX_DECAY
+
+
+def _sample_index(t_s: np.ndarray, t: float, tol: float = 1e-6):
+    j = int(np.searchsorted(t_s, t - tol))
+    if j < len(t_s) and abs(t_s[j] - t) <= tol:
+        return j
+    return None

@@ -1,0 +1,202 @@
+"""Measurement models: each returns the batched linearised model ``z, H, R, valid`` of one
+sensor sample for the error-state filter.
+
+``z`` is the measured error, *INS minus sensor*, so that ``z = H dx + v`` with ``dx`` the error
+state (estimate minus truth) and ``v ~ N(0, R)``. Each model knows which sensor it reads
+(``sensor``) and the noise it assumes (its own numbers, not the sensor's truth spec).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from navsim.foundations import earth
+from navsim.navigation import magcal
+from navsim.navigation.estimators.error_model import Layout
+from navsim.navigation.strapdown import NavState
+
+
+def _diag(sig2: np.ndarray, B: int) -> np.ndarray:
+    return np.broadcast_to(np.diag(sig2), (B, sig2.size, sig2.size)).copy()
+
+
+@dataclass
+class GnssPosition:
+    """INS minus GNSS position, NED metres: ``[dL (R_M+h), dlambda (R_N+h) cos L, -dh]``."""
+
+    sensor: str
+    sigma_m: np.ndarray                  #: (3,) NED
+    name: str = "gnss_position"
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        B = nav.lat_rad.shape[0]
+        v = data.values
+        r_m, r_n = earth.radii(nav.lat_rad)
+        k_n, k_e = r_m + nav.h_m, (r_n + nav.h_m) * np.cos(nav.lat_rad)
+        z = np.stack([(nav.lat_rad - v["lat_rad"][:, j]) * k_n,
+                      (nav.lon_rad - v["lon_rad"][:, j]) * k_e,
+                      -(nav.h_m - v["h_m"][:, j])], -1)
+        H = np.zeros((B, 3, layout.n))
+        p = layout.slice("pos").start
+        H[:, 0, p], H[:, 1, p + 1], H[:, 2, p + 2] = k_n, k_e, -1.0
+        return z, H, _diag(np.asarray(self.sigma_m, float) ** 2, B), data.valid[:, j]
+
+
+@dataclass
+class Velocity:
+    """INS minus a NED velocity (GNSS, or P0's ADS ground velocity), m/s."""
+
+    sensor: str
+    sigma_mps: np.ndarray                #: (3,)
+    field: str = "vel_n_mps"
+    name: str = "velocity"
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        B = nav.lat_rad.shape[0]
+        z = nav.vel_n_mps - data.values[self.field][:, j]
+        H = np.zeros((B, 3, layout.n))
+        s = layout.slice("vel").start
+        H[:, [0, 1, 2], [s, s + 1, s + 2]] = 1.0
+        return z, H, _diag(np.asarray(self.sigma_mps, float) ** 2, B), data.valid[:, j]
+
+
+@dataclass
+class Height:
+    """INS height minus a measured height (barometer, ADS pressure altitude, a fused height),
+    m. With a ``baro`` state in the filter, the sensor's Markov error is modelled:
+    ``z = dh - dh_b``. ``offset_m`` is added to the sensor value (e.g. the surface height under
+    a radar altimeter)."""
+
+    sensor: str
+    sigma_m: float
+    field: str = "h_m"
+    use_baro_state: bool = False
+    offset_m: float = 0.0
+    name: str = "height"
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        B = nav.lat_rad.shape[0]
+        z = (nav.h_m - (data.values[self.field][:, j] + self.offset_m))[:, None]
+        H = np.zeros((B, 1, layout.n))
+        H[:, 0, layout.slice("pos").start + 2] = 1.0
+        if self.use_baro_state and layout.has("baro"):
+            H[:, 0, layout.slice("baro").start] = -1.0
+        return z, H, np.full((B, 1, 1), float(self.sigma_m) ** 2), data.valid[:, j]
+
+
+MODELS = {"gnss_position": GnssPosition, "velocity": Velocity, "height": Height}
+
+
+@dataclass
+class GnssHorizontal:
+    """INS minus GNSS horizontal position, NED metres: ``[dL (R_M+h), dlambda (R_N+h) cos L]``
+    (the height is left to a separate height channel, as in P2)."""
+
+    sensor: str
+    sigma_m: np.ndarray                  #: (2,) north, east
+    name: str = "gnss_horizontal"
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        z, H, R, valid = GnssPosition(self.sensor, np.r_[self.sigma_m, 1.0]).model(nav, layout, data, j)
+        return z[:, :2], H[:, :2], R[:, :2, :2], valid
+
+
+MODELS["gnss_horizontal"] = GnssHorizontal
+
+
+@dataclass
+class LandmarkFix:
+    """INS minus the aircraft position the landmark camera fixes from a recognised anchor point
+    (P1, GNSS-denied), NED metres: the GNSS position model on the camera's fix, with the
+    filter's own noise model, std ``sigma_m + ratio * range`` per axis, the range taken from the
+    INS position to the anchor the camera reports (``values['landmark']``; the anchors'
+    coordinates are known on board, ``meta['landmarks']``: that is the method)."""
+
+    sensor: str
+    sigma_m: float
+    ratio: float = 0.0
+    name: str = "landmark"
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        z, H, _, valid = GnssPosition(self.sensor, np.ones(3)).model(nav, layout, data, j)
+        idx = data.values["landmark"][:, j]
+        anchors = np.asarray(data.meta.get("landmarks") or [(0.0, 0.0, 0.0)], float)
+        a = anchors[np.clip(idx, 0, len(anchors) - 1)]
+        r_m, r_n = earth.radii(nav.lat_rad)
+        d = np.stack([(np.radians(a[:, 0]) - nav.lat_rad) * (r_m + nav.h_m),
+                      (np.radians(a[:, 1]) - nav.lon_rad) * (r_n + nav.h_m) * np.cos(nav.lat_rad),
+                      nav.h_m - a[:, 2]], -1)
+        sigma = self.sigma_m + self.ratio * np.linalg.norm(d, axis=-1)
+        R = sigma[:, None, None] ** 2 * np.eye(3)
+        return z, H, R, valid & (idx >= 0)
+
+
+MODELS["landmark"] = LandmarkFix
+
+
+@dataclass
+class MagneticHeading:
+    """INS minus magnetic heading, rad, from the magnetometer calibrated online (P1).
+
+    Every call feeds the magnetometer samples since the last one to a recursive least-squares
+    ellipsoid fit (:class:`navsim.navigation.magcal.EllipsoidRLS`, its noise model ``noise_T`` the
+    filter's own) and calibrates the current sample, ``m_c = S^-1 (m - b)``. Rotated to NED
+    with the INS attitude, ``v = C_nb m_c``, its declination ``atan2(v_E, v_N)`` minus the
+    declination of the filter's own field model (WMM at the INS position) is the measurement:
+    identical to the tilt-compensated magnetic heading (the field levelled with the INS roll
+    and pitch, plus the model declination) subtracted from the INS yaw. With
+    ``C_nb_est = (I - [phi x]) C_nb``, ``v = m_n + [m_n x] phi`` and::
+
+        z = (m_N m_D phi_N + m_E m_D phi_E) / H^2 - phi_D,   H^2 = m_N^2 + m_E^2
+
+    (roll and pitch errors enter through the inclination, as in the tilt compensation). The
+    measurement is used once the INS heading has turned ``min_turns`` full turns since the
+    start (the calibration manoeuvre) and the fit is an ellipsoid.
+    """
+
+    sensor: str
+    sigma_rad: float
+    noise_T: float                       #: the filter's model of the magnetometer noise, per axis
+    forgetting: float = 1.0
+    min_turns: float = 2.0
+    name: str = "mag_heading"
+    _fit: object = dataclasses.field(default=None, init=False, repr=False)     #: the RLS fit, from the first call
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        B = nav.lat_rad.shape[0]
+        date = data.meta.get("date", "2025-01-01")
+        yaw = np.arctan2(nav.C_nb[:, 1, 0], nav.C_nb[:, 0, 0])
+        if self._fit is None:
+            field = magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date, grid=False)
+            self._fit = magcal.EllipsoidRLS(np.linalg.norm(field, axis=-1), self.noise_T, self.forgetting)
+            self._fed, self._turns, self._yaw = 0, np.zeros(B), yaw
+        mag = data.values["mag_b_T"]
+        self._fit.update(mag[:, self._fed:j + 1], data.valid[:, self._fed:j + 1])
+        self._fed = j + 1
+        self._turns += np.abs((yaw - self._yaw + np.pi) % (2 * np.pi) - np.pi) / (2 * np.pi)
+        self._yaw = yaw
+        hard, soft, ok = self._fit.estimate()
+        m_n = magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date)
+        z, h_att = magnetic_heading(nav.C_nb, magcal.calibrate(mag[:, j], hard, soft), m_n)
+        valid = data.valid[:, j] & ok & (self._turns >= self.min_turns) & np.isfinite(z)
+        H = np.zeros((B, 1, layout.n))
+        H[:, 0, layout.slice("att")] = h_att
+        return (np.where(valid, z, 0.0)[:, None], H, np.full((B, 1, 1), float(self.sigma_rad) ** 2), valid)
+
+
+def magnetic_heading(C_nb: np.ndarray, mag_cal_b: np.ndarray, field_n: np.ndarray):
+    """INS minus magnetic heading ``z`` ``(B,)``, rad, and its row ``(B, 3)`` in the attitude
+    error ``phi`` (NED): the declination of ``C_nb mag_cal_b`` minus that of ``field_n`` (see
+    :class:`MagneticHeading`)."""
+    v = np.einsum("bij,bj->bi", C_nb, mag_cal_b)
+    z = (np.arctan2(v[:, 1], v[:, 0]) - np.arctan2(field_n[:, 1], field_n[:, 0]) + np.pi) % (2 * np.pi) - np.pi
+    h2 = field_n[:, 0] ** 2 + field_n[:, 1] ** 2
+    H = np.stack([field_n[:, 0] * field_n[:, 2] / h2, field_n[:, 1] * field_n[:, 2] / h2,
+                  -np.ones_like(h2)], -1)
+    return z, H
+
+
+MODELS["mag_heading"] = MagneticHeading

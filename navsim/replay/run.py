@@ -1,0 +1,260 @@
+"""A PX4 log replayed through an estimator: :func:`replay`.
+
+The IMU is resampled to a uniform grid (increments ``dtheta_b``, ``dv_b``), each magnetometer and
+baro sample put on the first grid time at or after its own time, the estimator aligned coarsely
+from the first second of data (:func:`coarse_alignment`) and driven as the Monte Carlo driver
+drives it (:class:`navsim.experiment.driver.Driver`: ``propagate`` up to each epoch, ``epoch``
+every ``period_s``); its roll, pitch and yaw are recorded with PX4's, slerped to the same times.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from navsim.experiment.driver import Driver, InitialErrors
+from navsim.foundations.errors import UsageError
+from navsim.foundations.transform import dcm_from_euler, euler_from_dcm, wrap_angle
+from navsim.navigation.estimators import base
+from navsim.navigation.strapdown import NavState
+from navsim.replay.ulog import ReplayLog
+from navsim.sensors.base import SensorData
+
+ALIGN_S = 1.0                     #: default length of the coarse-alignment window
+RECORD_S = 0.02                   #: the solution is compared with PX4's at 50 Hz
+#: without GNSS, an attitude EKF that takes it levels on a zero horizontal velocity of this sigma
+NO_GNSS_SIGMA_MPS = 1.0
+ALIGN_GYRO_MAX_RPS = 0.05         #: above this rate in the window the vehicle was not still
+#: 1-sigma of the coarse alignment: attitude about N, E, D (rad), velocity (m/s), position N, E, D
+#: (m): the accelerometer levels to ~1° (bias of ~0.1 m/s²), the magnetometer heading to ~5°
+#: (uncalibrated iron), the vehicle is assumed still, and without GNSS the position is arbitrary.
+ALIGN_SIGMA = {"att_rad": np.radians([1.0, 1.0, 5.0]), "vel_mps": np.array([0.3, 0.3, 0.3]),
+               "pos_m": np.array([10.0, 10.0, 5.0])}
+
+# --- IMU increments and the sensor streams on its grid -----------------------------------------
+
+def imu_increments(t_s: np.ndarray, omega_b: np.ndarray, f_b: np.ndarray, rate_hz: float):
+    """Increments on a uniform grid from samples at jittered times.
+
+    Each sample is PX4's mean rate over the interval ending at its timestamp, so the rates are
+    piecewise constant between timestamps and their integrals ``theta(t)``, ``v(t)`` piecewise
+    linear: sampled at the grid times by linear interpolation, they are exact for any grid, and
+    the increments sum to the integral of the logged rates whatever the jitter. Across a gap
+    the sample after it holds its rate over the whole gap.
+
+    Returns
+    -------
+    grid_t_s : (N,) ``t_s[0] + j / rate_hz``
+    dtheta_b_rad, dv_b_mps : (N, 3) the increment over ``(grid[j-1], grid[j]]``; row 0 is zero.
+    """
+    dt = 1.0 / rate_hz
+    grid = t_s[0] + dt * np.arange(int(math.floor((t_s[-1] - t_s[0]) / dt + 1e-9)) + 1)
+    step = np.diff(t_s)[:, None]
+
+    def increments(rate):
+        cum = np.concatenate([np.zeros((1, 3)), np.cumsum(rate[1:] * step, axis=0)])
+        at = np.stack([np.interp(grid, t_s, cum[:, j]) for j in range(3)], axis=-1)
+        return np.diff(at, axis=0, prepend=at[:1])
+    return grid, increments(omega_b), increments(f_b)
+
+
+def snap_to_grid(t_s: np.ndarray, grid_t_s: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """Index of the first grid time at or after each time (``len(grid)`` past its end)."""
+    return np.searchsorted(grid_t_s, t_s - tol, side="left")
+
+
+def on_grid(name: str, kind: str, t_s, values: dict, grid_t_s) -> SensorData:
+    """A sensor's samples moved to the grid (first grid time at or after each), one batch run.
+    Samples past the grid's end are dropped; of several falling on one grid time (a grid slower
+    than the sensor) the latest is kept."""
+    idx = snap_to_grid(np.asarray(t_s), grid_t_s)
+    keep = idx < len(grid_t_s)
+    idx = idx[keep]
+    last = np.r_[idx[1:] != idx[:-1], True] if len(idx) else np.zeros(0, bool)
+    vals = {k: np.asarray(v)[keep][last][None] for k, v in values.items()}
+    return SensorData(name=name, kind=kind, t_s=grid_t_s[idx[last]], values=vals,
+                      valid=np.ones((1, int(last.sum())), bool),
+                      meta={"rate_hz": float(len(idx) / max(np.ptp(grid_t_s), 1e-9)), "source": "log"})
+
+
+def sensor_streams(log: ReplayLog, grid_t_s: np.ndarray) -> dict:
+    """The magnetometer (``"mag"``, ``mag_b_T``) and, if the log has one, the baro (``"baro"``,
+    ``h_baro_m``) as :class:`SensorData` on the IMU grid."""
+    out = {"mag": on_grid("mag", "magnetometer", log.mag_t_s, {"mag_b_T": log.mag_b_T}, grid_t_s)}
+    if len(log.baro_t_s):
+        out["baro"] = on_grid("baro", "baro", log.baro_t_s, {"h_baro_m": log.h_baro_m}, grid_t_s)
+    return out
+
+
+# --- coarse alignment -------------------------------------------------------------------------
+
+@dataclass
+class Alignment:
+    euler_rad: np.ndarray      #: (3,) roll, pitch, yaw (true heading)
+    field_n_T: np.ndarray      #: (3,) the Earth field N, E, D measured in the window
+    window_s: float
+    gyro_max_rps: float        #: largest rate in the window (the vehicle should be still)
+    still: bool
+
+
+def coarse_alignment(log: ReplayLog, window_s: float = ALIGN_S) -> Alignment:
+    """Level with the mean specific force of the first ``window_s`` (``roll = atan2(-fy, -fz)``,
+    ``pitch = atan2(fx, hypot(fy, fz))``), head with the levelled mean magnetometer plus the
+    declination, and measure the Earth field there.
+
+    The field is the one measured, not the WMM's: its magnitude and inclination come from the
+    levelled magnetometer and its horizontal part is turned by the declination. It carries the
+    sensor's residual calibration errors and the local anomaly, so the estimator's model of the
+    field matches what the magnetometer reads (a WMM field that disagrees in inclination would
+    pull roll and pitch through the magnetometer update); and it needs no position, which this
+    log lacks.
+    """
+    w = log.imu_t_s <= window_s
+    f = log.f_ib_b_mps2[w].mean(axis=0)
+    roll, pitch = math.atan2(-f[1], -f[2]), math.atan2(f[0], math.hypot(f[1], f[2]))
+    wm = log.mag_t_s <= window_s
+    m_b = log.mag_b_T[wm].mean(axis=0) if np.any(wm) else log.mag_b_T[0]
+    m_l = dcm_from_euler(roll, pitch, 0.0) @ m_b          # levelled: heading-north frame
+    heading_mag = -math.atan2(m_l[1], m_l[0])
+    yaw = float(wrap_angle(heading_mag + log.declination_rad))
+    h = math.hypot(m_l[0], m_l[1])
+    decl = log.declination_rad
+    gyro_max = float(np.abs(log.omega_ib_b_rps[w]).max())
+    return Alignment(np.array([roll, pitch, yaw]), np.array([h * math.cos(decl), h * math.sin(decl), m_l[2]]),
+                     window_s, gyro_max, gyro_max <= ALIGN_GYRO_MAX_RPS)
+
+
+def initial_state(log: ReplayLog, align: Alignment) -> tuple[NavState, dict]:
+    """``nav0`` (one run) and its ``sigma0`` blocks (:data:`ALIGN_SIGMA`)."""
+    lat = log.lat_rad or 0.0
+    h = float(log.h_baro_m[0]) if len(log.h_baro_m) else (log.h_ref_m or 0.0)
+    nav0 = NavState(np.array([lat]), np.array([log.lon_rad or 0.0]), np.array([h]), np.zeros((1, 3)),
+                    dcm_from_euler(*align.euler_rad)[None])
+    sigma = InitialErrors(ALIGN_SIGMA["pos_m"], ALIGN_SIGMA["vel_mps"], ALIGN_SIGMA["att_rad"])
+    return nav0, sigma.sigma_blocks(lat, h)
+
+
+# --- the estimator ------------------------------------------------------------------------------
+
+def build_estimator(name: str, params: dict, defaults: dict):
+    """``base.get(name)(**kw)``: ``defaults`` the constructor accepts, overridden by ``params``;
+    a :class:`NavsimError` for an unknown name or a parameter the class does not take."""
+    try:
+        cls = base.get(name)
+    except KeyError as exc:
+        raise UsageError(f"{exc.args[0]}; available: {', '.join(base.available())}") from exc
+    sig = inspect.signature(cls.__init__).parameters
+    takes_any = any(p.kind is p.VAR_KEYWORD for p in sig.values())
+    accepted = {k for k in sig if k != "self"}
+    unknown = [k for k in params if k not in accepted and not takes_any]
+    if unknown:
+        raise UsageError(f"estimator '{name}' takes no parameter {', '.join(map(repr, unknown))} "
+                          f"(it takes: {', '.join(sorted(accepted)) or 'none'})")
+    kw = {k: v for k, v in defaults.items() if k in accepted or takes_any}
+    kw.update(params)
+    try:
+        return cls(**kw), kw
+    except (TypeError, ValueError) as exc:
+        raise UsageError(f"estimator '{name}' with {kw}: {exc}") from exc
+
+
+@dataclass
+class ReplayResult:
+    """An estimator's attitude over a log, against PX4's, every ``record_s``."""
+
+    log: ReplayLog
+    estimator: str
+    params: dict                   #: the constructor's keyword arguments
+    alignment: Alignment
+    imu_rate_hz: float
+    period_s: float                #: the estimator's epoch period on the IMU grid
+    t_s: np.ndarray                #: (E,) record times (0 first: the initial state)
+    euler_rad: np.ndarray          #: (E, 3) the estimator's roll, pitch, yaw
+    euler_px4_rad: np.ndarray      #: (E, 3) PX4's, slerped to t_s (NaN outside its record)
+    settle_s: float
+    resets: list                   #: (t_s, cause) the estimator reported for run 0
+    cost: dict                     #: CPU seconds in propagate and epoch, their counts
+    sensors: dict = field(default_factory=dict)   #: name -> samples given, rate (Hz)
+
+    @property
+    def diff_rad(self) -> np.ndarray:
+        """Estimator minus PX4 (roll, pitch, yaw), yaw wrapped to ±180°."""
+        d = self.euler_rad - self.euler_px4_rad
+        d[:, 2] = wrap_angle(d[:, 2])
+        return d
+
+
+def px4_euler_at(log: ReplayLog, t_s: np.ndarray) -> np.ndarray:
+    """PX4's roll, pitch, yaw slerped to ``t_s`` ``(E, 3)``; NaN outside its record."""
+    from scipy.spatial.transform import Rotation, Slerp
+    slerp = Slerp(log.att_t_s, Rotation.from_quat(log.quat_nb_px4[:, [1, 2, 3, 0]]))
+    inside = (t_s >= log.att_t_s[0]) & (t_s <= log.att_t_s[-1])
+    out = np.full((len(t_s), 3), np.nan)
+    if np.any(inside):
+        out[inside] = euler_from_dcm(slerp(t_s[inside]).as_matrix())
+    return out
+
+
+def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_rate_hz: float | None = None,
+           settle_s: float = 10.0, align_s: float = ALIGN_S, record_s: float = RECORD_S,
+           progress=None) -> ReplayResult:
+    """Run ``estimator`` (a registered name) over ``log`` and compare its attitude with PX4's.
+
+    Parameters
+    ----------
+    log : ReplayLog
+    estimator : str
+        Registered estimator name; built with the keyword parameters its ``__init__`` takes
+        among ``mag="mag"``, ``baro="baro"`` (None without a barometer), ``gnss=None``,
+        ``field_n_T`` (the aligned field, list N, E, D tesla), then ``params``.
+    params : dict, optional
+        Extra constructor parameters (override the above).
+    imu_rate_hz : float, optional
+        The grid the IMU is resampled to (default: the log's nominal rate).
+    settle_s : float
+        Seconds left out of the metrics (the estimator converging from the coarse alignment).
+    align_s : float
+        Length of the coarse-alignment window from the first sample.
+    record_s : float
+        The solution's attitude is sampled this often (or every epoch if the estimator's period
+        is shorter), after the epoch when one falls on the same IMU step.
+    progress : callable, optional
+        ``progress(t_s, duration_s)`` now and then.
+    """
+    rate = float(imu_rate_hz or round(log.imu_rate_hz))
+    grid, dth, dv = imu_increments(log.imu_t_s, log.omega_ib_b_rps, log.f_ib_b_mps2, rate)
+    sensors = sensor_streams(log, grid)
+    align = coarse_alignment(log, align_s)
+    defaults = {"mag": "mag", "baro": "baro" if "baro" in sensors else None, "gnss": None,
+                "field_n_T": [float(x) for x in align.field_n_T],
+                "no_gnss_sigma_mps": NO_GNSS_SIGMA_MPS}
+    est, kw = build_estimator(estimator, dict(params or {}), defaults)
+    nav0, sigma0 = initial_state(log, align)
+    dt = 1.0 / rate
+    loop = Driver({estimator: est}, dt, 1, isolate=False)
+    loop.start(nav0, sigma0)
+    every = loop.every[estimator]
+    rec_every = max(1, int(round(min(record_s, every * dt) / dt)))
+    t_rec, C_rec = [0.0], [est.solution().nav.C_nb[0].copy()]
+    n = len(grid)
+    stops = np.union1d(loop.stops(n), np.arange(rec_every, n, rec_every))
+    for i in stops:
+        i0 = loop.i + 1
+        loop.advance(dth[None, i0:i + 1], dv[None, i0:i + 1], float(grid[i]), sensors)
+        if i % rec_every == 0:
+            t_rec.append(float(grid[i]))
+            C_rec.append(est.solution().nav.C_nb[0].copy())
+        if progress is not None and i // 2000 > (i0 - 1) // 2000:
+            progress(grid[i], grid[-1])
+    t_rec = np.asarray(t_rec)
+    resets = est.solution().extra.get("resets")
+    resets = [(float(t), str(c)) for t, c in resets[0]] if resets else []
+    return ReplayResult(
+        log=log, estimator=estimator, params=kw, alignment=align, imu_rate_hz=rate,
+        period_s=every * dt, t_s=t_rec, euler_rad=euler_from_dcm(np.asarray(C_rec)),
+        euler_px4_rad=px4_euler_at(log, t_rec), settle_s=settle_s, resets=resets,
+        cost=loop.cost(estimator),
+        sensors={k: {"samples": int(s.t_s.size), "rate_hz": s.meta["rate_hz"]} for k, s in sensors.items()})

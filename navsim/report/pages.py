@@ -1,0 +1,699 @@
+"""The report of a ``navsim run``: PNG figures and ``report.pdf`` (matplotlib ``PdfPages``)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import textwrap
+import threading
+import warnings
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from navsim.flight.plots import flight_figures
+from navsim.foundations.errors import OutputError
+from navsim.foundations.outputs import OutputFolder, write_atomic
+from navsim.scoring.metrics import EULER_AXES, RunMetrics
+from navsim.scoring.stats import chi2_band
+
+AXES = {"pos": ("position error", "m", ["north", "east", "down"]),
+        "vel": ("velocity error", "m/s", ["north", "east", "down"]),
+        "att": ("attitude error", "deg", ["about north (roll-like)", "about east", "about down (heading)"])}
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _text_page(title: str, lines: list[str]):
+    plt = _plt()
+    fig = plt.figure(figsize=(8.27, 11.69))
+    fig.text(0.06, 0.96, title, fontsize=14, weight="bold", va="top")
+    fig.text(0.04, 0.93, "\n".join(lines), fontsize=6.3, family="monospace", va="top")
+    return fig
+
+
+def _table_lines(headers, rows):
+    widths = [max(len(str(h)), *(len(str(r[i])) for r in rows)) if rows else len(h) for i, h in enumerate(headers)]
+    out = ["  ".join(str(h).ljust(w) for h, w in zip(headers, widths)),
+           "  ".join("-" * w for w in widths)]
+    out += ["  ".join(str(c).ljust(w) for c, w in zip(r, widths)) for r in rows]
+    return out
+
+
+def _nanmean(x):
+    """Mean over the runs (axis 0) of what they have: a closed-loop run's records end at its
+    landing (NaN after it)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmean(x, axis=0)
+
+
+def _fmt(v):
+    if v is None:
+        return "-"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
+    return f"{v:.4g}"
+
+
+def divergence_lines(metrics: RunMetrics) -> list[str]:
+    """The runs flagged diverged (excluded from the statistics) per estimator: how many, why,
+    and the first listed runs with the time each was flagged."""
+    lines = []
+    for label, m in metrics.estimators.items():
+        div = m.divergence
+        if not div:
+            continue
+        causes = ", ".join(f"{cause}: {n}" for cause, n in div.causes.items())
+        listed = [f"run {r.run}" + ("" if r.t_s is None else f" at {r.t_s:.1f} s") for r in div.runs[:6]]
+        more = f" (+{div.count - len(listed)} more)" if div.count > len(listed) else ""
+        lines += ["", f"{label}: {div.count} of {m.runs_counted + m.diverged_runs} runs flagged diverged "
+                  f"and excluded ({causes})", "  " + ", ".join(listed) + more]
+    return lines
+
+
+def summary_lines(scenario, record: dict, metrics: RunMetrics) -> list[str]:
+    lines = textwrap.wrap(scenario.description.strip() or "(no description)", 100)
+    lines += ["", f"scenario file : {record['scenario']}", f"track         : {scenario.flight.track.name}",
+              f"runs          : {record['runs_done']} done of {record['runs']} (seed {record['seed']}, "
+              f"workers {record['workers']})",
+              f"failed runs   : {len(record['failed_runs'])}    interrupted: {record['interrupted']}",
+              *([f"plots         : the first {record['runs_plotted']} runs (metrics: all {record['runs_done']})"]
+                if record.get("runs_plotted", record["runs_done"]) < record["runs_done"] else []),
+              f"flight        : {'from cache' if record['flight_cached'] else 'flown'} ({record['flight_key']})",
+              f"wall time     : {record['wall_s']:.1f} s", f"git revision  : {record['git_revision']}",
+              *textwrap.wrap("versions      : " + ", ".join(f"{k} {v}" for k, v in record["versions"].items()),
+                             120, subsequent_indent=" " * 16), ""]
+    rows = []
+    for label, m in metrics.estimators.items():
+        rms, nees, cost = m.rms, m.nees, m.cost
+        rows.append([label, *(_fmt(None if rms is None else getattr(rms, k)) for k in ("pos_m", "vel_mps", "att_deg")),
+                     _fmt(nees and nees.average), f"{nees.fraction_inside * 100:.0f} %" if nees else "-",
+                     _fmt(m.convergence_s), _fmt(cost and cost.ms_per_run), _fmt(cost and cost.epoch_us_per_run),
+                     str(m.diverged_runs)])
+    lines += [f"RMS, NEES and NIS after {scenario.settle_s:g} s (N, E, D), over all runs; cost: wall time "
+              "per run of the batched filter (propagation + epochs), and of one epoch:", ""]
+    lines += _table_lines(["estimator", "pos m", "vel m/s", "att deg", "NEES avg", "NEES in band",
+                           "converged s", "ms/run", "epoch us/run", "diverged"], rows)
+    for label, m in metrics.estimators.items():
+        for name, w in (m.windows or {}).items():
+            lines += ["", f"{label}: window '{name}'"]
+            lines += _table_lines(["quantity", "max positive", "max negative", "std", "rms"],
+                                  [[q, _fmt(v.max_pos), _fmt(v.max_neg), _fmt(v.std), _fmt(v.rms)]
+                                   for q, v in w.quantities.items()])
+            if w.nees is not None:
+                lines += [f"  NEES average {w.nees.average:.3g}, "
+                          f"{w.nees.fraction_inside * 100:.0f} % of the epochs inside the 95 % band"]
+    lines += divergence_lines(metrics)
+    lines += closed_loop_lines(metrics.closed_loop)
+    lines += sighting_lines(metrics)
+    lines += attitude_lines(metrics, _table_lines)
+    if scenario.reference:
+        lines += ["", f"published ({scenario.reference['source']}) versus ours:"]
+        if scenario.reference.get("note"):
+            lines += textwrap.wrap(scenario.reference["note"], 100)
+        rows = []
+        for label, vals in scenario.reference["values"].items():
+            for path, paper in vals.items():
+                m = metrics.estimators.get(label)
+                rows.append([label, path, _fmt(paper), _fmt(m.get(path) if m else None)])
+        lines += _table_lines(["estimator", "metric", "paper", "ours"], rows)
+    return lines
+
+
+def landmark_figure(histories: dict, metrics: RunMetrics, sightings, runs_plotted: int = 3):
+    """Horizontal position error of the landmark-aided estimators on a linear scale, the
+    sightings shaded, the camera's 3-sigma fix noise marked at the end of each sighting."""
+    labels = [k for k, m in metrics.estimators.items() if m.landmarks and m.landmarks.fraction_within_3sigma > 0.5]
+    if not labels or not sightings:
+        return []
+    plt = _plt()
+    fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
+    for label in labels:
+        h = histories[label]
+        good = ~np.asarray(h.diverged, bool)
+        for j, (ax, name) in enumerate(zip(axes, ("north", "east"))):
+            e = h.pos_err_m[good][..., j]
+            for r in range(min(runs_plotted, e.shape[0])):
+                ax.plot(h.t_s, e[r], lw=0.5, alpha=0.6)
+            ax.plot(h.t_s, np.sqrt(_nanmean(e ** 2)), "k", lw=1.2, label=f"{label}: MC RMS")
+        ratio = [s.max_ratio for s in metrics.estimators[label].landmarks.sightings]
+        axes[2].plot([s[2] for s in sightings], ratio, "o", ms=3, label=f"{label}: worst run")
+    for ax in axes:
+        _shade(ax, sightings)
+        ax.grid(alpha=0.3)
+    for ax, name in zip(axes[:2], ("north", "east")):
+        ts = [s[2] for s in sightings]
+        ax.plot(ts, [3 * s[3] for s in sightings], "g_", ms=8, label="3 sigma of the fix")
+        ax.plot(ts, [-3 * s[3] for s in sightings], "g_", ms=8)
+        ax.set_ylabel(f"{name} error, m")
+        lim = 8 * max(s[3] for s in sightings)
+        ax.set_ylim(-lim, lim)
+    axes[2].axhline(3.0, color="g", lw=1, label="3")
+    axes[2].set(ylabel="|error| / fix sigma\nat the sighting's end", xlabel="time, s")
+    axes[0].legend(fontsize=7, loc="upper right")
+    axes[2].legend(fontsize=7, loc="upper right")
+    axes[0].set_title("landmark sightings (green): the error drifts between anchors and returns after each")
+    fig.tight_layout()
+    return [("landmarks", fig)]
+
+
+def sighting_lines(metrics: RunMetrics) -> list[str]:
+    """The landmark-sighting table (estimators with ``landmarks`` metrics)."""
+    rows = [[label, str(lm.count), _fmt(lm.rms_before_m.median), _fmt(lm.rms_after_m), _fmt(lm.max_ratio),
+             f"{lm.fraction_within_3sigma * 100:.1f} %"]
+            for label, lm in ((k, m.landmarks) for k, m in metrics.estimators.items()) if lm]
+    if not rows:
+        return []
+    return ["", "landmark sightings (shaded green): horizontal error just before a sighting (RMS, median over "
+            "sightings), after its last fix (RMS per axis), largest |error| / fix sigma, share inside 3 sigma:", ""] + \
+        _table_lines(["estimator", "sightings", "before m", "after m", "max |e|/sigma", "inside 3 sigma"], rows)
+
+
+def closed_loop_lines(m: dict | None) -> list[str]:
+    """The summary of navigation in the loop (``metrics['closed_loop']``)."""
+    if not m:
+        return []
+    lines = ["", f"navigation in the loop: flown on '{m['fly_on']}'; outcomes "
+             + ", ".join(f"{k} {v}" for k, v in m.get("outcomes", {}).items())]
+    r = m.get("return_to_land")
+    if r:
+        ref = r["truth_guided"]
+        lines += [f"return to land: {r['landed']} landed, {r['reached_area']} inside the {r['area_m']:g} m "
+                  f"recovery area; mission abandoned at {_fmt(r['abort_t_s'].get('mean'))} s (mean), "
+                  f"parachute at {_fmt(r['land_t_s'].get('mean'))} s (mean)", ""]
+        lines += _table_lines(["miss distance", "CEP50 m", "CEP95 m", "mean m", "max m", "runs"],
+                              [["true (guided on the solution)", _fmt(r["miss"]["cep50_m"]),
+                                _fmt(r["miss"]["cep95_m"]), _fmt(r["miss"]["mean_m"]),
+                                _fmt(r["miss"]["max_m"]), str(r["miss"]["n"])],
+                               ["the solution's own", _fmt(r["miss_estimate"]["cep50_m"]),
+                                _fmt(r["miss_estimate"]["cep95_m"]), _fmt(r["miss_estimate"]["mean_m"]),
+                                _fmt(r["miss_estimate"]["max_m"]), str(r["miss_estimate"]["n"])],
+                               ["same flight guided on the truth", _fmt(ref["miss_m"]), "-", "-", "-", "1"]])
+        c = r.get("consistency")
+        if c:
+            lines += ["", f"the filter at the parachute: horizontal error RMS {c['horizontal_error_rms_m']:.3g} m, "
+                      f"its sigmas predict CEP50 {c['predicted_cep50_m']:.3g} m; normalised error "
+                      f"(e/sigma)^2 {c['normalised_error']:.3g} (95 % band {c['band'][0]:.2f}-{c['band'][1]:.2f})"]
+    return lines
+
+
+def closed_loop_figures(loop: dict, reference, scenario):
+    """Plan view of every run's true path with the landings and CEP circles, and the miss
+    distances' distribution against the truth-guided flight."""
+    plt = _plt()
+    rtl = scenario.closed_loop.return_to_land
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11.5, 5.2), gridspec_kw={"width_ratios": [1.3, 1]})
+    paths = loop["path_n_m"]
+    for p in paths:
+        ax.plot(p[:, 1], p[:, 0], lw=0.5, color="tab:blue", alpha=0.35)
+    ref = reference.path_n_m[0]
+    ax.plot(ref[:, 1], ref[:, 0], lw=1.5, color="k", label="guided on the truth")
+    if rtl is not None and reference.point_n_m is not None:
+        pn, pe = reference.point_n_m
+        land = loop["landing_n_m"]
+        ax.plot(land[:, 1], land[:, 0], "x", color="tab:red", ms=4, label="parachute (truth)")
+        ax.plot([pe], [pn], "*", color="tab:green", ms=12, label="recovery point")
+        miss = np.asarray(loop["miss_m"], float)
+        th = np.linspace(0, 2 * np.pi, 200)
+        for q, ls in ((50, "--"), (95, ":")):
+            if np.isfinite(miss).any():
+                r = np.nanpercentile(miss, q)
+                ax.plot(pe + r * np.sin(th), pn + r * np.cos(th), ls, color="tab:red", lw=1,
+                        label=f"CEP{q} {r:.1f} m")
+        ax.plot(pe + rtl.area_m * np.sin(th), pn + rtl.area_m * np.cos(th), "-", color="tab:green",
+                lw=0.8, label=f"recovery area {rtl.area_m:g} m")
+        zoom = ax.inset_axes([0.03, 0.03, 0.36, 0.36])          # the recovery area, magnified
+        zoom.plot(land[:, 1], land[:, 0], "x", color="tab:red", ms=3)
+        zoom.plot([pe], [pn], "*", color="tab:green", ms=9)
+        for q, ls in ((50, "--"), (95, ":")):
+            if np.isfinite(miss).any():
+                r = np.nanpercentile(miss, q)
+                zoom.plot(pe + r * np.sin(th), pn + r * np.cos(th), ls, color="tab:red", lw=0.8)
+        zoom.plot(pe + rtl.area_m * np.sin(th), pn + rtl.area_m * np.cos(th), "-", color="tab:green", lw=0.8)
+        half = 1.15 * max(rtl.area_m, float(np.nanmax(miss)) if np.isfinite(miss).any() else 0.0)
+        zoom.set(xlim=(pe - half, pe + half), ylim=(pn - half, pn + half), aspect="equal")
+        zoom.tick_params(labelsize=6)
+        srt = np.sort(miss[np.isfinite(miss)])
+        if srt.size:
+            bx.step(srt, np.arange(1, srt.size + 1) / srt.size, where="post", color="tab:blue",
+                    label=f"guided on the solution ({srt.size} runs)")
+            for q, ls in ((50, "--"), (95, ":")):
+                bx.axvline(np.percentile(srt, q), ls=ls, color="tab:red", lw=1,
+                           label=f"CEP{q} {np.percentile(srt, q):.1f} m")
+        if np.isfinite(reference.miss_m[0]):
+            bx.axvline(reference.miss_m[0], color="k", lw=1.5,
+                       label=f"guided on the truth {reference.miss_m[0]:.2f} m")
+        bx.set(xlabel="true miss distance at the parachute, m", ylabel="fraction of runs",
+               title="miss distance")
+        bx.legend(fontsize=7, loc="lower right")
+        bx.grid(alpha=0.3)
+    ax.set(xlabel="east, m", ylabel="north, m", title=f"true paths, flown on '{scenario.closed_loop.fly_on}'")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(fontsize=7, loc="best")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return [("closed_loop", fig)]
+
+
+def _shade(ax, spans, label: bool = False):
+    """Shade the metric windows ``(name, start_s, end_s)`` (fault, interference) in orange and
+    landmark sightings ``(name, start_s, end_s, sigma_m)`` in green, unlabelled."""
+    for span in spans:
+        name, a, b = span[:3]
+        if len(span) > 3:
+            ax.axvspan(a, b, color="tab:green", alpha=0.25, lw=0)
+            continue
+        ax.axvspan(a, b, color="tab:orange", alpha=0.12, lw=0)
+        if label:
+            ax.text(a, 1.0, name, transform=ax.get_xaxis_transform(), fontsize=6, rotation=90, va="top")
+
+
+def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5, spans=()):
+    """Per quantity: each axis against time, estimators overlaid: Monte Carlo RMS (solid),
+    the filter's mean 3-sigma (dashed), a few runs (thin); the metric windows shaded."""
+    plt = _plt()
+    colors = plt.cm.tab10(np.arange(10))
+    figs = []
+    for key, (title, unit, names) in AXES.items():
+        fig, axs = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
+        for c, (label, h) in enumerate(histories.items()):
+            good = ~np.asarray(h.diverged, bool)
+            if not good.any():
+                continue
+            err = {"pos": h.pos_err_m, "vel": h.vel_err_mps, "att": np.degrees(h.att_err_rad)}[key][good]
+            sig = None
+            if h.sigma is not None:
+                s = {"pos": h.sigma[..., 6:9], "vel": h.sigma[..., 3:6], "att": np.degrees(h.sigma[..., 0:3])}[key]
+                sig = np.sqrt(_nanmean(s[good] ** 2))
+            rms = np.sqrt(_nanmean(err ** 2))
+            for j, ax in enumerate(axs):
+                for r in range(min(runs_plotted, err.shape[0])):
+                    ax.plot(h.t_s, err[r, :, j], color=colors[c % 10], lw=0.4, alpha=0.35)
+                ax.plot(h.t_s, rms[:, j], color=colors[c % 10], lw=1.6, label=f"{label}: MC RMS")
+                ax.plot(h.t_s, -rms[:, j], color=colors[c % 10], lw=1.6)
+                if sig is not None:
+                    ax.plot(h.t_s, 3 * sig[:, j], "--", color=colors[c % 10], lw=1.0, label=f"{label}: ±3σ filter")
+                    ax.plot(h.t_s, -3 * sig[:, j], "--", color=colors[c % 10], lw=1.0)
+        for j, ax in enumerate(axs):
+            ax.set_ylabel(f"{names[j]}, {unit}", fontsize=8)
+            ax.grid(alpha=0.3)
+            ax.axvline(settle_s, color="0.5", lw=0.8, ls=":")
+            _shade(ax, spans, label=j == 0)
+            _symlog_if_needed(ax)
+        axs[0].legend(fontsize=7, loc="upper right", ncol=2)
+        axs[-1].set_xlabel("time, s")
+        fig.suptitle(f"{title}: Monte Carlo RMS envelope, filter ±3σ, {runs_plotted} runs (thin)")
+        fig.tight_layout()
+        figs.append((f"errors_{key}", fig))
+    return figs
+
+
+def _symlog_if_needed(ax):
+    lines = [ln.get_ydata() for ln in ax.get_lines() if len(ln.get_ydata()) > 2]
+    if not lines:
+        return
+    y = np.concatenate([np.abs(np.asarray(v, float)) for v in lines])
+    y = y[np.isfinite(y) & (y > 0)]
+    if y.size and np.percentile(y, 99) > 30 * np.percentile(y, 50):
+        ax.set_yscale("symlog", linthresh=max(np.percentile(y, 50), 1e-9))
+
+
+def consistency_figure(histories: dict, spans=()):
+    plt = _plt()
+    filters = {k: h for k, h in histories.items() if h.nees is not None}
+    if not filters:
+        return []
+    n_nis = sum(len(h.nis) for h in filters.values())
+    fig, axs = plt.subplots(1 + n_nis, 1, figsize=(10, 2.6 * (1 + n_nis)), sharex=True, squeeze=False)
+    axs = axs[:, 0]
+    colors = plt.cm.tab10(np.arange(10))
+    i = 1
+    for c, (label, h) in enumerate(filters.items()):
+        good = ~np.asarray(h.diverged, bool)
+        n = int(good.sum())
+        if n == 0:
+            continue
+        lo, hi = chi2_band(9, n)
+        axs[0].plot(h.t_s[1:], np.nanmean(h.nees[good], axis=0)[1:], color=colors[c % 10], label=label)
+        axs[0].axhspan(lo, hi, color=colors[c % 10], alpha=0.12)
+        for key, nis in h.nis.items():
+            d = h.nis_dim[key]
+            v = nis[good]
+            cols = ~np.isnan(v).all(axis=0)
+            lo, hi = chi2_band(d, n)
+            axs[i].plot(h.t_s[cols], np.nanmean(v[:, cols], axis=0), ".", ms=2, color=colors[c % 10])
+            axs[i].axhspan(lo, hi, color="0.8", alpha=0.5)
+            axs[i].set_ylabel(f"NIS {key}\n({label}, dim {d})", fontsize=7)
+            axs[i].grid(alpha=0.3)
+            i += 1
+    for j, ax in enumerate(axs):
+        _shade(ax, spans, label=j == 0)
+    axs[0].set_ylabel("average NEES\n(pos, vel, att: 9)", fontsize=8)
+    axs[0].legend(fontsize=7)
+    axs[0].grid(alpha=0.3)
+    axs[-1].set_xlabel("time, s")
+    fig.suptitle("Consistency: average NEES and NIS over the runs with their two-sided 95 % chi-square bands")
+    fig.tight_layout()
+    return [("consistency", fig)]
+
+
+def height_figure(histories: dict, scenario, runs_plotted: int = 3):
+    """Height error against time (P2's Figures 4-5): Monte Carlo RMS and a few runs per
+    estimator, sensor fault windows shaded; a second panel zooms on the first metric window."""
+    plt = _plt()
+    faults = [(c.name, f) for c in scenario.sensors for f in c.faults if f.type != "interference"]
+    if not faults and not scenario.windows:
+        return []
+    fig, axs = plt.subplots(2, 1, figsize=(10, 8))
+    colors = plt.cm.tab10(np.arange(10))
+    for ax in axs:
+        for c, (label, h) in enumerate(histories.items()):
+            good = ~np.asarray(h.diverged, bool)
+            if not good.any():
+                continue
+            dh = -h.pos_err_m[good][..., 2]
+            for r in range(min(runs_plotted, dh.shape[0])):
+                ax.plot(h.t_s, dh[r], color=colors[c % 10], lw=0.5, alpha=0.5)
+            ax.plot(h.t_s, np.sqrt(_nanmean(dh ** 2)), color=colors[c % 10], lw=1.6,
+                    label=f"{label}: RMS over runs")
+        for name, f in faults:
+            ax.axvspan(f.start_s, min(f.end_s, histories[next(iter(histories))].t_s[-1]), color="tab:red",
+                       alpha=0.15)
+            ax.text(f.start_s, 1.0, f"{name} {f.type}", transform=ax.get_xaxis_transform(), fontsize=6,
+                    rotation=90, va="top")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.grid(alpha=0.3)
+        ax.set_ylabel("height error (up), m")
+    if scenario.windows:
+        name, a, b = scenario.windows[0]
+        axs[1].set_xlim(a, b)
+        axs[1].set_title(f"window '{name}' ({a:g}-{b:g} s)", fontsize=9)
+        lim = []
+        for h in histories.values():
+            m = (h.t_s >= a) & (h.t_s <= b)
+            good = ~np.asarray(h.diverged, bool)
+            if m.any() and good.any():
+                lim.append(np.nanpercentile(np.abs(h.pos_err_m[good][:, m, 2]), 99.5))
+        if lim:
+            axs[1].set_ylim(-1.2 * max(lim), 1.2 * max(lim))
+    axs[0].legend(fontsize=7, loc="upper right")
+    axs[1].set_xlabel("time, s")
+    fig.suptitle("Height error against time, sensor fault windows shaded")
+    fig.tight_layout()
+    return [("height", fig)]
+
+
+def bias_figure(histories: dict, truth_bias: dict, runs_plotted: int = 3):
+    plt = _plt()
+    filters = {k: h for k, h in histories.items() if h.gyro_bias is not None}
+    if not filters or not truth_bias:
+        return []
+    fig, axs = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    colors = plt.cm.tab10(np.arange(10))
+    for col, (key, scale, unit) in enumerate((("gyro_bias", 180 / np.pi * 3600, "deg/h"),
+                                              ("accel_bias", 1e6 / 9.80665, "µg"))):
+        true = truth_bias[key] * scale
+        for j in range(3):
+            ax = axs[j, col]
+            for r in range(min(runs_plotted, true.shape[0])):
+                ax.plot(next(iter(filters.values())).t_s, true[r, :, j], color="k", lw=1.0,
+                        label="truth" if r == 0 else None)
+                for c, (label, h) in enumerate(filters.items()):
+                    ax.plot(h.t_s, getattr(h, key)[r, :, j] * scale, color=colors[c % 10], lw=0.8,
+                            label=label if r == 0 else None)
+            ax.set_ylabel(f"{key.split('_')[0]} {'xyz'[j]}, {unit}", fontsize=8)
+            ax.grid(alpha=0.3)
+    axs[0, 0].legend(fontsize=7)
+    axs[-1, 0].set_xlabel("time, s")
+    axs[-1, 1].set_xlabel("time, s")
+    fig.suptitle(f"IMU bias estimates against the truth (first {runs_plotted} runs)")
+    fig.tight_layout()
+    return [("biases", fig)]
+
+
+def calibration_figures(calibration: dict, histories: dict, metrics: RunMetrics, spans=(), runs_plotted: int = 3):
+    """Per calibrated magnetometer: hard- and soft-iron errors against time (mean and 95th
+    percentile over the runs, a few runs thin) with the mark of two full turns and the 2 %
+    line, and the heading error of each estimator (Monte Carlo RMS) against time."""
+    plt = _plt()
+    colors = plt.cm.tab10(np.arange(10))
+    figs = []
+    for name, cal in calibration.items():
+        fig, axs = plt.subplots(3, 1, figsize=(10, 11), sharex=True, gridspec_kw={"height_ratios": [3, 3, 3]})
+        t = cal["t_s"]
+        mark = np.flatnonzero(cal["turns"] >= 2.0)
+        t2 = t[mark[0]] if mark.size else None
+        for ax, key, title in ((axs[0], "hard_iron_err", "hard-iron error, % of |m|"),
+                               (axs[1], "soft_iron_err", "soft-iron error, % (Frobenius)")):
+            e = 100.0 * cal[key]
+            for r in range(min(runs_plotted, e.shape[0])):
+                ax.plot(t, e[r], color="0.6", lw=0.5)
+            with warnings.catch_warnings():          # epochs where no run has an ellipsoid yet
+                warnings.simplefilter("ignore", RuntimeWarning)
+                ax.plot(t, np.nanmean(e, 0), color="tab:blue", lw=1.6, label="mean over runs")
+                ax.plot(t, np.nanpercentile(e, 95, axis=0), color="tab:red", lw=1.2, label="95th percentile")
+            ax.axhline(2.0, color="k", ls="--", lw=0.8, label="2 % (acceptance)")
+            ax.set_yscale("log")
+            ax.set_ylim(0.05, 200)
+            ax.set_ylabel(title, fontsize=8)
+            ax.grid(alpha=0.3, which="both")
+            ax2 = ax.twinx()
+            ax2.plot(t, cal["turns"], color="tab:green", lw=0.8)
+            ax2.set_ylabel("full turns (true heading)", fontsize=7, color="tab:green")
+        score = (metrics.calibration or {}).get(name)
+        if score and score.after_turns:
+            at, h, s_ = score.after_turns, score.after_turns.hard_iron_pct, score.after_turns.soft_iron_pct
+            axs[0].set_title(f"after {score.turns:g} full turns ({at.t_s:.0f} s): hard iron {h.mean:.2f} / "
+                             f"{h.p95:.2f} / {h.max:.2f} %, soft iron {s_.mean:.2f} / {s_.p95:.2f} / "
+                             f"{s_.max:.2f} % (mean / 95th percentile / max)", fontsize=8)
+        for c, (label, hist) in enumerate(histories.items()):
+            good = ~np.asarray(hist.diverged, bool)
+            if good.any():
+                rms = np.sqrt(_nanmean(np.degrees(hist.att_err_rad[good][..., 2]) ** 2))
+                axs[2].plot(hist.t_s, rms, color=colors[c % 10], lw=1.4, label=f"{label}: MC RMS")
+        axs[2].set_ylabel("heading error, deg (RMS over runs)", fontsize=8)
+        axs[2].set_yscale("log")
+        axs[2].grid(alpha=0.3, which="both")
+        axs[2].legend(fontsize=7, loc="upper right")
+        for j, ax in enumerate(axs):
+            _shade(ax, spans, label=j == 0)
+            if t2 is not None:
+                ax.axvline(t2, color="tab:green", lw=1.0, ls=":")
+        if t2 is not None:
+            axs[1].text(t2, 1.0, " two full turns", transform=axs[1].get_xaxis_transform(), fontsize=7,
+                        va="top", color="tab:green")
+        axs[0].legend(fontsize=7, loc="upper right")
+        axs[-1].set_xlabel("time, s")
+        fig.suptitle(f"Magnetometer '{name}': online calibration (RLS ellipsoid fit) and heading error")
+        fig.tight_layout()
+        figs.append((f"calibration_{name}", fig))
+    return figs
+
+
+def write_report(folder: OutputFolder, scenario, truth, result, metrics: RunMetrics, record: dict,
+                 loop: dict | None = None, reference=None, sightings=()) -> list[Path]:
+    """Write the PNGs and ``report.pdf`` into the output folder ``folder`` (each name recorded
+    in its manifest before it is written); returns the files written. ``loop`` and
+    ``reference``: the per-run outcome of a closed-loop scenario and its truth-guided flight;
+    ``sightings``: landmark sightings ``(name, start_s, end_s, sigma_m)``, shaded in green."""
+    plt = _plt()
+    runs_plotted = scenario.report.get("runs_plotted", 5)
+    pages = [("summary", _text_page(f"navsim report: {scenario.name}", summary_lines(scenario, record, metrics)))]
+    resolved = dict(scenario.raw)
+    resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": record["runs"],
+                              "seed": record["seed"], "workers": record["workers"]}
+    text = yaml.safe_dump(resolved, sort_keys=False, width=110).splitlines()
+    if len(text) > 120:
+        text = text[:118] + ["...", "(the whole file: scenario.resolved.yaml)"]
+    pages.append(("scenario", _text_page("resolved scenario", text)))
+    if truth is not None:
+        pages += [(f"flight_{n}", f) for n, f in flight_figures(truth)]
+    if loop:
+        pages += closed_loop_figures(loop, reference, scenario)
+    if result.histories:
+        spans = tuple(scenario.windows) + tuple(sightings)
+        pages += error_figures(result.histories, scenario.settle_s, runs_plotted, spans)
+        pages += height_figure(result.histories, scenario)
+        pages += landmark_figure(result.histories, metrics, sightings, runs_plotted)
+        pages += attitude_figure(result.histories, scenario.settle_s, runs_plotted, spans)
+        pages += consistency_figure(result.histories, spans)
+        pages += bias_figure(result.histories, result.truth_bias)
+        pages += calibration_figures(result.calibration, result.histories, metrics, scenario.windows)
+    try:
+        return _render(folder, pages, scenario.report.get("formats", ["pdf", "png"]),
+                       f"navsim report: {scenario.name}")
+    finally:
+        for _, fig in pages:               # also those not reached when writing failed
+            plt.close(fig)
+
+
+def _render(folder: OutputFolder, pages: list, fmts, title: str) -> list[Path]:
+    """Each page to ``<name>.png`` and all of them, in order, to ``report.pdf``; returns the
+    files written. Where the machine has a second core and ``fork`` (Linux), a forked child
+    draws the PNGs while this process draws the PDF (about half the time: a page costs as
+    much to draw for either)."""
+    out = folder.path
+    pngs = [(out / f"{name}.png", fig) for name, fig in pages] if "png" in fmts else []
+    pdf_path = out / "report.pdf" if "pdf" in fmts else None
+    folder.record([p for p, _ in pngs] + ([pdf_path] if pdf_path else []))
+    child = _fork_writer(pngs) if pngs and pdf_path and _can_fork() else None
+    if child is None:
+        _write_pngs(pngs)
+    try:
+        if pdf_path is not None:
+            write_atomic(pdf_path, lambda p: _write_pdf(p, pages, title))
+    except BaseException:
+        if child is not None:                 # this error is the one reported
+            _join_writer(*child, report=False)
+        raise
+    if child is not None:
+        _join_writer(*child)
+    return [p for p, _ in pngs] + ([pdf_path] if pdf_path else [])
+
+
+#: the PNGs' resolution, dots per inch
+PNG_DPI = 110
+
+
+def _write_pngs(pngs: list) -> None:
+    for path, fig in pngs:
+        write_atomic(path, lambda p, fig=fig: fig.savefig(p, dpi=PNG_DPI))
+
+
+def _write_pdf(path: Path, pages: list, title: str) -> None:
+    from matplotlib.backends.backend_pdf import PdfPages
+    with PdfPages(path) as pdf:
+        for _, fig in pages:
+            pdf.savefig(fig)
+        pdf.infodict()["Title"] = title
+
+
+def _can_fork() -> bool:
+    return (sys.platform == "linux" and hasattr(os, "fork") and len(os.sched_getaffinity(0)) > 1
+            and threading.current_thread() is threading.main_thread())
+
+
+def _fork_writer(pngs: list):
+    """Fork a child that writes the PNGs ``(path, figure)``; returns its pid and the pipe on
+    which it reports a failure (errno, path and reason of an OS error, or an exception's
+    name and message; nothing on success), or None when the fork fails. Ctrl-C is held back
+    across the fork, so it reaches the child inside its ``try``."""
+    r, w = os.pipe()
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        pid = os.fork()
+    except OSError:                          # no process to spare: drawn one after the other
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        os.close(r)
+        os.close(w)
+        return None
+    if pid:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        os.close(w)
+        return pid, r
+    code = 0
+    try:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        os.close(r)
+        _write_pngs(pngs)
+    except OutputError as exc:
+        os.write(w, f"{exc.errno or 0}\n{exc.path}\n{exc.reason}".encode())
+        code = 4
+    except KeyboardInterrupt:
+        code = 130
+    except BaseException as exc:              # the parent reports it; never return into it
+        os.write(w, f"\n\n{type(exc).__name__}: {exc}".encode())
+        code = 1
+    finally:
+        os._exit(code)
+
+
+def _join_writer(pid: int, pipe: int, report: bool = True) -> None:
+    """Wait for the PNG writer and, with ``report``, raise its failure here."""
+    try:
+        with os.fdopen(pipe, "rb") as f:
+            message = f.read().decode(errors="replace")
+    finally:                                  # never a zombie, even on Ctrl-C
+        _, status = os.waitpid(pid, 0)
+    code = os.waitstatus_to_exitcode(status)
+    if code == 0 or not report:
+        return
+    if code == 130:
+        raise KeyboardInterrupt
+    number, path, why = (message.split("\n", 2) + ["", ""])[:3]
+    if path:
+        number = int(number or 0)
+        raise OutputError(path, OSError(number, why)) if number else OutputError(path, reason=why)
+    raise RuntimeError(f"the PNG writer failed: {why or f'exit code {code}'}")
+
+
+# --- attitude estimators (P4): the summary's attitude table and the roll/pitch/yaw pages ---
+
+
+def attitude_lines(metrics: RunMetrics, table) -> list[str]:
+    """The attitude table of the summary page (estimators with ``attitude`` metrics)."""
+    rows = []
+    for label, m in metrics.estimators.items():
+        a, r = m.attitude, m.resets
+        if not a or r is None:          # the attitude estimators (every one has Euler errors)
+            continue
+        f = lambda v: "/".join(f"{x:.3g}" for x in v)
+        rows.append([label, f(a.p95_deg), f(a.p95_about_run_mean_deg), f(a.rms_deg), f(a.max_abs_deg),
+                     f"{r.count} in {r.runs_with_reset} runs"])
+    if not rows:
+        return []
+    return ["", "attitude error after the settling time, roll/pitch/yaw in deg (95th percentile of |error|; "
+            "about each run's own mean; RMS; max) and the divergence monitor's resets:", ""] + \
+        table(["estimator", "p95", "p95 about run mean", "RMS", "max", "resets"], rows)
+
+
+def attitude_figure(histories: dict, settle_s: float, runs_plotted: int = 5, spans=()):
+    """Roll, pitch, yaw error of each attitude estimator: a few runs, the 95th percentile of
+    |error| over the runs, and a tick per reset of the divergence monitor (red, with its time
+    listed for the first run)."""
+    labels = [k for k, h in histories.items() if h.euler_err_rad is not None and h.resets is not None]
+    if not labels:
+        return []
+    plt = _plt()
+    figs = []
+    for label in labels:
+        h = histories[label]
+        e = np.degrees(h.euler_err_rad)
+        fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
+        for j, ax in enumerate(axes):
+            for r in range(min(runs_plotted, e.shape[0])):
+                ax.plot(h.t_s, e[r, :, j], lw=0.5, alpha=0.7)
+            p95 = np.nanpercentile(np.abs(e[:, :, j]), 95, axis=0)
+            ax.plot(h.t_s, p95, "k", lw=1.0, label="95th pct of |error| over the runs")
+            ax.plot(h.t_s, -p95, "k", lw=1.0)
+            after = h.t_s >= settle_s
+            lim = max(3 * float(np.nanpercentile(np.abs(e[:, after, j]), 99)), 0.05) if after.any() else None
+            if lim and np.isfinite(lim):
+                ax.set_ylim(-lim, lim)
+            _shade(ax, spans)
+            ax.set_ylabel(f"{EULER_AXES[j]} error, deg")
+            ax.grid(alpha=0.3)
+        times = [t for r in h.resets for t, _ in r]
+        for t in sorted(set(round(t, 1) for t in times)):
+            for ax in axes:
+                ax.axvline(t, color="r", lw=0.6, alpha=0.5)
+        first = ", ".join(f"{t:.0f}" for t, _ in h.resets[0]) if h.resets and h.resets[0] else "none"
+        title = f"{label}: attitude error; resets (red) {len(times)} in {sum(bool(r) for r in h.resets)} runs"
+        axes[0].set_title(title + f"; run 0 at {first} s" if times else title)
+        axes[0].legend(fontsize=7, loc="upper right")
+        axes[-1].set_xlabel("time, s")
+        fig.tight_layout()
+        figs.append((f"attitude_{_slug(label)}", fig))
+    return figs
+
+
+def _slug(label: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in label).strip("_").lower()

@@ -1,0 +1,100 @@
+"""The report of a ``navsim replay``: ``attitude.png`` and ``replay.pdf`` (summary + the plot)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from navsim.foundations.outputs import write_atomic
+from navsim.replay.metrics import AXES
+from navsim.replay.run import ReplayResult
+from navsim.report.pages import _plt, _table_lines, _text_page
+
+
+def attitude_figure(result: ReplayResult):
+    """Roll, pitch, yaw of the estimator and PX4 (left) and their difference (right); the
+    settling time shaded, the estimator's resets as vertical lines."""
+    plt = _plt()
+    r = result
+    est, px4, diff = np.degrees(r.euler_rad), np.degrees(r.euler_px4_rad), np.degrees(r.diff_rad)
+    fig, axes = plt.subplots(3, 2, figsize=(11.69, 8.27), sharex=True)
+    for j, name in enumerate(AXES):
+        left, right = axes[j]
+        left.plot(r.t_s, px4[:, j], color="0.3", lw=1.2, label="PX4 vehicle_attitude")
+        left.plot(r.t_s, est[:, j], color="C0", lw=1.0, label=r.estimator)
+        right.plot(r.t_s, diff[:, j], color="C3", lw=1.0)
+        right.axhline(0.0, color="0.5", lw=0.6)
+        left.set_ylabel(f"{name} (deg)")
+        right.set_ylabel(f"{name} difference (deg)")
+        for ax in (left, right):
+            ax.axvspan(r.t_s[0], r.settle_s, color="0.9", zorder=0)
+            for k, (t, cause) in enumerate(r.resets):
+                ax.axvline(t, color="C1", lw=0.8, ls="--", label="reset" if k == 0 else None)
+            ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8, loc="best")
+    if r.resets:
+        axes[0, 1].legend(fontsize=8, loc="best")
+    for ax in axes[-1]:
+        ax.set_xlabel("time from the first IMU sample (s)")
+    fig.suptitle(f"{r.log.path.name}: {r.estimator} against PX4's estimate (shaded: first "
+                 f"{r.settle_s:g} s, not scored)", fontsize=11)
+    fig.tight_layout()
+    return fig
+
+
+def summary_lines(metrics: dict, record: dict) -> list[str]:
+    """The summary page: the log, the replay's setup, the differences, the cost."""
+    log, a = metrics["log"], metrics["alignment"]
+    lines = [f"log           : {log['file']} ({log['duration_s']:.1f} s, {log.get('ver_hw')}, "
+             f"PX4 {str(log.get('ver_sw'))[:10]})",
+             f"rates         : IMU {log['imu_rate_hz']:.1f} Hz (grid {metrics['imu_grid_hz']:g} Hz), "
+             f"magnetometer {log['mag_rate_hz']:.1f} Hz, baro {log['baro_rate_hz']:.1f} Hz, "
+             f"PX4 attitude {log['px4_attitude_rate_hz']:.1f} Hz",
+             f"estimator     : {metrics['estimator']} {metrics['params']}, epochs every {metrics['period_s']:g} s",
+             f"alignment     : first {a['window_s']:g} s, roll/pitch/yaw "
+             + "/".join(f"{x:.2f}" for x in a["euler_deg"]) + " deg (PX4 "
+             + "/".join(f"{x:.2f}" for x in a["px4_euler_deg"]) + f"), field N/E/D "
+             + "/".join(f"{x * 1e6:.1f}" for x in a["field_n_T"]) + " uT",
+             f"declination   : {log['declination_deg']:.2f} deg ({log['declination_source']})",
+             f"scored        : after {metrics['settle_s']:g} s, {metrics['samples_scored']} samples "
+             f"(every {metrics['record_s']:g} s)",
+             f"navsim        : {record['versions']['navsim']} at git {record['git_revision']}", ""]
+    lines += _table_lines(*difference_table(metrics))
+    c = metrics["cost"]
+    lines += ["", f"cost: {c['us_per_imu_step_propagated']:.1f} us per IMU step propagated, {c['us_per_epoch']:.0f} us per "
+              f"epoch, {c['us_per_imu_cycle']:.0f} us per IMU cycle ({c['real_time_factor']:.0f}x real time)"]
+    if metrics["resets"]:
+        lines += ["", "resets:"] + [f"  {x['t_s']:8.2f} s  {x['cause']}" for x in metrics["resets"]]
+    if log["notes"]:
+        lines += ["", "notes:"] + [f"  - {n}" for n in log["notes"]]
+    return lines
+
+
+def difference_table(metrics: dict) -> tuple[list[str], list[list[str]]]:
+    """Headers and rows: |estimator - PX4| RMS, 95 %, max per axis (degrees)."""
+    rows = []
+    for ax in AXES:
+        d = metrics["attitude_diff_deg"][ax]
+        rows.append([ax] + (["-"] * 3 if d is None else [f"{d[k]:.3f}" for k in ("rms", "p95", "max")]))
+    return ["axis", "RMS deg", "95% deg", "max deg"], rows
+
+
+def write_replay_report(out: Path, result: ReplayResult, metrics: dict, record: dict) -> list[Path]:
+    """Write ``attitude.png`` and ``replay.pdf`` into ``out``; returns their paths."""
+    plt = _plt()
+    from matplotlib.backends.backend_pdf import PdfPages
+    out = Path(out)
+    fig = attitude_figure(result)
+    png = write_atomic(out / "attitude.png", lambda p: fig.savefig(p, dpi=110))
+    page = _text_page(f"navsim replay: {result.log.path.name}, {result.estimator}",
+                      summary_lines(metrics, record))
+    def write_pdf(path):
+        with PdfPages(path) as pdf:
+            pdf.savefig(page)
+            pdf.savefig(fig)
+            pdf.infodict()["Title"] = f"navsim replay {result.log.path.name}"
+    pdf_path = write_atomic(out / "replay.pdf", write_pdf)
+    plt.close(page)
+    plt.close(fig)
+    return [png, pdf_path]
