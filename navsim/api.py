@@ -27,8 +27,15 @@ import yaml
 
 from navsim.experiment import runner
 from navsim.experiment.chunkstore import ChunkStore
-from navsim.experiment.executors import _import_distributed
-from navsim.experiment.records import ARRAY_FIELDS, ARRAYS, EPOCH_ARRAYS, SIGMA_STATES, ChunkPart, EstimatorHistory
+from navsim.experiment.executors import import_distributed
+from navsim.experiment.records import (
+    ARRAY_FIELDS,
+    ARRAYS,
+    EPOCH_ARRAYS,
+    SIGMA_STATES,
+    ChunkPart,
+    EstimatorHistory,
+)
 from navsim.experiment.runner import (
     cached_flight,
     chunk_ranges,
@@ -220,7 +227,7 @@ def _open_loop(scenario, how: _How, folder) -> Result:
     truth, truth_path, cached = how.flight if how.flight is not None else cached_flight(scenario.flight)
     check_scenario(scenario, truth.duration_s)     # the duration flown, before any sensor
     if how.executor == "dask":               # before the store clears an earlier run's chunks
-        _import_distributed()
+        import_distributed()
     store = None
     if folder is not None:
         store = _open_store(folder.path, scenario, how)

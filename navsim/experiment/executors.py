@@ -24,7 +24,7 @@ class ExecutorError(NavsimError):
     exit_code = 2
 
 
-def _import_distributed():
+def import_distributed():
     try:
         import distributed
     except ImportError:
@@ -40,7 +40,7 @@ def _task(fn, truth, rest, runs):
 def open_client(workers: int, scheduler: str | None):
     """A ``distributed.Client`` on ``scheduler``, or on a new ``LocalCluster`` of ``workers``
     single-threaded processes; returns ``(client, cluster or None)``."""
-    distributed = _import_distributed()
+    distributed = import_distributed()
     if scheduler:
         try:
             return distributed.Client(scheduler, timeout="30s"), None
@@ -97,7 +97,7 @@ def run_chunks_dask(fn, chunks, truth, truth_path, rest: tuple, workers: int, sc
     parts, failed, interrupted = [], {}, False
     if not chunks:
         return parts, failed, interrupted
-    distributed = _import_distributed()
+    distributed = import_distributed()
     keep = on_part or parts.append
     client, cluster = open_client(workers, scheduler)
     try:

@@ -253,7 +253,7 @@ def _imu_gaps(t_s: np.ndarray, path, allow_damaged: bool, notes: list) -> list:
 
 
 def load_ulog(path, allow_damaged: bool = False) -> ReplayLog:
-    """Read and check a PX4 ULog for :func:`replay`.
+    """Read and check a PX4 ULog for :func:`navsim.replay.run.replay`.
 
     Parameters
     ----------

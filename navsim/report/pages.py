@@ -24,7 +24,7 @@ AXES = {"pos": ("position error", "m", ["north", "east", "down"]),
         "att": ("attitude error", "deg", ["about north (roll-like)", "about east", "about down (heading)"])}
 
 
-def _plt():
+def pyplot():
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -32,7 +32,7 @@ def _plt():
 
 
 def _text_page(title: str, lines: list[str]):
-    plt = _plt()
+    plt = pyplot()
     fig = plt.figure(figsize=(8.27, 11.69))
     fig.text(0.06, 0.96, title, fontsize=14, weight="bold", va="top")
     fig.text(0.04, 0.93, "\n".join(lines), fontsize=6.3, family="monospace", va="top")
@@ -134,7 +134,7 @@ def landmark_figure(histories: dict, metrics: RunMetrics, sightings, runs_plotte
     labels = [k for k, m in metrics.estimators.items() if m.landmarks and m.landmarks.fraction_within_3sigma > 0.5]
     if not labels or not sightings:
         return []
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
     for label in labels:
         h = histories[label]
@@ -208,7 +208,7 @@ def closed_loop_lines(m: dict | None) -> list[str]:
 def closed_loop_figures(loop: dict, reference, scenario):
     """Plan view of every run's true path with the landings and CEP circles, and the miss
     distances' distribution against the truth-guided flight."""
-    plt = _plt()
+    plt = pyplot()
     rtl = scenario.closed_loop.return_to_land
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11.5, 5.2), gridspec_kw={"width_ratios": [1.3, 1]})
     paths = loop["path_n_m"]
@@ -279,7 +279,7 @@ def _shade(ax, spans, label: bool = False):
 def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5, spans=()):
     """Per quantity: each axis against time, estimators overlaid: Monte Carlo RMS (solid),
     the filter's mean 3-sigma (dashed), a few runs (thin); the metric windows shaded."""
-    plt = _plt()
+    plt = pyplot()
     colors = plt.cm.tab10(np.arange(10))
     figs = []
     for key, (title, unit, names) in AXES.items():
@@ -327,7 +327,7 @@ def _symlog_if_needed(ax):
 
 
 def consistency_figure(histories: dict, spans=()):
-    plt = _plt()
+    plt = pyplot()
     filters = {k: h for k, h in histories.items() if h.nees is not None}
     if not filters:
         return []
@@ -368,7 +368,7 @@ def consistency_figure(histories: dict, spans=()):
 def height_figure(histories: dict, scenario, runs_plotted: int = 3):
     """Height error against time (P2's Figures 4-5): Monte Carlo RMS and a few runs per
     estimator, sensor fault windows shaded; a second panel zooms on the first metric window."""
-    plt = _plt()
+    plt = pyplot()
     faults = [(c.name, f) for c in scenario.sensors for f in c.faults if f.type != "interference"]
     if not faults and not scenario.windows:
         return []
@@ -412,7 +412,7 @@ def height_figure(histories: dict, scenario, runs_plotted: int = 3):
 
 
 def bias_figure(histories: dict, truth_bias: dict, runs_plotted: int = 3):
-    plt = _plt()
+    plt = pyplot()
     filters = {k: h for k, h in histories.items() if h.gyro_bias is not None}
     if not filters or not truth_bias:
         return []
@@ -443,7 +443,7 @@ def calibration_figures(calibration: dict, histories: dict, metrics: RunMetrics,
     """Per calibrated magnetometer: hard- and soft-iron errors against time (mean and 95th
     percentile over the runs, a few runs thin) with the mark of two full turns and the 2 %
     line, and the heading error of each estimator (Monte Carlo RMS) against time."""
-    plt = _plt()
+    plt = pyplot()
     colors = plt.cm.tab10(np.arange(10))
     figs = []
     for name, cal in calibration.items():
@@ -504,7 +504,7 @@ def write_report(folder: OutputFolder, scenario, truth, result, metrics: RunMetr
     in its manifest before it is written); returns the files written. ``loop`` and
     ``reference``: the per-run outcome of a closed-loop scenario and its truth-guided flight;
     ``sightings``: landmark sightings ``(name, start_s, end_s, sigma_m)``, shaded in green."""
-    plt = _plt()
+    plt = pyplot()
     runs_plotted = scenario.report.get("runs_plotted", 5)
     pages = [("summary", _text_page(f"navsim report: {scenario.name}", summary_lines(scenario, record, metrics)))]
     resolved = dict(scenario.raw)
@@ -662,7 +662,7 @@ def attitude_figure(histories: dict, settle_s: float, runs_plotted: int = 5, spa
     labels = [k for k, h in histories.items() if h.euler_err_rad is not None and h.resets is not None]
     if not labels:
         return []
-    plt = _plt()
+    plt = pyplot()
     figs = []
     for label in labels:
         h = histories[label]

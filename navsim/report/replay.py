@@ -9,13 +9,13 @@ import numpy as np
 from navsim.foundations.outputs import write_atomic
 from navsim.replay.metrics import AXES
 from navsim.replay.run import ReplayResult
-from navsim.report.pages import _plt, _table_lines, _text_page
+from navsim.report.pages import _table_lines, _text_page, pyplot
 
 
 def attitude_figure(result: ReplayResult):
     """Roll, pitch, yaw of the estimator and PX4 (left) and their difference (right); the
     settling time shaded, the estimator's resets as vertical lines."""
-    plt = _plt()
+    plt = pyplot()
     r = result
     est, px4, diff = np.degrees(r.euler_rad), np.degrees(r.euler_px4_rad), np.degrees(r.diff_rad)
     fig, axes = plt.subplots(3, 2, figsize=(11.69, 8.27), sharex=True)
@@ -82,7 +82,7 @@ def difference_table(metrics: dict) -> tuple[list[str], list[list[str]]]:
 
 def write_replay_report(out: Path, result: ReplayResult, metrics: dict, record: dict) -> list[Path]:
     """Write ``attitude.png`` and ``replay.pdf`` into ``out``; returns their paths."""
-    plt = _plt()
+    plt = pyplot()
     from matplotlib.backends.backend_pdf import PdfPages
     out = Path(out)
     fig = attitude_figure(result)

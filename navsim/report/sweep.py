@@ -6,13 +6,13 @@ import numpy as np
 
 from navsim.experiment.sweep import SweepResult
 from navsim.foundations.outputs import OutputFolder
-from navsim.report.pages import _plt
+from navsim.report.pages import pyplot
 
 
 def write_sweep_figure(folder: OutputFolder, sweep: SweepResult, title: str) -> None:
     """``sweep.png`` in ``folder``: each estimator's metric (vectors by their norm) over the
     points, on a log scale when the values are positive."""
-    plt = _plt()
+    plt = pyplot()
     rows = sweep.rows
     labels = list(rows[0][1]) if rows else []
     fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(rows)), 4.5))

@@ -40,7 +40,7 @@ def _build(tp, v):
         tp = next(a for a in args if a is not type(None))
         origin, args = typing.get_origin(tp), typing.get_args(tp)
     if isinstance(tp, type) and issubclass(tp, _Record):
-        return tp.from_dict(v)
+        return None if v == {} else tp.from_dict(v)       # {}: a section left empty (older files)
     if origin is dict:
         return {k: _build(args[1], x) for k, x in v.items()}
     if origin is list and args:
@@ -250,6 +250,12 @@ class EstimatorMetrics(_Record):
     landmarks: Landmarks | None = None
 
     _NULLS = ("convergence_s",)
+
+    def to_dict(self) -> dict:
+        out = super().to_dict()
+        if self.rms is None:                  # nothing scored: no convergence either
+            out.pop("convergence_s", None)
+        return out
 
     def get(self, path: str):
         """The value at a dotted path of :meth:`to_dict` (``rms.pos_m``); None if absent."""

@@ -27,6 +27,15 @@ def module_names() -> dict:
     return out
 
 
+def absolute(mod: str, path: Path, node: ast.ImportFrom) -> str:
+    """The absolute module a ``from ... import`` in module ``mod`` (file ``path``) names."""
+    if not node.level:
+        return node.module
+    package = mod.split(".") if path.name == "__init__.py" else mod.split(".")[:-1]
+    base = package[:len(package) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
 def import_graph() -> dict:
     """Module -> the navsim modules it imports anywhere in its file. ``from package import
     name`` counts as an import of the submodule ``package.name`` when there is one (else of the
@@ -37,11 +46,12 @@ def import_graph() -> dict:
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Import):
                 targets = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                subs = [f"{node.module}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and (node.module or node.level):
+                module = absolute(mod, path, node)
+                subs = [f"{module}.{a.name}" for a in node.names]
                 targets = [s for s in subs if s in mods]
                 if len(targets) < len(subs):
-                    targets.append(node.module)
+                    targets.append(module)
             else:
                 continue
             graph[mod].update(t for t in targets if t in mods and t != mod)
@@ -104,6 +114,9 @@ def test_imports_point_down_the_data_flow():
     graph = import_graph()
     assert set(module_names()) - {"navsim"} <= {m for m in graph if layer(m) < len(LAYERS) - 1}
     assert upward(graph) == []
+    # relative imports are resolved: one from sensors up to experiment is seen
+    node = ast.parse("from ..experiment import runner").body[0]
+    assert absolute("navsim.sensors.imu", PACKAGE / "sensors" / "imu.py", node) == "navsim.experiment"
     # the check sees an upward import
     assert upward({"navsim.sensors.imu": {"navsim.experiment.runner"}}) == [("navsim.sensors.imu", "navsim.experiment.runner")]
 

@@ -67,3 +67,17 @@ def test_nees_is_scored_after_the_settling_time():
     assert lo < settled.average < hi and settled.fraction_inside > 0.8
     assert settled.average_from_start > 100.0
     assert score(h, settle_s=0.0).nees.average > 100.0
+
+
+def test_metrics_of_no_counted_run_and_an_older_file_read_back():
+    rng = np.random.default_rng(5)
+    B, E = 3, 10
+    z = rng.normal(size=(B, E, 3))
+    h = EstimatorHistory("x", np.arange(E, dtype=float), z, z, z, None, None, {}, {}, np.ones(B, bool))
+    m = score(h, 0.0)
+    assert m.to_dict() == {"runs_counted": 0, "diverged_runs": 3, "settle_s": 0.0,
+                           "divergence": {"count": 3, "causes": {"not recorded": 3},
+                                          "runs": [{"run": r, "t_s": None, "cause": "not recorded"} for r in range(3)]}}
+    # an older metrics.json wrote an empty section as {}: read back as not scored
+    old = EstimatorMetrics.from_dict({**m.to_dict(), "landmarks": {}})
+    assert old.landmarks is None and old.divergence.runs[0].t_s is None
