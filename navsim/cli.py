@@ -43,7 +43,7 @@ from navsim.flight.track import available_tracks, load_track, nominal_duration_s
 from navsim.foundations.errors import FlightError, NavsimError, OutputError, UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.provenance import provenance
-from navsim.navigation.estimators import base
+from navsim.navigation.estimators import base, measurement_types
 from navsim.replay import load_ulog, replay, replay_metrics
 from navsim.report.pages import attitude_lines, closed_loop_lines, divergence_lines, sighting_lines
 from navsim.report.replay import difference_table, write_replay_report
@@ -368,6 +368,8 @@ def cmd_list(args) -> int:
     for name in available_tracks():
         tr = load_track(name)
         print(f"  {name:8s} ~{nominal_duration_s(tr):5.0f} s  {tr.description.strip()[:90]}")
+    print("estimators: " + ", ".join(base.available()))
+    print("measurements: " + ", ".join(measurement_types()))
     return 0
 
 

@@ -28,7 +28,7 @@ from navsim.foundations import earth
 from navsim.foundations.transform import rotation
 from navsim.navigation import kernels
 from navsim.navigation.strapdown import NavState, state_from_truth
-from navsim.sensors.base import run_generators
+from navsim.sensors.base import Measurements, run_generators
 
 log = logging.getLogger(__name__)
 ARCSEC = math.pi / 180 / 3600
@@ -175,6 +175,7 @@ class Driver:
         self.every = {label: max(1, int(round(est.period_s / dt_s))) for label, est in estimators.items()}
         self.rec = {label: _Recorder(label, runs) for label in estimators}
         self.i = 0          #: the IMU sample the estimators have reached
+        self._sensors, self._seen = None, {}
 
     def start(self, nav0: NavState, sigma0: dict, truth=None, k: int = 0) -> None:
         """Initialise every estimator at ``nav0`` with the 1-sigma blocks ``sigma0`` and record
@@ -206,10 +207,20 @@ class Driver:
             if (self.i // e + 1) * e < i:
                 raise ValueError(f"a block of samples {self.i + 1}-{i} crosses an epoch of '{label}'")
         due = [label for label, e in self.every.items() if i % e == 0]
+        seen = self._measurements(sensors) if due else {}
         for label, est in self.estimators.items():
-            self._advance(self.rec[label], est, dtheta_b, dv_b, label in due, t_s, sensors, truth, k)
+            self._advance(self.rec[label], est, dtheta_b, dv_b, label in due, t_s, seen, truth, k)
         self.i = i
         return due
+
+    def _measurements(self, sensors: dict) -> dict:
+        """What the estimators are handed of ``sensors``: their measurements, never the true
+        errors (:meth:`~navsim.sensors.base.SensorData.measurements`; the same objects while the
+        closed loop fills the same sensors in place)."""
+        if sensors is not self._sensors:
+            self._sensors = sensors
+            self._seen = {k: d if isinstance(d, Measurements) else d.measurements() for k, d in sensors.items()}
+        return self._seen
 
     def _advance(self, rec, est, dtheta_b, dv_b, is_epoch: bool, t_s: float, sensors, truth, k) -> None:
         """One block of one estimator: ``propagate``, and at its epoch ``epoch`` and the record;

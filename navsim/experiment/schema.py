@@ -12,63 +12,52 @@ from navsim.experiment.scenario import MAX_WORKERS, RATE_HZ
 from navsim.flight.environment import MAX_WIND_MPS
 from navsim.flight.track import MAX_AIRSPEED_MPS, SEGMENT_KEYS
 from navsim.foundations.config import PLAIN_NAME_PATTERN
-from navsim.navigation.estimators.attitude_config import CPF_GAINS, INITIAL_KEYS, SIGMA_KEYS
-from navsim.navigation.estimators.error_model import BLOCK_SIZES, PRESETS
+from navsim.foundations.jsonschema import NUM, POS, VEC3, merge_properties, obj
+from navsim.navigation.estimators import available as available_estimators, get as get_estimator
+from navsim.navigation.estimators.measurements import measurements_schema
 from navsim.sensors.base import FAULT_TYPES
 from navsim.sensors.catalog import available
 
-NUM = {"type": "number"}
-POS = {"type": "number", "exclusiveMinimum": 0}
 AIRSPEED = {"type": "number", "exclusiveMinimum": 0, "maximum": MAX_AIRSPEED_MPS}
 WIND = {"type": "number", "minimum": -MAX_WIND_MPS, "maximum": MAX_WIND_MPS}
-VEC3 = {"oneOf": [{"type": "number", "minimum": 0},
-                  {"type": "array", "items": {"type": "number", "minimum": 0}, "minItems": 3, "maxItems": 3}]}
 QUANTITY = {"description": "a number with its unit, e.g. '0.2 deg/h' or '[1, 1, 2] m'",
             "oneOf": [{"type": "string"}, {"type": "number"}, {"type": "array"},
                       {"type": "object", "properties": {"value": {}, "unit": {"type": "string"}},
                        "required": ["value", "unit"], "additionalProperties": False}]}
 
 
-def _obj(props: dict, required=(), description: str | None = None) -> dict:
-    out = {"type": "object", "properties": props, "additionalProperties": False}
-    if required:
-        out["required"] = list(required)
-    if description:
-        out["description"] = description
-    return out
-
-
 def _segment(kind: str) -> dict:
     props = {"type": {"const": kind}, "label": {"type": "string"}, "speed_mps": AIRSPEED}
     for key, (typ, _default, cons) in SEGMENT_KEYS[kind].items():
         props[key] = {"type": "string", "enum": list(cons["choices"])} if "choices" in cons else {"type": "number"}
-    return _obj(props, ["type"])
+    return obj(props, ["type"])
 
 
 def scenario_schema() -> dict:
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": "navsim scenario",
+        "$defs": {"measurement": measurements_schema()},
         "description": "One experiment: flight, sensors, estimators, Monte Carlo, metrics, report.",
-        **_obj({
+        **obj({
             "name": {"type": "string", "pattern": PLAIN_NAME_PATTERN,
                      "description": "a plain name: it names the output folder reports/<name>"},
             "description": {"type": "string"}, "aircraft": {"type": "string"},
             "track": _track(), "environment": _environment(),
-            "flight": _obj({"rate_hz": {"type": "number", "minimum": RATE_HZ[0], "maximum": RATE_HZ[1]}}),
+            "flight": obj({"rate_hz": {"type": "number", "minimum": RATE_HZ[0], "maximum": RATE_HZ[1]}}),
             "sensors": {"type": "object", "additionalProperties": _sensor()},
             "estimators": {"type": "array", "minItems": 1, "items": _estimator()},
-            "initial_errors": _obj({"pos_m": VEC3, "vel_mps": VEC3, "att_arcsec": VEC3, "fixed": {"type": "boolean"}}),
-            "montecarlo": _obj({"runs": {"type": "integer", "minimum": 1}, "seed": {"type": "integer", "minimum": 0},
+            "initial_errors": obj({"pos_m": VEC3, "vel_mps": VEC3, "att_arcsec": VEC3, "fixed": {"type": "boolean"}}),
+            "montecarlo": obj({"runs": {"type": "integer", "minimum": 1}, "seed": {"type": "integer", "minimum": 0},
                                 "workers": {"type": "integer", "minimum": 1, "maximum": MAX_WORKERS}}),
-            "metrics": _obj({"settle_s": {"type": "number", "minimum": 0},
-                             "windows": {"type": "array", "items": _obj(
+            "metrics": obj({"settle_s": {"type": "number", "minimum": 0},
+                             "windows": {"type": "array", "items": obj(
                                  {"name": {"type": "string"}, "start_s": NUM, "end_s": NUM},
                                  ["name", "start_s", "end_s"])}}),
-            "reference": _obj({"source": {"type": "string"}, "note": {"type": "string"},
+            "reference": obj({"source": {"type": "string"}, "note": {"type": "string"},
                                "values": {"type": "object", "additionalProperties": {"type": "object"}}},
                               ["source", "values"]),
-            "report": _obj({"formats": {"type": "array", "items": {"enum": ["pdf", "png"]}},
+            "report": obj({"formats": {"type": "array", "items": {"enum": ["pdf", "png"]}},
                             "runs_plotted": {"type": "integer", "minimum": 0}}),
             "closed_loop": _closed_loop(),
         }, ["track"]),
@@ -77,7 +66,7 @@ def scenario_schema() -> dict:
 
 def _start() -> dict:
     """``track.start``: air, launch or ground."""
-    start = _obj({"type": {"enum": ["air", "launch", "ground"]}, "lat_deg": NUM, "lon_deg": NUM, "alt_m": NUM,
+    start = obj({"type": {"enum": ["air", "launch", "ground"]}, "lat_deg": NUM, "lon_deg": NUM, "alt_m": NUM,
                   "speed_mps": AIRSPEED, "heading_deg": NUM, "pitch_deg": NUM, "roll_deg": NUM, "launcher_height_m": POS,
                   "booster_thrust_n": NUM, "booster_time_s": NUM},
                  ["lat_deg", "lon_deg", "alt_m"])
@@ -90,7 +79,7 @@ def _start() -> dict:
 def _track() -> dict:
     """``track``: a shipped track's name or a start and segments."""
     return {"oneOf": [{"type": "string", "description": "a shipped track: p0, p3, p2_sea"},
-                      _obj({"name": {"type": "string"}, "description": {"type": "string"}, "start": _start(),
+                      obj({"name": {"type": "string"}, "description": {"type": "string"}, "start": _start(),
                             "segments": {"type": "array", "minItems": 1,
                                          "items": {"oneOf": [_segment(k) for k in SEGMENT_KEYS]}}},
                            ["start", "segments"])]}
@@ -98,11 +87,11 @@ def _track() -> dict:
 
 def _environment() -> dict:
     """``environment``: wind, turbulence, surface height."""
-    return _obj({
-        "wind": _obj({"speed_mps": {**WIND, "minimum": 0}, "from_deg": NUM,
+    return obj({
+        "wind": obj({"speed_mps": {**WIND, "minimum": 0}, "from_deg": NUM,
                       "force": {"type": "integer", "minimum": 0, "maximum": 6},
                       "north_mps": WIND, "east_mps": WIND, "down_mps": WIND}),
-        "turbulence": _obj({"type": {"enum": ["none", "milspec", "tustin"]}, "wind20_mps": NUM,
+        "turbulence": obj({"type": {"enum": ["none", "milspec", "tustin"]}, "wind20_mps": NUM,
                             "severity": {"type": "integer", "minimum": 0, "maximum": 7},
                             "seed": {"type": "integer", "minimum": 0}}),
         "surface_m": NUM})
@@ -110,71 +99,31 @@ def _environment() -> dict:
 
 def _sensor() -> dict:
     """One entry of ``sensors``: catalog model, overrides, error sources off, faults."""
-    fault = _obj({"type": {"enum": list(FAULT_TYPES)}, "start_s": NUM, "end_s": NUM,
+    fault = obj({"type": {"enum": list(FAULT_TYPES)}, "start_s": NUM, "end_s": NUM,
                   "value_m": {"oneOf": [NUM, {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3}]},
                   "factor": NUM, "source": {"type": "array"}, "radius_m": POS, "lost_m": NUM,
                   "hard_iron_uT": {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3},
                   "ramp_s": {"type": "number", "minimum": 0}}, ["type"])
-    return _obj({"model": {"enum": sorted(available())}, "override": {"type": "object"},
+    return obj({"model": {"enum": sorted(available())}, "override": {"type": "object"},
                  "off": {"oneOf": [{"const": "all"}, {"type": "array", "items": {"type": "string"}}]},
                  "faults": {"type": "array", "items": fault}}, ["model"])
 
 
-def _measurement() -> dict:
-    """One measurement of an estimator."""
-    return _obj({"type": {"enum": ["gnss_position", "gnss_horizontal", "velocity", "height", "landmark",
-                                   "mag_heading"]},
-                 "sensor": {"type": "string"}, "ratio": {"type": "number", "minimum": 0},
-                 "sigma_m": VEC3, "sigma_mps": VEC3, "field": {"type": "string"},
-                 "baro_state": {"type": "boolean"}, "offset_m": NUM,
-                 "sigma_deg": POS, "noise_uT": {"type": "number", "minimum": 0},
-                 "forgetting": {"type": "number", "exclusiveMinimum": 0, "maximum": 1},
-                 "min_turns": {"type": "number", "minimum": 0}}, ["type", "sensor"])
-
-
 def _estimator() -> dict:
-    """One entry of ``estimators`` (the keys of every type; the type's own checks are navsim's)."""
-    measurement = _measurement()
-    return {"type": "object", "required": ["label", "type"],
-            "properties": {"label": {"type": "string"}, "type": {"type": "string"},
-                           "states": {"oneOf": [{"enum": list(PRESETS)},
-                                                {"type": "array", "items": {"enum": list(BLOCK_SIZES)}}]},
-                           "period_s": POS, "discretization": {"enum": ["series", "van_loan"]},
-                           "series_order": {"type": "integer", "minimum": 1},
-                           "noise": {"oneOf": [
-                               _obj({"imu": {"type": "string"}, "override": {"type": "object"}}, ["imu"]),
-                               _obj({k: {"type": "number", "minimum": 0} for k in (
-                                   "gyro_rad_s_rthz", "accel_mps2_rthz", "gyro_bias_walk", "accel_bias_walk",
-                                   "mag_bias_walk_uT", "field_walk_uT", "quat_stab")})]},
-                           "baro": {"oneOf": [_obj({"sigma_m": POS, "tau_s": POS}),
-                                              {"type": "string", "description": "cpf_ekf: the baro sensor"}]},
-                           **_attitude_keys(),
-                           "measurements": {"type": "array", "items": measurement},
-                           "height": {"type": "object", "description": "p2_dynamic_height: sensors "
-                                      "gps, radar, baro and the fusion's numbers"},
-                           "adaptive": _obj({"enabled": {"type": "boolean"},
-                                             "window": {"type": "integer", "minimum": 1},
-                                             "floor": POS}),
-                           "sage_husa": _obj({"forgetting": {"type": "number", "exclusiveMinimum": 0,
-                                                             "exclusiveMaximum": 1},
-                                              "floor": POS, "sensors": {"type": "array", "items": {"type": "string"}}}),
-                           "locals": {"type": "array", "items": _obj({
-                               "name": {"type": "string"}, "beta": POS,
-                               "measurements": {"type": "array", "items": measurement}}, ["name", "beta", "measurements"])},
-                           "master_beta": NUM, "reset": {"type": "boolean"},
-                           "isolation": _obj({"window": {"type": "number", "minimum": 1}, "p": POS}),
-                           "fuzzy": _obj({"window": {"type": "number", "minimum": 1},
-                                          "rules": {"type": "array", "items": {
-                                              "type": "array", "items": POS, "minItems": 2, "maxItems": 2}},
-                                          "sensors": {"type": "array", "items": {"type": "string"}}})}}
+    """One entry of ``estimators``: the keys every registered type declares (its ``SCHEMA``;
+    a key two types read differently takes either form); the type's own checks are navsim's."""
+    props = {"label": {"type": "string"}, "type": {"enum": available_estimators()}}
+    for name in available_estimators():
+        merge_properties(props, getattr(get_estimator(name), "SCHEMA", {}))
+    return {"type": "object", "required": ["label", "type"], "properties": props}
 
 
 def _closed_loop() -> dict:
     """``closed_loop``: navigation in the loop, P1's return to land."""
-    return _obj({
+    return obj({
         "fly_on": {"type": "string", "description": "estimator label the autopilot flies on, or truth"},
         "time_limit_s": {"type": "number", "exclusiveMinimum": 0},
-        "return_to_land": _obj({
+        "return_to_land": obj({
             "gnss": {"type": "string"}, "lost_s": {"type": "number", "exclusiveMinimum": 0},
             "lat_deg": NUM, "lon_deg": NUM, "north_m": NUM, "east_m": NUM, "alt_m": NUM,
             "acceptance_m": {"type": "number", "minimum": 0},
@@ -185,16 +134,3 @@ def _closed_loop() -> dict:
 
 def schema_text() -> str:
     return json.dumps(scenario_schema(), indent=2) + "\n"
-
-
-def _attitude_keys() -> dict:
-    """Keys of P4's ``cpf`` / ``cpf_ekf`` entries (see navsim.navigation.estimators.attitude_config)."""
-    nonneg = {"type": "number", "minimum": 0}
-    return {"mag": {"type": "string"}, "gnss": {"type": "string"}, "imu": {"type": "string"},
-            "field_uT": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
-            "sigma": _obj({k: nonneg for k in SIGMA_KEYS}), "initial": _obj({k: nonneg for k in INITIAL_KEYS}),
-            "reset_sigma": _obj({k: nonneg for k in INITIAL_KEYS}),
-            "monitor": {"enum": ["cpf", "innovation", "none"]}, "threshold_rad2": {"type": "number", "exclusiveMinimum": 0},
-            "cycles": {"type": "integer", "minimum": 1}, "innovation_ratio": {"type": "number", "minimum": 1},
-            "cpf_trust_s": {"type": "number", "exclusiveMinimum": 0},
-            "cpf": _obj({k: nonneg for k in CPF_GAINS})}

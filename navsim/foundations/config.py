@@ -244,6 +244,41 @@ class Node:
             raise self.error(f"is {value}", name, expected=f"a value <= {maximum}")
         return value
 
+    def vector(self, name: str, default: Any = _MISSING, minimum: float = 0.0) -> list[float]:
+        """Read ``name`` as three numbers above ``minimum``: ``[x, y, z]``, or one number for all
+        three."""
+        self._seen.add(name)
+        v = self.data.get(name)
+        if v is None:
+            if default is _MISSING:
+                raise self.error("is missing", name, expected="a number or [x, y, z]")
+            v = default
+        ok = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > minimum
+        if ok(v):
+            return [float(v)] * 3
+        if isinstance(v, list) and len(v) == 3 and all(ok(x) for x in v):
+            return [float(x) for x in v]
+        above = "a positive number" if minimum == 0 else f"a number above {minimum:g}"
+        raise self.error(f"is {v!r}", name, expected=f"{above} or a list of three")
+
+    def items(self, name: str, minimum: int, expected: str, hint: str | None = None) -> list:
+        """Read ``name`` as a list of at least ``minimum`` entries."""
+        self._seen.add(name)
+        raw = self.data.get(name)
+        if not isinstance(raw, list) or len(raw) < minimum:
+            raise self.error("is missing or too short", name, expected=expected, hint=hint)
+        return raw
+
+    def section(self, name: str, read) -> dict:
+        """``read(node)`` of the optional mapping ``name``, its keys checked (unknown ones
+        reported); ``{}`` without it."""
+        sub = self.child(name, None)
+        if sub is None:
+            return {}
+        out = read(sub)
+        sub.done()
+        return out
+
     def child(self, name: str, default: Any = _MISSING) -> "Node | None":
         """The mapping under ``name`` as a :class:`Node`."""
         self._seen.add(name)

@@ -49,11 +49,11 @@ class SensorConfig:
 
 
 #: the measurement values of each sensor kind (``SensorData.values`` keys), whatever its spec
-_OUTPUTS = {"imu": ("omega_ib_b_rps", "f_b_mps2", "dtheta_b_rad", "dv_b_mps"), "baro": ("h_baro_m", "p_static_pa"),
-            "gnss": ("lat_rad", "lon_rad", "h_m", "fix_type", "h_acc_m", "v_acc_m", "s_acc_mps"),
-            "ads": ("p_static_pa", "p_total_pa", "temp_k", "h_pressure_m", "cas_mps", "tas_mps", "vel_n_mps"),
-            "radar_altimeter": ("h_agl_m",), "magnetometer": ("mag_b_T",),
-            "camera": ("lat_rad", "lon_rad", "h_m", "landmark")}
+OUTPUTS = {"imu": ("omega_ib_b_rps", "f_b_mps2", "dtheta_b_rad", "dv_b_mps"), "baro": ("h_baro_m", "p_static_pa"),
+           "gnss": ("lat_rad", "lon_rad", "h_m", "fix_type", "h_acc_m", "v_acc_m", "s_acc_mps"),
+           "ads": ("p_static_pa", "p_total_pa", "temp_k", "h_pressure_m", "cas_mps", "tas_mps", "vel_n_mps"),
+           "radar_altimeter": ("h_agl_m",), "magnetometer": ("mag_b_T",),
+           "camera": ("lat_rad", "lon_rad", "h_m", "landmark")}
 #: the values a ``velocity`` measurement may read (NED velocity) and a ``height`` measurement
 VELOCITY_FIELDS = ("vel_n_mps",)
 HEIGHT_FIELDS = ("h_m", "h_baro_m", "h_pressure_m", "h_agl_m")
@@ -61,7 +61,7 @@ HEIGHT_FIELDS = ("h_m", "h_baro_m", "h_pressure_m", "h_agl_m")
 
 def output_fields(spec) -> tuple[str, ...]:
     """The ``values`` keys the emulator of ``spec`` produces (:func:`emulate`)."""
-    out = _OUTPUTS[specs.kind_of(spec)]
+    out = OUTPUTS[specs.kind_of(spec)]
     if getattr(spec, "velocity_output", False):
         out += ("vel_n_mps",)
     if getattr(spec, "velocity_axis", None) == "air":

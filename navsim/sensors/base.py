@@ -14,6 +14,22 @@ from navsim.foundations.config import Node
 from navsim.foundations.errors import ScenarioError
 
 
+@dataclass(frozen=True)
+class Measurements:
+    """What an estimator sees of a sensor: its samples, never their true errors.
+
+    ``t_s`` ``(M,)`` the sample times; ``values[key]`` ``(B, M, ...)`` in SI (each kind's keys:
+    :data:`navsim.sensors.OUTPUTS`); ``valid`` ``(B, M)`` False where the sensor gave no output;
+    ``meta`` what is known on board (rates, the landmarks' coordinates, the date)."""
+
+    name: str
+    kind: str
+    t_s: np.ndarray
+    values: dict
+    valid: np.ndarray
+    meta: dict
+
+
 @dataclass
 class SensorData:
     """Measurements of one sensor for ``B`` runs at ``M`` sample times.
@@ -35,6 +51,10 @@ class SensorData:
     @property
     def runs(self) -> int:
         return self.valid.shape[0]
+
+    def measurements(self) -> Measurements:
+        """The samples without their true errors (what an estimator is handed)."""
+        return Measurements(self.name, self.kind, self.t_s, self.values, self.valid, self.meta)
 
     def run(self, i: int) -> "SensorData":
         """Run ``i`` as a batch of one."""

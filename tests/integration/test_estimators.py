@@ -1,20 +1,23 @@
 """Strapdown and error-state Kalman filter against the truth: physics and statistics."""
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from navsim.experiment.driver import ARCSEC, InitialErrors, run_batch
+from navsim.experiment.driver import ARCSEC, Driver, InitialErrors, perturbed_start, run_batch
 from navsim.flight import fly, load_track
 from navsim.flight.truth import Truth
-from navsim.navigation.estimators import available, get
+from navsim.navigation.estimators import available, factory, get, measurement_types
 from navsim.navigation.estimators.error_model import PRESETS, Layout
 from navsim.navigation.estimators.eskf import ErrorStateKF
 from navsim.navigation.estimators.measurements import GnssPosition, Velocity
 from navsim.navigation.estimators.sins import FreeInertial
 from navsim.sensors import SensorConfig, emulate, load_spec
+from navsim.sensors.base import Measurements
+from navsim.sensors.imu import ImuStream
 from navsim.sensors.specs import AxisErrors, ImuSpec
 
 P3_INITIAL = InitialErrors(pos_m=np.array([5.0, 5.0, 3.0]), vel_mps=np.array([0.2, 0.2, 0.1]),
@@ -215,3 +218,47 @@ def test_ideal_increments_follow_the_truth_from_the_first_step(track, environmen
     # a velocity step of up to 0.04 m/s at the first step of a trim in wind remains (JSBSim's
     # translational history at its initial conditions is not the recorded one)
     assert np.abs(h.vel_err_mps).max() < 0.05
+
+
+#: shipped scenarios that together fly every built-in estimator and measurement type
+EVERY_TYPE = ("p0_bd_sins_ads", "p0_two_step", "p1_emi_powerline", "p1_federated", "p1_gnss_denied_landmarks",
+              "p1_mag_calibration", "p2_sea_height", "p4_circle")
+
+
+def test_no_estimator_reads_the_truth(shipped_flight):
+    """Every registered built-in estimator, on every measurement type, runs on sensors handed
+    as measurements only (no ``errors`` to read), and the driver hands those even when it is
+    given the emulators' data with its true errors."""
+    estimators, measurements = set(), set()
+    for name in EVERY_TYPE:
+        scenario, truth, _ = shipped_flight(name)
+        truth = truth.slice(0, 30 * 100 + 1)
+        # on the first 30 s (the faults are later)
+        seen = {c.name: emulate(truth, dataclasses.replace(c, faults=()), 1, [0, 1]).measurements()
+                for c in scenario.sensors if c.kind != "imu"}
+        assert all(not hasattr(m, "errors") for m in seen.values())
+        imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
+        imu = ImuStream(truth, imu_cfg.spec, 1, [0, 1], name=imu_cfg.name)
+        hist = run_batch(truth, imu, seen, {e.label: factory.build(e) for e in scenario.estimators},
+                         scenario.initial, 1, [0, 1])
+        for label, h in hist.items():
+            assert h.divergence == [None, None], (name, label, h.divergence)
+        estimators |= {e.type for e in scenario.estimators}
+        measurements |= {m["type"] for e in scenario.estimators for g in
+                         [e.params.get("measurements", [])] + [loc["measurements"] for loc in
+                                                               e.params.get("federated", {}).get("locals", [])]
+                         for m in g}
+    built_in = {n for n in available() if get(n).__module__.startswith("navsim.")}
+    assert estimators == built_in and measurements == set(measurement_types())
+    # given the emulators' data (with the truth in ``errors``), the driver hands measurements
+
+    class Spy(FreeInertial):
+        def epoch(self, t, sensors):
+            self.kinds = {type(d) for d in sensors.values()}
+            return []
+    spy = Spy()
+    driver = Driver({"spy": spy}, 0.01)
+    data = emulate(truth, next(c for c in scenario.sensors if c.kind == "magnetometer"), 1, [0])
+    driver.start(perturbed_start(truth, np.zeros((1, 9)), 0), {"att": np.ones(3), "vel": np.ones(3), "pos": np.ones(3)})
+    driver.advance(np.zeros((1, 100, 3)), np.zeros((1, 100, 3)), 1.0, {"mag": data})
+    assert data.errors and spy.kinds == {Measurements}

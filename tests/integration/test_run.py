@@ -172,7 +172,7 @@ CORPUS = [
     (lambda s: s.replace("states: p3_15", "states: [att, vel, pos, gyro_bais]"), "estimators[1].states", "gyro_bias"),
     (lambda s: s.replace("sensor: gps, sigma_m", "sensor: gnss, sigma_m"), "estimators[1].measurements[0].sensor", "did you mean 'gps'"),
     (lambda s: s.replace("sigma_m: [2, 2, 1]", "sigma_m: [2, 2]"), "estimators[1].measurements[0].sigma_m", "a list of three"),
-    (lambda s: s.replace("{type: velocity, sensor", "{type: speed, sensor"), "estimators[1].measurements[1].type", "one of gnss_position"),
+    (lambda s: s.replace("{type: velocity, sensor", "{type: speed, sensor"), "estimators[1].measurements[1].type", "one of gnss_horizontal, gnss_position"),
     (lambda s: s.replace("noise: {imu: p3_imu}", "noise: {imu: p3_gps}"), "estimators[1].noise.imu", "not an IMU"),
     (lambda s: s.replace("- {label: free SINS, type: sins}", "- {label: KF, type: sins}"), "estimators[1].label", "used twice"),
     (lambda s: s.replace("montecarlo: {runs: 6, seed: 4}", "montecarlo: {runs: 0, seed: 4}"), "montecarlo.runs", ">= 1"),
@@ -186,7 +186,7 @@ CORPUS = [
     (lambda s: s.replace("environment", "x") + "environment: {wind: {force: 13}}\n", "environment.wind.force", "one of 0"),
     (lambda s: s.replace("{type: velocity, sensor: gps, sigma_mps: 0.05}",
                          "{type: mag_heading, sensor: gps, sigma_deg: 1, noise_uT: 0.2}"),
-     "estimators[1].measurements[1].sensor", "not a magnetometer"),
+     "estimators[1].measurements[1].sensor", "is a gnss (expected a magnetometer sensor)"),
     (lambda s: s.replace("{type: velocity, sensor: gps, sigma_mps: 0.05}",
                          "{type: mag_heading, sensor: mag, sigma_deg: 1, noise_uT: 0.2, forgetting: 1.5}")
      .replace("sensors:\n  imu: {model: p3_imu}\n", "sensors:\n  imu: {model: p3_imu}\n  mag: {model: p1_magnetometer}\n"),

@@ -124,20 +124,6 @@ class LocalFrame:
         return np.stack([1.0 / self.k_n, 1.0 / self.k_e, -np.ones_like(self.k_n)], -1)
 
 
-def sample(sensors: dict, name: str | None, t: float, t_prev: float | None = None, tol: float = 1e-6):
-    """``(data, j)`` of sensor ``name``'s latest sample in ``(t_prev, t]`` (at ``t`` exactly if
-    ``t_prev`` is None), or ``(None, None)``. A window lets a filter whose epochs do not fall on
-    the sensor's sample times (a replayed log) still see every sensor period."""
-    data = sensors.get(name) if name else None
-    if data is None:
-        return None, None
-    j = int(np.searchsorted(data.t_s, t + tol, side="right")) - 1
-    lo = t - tol if t_prev is None else t_prev + tol
-    if j >= 0 and data.t_s[j] >= lo:
-        return data, j
-    return None, None
-
-
 def reference_field_uT(frame: LocalFrame, mag_data, field_n_T=None) -> np.ndarray:
     """The Earth field ``(B, 3)`` NED in uT a filter assumes: ``field_n_T`` if given, else the
     WMM at the start point on the magnetometer's date (the on-board model)."""
@@ -166,4 +152,4 @@ def rotate_n_to_b(q: np.ndarray, v_n: np.ndarray) -> np.ndarray:
 
 __all__ = ["UT", "LocalFrame", "euler_distance2", "normalize", "omega_matrix", "psi",
            "quat_multiply", "quat_of_dcm", "reference_field_uT", "rk4_step", "rotate_b_to_n", "rotate_n_to_b",
-           "sample", "xi"]
+           "xi"]

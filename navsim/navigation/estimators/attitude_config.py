@@ -20,8 +20,7 @@ import math
 import numpy as np
 
 from navsim.foundations.config import Node, close_match
-from navsim.navigation.estimators.cpf import ComplementaryFilter
-from navsim.navigation.estimators.cpf_ekf import CpfEkf
+from navsim.foundations.jsonschema import POS, obj
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.specs import ImuSpec
 
@@ -32,6 +31,29 @@ SIGMA_KEYS = {"mag_uT": "mag_sigma_uT", "gnss_pos_m": "gnss_pos_sigma_m", "gnss_
               "baro_m": "baro_sigma_m", "no_gnss_mps": "no_gnss_sigma_mps"}
 INITIAL_KEYS = ("gyro_bias_dps", "accel_z_bias_mps2", "mag_bias_uT", "field_uT")
 VIBRATION_INTERVAL_S = 0.2
+#: the divergence monitor's settings of an entry, their types and bounds (defaults: the CPF-EKF's
+#: constructor's, P4's numbers)
+MONITOR = (("monitor", str, {"choices": ("cpf", "innovation", "none")}),
+           ("threshold_rad2", float, {"exclusive_minimum": 0.0}), ("cycles", int, {"minimum": 1}),
+           ("innovation_ratio", float, {"minimum": 1.0}), ("cpf_trust_s", float, {"exclusive_minimum": 0.0}))
+MONITOR_KEYS = tuple(k for k, _, _ in MONITOR)
+
+
+def attitude_schema(kind: str) -> dict:
+    """The JSON Schema of a ``cpf`` / ``cpf_ekf`` entry's keys."""
+    nonneg = {"type": "number", "minimum": 0}
+    out = {"mag": {"type": "string"}, "gnss": {"type": "string"}, "baro": {"type": "string"}, "period_s": POS,
+           "field_uT": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
+           "cpf": obj({k: nonneg for k in CPF_GAINS})}
+    if kind == "cpf":
+        return out
+    return {**out, "imu": {"type": "string"}, "sigma": obj({k: nonneg for k in SIGMA_KEYS}),
+            "initial": obj({k: nonneg for k in INITIAL_KEYS}), "reset_sigma": obj({k: nonneg for k in INITIAL_KEYS}),
+            "noise": obj({k: nonneg for k in ("gyro_rad_s_rthz", "accel_mps2_rthz", "gyro_bias_walk", "accel_bias_walk",
+                                              "mag_bias_walk_uT", "field_walk_uT", "quat_stab")}),
+            "monitor": {"enum": ["cpf", "innovation", "none"]}, "threshold_rad2": POS,
+            "cycles": {"type": "integer", "minimum": 1}, "innovation_ratio": {"type": "number", "minimum": 1},
+            "cpf_trust_s": POS}
 
 
 def _sensor(node: Node, role: str, sensors: dict, required: bool):
@@ -95,11 +117,11 @@ def attitude_params(node: Node, kind: str, sensors: dict) -> dict:
     p["reset_sigma"] = _floats(node, "reset_sigma", INITIAL_KEYS)
     p["noise"] = _floats(node, "noise", ("gyro_rad_s_rthz", "accel_mps2_rthz", "gyro_bias_walk",
                                          "accel_bias_walk", "mag_bias_walk_uT", "field_walk_uT", "quat_stab"))
-    p["monitor"] = node.get("monitor", str, "cpf", choices=("cpf", "innovation", "none"))
-    p["threshold_rad2"] = node.get("threshold_rad2", float, 0.27416, exclusive_minimum=0.0)
-    p["cycles"] = node.get("cycles", int, 3, minimum=1)
-    p["innovation_ratio"] = node.get("innovation_ratio", float, 3.0, minimum=1.0)
-    p["cpf_trust_s"] = node.get("cpf_trust_s", float, 30.0, exclusive_minimum=0.0)
+    # the monitor's settings, when given (their defaults are the CPF-EKF's own: P4's)
+    for key, kind, bounds in MONITOR:
+        value = node.get(key, kind, None, **bounds)
+        if value is not None:
+            p[key] = value
     return p
 
 
@@ -124,11 +146,10 @@ def imu_noise(spec) -> tuple[dict, dict]:
     return noise, initial
 
 
-def build_attitude(kind: str, params: dict):
-    """A ``cpf`` / ``cpf_ekf`` object from validated parameters."""
+def cpf_ekf_options(params: dict) -> dict:
+    """The CPF-EKF's constructor arguments from :func:`attitude_params`' parameters (the IMU
+    entry's noise model, overridden by ``noise`` and ``initial``)."""
     p = dict(params)
-    if kind == "cpf":
-        return ComplementaryFilter(**p)
     noise, initial = {}, {}
     if p.get("imu"):
         noise, initial = imu_noise(load_spec(p["imu"]))
@@ -136,8 +157,6 @@ def build_attitude(kind: str, params: dict):
     initial.update(p.get("initial", {}))          # gyro_bias_dps (if given) wins over the spec's
     sigma = {SIGMA_KEYS[k]: v for k, v in p.get("sigma", {}).items()}
     reset = dict(p.get("reset_sigma", {}))
-    return CpfEkf(mag=p["mag"], gnss=p.get("gnss"), baro=p.get("baro"), period_s=p["period_s"], noise=noise,
-                  initial=initial, monitor=p.get("monitor", "cpf"), threshold_rad2=p.get("threshold_rad2", 0.27416),
-                  cycles=p.get("cycles", 3), innovation_ratio=p.get("innovation_ratio", 3.0), cpf=p.get("cpf"),
-                  field_n_T=p.get("field_n_T"), reset_sigma=reset, cpf_trust_s=p.get("cpf_trust_s", 30.0),
-                  **sigma)
+    monitor = {k: p[k] for k in MONITOR_KEYS if k in p}
+    return dict(mag=p["mag"], gnss=p.get("gnss"), baro=p.get("baro"), period_s=p["period_s"], noise=noise,
+                initial=initial, cpf=p.get("cpf"), field_n_T=p.get("field_n_T"), reset_sigma=reset, **monitor, **sigma)

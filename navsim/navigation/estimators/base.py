@@ -1,20 +1,34 @@
-"""The estimator plug-in contract and the registry.
+"""The estimator contract (:class:`Estimator`) and the registry.
 
-An estimator works on a batch of ``B`` Monte Carlo runs at once and is driven by the runner:
+An estimator works on a batch of ``B`` Monte Carlo runs at once and is driven by
+:class:`navsim.experiment.driver.Driver` (the same in Monte Carlo, in the closed loop and in log
+replay):
 
-1. ``initialize(nav0, P0_sigma)``: the initial navigation state ``NavState`` (``B`` runs,
+1. ``initialize(nav0, sigma0)``: the initial navigation state :class:`NavState` (``B`` runs,
    already carrying the drawn initial errors) and its 1-sigma uncertainty per error-state
-   block;
+   block, ``(3,)`` arrays: ``sigma0["att"]`` rad about N, E, D, ``["vel"]`` m/s NED, ``["pos"]``
+   latitude and longitude in rad and height in m; plus what the optional ``noise_sigma0()``
+   returned;
 2. ``propagate(dtheta_b, dv_b, dt)``: the IMU increments (rad, m/s) of the ``K`` intervals of
    ``dt`` seconds since the last call, ``(B, K, 3)``. Open-loop Monte Carlo hands the whole
    block between two of the estimator's epochs (or less: a block never crosses an epoch of any
    estimator of the scenario), the closed loop one interval at a time; the result must not
    depend on how the intervals are cut into blocks;
-3. ``epoch(t, sensors)`` at every filter epoch (``period_s``): predict the covariance and
-   ``correct`` with each measurement model whose sensor has a sample at ``t``; returns the
-   :class:`Innovation` of each correction (innovations and NIS, for consistency scoring);
-4. ``solution()``: the current :class:`Solution` (navigation state, covariance of the
-   position, velocity and attitude errors, bias estimates).
+3. ``epoch(t, sensors)`` every ``period_s`` (rounded to a whole number of IMU intervals, at least
+   one): ``sensors`` maps each sensor name to its :class:`~navsim.sensors.base.Measurements`
+   (``t_s``, ``values``, ``valid``, ``meta``: the measurements only, never the true errors);
+   returns the :class:`Innovation` of each correction (innovations and NIS, for the consistency
+   scores);
+4. ``solution()``: the current :class:`Solution` (navigation state, covariance of the attitude,
+   velocity and position errors, bias estimates; ``extra["diverged"]`` ``(B,)`` bool flags runs
+   the estimator knows to be lost, ``extra["resets"]`` lists per run its reset events
+   ``(t_s, cause)``).
+
+Optional hooks: ``noise_sigma0() -> dict``, initial 1-sigma of the estimator's own states (merged
+into ``sigma0``); the classmethods ``parse(node, sensors) -> dict`` (its scenario entry checked,
+plain values: :class:`~navsim.foundations.config.Node`, ``sensors`` the scenario's sensor name ->
+kind) and ``from_params(params)`` (the object); without them the entry's keys are the
+constructor's keyword arguments.
 
 Estimators are registered by name with :func:`register`; third-party packages add theirs
 through the ``navsim.estimators`` entry-point group (``name = "package.module:Class"``), loaded
@@ -25,6 +39,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from importlib import metadata
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -54,13 +69,66 @@ class Solution:
     extra: dict = field(default_factory=dict)
 
 
+@runtime_checkable
+class Estimator(Protocol):
+    """What the driver calls (see the module's docstring for the contract and the hooks)."""
+
+    period_s: float
+
+    def initialize(self, nav0: NavState, sigma0: dict) -> None: ...
+
+    def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None: ...
+
+    def epoch(self, t: float, sensors: dict) -> list: ...
+
+    def solution(self) -> Solution: ...
+
+
+#: the methods an :class:`Estimator` class must have
+METHODS = ("initialize", "propagate", "epoch", "solution")
+
+
+def sample(sensors: dict, name: str | None, t: float, t_prev: float | None = None, tol: float = 1e-6):
+    """``(data, j)``: sensor ``name``'s sample ``j`` at the epoch ``t`` (within ``tol``) or, with
+    ``t_prev``, its latest sample in ``(t_prev, t]``; ``(None, None)`` without one (or without
+    that sensor). The window lets a filter whose epochs do not fall on the sensor's sample times
+    (a replayed log) still see every sensor period; the exact time is what the ES-KF family uses."""
+    data = sensors.get(name) if name else None
+    if data is None:
+        return None, None
+    j = int(np.searchsorted(data.t_s, t + tol, side="right")) - 1
+    lo = t - tol if t_prev is None else t_prev + tol
+    if j >= 0 and data.t_s[j] >= lo:
+        return data, j
+    return None, None
+
+
 def register(name: str):
-    """Class decorator: make an estimator available by ``name``."""
+    """Class decorator: make an estimator available by ``name`` (its class checked for the
+    :class:`Estimator` methods)."""
     def deco(cls):
+        missing = [m for m in METHODS if not callable(getattr(cls, m, None))]
+        if missing:
+            raise TypeError(f"estimator '{name}': {cls.__name__} has no {', '.join(missing)}()")
         _REGISTRY[name] = cls
         cls.type_name = name
         return cls
     return deco
+
+
+def parse_params(cls: type, node, sensors: dict) -> dict:
+    """An estimator's parameters from its scenario entry (``node``, the ``label`` and ``type``
+    read): its ``parse``, or the entry's other keys as keyword arguments."""
+    if hasattr(cls, "parse"):
+        return cls.parse(node, sensors)
+    params = {k: v for k, v in node.data.items() if k not in ("label", "type")}
+    node._seen.update(params)
+    return params
+
+
+def build(cls: type, params: dict):
+    """An estimator object from what :func:`parse_params` returned."""
+    return cls.from_params(params) if hasattr(cls, "from_params") else cls(**params)
 
 
 def available() -> list[str]:

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.foundations.config import Node
 from navsim.foundations.transform import cross, dcm_from_quat, euler_from_quat
 from navsim.navigation.estimators.attitude import (
     UT,
@@ -35,9 +36,9 @@ from navsim.navigation.estimators.attitude import (
     reference_field_uT,
     rk4_step,
     rotate_n_to_b,
-    sample,
 )
-from navsim.navigation.estimators.base import Innovation, Solution, register
+from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema
+from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.strapdown import NavState
 
 
@@ -148,11 +149,19 @@ class ComplementaryFilter:
     ``P_nav`` is None.
     """
 
+    SCHEMA = attitude_schema("cpf")
+
     def __init__(self, mag: str | None = "mag", gnss: str | None = None, baro: str | None = None,
                  period_s: float = 0.1, field_n_T=None, cpf: dict | None = None):
         self.mag, self.gnss, self.baro, self.period_s = mag, gnss, baro, period_s
         self.field_n_T = field_n_T
         self.core = ComplementaryCore(**(cpf or {}))
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        """``mag``, ``gnss``, ``baro`` (sensor names), ``period_s``, ``field_uT``, ``cpf`` (gains):
+        :func:`~navsim.navigation.estimators.attitude_config.attitude_params`."""
+        return attitude_params(node, "cpf", sensors)
 
     def initialize(self, nav0: NavState, sigma0: dict | None = None) -> None:
         self.frame = LocalFrame(nav0.lat_rad.copy(), nav0.lon_rad.copy(), nav0.h_m.copy())

@@ -62,6 +62,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.foundations.config import Node
 from navsim.foundations.transform import cross, dcm_from_quat, euler_from_quat, skew
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.attitude import (
@@ -77,10 +78,10 @@ from navsim.navigation.estimators.attitude import (
     rk4_step,
     rotate_b_to_n,
     rotate_n_to_b,
-    sample,
     xi,
 )
-from navsim.navigation.estimators.base import Innovation, Solution, register
+from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema, cpf_ekf_options
+from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.estimators.cpf import ComplementaryCore
 from navsim.navigation.strapdown import NavState
 
@@ -154,6 +155,8 @@ class CpfEkf:
         The reference Earth field (NED, T); None: the WMM at the start.
     """
 
+    SCHEMA = attitude_schema("cpf_ekf")
+
     def __init__(self, mag: str | None = "mag", gnss: str | None = "gps", baro: str | None = None,
                  period_s: float = 0.1, noise: dict | None = None, initial: dict | None = None,
                  mag_sigma_uT: float = 0.5, gnss_pos_sigma_m: float = 2.0, gnss_vel_sigma_mps: float = 0.1,
@@ -178,6 +181,17 @@ class CpfEkf:
         self.reset_sigma = {k: v for k, v in _merge_known("reset_sigma", dict(INITIAL_DEFAULTS),
                                                           reset_sigma).items() if k in _dps(reset_sigma or {})}
         self.cpf_trust_s = cpf_trust_s
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        """The CPF's keys plus ``imu`` (the filter's noise model, a catalog entry), ``sigma``,
+        ``initial``, ``reset_sigma``, ``noise``, ``monitor`` and its thresholds:
+        :func:`~navsim.navigation.estimators.attitude_config.attitude_params`."""
+        return attitude_params(node, "cpf_ekf", sensors)
+
+    @classmethod
+    def from_params(cls, params: dict):
+        return cls(**cpf_ekf_options(params))
 
     # --- contract -----------------------------------------------------------------------------
     def initialize(self, nav0: NavState, sigma0: dict) -> None:

@@ -16,17 +16,27 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.foundations.config import Node, close_match
+from navsim.foundations.jsonschema import MEASUREMENT, POS, obj
 from navsim.foundations.transform import rotation
 from navsim.navigation.estimators import kalman
-from navsim.navigation.estimators.base import Innovation, Solution, register
+from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.estimators.error_model import (
+    BLOCK_SIZES,
+    PRESETS,
     Layout,
     ProcessNoise,
     add_markov_decay,
     process_noise,
     system_matrix,
 )
+from navsim.navigation.estimators.measurements import (
+    build_measurements,
+    parse_measurements,
+)
 from navsim.navigation.strapdown import BlockStrapdown, NavState
+from navsim.sensors.catalog import load_spec
+from navsim.sensors.specs import ImuSpec
 
 FEEDBACK = ("att", "vel", "pos", "gyro_bias", "accel_bias", "gyro_markov", "accel_markov")
 
@@ -51,6 +61,14 @@ class ErrorStateKF:
         work: :data:`SERIES_MIN_ORDER`);
         ``van_loan``: exact, about six times slower.
     """
+
+    #: the JSON Schema of its entry's keys (beside ``label`` and ``type``), for ``navsim schema``
+    SCHEMA = {"states": {"oneOf": [{"enum": list(PRESETS)}, {"type": "array", "items": {"enum": list(BLOCK_SIZES)}}]},
+              "period_s": POS, "discretization": {"enum": ["series", "van_loan"]},
+              "series_order": {"type": "integer", "minimum": 1},
+              "noise": obj({"imu": {"type": "string"}, "override": {"type": "object"}}, ["imu"]),
+              "baro": obj({"sigma_m": POS, "tau_s": POS}),
+              "measurements": {"type": "array", "items": MEASUREMENT}}
 
     def __init__(self, layout: Layout, noise: ProcessNoise, measurements, period_s: float = 1.0,
                  discretization: str = "series", initial_sigma: dict | None = None,
@@ -79,6 +97,27 @@ class ErrorStateKF:
                  "gyro_markov": g.markov_sigma, "accel_markov": a.markov_sigma,
                  "baro": np.array([baro_sigma_m])}
         return cls(layout, noise, measurements, initial_sigma=sigma, **kw)
+
+    # --- from a scenario entry -----------------------------------------------------------------
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        """The entry's ``states`` (a preset or a list of blocks), ``period_s`` (1 s),
+        ``discretization`` (``series``), ``series_order`` (6), ``noise: {imu, override}`` (the
+        filter's own IMU model, a catalog entry), ``baro: {sigma_m, tau_s}`` (the baro Markov
+        state's model) and ``measurements`` (registered models); a subclass adds its keys."""
+        return {**filter_params(node), "measurements": parse_measurements(node, sensors)}
+
+    @classmethod
+    def from_params(cls, params: dict):
+        """The filter of :meth:`parse`'s parameters, with :meth:`options`."""
+        p = params
+        return cls.from_imu_spec(Layout(tuple(p["states"])), load_spec(p["noise"]["imu"], p["noise"]["override"]),
+                                 build_measurements(p["measurements"]), **filter_options(p), **cls.options(p))
+
+    @classmethod
+    def options(cls, params: dict) -> dict:
+        """A subclass's own constructor arguments from its parameters (none here)."""
+        return {}
 
     def noise_sigma0(self) -> dict:
         """Initial 1-sigma of the sensor-error blocks (the runner adds the navigation blocks)."""
@@ -110,8 +149,8 @@ class ErrorStateKF:
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self.predict()
-        taken = [(m, sensors[m.sensor], j) for m in self.measurements if m.sensor in sensors
-                 for j in [_sample_index(sensors[m.sensor].t_s, t)] if j is not None]
+        taken = [(m, data, j) for m in self.measurements for data, j in [sample(sensors, m.sensor, t)]
+                 if j is not None]
         if self._own_corrections():         # all of them in one compiled call
             models = [m.model(self.sd.state, self.layout, data, j) for m, data, j in taken]
             u = kalman.update_in_place(self.x, self.P, models)
@@ -231,8 +270,60 @@ def _covariance_series_fits(F: np.ndarray, T: float, order: int) -> bool:
     return order >= SERIES_MIN_ORDER and float(np.abs(np.diagonal(F, axis1=1, axis2=2)).max()) * T <= SERIES_MAX_DECAY
 
 
-def _sample_index(t_s: np.ndarray, t: float, tol: float = 1e-6):
-    j = int(np.searchsorted(t_s, t - tol))
-    if j < len(t_s) and abs(t_s[j] - t) <= tol:
-        return j
-    return None
+def _states(node: Node) -> list:
+    """``states``: a preset name or a list of blocks, each once."""
+    states = node.data.get("states", "p3_15")
+    node._seen.add("states")
+    if isinstance(states, str):
+        if states not in PRESETS:
+            raise node.error(f"is '{states}'", "states", expected="a preset (" + ", ".join(PRESETS)
+                             + ") or a list of blocks", hint=close_match(states, PRESETS))
+        return list(PRESETS[states])
+    if not (isinstance(states, list) and all(isinstance(b, str) for b in states)):
+        raise node.error("is malformed", "states", expected="a preset name or a list of blocks")
+    twice = sorted({b for b in states if states.count(b) > 1})
+    if twice:
+        raise node.error(f"names the block '{twice[0]}' twice", "states", expected="each state block once")
+    for b in states:
+        if b not in BLOCK_SIZES:
+            raise node.error(f"block '{b}' is unknown", "states", expected=", ".join(BLOCK_SIZES),
+                             hint=close_match(b, BLOCK_SIZES))
+    try:
+        Layout(tuple(states))
+    except ValueError as exc:
+        raise node.error(str(exc), "states") from None
+    return states
+
+
+def filter_params(node: Node) -> dict:
+    """The keys every filter of the ES-KF family reads (all of :meth:`ErrorStateKF.parse` but
+    the measurements)."""
+    blocks = _states(node)
+    params = {"states": blocks,
+              "period_s": node.get("period_s", float, 1.0, exclusive_minimum=0.0),
+              "discretization": node.get("discretization", str, "series", choices=("series", "van_loan")),
+              "series_order": node.get("series_order", int, 6, minimum=1, maximum=12)}
+    noise = node.child("noise")
+    imu = noise.get("imu", str)
+    override = noise.child("override", None)
+    spec = load_spec(imu, override.data if override else None, (), node.file, noise.path)
+    if not isinstance(spec, ImuSpec):
+        raise noise.error(f"'{imu}' is not an IMU", "imu", expected="an imu catalog entry")
+    noise.done()
+    params["noise"] = {"imu": imu, "override": override.data if override else None}
+    baro = node.child("baro", None)
+    params["baro"] = {"sigma_m": 0.0, "tau_s": 300.0}
+    if baro is not None:
+        params["baro"] = {"sigma_m": baro.get("sigma_m", float, exclusive_minimum=0.0),
+                          "tau_s": baro.get("tau_s", float, 300.0, exclusive_minimum=0.0)}
+        baro.done()
+    if "baro" in blocks and params["baro"]["sigma_m"] == 0.0:
+        raise node.error("the 'baro' state needs its model", "baro", expected="{sigma_m: ..., tau_s: ...}")
+    return params
+
+
+def filter_options(params: dict) -> dict:
+    """The constructor arguments of :func:`filter_params`' values but the states and the IMU."""
+    return dict(baro_sigma_m=params["baro"]["sigma_m"], baro_tau_s=params["baro"]["tau_s"],
+                period_s=params["period_s"], discretization=params["discretization"],
+                series_order=params["series_order"])

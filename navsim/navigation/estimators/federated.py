@@ -33,9 +33,17 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
+from navsim.foundations.config import Node
+from navsim.foundations.jsonschema import MEASUREMENT, NUM, POS, obj
 from navsim.navigation.estimators import kalman
-from navsim.navigation.estimators.base import Innovation, Solution, register
-from navsim.navigation.estimators.eskf import ErrorStateKF, _sample_index
+from navsim.navigation.estimators.base import Innovation, Solution, register, sample
+from navsim.navigation.estimators.error_model import Layout
+from navsim.navigation.estimators.eskf import ErrorStateKF, filter_options, filter_params
+from navsim.navigation.estimators.measurements import (
+    build_measurements,
+    parse_measurements,
+)
+from navsim.sensors.catalog import load_spec
 
 
 def _information(P):
@@ -53,6 +61,13 @@ class FederatedKF(ErrorStateKF):
     of ``{"name", "beta", "measurements"}``, ``master_beta``, ``reset`` and ``isolation``
     (``None`` or ``{"window": epochs, "p": quantile}``)."""
 
+    SCHEMA = {**{k: v for k, v in ErrorStateKF.SCHEMA.items() if k != "measurements"},
+              "locals": {"type": "array", "items": obj({"name": {"type": "string"}, "beta": POS,
+                                                        "measurements": {"type": "array", "items": MEASUREMENT}},
+                                                       ["name", "beta", "measurements"])},
+              "master_beta": NUM, "reset": {"type": "boolean"},
+              "isolation": obj({"window": {"type": "number", "minimum": 1}, "p": POS})}
+
     def __init__(self, layout, noise, locals_, master_beta: float = 0.0, reset: bool = True,
                  isolation: dict | None = None, **kw):
         all_models = [m for loc in locals_ for m in loc["measurements"]]
@@ -66,6 +81,42 @@ class FederatedKF(ErrorStateKF):
         self.master_beta = float(master_beta)
         self.reset = reset
         self.isolation = isolation
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        """The ES-KF's keys with ``locals: [{name, beta, measurements}, ...]`` (at least two)
+        instead of ``measurements``, ``master_beta`` (0), ``reset`` (true) and ``isolation:
+        {window: 5, p: 0.999}`` (optional); the betas and ``master_beta`` add up to 1."""
+        raw = node.items("locals", 2, "a list of at least two {name, beta, measurements}",
+                         "e.g. [{name: SINS/GPS, beta: 0.5, measurements: [...]}, ...]")
+        params, locals_ = filter_params(node), []
+        for i, item in enumerate(raw):
+            loc = Node(item, node.key(f"locals[{i}]"), node.file)
+            locals_.append({"name": loc.get("name", str), "beta": loc.get("beta", float, exclusive_minimum=0.0),
+                            "measurements": parse_measurements(loc, sensors)})
+            loc.done()
+        master = node.get("master_beta", float, 0.0, minimum=0.0)
+        total = sum(o["beta"] for o in locals_) + master
+        if abs(total - 1.0) > 1e-6:
+            raise node.error(f"the information-sharing factors add up to {total:g}", "locals",
+                             expected="sum of the locals' beta + master_beta = 1")
+        iso = node.child("isolation", None)
+        isolation = None
+        if iso is not None:
+            isolation = {"window": iso.get("window", float, 5.0, minimum=1.0),
+                         "p": iso.get("p", float, 0.999, exclusive_minimum=0.5, maximum=0.999999)}
+            iso.done()
+        params["federated"] = {"locals": locals_, "master_beta": master, "reset": node.get("reset", bool, True),
+                               "isolation": isolation}
+        return params
+
+    @classmethod
+    def from_params(cls, params: dict):
+        p, f = params, params["federated"]
+        locals_ = [{**loc, "measurements": build_measurements(loc["measurements"])} for loc in f["locals"]]
+        return cls.from_imu_spec(Layout(tuple(p["states"])), load_spec(p["noise"]["imu"], p["noise"]["override"]),
+                                 locals_, master_beta=f["master_beta"], reset=f["reset"], isolation=f["isolation"],
+                                 **filter_options(p))
 
     def initialize(self, nav0, sigma0):
         super().initialize(nav0, sigma0)
@@ -96,8 +147,7 @@ class FederatedKF(ErrorStateKF):
         for i, loc in enumerate(self.locals):
             nis_sum, dof = np.zeros(self.x.shape[0]), np.zeros(self.x.shape[0])
             for m in loc["measurements"]:
-                data = sensors.get(m.sensor)
-                j = None if data is None else _sample_index(data.t_s, t)
+                data, j = sample(sensors, m.sensor, t)
                 if j is None:
                     continue
                 z, H, R, valid = m.model(self.sd.state, self.layout, data, j)

@@ -28,9 +28,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.foundations.config import Node
+from navsim.foundations.jsonschema import POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import register
 from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.measurements import sensor_names
 
 DEFAULT_RULES = ((1.0, 1.0), (2.0, 4.0), (3.0, 9.0), (5.0, 25.0), (10.0, 100.0))
 
@@ -63,6 +66,11 @@ class FuzzyAdaptiveKF(ErrorStateKF):
     s >= 0), ``window`` (epochs of the NIS smoothing) and ``sensors`` (the sensor names whose
     models are adapted; None: all)."""
 
+    SCHEMA = {**ErrorStateKF.SCHEMA, "fuzzy": obj({
+        "window": {"type": "number", "minimum": 1},
+        "rules": {"type": "array", "items": {"type": "array", "items": POS, "minItems": 2, "maxItems": 2}},
+        "sensors": {"type": "array", "items": {"type": "string"}}})}
+
     def __init__(self, layout, noise, measurements, rules=DEFAULT_RULES, window: float = 3.0,
                  sensors=None, **kw):
         super().__init__(layout, noise, measurements, **kw)
@@ -71,6 +79,20 @@ class FuzzyAdaptiveKF(ErrorStateKF):
             raise ValueError("rules: expected [[r, s], ...] with r increasing and s > 0")
         self.rules, self.window = rules, float(window)
         self.sensors = None if sensors is None else set(sensors)
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        """The ES-KF's keys plus ``fuzzy: {window: 3, rules: [[1, 1], [2, 4], ...], sensors: [...]}``
+        (optional; ``sensors``: the sensors whose R is adapted, default all)."""
+        def read(sub: Node) -> dict:
+            out = {"window": sub.get("window", float, 3.0, minimum=1.0), "sensors": sensor_names(sub, "sensors", sensors)}
+            rules = _rules(sub)
+            return out if rules is None else {**out, "rules": rules}
+        return {**super().parse(node, sensors), "adaptive": node.section("fuzzy", read)}
+
+    @classmethod
+    def options(cls, params: dict) -> dict:
+        return params["adaptive"]
 
     def initialize(self, nav0, sigma0):
         super().initialize(nav0, sigma0)
@@ -93,3 +115,19 @@ class FuzzyAdaptiveKF(ErrorStateKF):
         s = infer(np.sqrt(m), self.rules)
         self.scale[key] = s
         return s[:, None, None] * R
+
+
+def _rules(node: Node) -> list | None:
+    """``rules``: ``[[r, s], ...]`` with r increasing and s > 0, or None."""
+    node._seen.add("rules")
+    rules = node.data.get("rules")
+    if rules is None:
+        return None
+    ok = (isinstance(rules, list) and rules and all(
+        isinstance(r, list) and len(r) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in r)
+        for r in rules))
+    arr = np.asarray(rules, float) if ok else None
+    if not ok or np.any(np.diff(arr[:, 0]) <= 0) or np.any(arr[:, 1] <= 0):
+        raise node.error(f"is {rules!r}", "rules", expected="a list of [r, s] pairs with r increasing and s > 0",
+                         hint="e.g. [[1, 1], [2, 4], [3, 9], [5, 25], [10, 100]]")
+    return [[float(a), float(b)] for a, b in rules]

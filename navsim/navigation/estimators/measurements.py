@@ -1,9 +1,35 @@
-"""Measurement models: each returns the batched linearised model ``z, H, R, valid`` of one
-sensor sample for the error-state filter.
+"""Measurement models, registered by name: each returns the batched linearised model
+``z, H, R, valid`` of one sensor sample for the error-state filter.
 
 ``z`` is the measured error, *INS minus sensor*, so that ``z = H dx + v`` with ``dx`` the error
 state (estimate minus truth) and ``v ~ N(0, R)``. Each model knows which sensor it reads
 (``sensor``) and the noise it assumes (its own numbers, not the sensor's truth spec).
+
+A model type is a dataclass registered with :func:`measurement` that declares, once, how it is
+read from a scenario's ``measurements:`` entry (``parse``: its keys checked, plain values in the
+scenario's units), its keys' JSON Schema (``SCHEMA``, for ``navsim schema``), and how it is built
+from what ``parse`` returned (``from_entry``). :func:`parse_measurements` reads a list of entries,
+:func:`build_measurements` builds them; the estimator factory, the scenario schema and ``navsim
+list`` take the types from the registry (:func:`measurement_types`), and a plug-in registers its
+own the same way::
+
+    @measurement("range_to_beacon")
+    @dataclass
+    class RangeToBeacon:
+        sensor: str
+        sigma_m: float
+        SCHEMA = {"sigma_m": {"type": "number", "exclusiveMinimum": 0}}
+
+        @classmethod
+        def parse(cls, node, sensors):
+            return {"sigma_m": node.get("sigma_m", float, exclusive_minimum=0.0)}
+
+        @classmethod
+        def from_entry(cls, entry):
+            return cls(entry["sensor"], entry["sigma_m"])
+
+        def model(self, nav, layout, data, j):
+            ...   # z (B, m), H (B, m, n), R (B, m, m), valid (B,)
 """
 
 from __future__ import annotations
@@ -14,22 +40,113 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.foundations import earth
+from navsim.foundations.config import Node, close_match
+from navsim.foundations.jsonschema import NUM, POS, VEC3, merge_properties
 from navsim.navigation import magcal
 from navsim.navigation.estimators.error_model import Layout
 from navsim.navigation.strapdown import NavState
+
+_MEASUREMENTS: dict[str, type] = {}
+
+
+def measurement(name: str):
+    """Class decorator: register a measurement model type as ``name`` (the ``type`` of its
+    scenario entries; also the model's ``name``, the first part of its NIS key)."""
+    def deco(cls):
+        for attr in ("parse", "from_entry", "model"):
+            if not callable(getattr(cls, attr, None)):
+                raise TypeError(f"measurement '{name}': {cls.__name__} has no {attr}()")
+        cls.name = name
+        _MEASUREMENTS[name] = cls
+        return cls
+    return deco
+
+
+def measurement_types() -> list[str]:
+    """The registered measurement types, sorted."""
+    return sorted(_MEASUREMENTS)
+
+
+def measurement_class(name: str) -> type:
+    return _MEASUREMENTS[name]
+
+
+def sensor_of_kind(node: Node, sensors: dict, kind: str) -> str:
+    """The entry's ``sensor``, checked to be a sensor of ``kind`` (``sensors``: name -> kind)."""
+    name = node.data["sensor"]
+    if sensors[name] != kind:
+        raise node.error(f"'{name}' is a {sensors[name]}", "sensor", expected=f"a {kind} sensor",
+                         hint=close_match(name, [k for k, v in sensors.items() if v == kind]))
+    return name
+
+
+def sensor_names(node: Node, key: str, sensors: dict) -> list | None:
+    """The optional list of sensor names under ``key``, each a sensor of the scenario."""
+    node._seen.add(key)
+    names = node.data.get(key)
+    if names is None:
+        return None
+    if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+        raise node.error(f"is {names!r}", key, expected="a list of sensor names")
+    for n in names:
+        if n not in sensors:
+            raise node.error(f"'{n}' is not a sensor of this scenario", key, expected="one of " + ", ".join(sensors),
+                             hint=close_match(n, sensors))
+    return list(names)
+
+
+def parse_measurements(node: Node, sensors: dict, key: str = "measurements") -> list:
+    """The list under ``key`` of an estimator's entry, each checked by its type's ``parse``:
+    ``{"type", "sensor", **its values}``. ``sensors``: the scenario's sensor name -> kind."""
+    raw = node.items(key, 1, "a list of measurement models", "e.g. [{type: gnss_position, sensor: gps, sigma_m: [2, 2, 1]}]")
+    out = []
+    for j, item in enumerate(raw):
+        m = Node(item, node.key(f"{key}[{j}]"), node.file)
+        mtype = m.get("type", str, choices=measurement_types())
+        sensor = m.get("sensor", str)
+        if sensor not in sensors:
+            raise m.error(f"'{sensor}' is not a sensor of this scenario", "sensor",
+                          expected="one of " + ", ".join(sensors) if sensors else "a sensor under 'sensors'",
+                          hint=close_match(sensor, sensors))
+        entry = {"type": mtype, "sensor": sensor, **measurement_class(mtype).parse(m, sensors)}
+        m.done()
+        out.append(entry)
+    return out
+
+
+def build_measurements(entries: list) -> list:
+    """The measurement models of entries read by :func:`parse_measurements`."""
+    return [measurement_class(e["type"]).from_entry(e) for e in entries]
+
+
+def measurements_schema() -> dict:
+    """The JSON Schema of a ``measurements`` entry: every registered type's keys."""
+    props = {"type": {"enum": measurement_types()}, "sensor": {"type": "string"}}
+    for name in measurement_types():
+        merge_properties(props, measurement_class(name).SCHEMA)
+    return {"type": "object", "properties": props, "additionalProperties": False, "required": ["type", "sensor"]}
 
 
 def _diag(sig2: np.ndarray, B: int) -> np.ndarray:
     return np.broadcast_to(np.diag(sig2), (B, sig2.size, sig2.size)).copy()
 
 
+@measurement("gnss_position")
 @dataclass
 class GnssPosition:
     """INS minus GNSS position, NED metres: ``[dL (R_M+h), dlambda (R_N+h) cos L, -dh]``."""
 
     sensor: str
     sigma_m: np.ndarray                  #: (3,) NED
-    name: str = "gnss_position"
+    SCHEMA = {"sigma_m": VEC3}
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        return {"sigma_m": node.vector("sigma_m")}
+
+    @classmethod
+    def from_entry(cls, entry: dict):
+        return cls(entry["sensor"], np.array(entry["sigma_m"]))
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         B = nav.lat_rad.shape[0]
@@ -45,6 +162,7 @@ class GnssPosition:
         return z, H, _diag(np.asarray(self.sigma_m, float) ** 2, B), data.valid[:, j]
 
 
+@measurement("velocity")
 @dataclass
 class Velocity:
     """INS minus a NED velocity (GNSS, or P0's ADS ground velocity), m/s."""
@@ -52,7 +170,15 @@ class Velocity:
     sensor: str
     sigma_mps: np.ndarray                #: (3,)
     field: str = "vel_n_mps"
-    name: str = "velocity"
+    SCHEMA = {"sigma_mps": VEC3, "field": {"type": "string"}}
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        return {"sigma_mps": node.vector("sigma_mps"), "field": node.get("field", str, "vel_n_mps")}
+
+    @classmethod
+    def from_entry(cls, entry: dict):
+        return cls(entry["sensor"], np.array(entry["sigma_mps"]), field=entry["field"])
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         B = nav.lat_rad.shape[0]
@@ -63,6 +189,7 @@ class Velocity:
         return z, H, _diag(np.asarray(self.sigma_mps, float) ** 2, B), data.valid[:, j]
 
 
+@measurement("height")
 @dataclass
 class Height:
     """INS height minus a measured height (barometer, ADS pressure altitude, a fused height),
@@ -75,7 +202,20 @@ class Height:
     field: str = "h_m"
     use_baro_state: bool = False
     offset_m: float = 0.0
-    name: str = "height"
+    SCHEMA = {"sigma_m": VEC3, "field": {"type": "string"}, "baro_state": {"type": "boolean"}, "offset_m": NUM}
+    #: the default ``field`` by the sensor's kind
+    FIELDS = {"radar_altimeter": "h_agl_m", "baro": "h_baro_m", "ads": "h_pressure_m"}
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        return {"sigma_m": node.get("sigma_m", float, exclusive_minimum=0.0),
+                "field": node.get("field", str, cls.FIELDS.get(sensors[node.data["sensor"]], "h_m")),
+                "baro_state": node.get("baro_state", bool, False), "offset_m": node.get("offset_m", float, 0.0)}
+
+    @classmethod
+    def from_entry(cls, entry: dict):
+        return cls(entry["sensor"], entry["sigma_m"], field=entry["field"], use_baro_state=entry["baro_state"],
+                   offset_m=entry["offset_m"])
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         B = nav.lat_rad.shape[0]
@@ -87,9 +227,7 @@ class Height:
         return z, H, np.full((B, 1, 1), float(self.sigma_m) ** 2), data.valid[:, j]
 
 
-MODELS = {"gnss_position": GnssPosition, "velocity": Velocity, "height": Height}
-
-
+@measurement("gnss_horizontal")
 @dataclass
 class GnssHorizontal:
     """INS minus GNSS horizontal position, NED metres: ``[dL (R_M+h), dlambda (R_N+h) cos L]``
@@ -97,16 +235,22 @@ class GnssHorizontal:
 
     sensor: str
     sigma_m: np.ndarray                  #: (2,) north, east
-    name: str = "gnss_horizontal"
+    SCHEMA = {"sigma_m": VEC3}
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        return {"sigma_m": node.vector("sigma_m")[:2]}
+
+    @classmethod
+    def from_entry(cls, entry: dict):
+        return cls(entry["sensor"], np.array(entry["sigma_m"]))
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         z, H, R, valid = GnssPosition(self.sensor, np.r_[self.sigma_m, 1.0]).model(nav, layout, data, j)
         return z[:, :2], H[:, :2], R[:, :2, :2], valid
 
 
-MODELS["gnss_horizontal"] = GnssHorizontal
-
-
+@measurement("landmark")
 @dataclass
 class LandmarkFix:
     """INS minus the aircraft position the landmark camera fixes from a recognised anchor point
@@ -118,7 +262,17 @@ class LandmarkFix:
     sensor: str
     sigma_m: float
     ratio: float = 0.0
-    name: str = "landmark"
+    SCHEMA = {"sigma_m": VEC3, "ratio": {"type": "number", "minimum": 0}}
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        sensor_of_kind(node, sensors, "camera")
+        return {"sigma_m": node.get("sigma_m", float, exclusive_minimum=0.0),
+                "ratio": node.get("ratio", float, 0.0, minimum=0.0)}
+
+    @classmethod
+    def from_entry(cls, entry: dict):
+        return cls(entry["sensor"], entry["sigma_m"], entry["ratio"])
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         z, H, _, valid = GnssPosition(self.sensor, np.ones(3)).model(nav, layout, data, j)
@@ -134,9 +288,7 @@ class LandmarkFix:
         return z, H, R, valid & (idx >= 0)
 
 
-MODELS["landmark"] = LandmarkFix
-
-
+@measurement("mag_heading")
 @dataclass
 class MagneticHeading:
     """INS minus magnetic heading, rad, from the magnetometer calibrated online (P1).
@@ -162,8 +314,26 @@ class MagneticHeading:
     noise_T: float                       #: the filter's model of the magnetometer noise, per axis
     forgetting: float = 1.0
     min_turns: float = 2.0
-    name: str = "mag_heading"
     _fit: object = dataclasses.field(default=None, init=False, repr=False)     #: the RLS fit, from the first call
+
+    SCHEMA = {"sigma_deg": POS, "noise_uT": {"type": "number", "minimum": 0},
+              "forgetting": {"type": "number", "exclusiveMinimum": 0, "maximum": 1},
+              "min_turns": {"type": "number", "minimum": 0}}
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        """The heading's ``sigma_deg``, the filter's model of the magnetometer noise ``noise_uT``
+        (per axis), the calibration's ``forgetting`` and ``min_turns``."""
+        sensor_of_kind(node, sensors, "magnetometer")
+        return {"sigma_deg": node.get("sigma_deg", float, exclusive_minimum=0.0),
+                "noise_uT": node.get("noise_uT", float, minimum=0.0),
+                "forgetting": node.get("forgetting", float, 1.0, exclusive_minimum=0.0, maximum=1.0),
+                "min_turns": node.get("min_turns", float, 2.0, minimum=0.0)}
+
+    @classmethod
+    def from_entry(cls, entry: dict):
+        return cls(entry["sensor"], np.radians(entry["sigma_deg"]), entry["noise_uT"] * 1e-6,
+                   forgetting=entry["forgetting"], min_turns=entry["min_turns"])
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         B = nav.lat_rad.shape[0]
@@ -198,5 +368,3 @@ def magnetic_heading(C_nb: np.ndarray, mag_cal_b: np.ndarray, field_n: np.ndarra
                   -np.ones_like(h2)], -1)
     return z, H
 
-
-MODELS["mag_heading"] = MagneticHeading

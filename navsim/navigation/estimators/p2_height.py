@@ -24,9 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navsim.foundations.config import Node, close_match
 from navsim.navigation.estimators import kalman
-from navsim.navigation.estimators.base import Innovation, register
-from navsim.navigation.estimators.eskf import ErrorStateKF, _sample_index
+from navsim.navigation.estimators.base import Innovation, register, sample
+from navsim.navigation.estimators.eskf import ErrorStateKF
 
 
 @dataclass(frozen=True)
@@ -50,9 +51,22 @@ class HeightFusion:
 class DynamicHeightKF(ErrorStateKF):
     """The ES-KF with P2's dynamic-weight height channel (see the module docstring)."""
 
+    SCHEMA = {**ErrorStateKF.SCHEMA, "height": {"type": "object", "description": "p2_dynamic_height: sensors "
+                                                "gps, radar, baro and the fusion's numbers"}}
+
     def __init__(self, layout, noise, measurements, fusion: HeightFusion, **kw):
         super().__init__(layout, noise, measurements, **kw)
         self.fusion = fusion
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        """The ES-KF's keys plus ``height``: the sensors ``gps``, ``radar``, ``baro`` and the
+        fusion's numbers (:class:`HeightFusion`)."""
+        return {**super().parse(node, sensors), "height": _height(node.child("height"), sensors)}
+
+    @classmethod
+    def options(cls, params: dict) -> dict:
+        return {"fusion": HeightFusion(**params["height"])}
 
     def initialize(self, nav0, sigma0):
         super().initialize(nav0, sigma0)
@@ -66,8 +80,7 @@ class DynamicHeightKF(ErrorStateKF):
         self.predict()
         out = []
         for m in self.measurements:
-            data = sensors.get(m.sensor)
-            j = None if data is None else _sample_index(data.t_s, t)
+            data, j = sample(sensors, m.sensor, t)
             if j is not None:
                 out.append(self.correct(m, data, j, t))
         inn = self._height(t, sensors)
@@ -77,8 +90,7 @@ class DynamicHeightKF(ErrorStateKF):
         return out
 
     def _sample(self, sensors, name, field, t):
-        data = sensors.get(name)
-        j = None if data is None else _sample_index(data.t_s, t)
+        data, j = sample(sensors, name, t)
         if j is None:
             return None, None
         return data.values[field][:, j], data.valid[:, j]
@@ -140,3 +152,24 @@ class DynamicHeightKF(ErrorStateKF):
         z = np.where(valid[:, None], z, 0.0)
         self.x, self.P, y, S, nis = kalman.update(self.x, self.P, z, H, R, valid)
         return Innovation("fused_height", "fusion", t, y, S, nis)
+
+
+def _height(node: Node, sensors: dict) -> dict:
+    """P2's height fusion: the ``gps``, ``radar``, ``baro`` sensor names and the model numbers
+    (defaults: :class:`HeightFusion`'s)."""
+    out = {}
+    for role, kind in (("gps", "gnss"), ("radar", "radar_altimeter"), ("baro", "baro")):
+        name = node.get(role, str)
+        if sensors.get(name) != kind:
+            raise node.error(f"'{name}' is not a {kind} of this scenario", role, expected=f"a sensor of kind {kind}",
+                             hint=close_match(name, [k for k, v in sensors.items() if v == kind]))
+        out[role] = name
+    d = HeightFusion.__dataclass_fields__
+    for key in ("gps_sigma_m", "baro_sigma_m", "radar_noise_m", "radar_ratio", "hysteresis_m", "window_s"):
+        out[key] = node.get(key, float, d[key].default, minimum=0.0)
+    out["threshold_m"] = node.get("threshold_m", float, d["threshold_m"].default)
+    out["surface_m"] = node.get("surface_m", float, d["surface_m"].default)
+    out["gating_sigma"] = node.get("gating_sigma", float, None, exclusive_minimum=0.0)
+    out["average_radar"] = node.get("average_radar", bool, False)
+    node.done()
+    return out

@@ -20,15 +20,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.foundations.config import Node
+from navsim.foundations.jsonschema import POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import register
 from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.measurements import sensor_names
 
 
 @register("sage_husa")
 class SageHusaKF(ErrorStateKF):
     """Parameters as :class:`ErrorStateKF`, plus ``forgetting`` (b, 0 < b < 1), ``floor`` and
     ``sensors`` (the sensor names whose measurement models are adapted; None: all)."""
+
+    SCHEMA = {**ErrorStateKF.SCHEMA, "sage_husa": obj({
+        "forgetting": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1}, "floor": POS,
+        "sensors": {"type": "array", "items": {"type": "string"}}})}
 
     def __init__(self, layout, noise, measurements, forgetting: float = 0.95, floor: float = 1.0,
                  sensors=None, **kw):
@@ -37,6 +44,19 @@ class SageHusaKF(ErrorStateKF):
             raise ValueError(f"forgetting factor {forgetting}: expected 0 < b < 1")
         self.forgetting, self.floor = forgetting, floor
         self.sensors = None if sensors is None else set(sensors)
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        """The ES-KF's keys plus ``sage_husa: {forgetting: 0.95, floor: 1.0, sensors: [...]}``
+        (optional; ``sensors``: the sensors whose R is adapted, default all)."""
+        read = lambda sub: {"forgetting": sub.get("forgetting", float, 0.95, exclusive_minimum=0.0, maximum=0.9999),
+                            "floor": sub.get("floor", float, 1.0, exclusive_minimum=0.0),
+                            "sensors": sensor_names(sub, "sensors", sensors)}
+        return {**super().parse(node, sensors), "adaptive": node.section("sage_husa", read)}
+
+    @classmethod
+    def options(cls, params: dict) -> dict:
+        return params["adaptive"]
 
     def initialize(self, nav0, sigma0):
         super().initialize(nav0, sigma0)

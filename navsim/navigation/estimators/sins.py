@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.foundations.config import Node
+from navsim.foundations.jsonschema import POS
 from navsim.navigation.estimators.base import Innovation, Solution, register
 from navsim.navigation.strapdown import BlockStrapdown, NavState
 
@@ -14,9 +16,15 @@ class FreeInertial:
     carries no covariance."""
 
     period_s = 1.0
+    SCHEMA = {"period_s": POS}
 
     def __init__(self, period_s: float = 1.0):
         self.period_s = period_s
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        """``period_s`` (1 s): how often its solution is recorded."""
+        return {"period_s": node.get("period_s", float, 1.0, exclusive_minimum=0.0)}
 
     def initialize(self, nav0: NavState, sigma0: dict | None = None) -> None:
         self.sd = BlockStrapdown(nav0.copy())

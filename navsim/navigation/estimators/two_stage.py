@@ -35,6 +35,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.foundations.config import Node
+from navsim.foundations.jsonschema import POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import Innovation, Solution, register
 from navsim.navigation.estimators.eskf import ErrorStateKF
@@ -47,6 +49,9 @@ class TwoStageAdaptiveKF(ErrorStateKF):
     """Parameters as :class:`ErrorStateKF`, plus ``adaptive`` (bool), ``window`` (epochs of
     the innovation average) and ``floor`` (lowest R as a fraction of the model's)."""
 
+    SCHEMA = {**ErrorStateKF.SCHEMA, "adaptive": obj({"enabled": {"type": "boolean"},
+                                                      "window": {"type": "integer", "minimum": 1}, "floor": POS})}
+
     def __init__(self, layout, noise, measurements, adaptive: bool = True, window: int = 30,
                  floor: float = 1.0, **kw):
         super().__init__(layout, noise, measurements, **kw)
@@ -56,6 +61,27 @@ class TwoStageAdaptiveKF(ErrorStateKF):
         bidx = np.r_[tuple(np.arange(layout.slice(b).start, layout.slice(b).stop) for b in BIAS_BLOCKS)]
         self.bidx = bidx
         self.xidx = np.array([i for i in range(layout.n) if i not in set(bidx)])
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        """The ES-KF's keys (its states with both bias blocks) plus ``adaptive: {enabled: true,
+        window: 30, floor: 1.0}`` (optional)."""
+        params = super().parse(node, sensors)
+        for block in BIAS_BLOCKS:
+            if block not in params["states"]:
+                raise node.error(f"the two-stage filter needs the '{block}' block", "states")
+        ad = node.child("adaptive", None)
+        params["adaptive"] = {"adaptive": True, "window": 30, "floor": 1.0}
+        if ad is not None:
+            params["adaptive"] = {"adaptive": ad.get("enabled", bool, True),
+                                  "window": ad.get("window", int, 30, minimum=1),
+                                  "floor": ad.get("floor", float, 1.0, exclusive_minimum=0.0)}
+            ad.done()
+        return params
+
+    @classmethod
+    def options(cls, params: dict) -> dict:
+        return params["adaptive"]
 
     def initialize(self, nav0, sigma0):
         super().initialize(nav0, sigma0)
