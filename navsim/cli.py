@@ -501,11 +501,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_sweep)
     _replay_parser(sub)
     p = sub.add_parser("schema", help="print the JSON Schema of scenario files",
-                       description="Print the JSON Schema of scenario files (docs/scenario.schema.json) "
-                       "for editors; navsim's own validation is stricter.")
+                       description="Print the JSON Schema of scenario files for editors, with the "
+                       "estimators and measurement types of installed plug-ins (docs/scenario.schema.json "
+                       "holds navsim's own); navsim's own validation is stricter.")
     p.set_defaults(func=cmd_schema)
-    p = sub.add_parser("list", help="list the shipped aircraft, sensors and tracks",
-                       description="List the shipped aircraft, sensor catalog entries and tracks.")
+    p = sub.add_parser("list", help="list the shipped aircraft, sensors, tracks, estimators and measurements",
+                       description="List the shipped aircraft, sensor catalog entries and tracks, and the "
+                       "registered estimators and measurement types (installed plug-ins' included).")
     p.set_defaults(func=cmd_list)
     return parser
 

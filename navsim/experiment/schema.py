@@ -33,11 +33,13 @@ def _segment(kind: str) -> dict:
     return obj(props, ["type"])
 
 
-def scenario_schema() -> dict:
+def scenario_schema(built_in: bool = False) -> dict:
+    """The scenario schema: with every registered estimator and measurement type, plug-ins'
+    included, or (``built_in``) navsim's own only (the published ``docs/scenario.schema.json``)."""
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": "navsim scenario",
-        "$defs": {"measurement": measurements_schema()},
+        "$defs": {"measurement": measurements_schema(built_in)},
         "description": "One experiment: flight, sensors, estimators, Monte Carlo, metrics, report.",
         **obj({
             "name": {"type": "string", "pattern": PLAIN_NAME_PATTERN,
@@ -46,7 +48,7 @@ def scenario_schema() -> dict:
             "track": _track(), "environment": _environment(),
             "flight": obj({"rate_hz": {"type": "number", "minimum": RATE_HZ[0], "maximum": RATE_HZ[1]}}),
             "sensors": {"type": "object", "additionalProperties": _sensor()},
-            "estimators": {"type": "array", "minItems": 1, "items": _estimator()},
+            "estimators": {"type": "array", "minItems": 1, "items": _estimator(built_in)},
             "initial_errors": obj({"pos_m": VEC3, "vel_mps": VEC3, "att_arcsec": VEC3, "fixed": {"type": "boolean"}}),
             "montecarlo": obj({"runs": {"type": "integer", "minimum": 1}, "seed": {"type": "integer", "minimum": 0},
                                 "workers": {"type": "integer", "minimum": 1, "maximum": MAX_WORKERS}}),
@@ -109,11 +111,12 @@ def _sensor() -> dict:
                  "faults": {"type": "array", "items": fault}}, ["model"])
 
 
-def _estimator() -> dict:
+def _estimator(built_in: bool = False) -> dict:
     """One entry of ``estimators``: the keys every registered type declares (its ``SCHEMA``;
     a key two types read differently takes either form); the type's own checks are navsim's."""
-    props = {"label": {"type": "string"}, "type": {"enum": available_estimators()}}
-    for name in available_estimators():
+    names = [n for n in available_estimators() if not built_in or get_estimator(n).__module__.startswith("navsim.")]
+    props = {"label": {"type": "string"}, "type": {"enum": names}}
+    for name in names:
         merge_properties(props, getattr(get_estimator(name), "SCHEMA", {}))
     return {"type": "object", "required": ["label", "type"], "properties": props}
 
@@ -132,5 +135,5 @@ def _closed_loop() -> dict:
         ["fly_on"], "navigation in the loop: every run flies on an estimator's solution")
 
 
-def schema_text() -> str:
-    return json.dumps(scenario_schema(), indent=2) + "\n"
+def schema_text(built_in: bool = False) -> str:
+    return json.dumps(scenario_schema(built_in), indent=2) + "\n"

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from navsim.experiment.driver import Driver, InitialErrors
+from navsim.foundations.config import Node
 from navsim.foundations.errors import UsageError
 from navsim.foundations.transform import dcm_from_euler, euler_from_dcm, wrap_angle
 from navsim.navigation.estimators import base
@@ -139,13 +140,19 @@ def initial_state(log: ReplayLog, align: Alignment) -> tuple[NavState, dict]:
 
 # --- the estimator ------------------------------------------------------------------------------
 
-def build_estimator(name: str, params: dict, defaults: dict):
-    """``base.get(name)(**kw)``: ``defaults`` the constructor accepts, overridden by ``params``;
-    a :class:`NavsimError` for an unknown name or a parameter the class does not take."""
+def build_estimator(name: str, params: dict, defaults: dict, sensors: dict):
+    """The estimator registered as ``name``, as a scenario builds it: an estimator that reads its
+    own entry (``parse``) gets ``defaults`` (entry keys: the log's sensor names, the aligned field,
+    the attitude filters' no-GNSS sigma; those its ``SCHEMA`` names) overridden by ``params``
+    (``--set``), checked as a scenario's entry would be; another gets the constructor keywords
+    of ``defaults`` it takes, overridden by ``params``. Returns the object and the parameters.
+    ``sensors``: the log's sensor name -> kind."""
     try:
         cls = base.get(name)
     except KeyError as exc:
         raise UsageError(f"{exc.args[0]}; available: {', '.join(base.available())}") from exc
+    if hasattr(cls, "parse"):
+        return _parsed(cls, name, params, defaults, sensors)
     sig = inspect.signature(cls.__init__).parameters
     takes_any = any(p.kind is p.VAR_KEYWORD for p in sig.values())
     accepted = {k for k in sig if k != "self"}
@@ -153,12 +160,35 @@ def build_estimator(name: str, params: dict, defaults: dict):
     if unknown:
         raise UsageError(f"estimator '{name}' takes no parameter {', '.join(map(repr, unknown))} "
                           f"(it takes: {', '.join(sorted(accepted)) or 'none'})")
-    kw = {k: v for k, v in defaults.items() if k in accepted or takes_any}
+    kw = {k: v for k, v in _constructor(defaults).items() if k in accepted or takes_any}
     kw.update(params)
     try:
         return cls(**kw), kw
     except (TypeError, ValueError) as exc:
         raise UsageError(f"estimator '{name}' with {kw}: {exc}") from exc
+
+
+def _parsed(cls, name: str, params: dict, defaults: dict, sensors: dict):
+    """An estimator that reads its entry, from the defaults it knows and ``params``."""
+    known = getattr(cls, "SCHEMA", {})
+    entry = {k: v for k, v in defaults.items() if k in known and v is not None}
+    for k, v in params.items():            # a mapping given with --set completes the default's
+        entry[k] = {**entry[k], **v} if isinstance(entry.get(k), dict) and isinstance(v, dict) else v
+    node = Node(entry, f"estimator '{name}'", "--set")
+    p = base.parse_params(cls, node, sensors)
+    node.done()
+    try:
+        return base.build(cls, p), entry
+    except (TypeError, ValueError) as exc:
+        raise UsageError(f"estimator '{name}' with {entry}: {exc}") from exc
+
+
+def _constructor(defaults: dict) -> dict:
+    """The replay's defaults as constructor keywords (for an estimator without ``parse``)."""
+    out = {k: v for k, v in defaults.items() if k not in ("field_uT", "sigma", "latest_sample")}
+    out["field_n_T"] = [x * 1e-6 for x in defaults["field_uT"]]
+    out["no_gnss_sigma_mps"] = defaults["sigma"]["no_gnss_mps"]
+    return out
 
 
 @dataclass
@@ -229,9 +259,9 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_ra
     sensors = sensor_streams(log, grid)
     align = coarse_alignment(log, align_s)
     defaults = {"mag": "mag", "baro": "baro" if "baro" in sensors else None, "gnss": None,
-                "field_n_T": [float(x) for x in align.field_n_T],
-                "no_gnss_sigma_mps": NO_GNSS_SIGMA_MPS}
-    est, kw = build_estimator(estimator, dict(params or {}), defaults)
+                "field_uT": [float(x) * 1e6 for x in align.field_n_T], "sigma": {"no_gnss_mps": NO_GNSS_SIGMA_MPS},
+                "latest_sample": True}         # the ES-KF family: the log's sensors are not on its epochs
+    est, kw = build_estimator(estimator, dict(params or {}), defaults, {k: d.kind for k, d in sensors.items()})
     nav0, sigma0 = initial_state(log, align)
     dt = 1.0 / rate
     loop = Driver({estimator: est}, dt, 1, isolate=False)

@@ -26,6 +26,9 @@ WMM_SPACING_S = 10.0      #: the field is evaluated this often along the track a
 def wmm_field_n_T(lat_deg: float, lon_deg: float, h_m: float, date: str) -> tuple[float, float, float]:
     """WMM field (north, east, down), tesla."""
     from ahrs.utils import WMM
+    # ahrs' WMM computes nothing when the latitude or the longitude is exactly 0 (it takes 0 for
+    # "not given"): 1e-9 deg off (0.1 mm) is the same field
+    lat_deg, lon_deg = lat_deg or 1e-9, lon_deg or 1e-9
     w = WMM(date=datetime.date.fromisoformat(date), latitude=lat_deg, longitude=lon_deg,
             height=h_m / 1000.0)
     return (w.X * 1e-9, w.Y * 1e-9, w.Z * 1e-9)

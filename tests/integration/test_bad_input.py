@@ -416,6 +416,14 @@ def audited(tmp_path, *argv):
     return proc, reads, {Path(p) for kind, p in events if kind == "write"}
 
 
+def plugin_folders() -> list:
+    """The folders of the installed estimator plug-ins' modules (``navsim.estimators`` entry points)."""
+    import importlib.util
+    from importlib.metadata import entry_points
+    specs = [importlib.util.find_spec(ep.module) for ep in entry_points(group="navsim.estimators")]
+    return [Path(s.origin).resolve().parent for s in specs if s is not None and s.origin]
+
+
 def test_a_run_touches_only_its_output_folder_the_cache_and_its_inputs(tmp_path, repo_root):
     """Every file navsim writes, renames or deletes in a whole ``navsim run`` is in the output
     folder or the caches (flights, compiled kernels); every file it reads is navsim's own (package, catalog,
@@ -442,7 +450,8 @@ def test_a_run_touches_only_its_output_folder_the_cache_and_its_inputs(tmp_path,
     allowed_reads = [case, tmp_path / "out", tmp_path / "cache", tmp_path / "mpl", *numba_cache, repo_root / "navsim",
                      repo_root / "sensors", repo_root / "aircraft", Path(sys.prefix), Path(sys.base_prefix),
                      *installs, Path("/usr/share/fonts"), Path("/proc/cpuinfo"), Path("/sys/devices/system/cpu"),
-                     Path("/sys/fs/cgroup")]           # fonts for the plots; the CPU for numba
+                     Path("/sys/fs/cgroup"),           # fonts for the plots; the CPU for numba
+                     *plugin_folders()]                # the installed estimator plug-ins (entry points)
     strays = [p for p in reads if not any(p.resolve().is_relative_to(a) for a in allowed_reads)]
     assert not strays, strays
     assert (case / "tracks" / "leg.yaml") in reads and (case / "my_gnss.yaml") in reads

@@ -92,14 +92,21 @@ def test_free_inertial_attitude_difference_is_the_integrated_gyro_bias(log):
     assert abs(d[k10, 0]) < 1.5 and abs(d[k10, 1]) < 2.0     # 10 s of bias plus the handling
 
 
-class _AttitudeProbe(FreeInertial):
-    """Free inertial with an attitude estimator's constructor: records what the replay gives."""
+class _AttitudeProbe:
+    """Free inertial with an attitude estimator's constructor and no ``parse`` (a plain-keyword
+    third-party estimator): records what the replay gives."""
 
     seen: dict = {}
 
     def __init__(self, mag="mag", baro="baro", gnss=None, field_n_T=None, period_s=0.1):
-        super().__init__(period_s)
+        self.inner, self.period_s = FreeInertial(period_s), period_s
         type(self).seen.update(mag=mag, baro=baro, gnss=gnss, field_n_T=field_n_T, epochs=0, mag_hits=0)
+
+    def initialize(self, nav0, sigma0):
+        self.inner.initialize(nav0, sigma0)
+
+    def propagate(self, dtheta_b, dv_b, dt):
+        self.inner.propagate(dtheta_b, dv_b, dt)
 
     def epoch(self, t, sensors):
         data = sensors[self.seen["mag"]]
@@ -110,7 +117,7 @@ class _AttitudeProbe(FreeInertial):
         return []
 
     def solution(self):
-        sol = super().solution()
+        sol = self.inner.solution()
         sol.extra["resets"] = [[(20.0, "probe reset")]]
         return sol
 

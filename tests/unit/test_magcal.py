@@ -8,6 +8,7 @@ from scipy.spatial.transform import Rotation
 from navsim.foundations.transform import rotation
 from navsim.navigation import magcal
 from navsim.navigation.estimators.measurements import magnetic_heading
+from navsim.sensors.magnetometer import wmm_field_n_T
 
 FIELD_N_T = np.array([33.8e-6, -2.9e-6, 36.9e-6])         # WMM near Wuhan, |m| = 50.1 uT
 R_T = float(np.linalg.norm(FIELD_N_T))
@@ -138,3 +139,12 @@ def test_heading_measurement_H_matches_finite_differences():
     yaw_err = np.radians(1.0)
     z, _ = magnetic_heading(Rotation.from_euler("z", yaw_err).as_matrix() @ C_nb, mag_cal_b, field)
     np.testing.assert_allclose(z, yaw_err, rtol=1e-9)
+
+
+def test_the_world_magnetic_model_on_the_equator_and_the_prime_meridian():
+    """ahrs' WMM computes nothing at a latitude or longitude of exactly 0 (a replayed log without
+    a position puts the vehicle there); navsim's call is the field a hair away: the WMM's
+    equatorial field of about 30 uT, horizontal, pointing north."""
+    n, e, d = wmm_field_n_T(0.0, 0.0, 0.0, "2025-01-01")
+    assert np.allclose((n, e, d), wmm_field_n_T(1e-6, 1e-6, 0.0, "2025-01-01"), rtol=1e-6)
+    assert 2e-5 < n < 3.5e-5 and abs(e) < 0.3 * n and abs(d) < 1.0 * n

@@ -53,6 +53,10 @@ class ErrorStateKF:
         Measurement models (see :mod:`navsim.navigation.estimators.measurements`).
     period_s : float
         Filter period (P0, P3: 1 s).
+    latest_sample : bool
+        False: a measurement is taken when its sensor has a sample at the epoch (simulated
+        sensors, on the truth's grid); True: each sensor's latest sample since the last epoch (a
+        replayed log, whose sensors do not fall on the epochs).
     discretization : {"series", "van_loan"}
         ``series``: the matrix-exponential series to ``series_order`` (P3 uses 3; over a 1 s
         period the noise reaching the position through attitude and velocity needs 6); from
@@ -65,19 +69,19 @@ class ErrorStateKF:
     #: the JSON Schema of its entry's keys (beside ``label`` and ``type``), for ``navsim schema``
     SCHEMA = {"states": {"oneOf": [{"enum": list(PRESETS)}, {"type": "array", "items": {"enum": list(BLOCK_SIZES)}}]},
               "period_s": POS, "discretization": {"enum": ["series", "van_loan"]},
-              "series_order": {"type": "integer", "minimum": 1},
+              "series_order": {"type": "integer", "minimum": 1}, "latest_sample": {"type": "boolean"},
               "noise": obj({"imu": {"type": "string"}, "override": {"type": "object"}}, ["imu"]),
               "baro": obj({"sigma_m": POS, "tau_s": POS}),
               "measurements": {"type": "array", "items": MEASUREMENT}}
 
     def __init__(self, layout: Layout, noise: ProcessNoise, measurements, period_s: float = 1.0,
                  discretization: str = "series", initial_sigma: dict | None = None,
-                 series_order: int = 6):
+                 series_order: int = 6, latest_sample: bool = False):
         if discretization not in ("series", "van_loan"):
             raise ValueError(f"discretization '{discretization}': expected series or van_loan")
         self.layout, self.noise, self.measurements = layout, noise, list(measurements)
         self.period_s, self.discretization = period_s, discretization
-        self.series_order = series_order
+        self.series_order, self.latest_sample = series_order, latest_sample
         self.initial_sigma = dict(initial_sigma or {})
         self.Qc = process_noise(layout, noise)
 
@@ -141,6 +145,7 @@ class ErrorStateKF:
         self.m_accel = np.zeros((B, 3))
         self._reset_accumulators()
         self.diverged = np.zeros(B, bool)
+        self._t_prev = -np.inf              # the last epoch (latest_sample: the window's start)
 
     def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
         """Mechanize the increments ``(B, K, 3)`` less the estimated biases."""
@@ -149,7 +154,9 @@ class ErrorStateKF:
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self.predict()
-        taken = [(m, data, j) for m in self.measurements for data, j in [sample(sensors, m.sensor, t)]
+        since = self._t_prev if self.latest_sample else None
+        self._t_prev = t
+        taken = [(m, data, j) for m in self.measurements for data, j in [sample(sensors, m.sensor, t, since)]
                  if j is not None]
         if self._own_corrections():         # all of them in one compiled call
             models = [m.model(self.sd.state, self.layout, data, j) for m, data, j in taken]
@@ -302,7 +309,8 @@ def filter_params(node: Node) -> dict:
     params = {"states": blocks,
               "period_s": node.get("period_s", float, 1.0, exclusive_minimum=0.0),
               "discretization": node.get("discretization", str, "series", choices=("series", "van_loan")),
-              "series_order": node.get("series_order", int, 6, minimum=1, maximum=12)}
+              "series_order": node.get("series_order", int, 6, minimum=1, maximum=12),
+              "latest_sample": node.get("latest_sample", bool, False)}
     noise = node.child("noise")
     imu = noise.get("imu", str)
     override = noise.child("override", None)
@@ -326,4 +334,4 @@ def filter_options(params: dict) -> dict:
     """The constructor arguments of :func:`filter_params`' values but the states and the IMU."""
     return dict(baro_sigma_m=params["baro"]["sigma_m"], baro_tau_s=params["baro"]["tau_s"],
                 period_s=params["period_s"], discretization=params["discretization"],
-                series_order=params["series_order"])
+                series_order=params["series_order"], latest_sample=params["latest_sample"])

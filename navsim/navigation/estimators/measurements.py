@@ -119,10 +119,12 @@ def build_measurements(entries: list) -> list:
     return [measurement_class(e["type"]).from_entry(e) for e in entries]
 
 
-def measurements_schema() -> dict:
-    """The JSON Schema of a ``measurements`` entry: every registered type's keys."""
-    props = {"type": {"enum": measurement_types()}, "sensor": {"type": "string"}}
-    for name in measurement_types():
+def measurements_schema(built_in: bool = False) -> dict:
+    """The JSON Schema of a ``measurements`` entry: every registered type's keys (``built_in``:
+    navsim's own types only)."""
+    names = [n for n in measurement_types() if not built_in or measurement_class(n).__module__.startswith("navsim.")]
+    props = {"type": {"enum": names}, "sensor": {"type": "string"}}
+    for name in names:
         merge_properties(props, measurement_class(name).SCHEMA)
     return {"type": "object", "properties": props, "additionalProperties": False, "required": ["type", "sensor"]}
 
