@@ -36,6 +36,7 @@ from navsim.foundations.config import Node
 from navsim.foundations.jsonschema import NUM, POS, obj
 from navsim.foundations.transform import rotation
 from navsim.navigation.estimators import Innovation
+from navsim.navigation.estimators.error_model import Layout
 from navsim.navigation.estimators.eskf import ErrorStateKF
 from navsim.navigation.estimators.kalman import symmetrize
 
@@ -54,21 +55,35 @@ def weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[float, np.
     return lam, wm, wc
 
 
+def square_root(A: np.ndarray) -> np.ndarray:
+    """``L`` with ``L L^T = A`` ``(n, n)``: the Cholesky factor, or the symmetric square root of
+    the clipped eigenvalues where ``A`` is not positive definite to rounding; NaN where ``A`` is
+    not finite (a diverged run keeps its own NaN)."""
+    if not np.all(np.isfinite(A)):
+        return np.full_like(A, np.nan)
+    try:
+        return np.linalg.cholesky(A)
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh(symmetrize(A))
+        return V * np.sqrt(np.clip(w, 0.0, None))[None, :]
+
+
 def sigma_points(x: np.ndarray, P: np.ndarray, scale: float) -> np.ndarray:
-    """``(2n + 1, B, n)`` sigma points of ``x`` ``(B, n)``, ``P`` ``(B, n, n)``, spread by the
-    Cholesky factor of ``scale P`` (a symmetric square root where ``P`` is not positive
-    definite to rounding)."""
+    """``(2n + 1, B, n)`` sigma points of ``x`` ``(B, n)``, ``P`` ``(B, n, n)``, spread by a
+    square root of ``scale P`` (:func:`square_root`, run by run where the batch has no Cholesky
+    factor, so that a run's points never depend on the others')."""
     try:
         L = np.linalg.cholesky(scale * P)
     except np.linalg.LinAlgError:
-        w, V = np.linalg.eigh(scale * symmetrize(P))
-        L = V * np.sqrt(np.clip(w, 0.0, None))[:, None, :]
+        L = np.stack([square_root(scale * Pb) for Pb in P])
     cols = np.swapaxes(L, 1, 2)                         # (B, n, n): column i of each run's factor
     return np.concatenate([x[None], x[None] + np.moveaxis(cols, 1, 0), x[None] - np.moveaxis(cols, 1, 0)])
 
 
 def _stateless(model) -> bool:
-    """Whether evaluating the model changes nothing (no field kept out of its constructor)."""
+    """Whether evaluating the model changes nothing: a dataclass all of whose fields are its
+    constructor's (navsim's models keep what they learn, as the magnetic heading's calibration,
+    in fields out of the constructor). Any other model is linearised (its ``H``)."""
     return all(f.init for f in dataclasses.fields(model)) if dataclasses.is_dataclass(model) else False
 
 
@@ -80,6 +95,8 @@ class ErrorStateUKF(ErrorStateKF):
     def __init__(self, layout, noise, measurements, alpha: float = UNSCENTED["alpha"],
                  beta: float = UNSCENTED["beta"], kappa: float = UNSCENTED["kappa"], **kw):
         super().__init__(layout, noise, measurements, **kw)
+        if not (alpha > 0 and layout.n + kappa > 0):
+            raise ValueError(f"unscented alpha {alpha}, kappa {kappa}: expected alpha > 0 and n + kappa > 0")
         self.lam, self.wm, self.wc = weights(layout.n, alpha, beta, kappa)
         self.nav_idx = np.r_[tuple(np.arange(layout.slice(b).start, layout.slice(b).stop) for b in NAV_BLOCKS)]
         self.other_idx = np.setdiff1d(np.arange(layout.n), self.nav_idx)
@@ -87,10 +104,12 @@ class ErrorStateUKF(ErrorStateKF):
     @classmethod
     def parse(cls, node: Node, sensors: dict) -> dict:
         """The ES-KF's keys plus ``unscented: {alpha, beta, kappa}`` (optional)."""
+        params = super().parse(node, sensors)
+        n = Layout(tuple(params["states"])).n
         read = lambda sub: {"alpha": sub.get("alpha", float, UNSCENTED["alpha"], exclusive_minimum=0.0),
                             "beta": sub.get("beta", float, UNSCENTED["beta"], minimum=0.0),
-                            "kappa": sub.get("kappa", float, UNSCENTED["kappa"])}
-        return {**super().parse(node, sensors), "unscented": node.section("unscented", read)}
+                            "kappa": sub.get("kappa", float, UNSCENTED["kappa"], exclusive_minimum=-n)}
+        return {**params, "unscented": node.section("unscented", read)}
 
     @classmethod
     def options(cls, params: dict) -> dict:

@@ -217,8 +217,9 @@ class Driver:
         """What the estimators are handed of ``sensors``: their measurements, never the true
         errors (:meth:`~navsim.sensors.base.SensorData.measurements`; the same objects while the
         closed loop fills the same sensors in place)."""
-        if sensors is not self._sensors:
-            self._sensors = sensors
+        key = tuple((k, id(d)) for k, d in sensors.items())
+        if key != self._sensors:
+            self._sensors = key
             self._seen = {k: d if isinstance(d, Measurements) else d.measurements() for k, d in sensors.items()}
         return self._seen
 

@@ -171,7 +171,7 @@ def build_estimator(name: str, params: dict, defaults: dict, sensors: dict):
 def _parsed(cls, name: str, params: dict, defaults: dict, sensors: dict):
     """An estimator that reads its entry, from the defaults it knows and ``params``."""
     known = getattr(cls, "SCHEMA", {})
-    entry = {k: v for k, v in defaults.items() if k in known and v is not None}
+    entry = {k: v for k, v in defaults.items() if k in known and v is not None and _fits(known[k], v)}
     for k, v in params.items():            # a mapping given with --set completes the default's
         entry[k] = {**entry[k], **v} if isinstance(entry.get(k), dict) and isinstance(v, dict) else v
     node = Node(entry, f"estimator '{name}'", "--set")
@@ -181,6 +181,16 @@ def _parsed(cls, name: str, params: dict, defaults: dict, sensors: dict):
         return base.build(cls, p), entry
     except (TypeError, ValueError) as exc:
         raise UsageError(f"estimator '{name}' with {entry}: {exc}") from exc
+
+
+def _fits(schema: dict, value) -> bool:
+    """Whether ``value`` has the JSON type ``schema`` wants (a replay default named like another
+    key of the estimator: ``baro``, the CPF's sensor, is the ES-KF's baro model)."""
+    if "anyOf" in schema or "oneOf" in schema:
+        return any(_fits(s, value) for s in schema.get("anyOf", schema.get("oneOf")))
+    kinds = {"object": dict, "string": str, "boolean": bool, "array": list, "number": (int, float)}
+    want = kinds.get(schema.get("type"))
+    return want is None or isinstance(value, want)
 
 
 def _constructor(defaults: dict) -> dict:
@@ -237,11 +247,12 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_ra
     ----------
     log : ReplayLog
     estimator : str
-        Registered estimator name; built with the keyword parameters its ``__init__`` takes
-        among ``mag="mag"``, ``baro="baro"`` (None without a barometer), ``gnss=None``,
-        ``field_n_T`` (the aligned field, list N, E, D tesla), then ``params``.
+        Registered estimator name, built by :func:`build_estimator` (as a scenario's entry, for
+        an estimator with ``parse``: the log's sensor names, the aligned field ``field_uT``,
+        ``sigma: {no_gnss_mps}`` and ``latest_sample: true`` where it reads them).
     params : dict, optional
-        Extra constructor parameters (override the above).
+        Entry keys (``--set``) overriding those defaults (constructor keywords for an estimator
+        without ``parse``).
     imu_rate_hz : float, optional
         The grid the IMU is resampled to (default: the log's nominal rate).
     settle_s : float

@@ -13,7 +13,7 @@ import pytest
 from navsim.cli import main
 from navsim.navigation.estimators import base
 from navsim.navigation.estimators.sins import FreeInertial
-from navsim.replay.run import coarse_alignment, px4_euler_at, replay
+from navsim.replay.run import build_estimator, coarse_alignment, px4_euler_at, replay
 from navsim.replay.ulog import load_ulog
 
 
@@ -196,3 +196,17 @@ def test_p4_attitude_estimators_follow_px4_on_the_real_log(log, estimator, bound
     rms = [m["attitude_diff_deg"][ax]["rms"] for ax in ("roll", "pitch", "yaw")]
     assert np.all(np.array(rms) < bounds), rms
     assert m["resets"] == []
+
+
+def test_the_replay_defaults_go_where_the_estimator_reads_them():
+    """An estimator that reads its entry gets the replay's defaults it names, with the type it
+    expects: ``baro`` is the CPF-EKF's barometer's name but the ES-KF's baro model, a mapping."""
+    defaults = {"mag": "mag", "baro": "baro", "gnss": None, "field_uT": [21.4, 0.0, 43.0],
+                "sigma": {"no_gnss_mps": 1.0}, "latest_sample": True}
+    kinds = {"mag": "magnetometer", "baro": "baro"}
+    kf, entry = build_estimator("eskf", {"noise": {"imu": "mpu6050"}, "measurements": [
+        {"type": "height", "sensor": "baro", "sigma_m": 2.0}]}, defaults, kinds)
+    assert "baro" not in entry and entry["latest_sample"] is True and kf.latest_sample
+    ekf, entry = build_estimator("cpf_ekf", {"sigma": {"mag_uT": 1.0}}, defaults, kinds)
+    assert ekf.baro == "baro" and ekf.no_gnss_sigma_mps == 1.0 and ekf.mag_sigma_uT == 1.0   # the mapping completed
+    assert np.allclose(ekf.field_n_T, [21.4e-6, 0.0, 43.0e-6])

@@ -118,8 +118,8 @@ def attitude_params(node: Node, kind: str, sensors: dict) -> dict:
     p["noise"] = _floats(node, "noise", ("gyro_rad_s_rthz", "accel_mps2_rthz", "gyro_bias_walk",
                                          "accel_bias_walk", "mag_bias_walk_uT", "field_walk_uT", "quat_stab"))
     # the monitor's settings, when given (their defaults are the CPF-EKF's own: P4's)
-    for key, kind, bounds in MONITOR:
-        value = node.get(key, kind, None, **bounds)
+    for key, typ, bounds in MONITOR:
+        value = node.get(key, typ, None, **bounds)
         if value is not None:
             p[key] = value
     return p

@@ -154,8 +154,7 @@ class ErrorStateKF:
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self.predict()
-        since = self._t_prev if self.latest_sample else None
-        self._t_prev = t
+        since = self._since(t)
         taken = [(m, data, j) for m in self.measurements for data, j in [sample(sensors, m.sensor, t, since)]
                  if j is not None]
         if self._own_corrections():         # all of them in one compiled call
@@ -168,6 +167,13 @@ class ErrorStateKF:
             out = [self.correct(m, data, j, t) for m, data, j in taken]
         self.feedback()
         return out
+
+    def _since(self, t: float) -> float | None:
+        """The start of the window :func:`~navsim.navigation.estimators.base.sample` reads at the
+        epoch ``t``: the last epoch with ``latest_sample``, else None (the sample at ``t``)."""
+        since = self._t_prev if self.latest_sample else None
+        self._t_prev = t
+        return since
 
     def _own_corrections(self) -> bool:
         """Whether ``correct`` and ``measurement_noise`` are this class's (a subclass that

@@ -143,11 +143,12 @@ class FederatedKF(ErrorStateKF):
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self.predict()
         self.xl_prior, self.Pl_prior = self.xl.copy(), self.Pl.copy()
+        since = self._since(t)
         out = []
         for i, loc in enumerate(self.locals):
             nis_sum, dof = np.zeros(self.x.shape[0]), np.zeros(self.x.shape[0])
             for m in loc["measurements"]:
-                data, j = sample(sensors, m.sensor, t)
+                data, j = sample(sensors, m.sensor, t, since)
                 if j is None:
                     continue
                 z, H, R, valid = m.model(self.sd.state, self.layout, data, j)

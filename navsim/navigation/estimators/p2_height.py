@@ -75,12 +75,14 @@ class DynamicHeightKF(ErrorStateKF):
         self._gps_heights = deque(maxlen=n)
         self.low = np.zeros(B, bool)            # current mode of each run
         self.weights = np.zeros((B, 3))         # last weights (radar, baro, gps), for reports
+        self._window = None                     # the epoch's sample window (latest_sample), from epoch()
 
     def epoch(self, t, sensors):
         self.predict()
+        self._window = self._since(t)
         out = []
         for m in self.measurements:
-            data, j = sample(sensors, m.sensor, t)
+            data, j = sample(sensors, m.sensor, t, self._window)
             if j is not None:
                 out.append(self.correct(m, data, j, t))
         inn = self._height(t, sensors)
@@ -90,7 +92,7 @@ class DynamicHeightKF(ErrorStateKF):
         return out
 
     def _sample(self, sensors, name, field, t):
-        data, j = sample(sensors, name, t)
+        data, j = sample(sensors, name, t, self._window)
         if j is None:
             return None, None
         return data.values[field][:, j], data.valid[:, j]
