@@ -56,9 +56,9 @@ def weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[float, np.
 
 
 def square_root(A: np.ndarray) -> np.ndarray:
-    """``L`` with ``L L^T = A`` ``(n, n)``: the Cholesky factor, or the symmetric square root of
-    the clipped eigenvalues where ``A`` is not positive definite to rounding; NaN where ``A`` is
-    not finite (a diverged run keeps its own NaN)."""
+    """``L`` with ``L L^T = A`` ``(n, n)``: the Cholesky factor, or ``V diag(sqrt(w))`` of the
+    eigenvalues ``w`` clipped at 0 where ``A`` is not positive definite to rounding; NaN where
+    ``A`` is not finite (a diverged run keeps its own NaN)."""
     if not np.all(np.isfinite(A)):
         return np.full_like(A, np.nan)
     try:
