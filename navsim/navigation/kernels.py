@@ -410,12 +410,7 @@ def discretize_series(F, Qc, T, order, Phi, Qd):
     vals = np.empty(n * n)
     for b in range(B):
         Fb, P, Q, Qb = F[b], Phi[b], Qd[b], Qc[b if Qc.shape[0] > 1 else 0]
-        nz = 0
-        for i in range(n):
-            for k in range(n):
-                if Fb[i, k] != 0.0:
-                    rows[nz], cols[nz], vals[nz] = i, k, Fb[i, k]
-                    nz += 1
+        nz = _nonzeros(Fb, rows, cols, vals)
         for i in range(n):
             for j in range(n):
                 term[i, j] = 1.0 if i == j else 0.0
@@ -449,6 +444,19 @@ def _symmetrize(A):
             v = 0.5 * (A[i, j] + A[j, i])
             A[i, j] = v
             A[j, i] = v
+
+
+@njit(cache=True)
+def _nonzeros(A, rows, cols, vals) -> int:
+    """The nonzero entries of a square ``A`` into ``rows``, ``cols``, ``vals`` (row by row);
+    returns their count, ``nz`` for :func:`_sparse_left`."""
+    n, nz = A.shape[0], 0
+    for i in range(n):
+        for k in range(n):
+            if A[i, k] != 0.0:
+                rows[nz], cols[nz], vals[nz] = i, k, A[i, k]
+                nz += 1
+    return nz
 
 
 @njit(cache=True)
@@ -559,12 +567,7 @@ def propagate_covariance(x, P, F, Qc, T, order):
     vals = np.empty(n * n)
     for b in range(B):
         Fb, Pb, Qb = F[b], P[b], Qc[b if Qc.shape[0] > 1 else 0]
-        nz = 0
-        for i in range(n):
-            for k in range(n):
-                if Fb[i, k] != 0.0:
-                    rows[nz], cols[nz], vals[nz] = i, k, Fb[i, k]
-                    nz += 1
+        nz = _nonzeros(Fb, rows, cols, vals)
         for i in range(n):
             xk[i] = x[b, i]
         for k in range(1, order + 1):
