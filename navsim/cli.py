@@ -429,8 +429,11 @@ def _replay_parser(sub) -> None:
                        description="Read a PX4 ULog (pyulog), feed its IMU, magnetometer and baro "
                        "to an estimator from a coarse alignment on the first second, and compare "
                        "its roll, pitch and yaw with PX4's own vehicle_attitude; write "
-                       "metrics.json, attitude.png and replay.pdf, print the differences. Exit 2 "
-                       "for a log that cannot be replayed.")
+                       "metrics.json, attitude.png and replay.pdf, print the differences. An "
+                       "ES-KF-family estimator gets a zero velocity (it levels) and the heading "
+                       "of PX4's calibrated magnetometer unless --set measurements=... says "
+                       "otherwise; it needs the filter's IMU model: --set 'noise={imu: mpu6050}'. "
+                       "Exit 2 for a log that cannot be replayed.")
     p.add_argument("log", help="PX4 .ulg file (example: tests/data/px4_quad_real_69s.ulg.gz)")
     p.add_argument("--estimator", help=f"registered estimator (default {DEFAULT_REPLAY_ESTIMATOR})")
     p.add_argument("--out", help="output folder (default reports/replay_<log>_<estimator>)")

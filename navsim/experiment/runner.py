@@ -166,13 +166,14 @@ def _chunk_work(truth_or_path, scenario, seed, runs):
 
 
 def mag_calibrations(scenario) -> dict:
-    """Magnetometer name -> the settings of the first ``mag_heading`` measurement reading it."""
+    """Magnetometer name -> the settings of the first ``mag_heading`` measurement that calibrates
+    it online (its fit is scored against the sensor's true iron)."""
     out = {}
     for e in scenario.estimators:
         groups = [e.params.get("measurements", [])] + [loc["measurements"] for loc in
                                                       e.params.get("federated", {}).get("locals", [])]
         for m in (m for g in groups for m in g):
-            if m["type"] == "mag_heading":
+            if m["type"] == "mag_heading" and m.get("calibration", "online") == "online":
                 out.setdefault(m["sensor"], m)
     return out
 

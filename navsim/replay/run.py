@@ -28,6 +28,8 @@ ALIGN_S = 1.0                     #: default length of the coarse-alignment wind
 RECORD_S = 0.02                   #: the solution is compared with PX4's at 50 Hz
 #: without GNSS, an attitude EKF that takes it levels on a zero horizontal velocity of this sigma
 NO_GNSS_SIGMA_MPS = 1.0
+#: the heading's 1-sigma the ES-KF family assumes on a replayed, PX4-calibrated magnetometer
+MAG_HEADING_SIGMA_DEG = 5.0
 ALIGN_GYRO_MAX_RPS = 0.05         #: above this rate in the window the vehicle was not still
 #: 1-sigma of the coarse alignment: attitude about N, E, D (rad), velocity (m/s), position N, E, D
 #: (m): the accelerometer levels to ~1° (bias of ~0.1 m/s²), the magnetometer heading to ~5°
@@ -140,10 +142,21 @@ def initial_state(log: ReplayLog, align: Alignment) -> tuple[NavState, dict]:
 
 # --- the estimator ------------------------------------------------------------------------------
 
+def default_measurements(align: Alignment) -> list:
+    """The measurements an estimator that takes ``measurements`` (the ES-KF family) gets on a
+    log without GNSS: the velocity held near zero (:data:`NO_GNSS_SIGMA_MPS`, horizontal; it
+    levels, as the attitude filters' no-GNSS velocity does) and the magnetic heading of PX4's
+    calibrated magnetometer against the field measured in the alignment."""
+    return [{"type": "zero_velocity", "sensor": "mag", "sigma_mps": NO_GNSS_SIGMA_MPS},
+            {"type": "mag_heading", "sensor": "mag", "sigma_deg": MAG_HEADING_SIGMA_DEG, "calibration": "none",
+             "field_uT": [float(x) * 1e6 for x in align.field_n_T]}]
+
+
 def build_estimator(name: str, params: dict, defaults: dict, sensors: dict):
     """The estimator registered as ``name``, as a scenario builds it: an estimator that reads its
     own entry (``parse``) gets ``defaults`` (entry keys: the log's sensor names, the aligned field,
-    the attitude filters' no-GNSS sigma; those its ``SCHEMA`` names) overridden by ``params``
+    the attitude filters' no-GNSS sigma, the ES-KF family's measurements; those its ``SCHEMA``
+    names) overridden by ``params``
     (``--set``), checked as a scenario's entry would be; another gets the constructor keywords
     of ``defaults`` it takes, overridden by ``params``. Returns the object and the parameters.
     ``sensors``: the log's sensor name -> kind."""
@@ -195,7 +208,7 @@ def _fits(schema: dict, value) -> bool:
 
 def _constructor(defaults: dict) -> dict:
     """The replay's defaults as constructor keywords (for an estimator without ``parse``)."""
-    out = {k: v for k, v in defaults.items() if k not in ("field_uT", "sigma", "latest_sample")}
+    out = {k: v for k, v in defaults.items() if k not in ("field_uT", "sigma", "latest_sample", "measurements")}
     out["field_n_T"] = [x * 1e-6 for x in defaults["field_uT"]]
     out["no_gnss_sigma_mps"] = defaults["sigma"]["no_gnss_mps"]
     return out
@@ -249,7 +262,8 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_ra
     estimator : str
         Registered estimator name, built by :func:`build_estimator` (as a scenario's entry, for
         an estimator with ``parse``: the log's sensor names, the aligned field ``field_uT``,
-        ``sigma: {no_gnss_mps}`` and ``latest_sample: true`` where it reads them).
+        ``sigma: {no_gnss_mps}``, ``latest_sample: true`` and :func:`default_measurements`
+        where it reads them).
     params : dict, optional
         Entry keys (``--set``) overriding those defaults (constructor keywords for an estimator
         without ``parse``).
@@ -271,7 +285,8 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_ra
     align = coarse_alignment(log, align_s)
     defaults = {"mag": "mag", "baro": "baro" if "baro" in sensors else None, "gnss": None,
                 "field_uT": [float(x) * 1e6 for x in align.field_n_T], "sigma": {"no_gnss_mps": NO_GNSS_SIGMA_MPS},
-                "latest_sample": True}         # the ES-KF family: the log's sensors are not on its epochs
+                "latest_sample": True,         # the ES-KF family: the log's sensors are not on its epochs
+                "measurements": default_measurements(align)}
     est, kw = build_estimator(estimator, dict(params or {}), defaults, {k: d.kind for k, d in sensors.items()})
     nav0, sigma0 = initial_state(log, align)
     dt = 1.0 / rate

@@ -77,6 +77,12 @@ CASES = [
                                                   {"type": "height", "sensor": "bd", "field": "h_baro_m",
                                                    "sigma_m": 3.0}})},
      VALIDATE, 2, ["estimators[1].measurements[1].field", "h_m"]),
+    ("zero-velocity-axes", {S: scenario(**{"estimators[1].measurements[1]":
+                                           {"type": "zero_velocity", "sensor": "ads", "sigma_mps": 1.0, "axes": "up"}})},
+     VALIDATE, 2, ["estimators[1].measurements[1].axes", "horizontal, ned"]),
+    ("zero-velocity-sigma", {S: scenario(**{"estimators[1].measurements[1]":
+                                            {"type": "zero_velocity", "sensor": "ads", "sigma_mps": [1, 0, 1]}})},
+     VALIDATE, 2, ["estimators[1].measurements[1].sigma_mps", "a positive number"]),
     ("seed-negative", {S: scenario()}, RUN + ["--seed", "-1"], 2, ["--seed", "below 0"]),
     ("rate-nan", {S: scenario(flight={"rate_hz": float("nan")})}, VALIDATE, 2, ["flight.rate_hz", "finite"]),
     ("period-tiny", {S: scenario(**{"estimators[1].period_s": 1e-9})}, VALIDATE, 2,

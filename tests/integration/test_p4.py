@@ -30,6 +30,23 @@ def test_static_attitude_reaches_p4s_accuracy(static):
     assert not any(h.resets), "a static vehicle with a calibrated magnetometer must not be reset"
 
 
+def test_without_gnss_a_zero_velocity_levels_the_eskf_to_the_accelerometer_floor(static):
+    """navsim's ES-KF on the parked vehicle with no GNSS: the zero velocity (0.05 m/s) makes the
+    tilt observable through the accelerometers, so roll and pitch reach the same floor as the
+    CPF-EKF's (b/g of the 0.5 mg residual bias, 0.029 deg, and the 0.1 mrad misalignment), and
+    the calibrated magnetometer's heading holds yaw at hard iron / horizontal field (0.05 uT /
+    ~23 uT, 0.12 deg 1 sigma) plus the heading noise; the position it is never told stays at
+    its initial error, the velocity at the pseudo-measurement's level."""
+    res, scenario = static
+    h = res.histories["ES-KF, no GNSS"]
+    a = score(h, scenario.settle_s).attitude
+    assert np.all(np.array(a.p95_deg[:2]) < 3 * (0.029 + 0.006) + 0.03), a.p95_deg
+    assert a.p95_deg[2] < 3 * 0.12 + 0.2, a.p95_deg
+    late = h.t_s > scenario.settle_s
+    assert np.sqrt(np.mean(h.vel_err_mps[:, late] ** 2)) < 0.05
+    assert all(d is None for d in h.divergence or [])
+
+
 def test_the_complementary_filter_alone_is_coarser(static):
     res, scenario = static
     ekf, cpf = (score(res.histories[k], scenario.settle_s).attitude for k in ("CPF-EKF", "CPF"))

@@ -8,7 +8,13 @@ from navsim.foundations.transform import rotation, skew
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.error_model import PRESETS, Layout, system_matrix
 from navsim.navigation.estimators.eskf import _covariance_series_fits
-from navsim.navigation.estimators.measurements import GnssPosition, Height, Velocity
+from navsim.navigation.estimators.measurements import (
+    GnssPosition,
+    Height,
+    MagneticHeading,
+    Velocity,
+    ZeroVelocity,
+)
 from navsim.navigation.strapdown import NavState, rates_n
 
 LAYOUT = Layout(PRESETS["p3_15"])
@@ -70,14 +76,23 @@ class FakeData:
         self.values = {k: np.asarray(val)[None, None] if np.ndim(val) == 0 else np.asarray(val)[None, None]
                        for k, val in values.items()}
         self.valid = np.ones((1, 1), bool)
+        self.meta = {}
+
+
+#: an Earth field (NED, tesla) with a declination and an inclination
+FIELD_N_T = np.array([2.2e-5, -0.4e-5, 4.5e-5])
 
 
 @pytest.mark.parametrize("model", [GnssPosition("g", np.ones(3)), Velocity("g", np.ones(3)),
-                                   Height("b", 1.0, field="h_m")])
+                                   Height("b", 1.0, field="h_m"), ZeroVelocity("m", np.ones(3)),
+                                   ZeroVelocity("m", np.ones(3), vertical=True),
+                                   MagneticHeading("m", 0.01, 0.0, field_n_T=FIELD_N_T, online=False)],
+                         ids=["gnss_position", "velocity", "height", "zero_velocity", "zero_velocity_ned",
+                              "mag_heading"])
 def test_H_matches_finite_differences(model):
     lat, lon, h, v, C, _, _ = nominal()
     # the sensor agrees with the nominal state: the linearisation point of a closed-loop filter
-    data = FakeData({"lat_rad": lat, "lon_rad": lon, "h_m": h, "vel_n_mps": v})
+    data = FakeData({"lat_rad": lat, "lon_rad": lon, "h_m": h, "vel_n_mps": v, "mag_b_T": C.T @ FIELD_N_T})
 
     def z_of(dx):
         dp, dv = dx[6:9], dx[3:6]

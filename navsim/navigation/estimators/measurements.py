@@ -35,6 +35,7 @@ own the same way::
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -229,6 +230,40 @@ class Height:
         return z, H, np.full((B, 1, 1), float(self.sigma_m) ** 2), data.valid[:, j]
 
 
+@measurement("zero_velocity")
+@dataclass
+class ZeroVelocity:
+    """INS velocity against zero, m/s: a pseudo-measurement for a vehicle with no position or
+    velocity aiding that stays near one spot (a replayed log without GNSS, a hover, a test
+    stand). The horizontal velocity error grows as gravity times the tilt error, so holding it
+    near zero keeps roll and pitch observable from the accelerometers, as PX4's EKF2 fuses a
+    fake position when it has no aiding. ``sigma_mps`` (N, E, D) must cover the vehicle's true
+    motion; ``axes: horizontal`` (the default) uses N and E only. ``sensor`` only times it: one
+    update at each of its samples."""
+
+    sensor: str
+    sigma_mps: np.ndarray                #: (3,) N, E, D
+    vertical: bool = False
+    SCHEMA = {"sigma_mps": VEC3, "axes": {"enum": ["horizontal", "ned"]}}
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        return {"sigma_mps": node.vector("sigma_mps"),
+                "axes": node.get("axes", str, "horizontal", choices=["horizontal", "ned"])}
+
+    @classmethod
+    def from_entry(cls, entry: dict):
+        return cls(entry["sensor"], np.array(entry["sigma_mps"]), vertical=entry["axes"] == "ned")
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        B, m = nav.lat_rad.shape[0], 3 if self.vertical else 2
+        H = np.zeros((B, m, layout.n))
+        s = layout.slice("vel").start
+        H[:, np.arange(m), s + np.arange(m)] = 1.0
+        sig2 = np.asarray(self.sigma_mps, float)[:m] ** 2
+        return nav.vel_n_mps[:, :m].copy(), H, _diag(sig2, B), data.valid[:, j]
+
+
 @measurement("gnss_horizontal")
 @dataclass
 class GnssHorizontal:
@@ -309,6 +344,11 @@ class MagneticHeading:
     (roll and pitch errors enter through the inclination, as in the tilt compensation). The
     measurement is used once the INS heading has turned ``min_turns`` full turns since the
     start (the calibration manoeuvre) and the fit is an ellipsoid.
+
+    ``calibration: none`` takes the samples as calibrated already (a replayed autopilot's
+    magnetometer) and uses them from the first epoch; ``field_uT`` (N, E, D) replaces the WMM as
+    the filter's model of the Earth field (a field measured on the ground; ``navsim replay``
+    gives the one of its coarse alignment).
     """
 
     sensor: str
@@ -316,44 +356,68 @@ class MagneticHeading:
     noise_T: float                       #: the filter's model of the magnetometer noise, per axis
     forgetting: float = 1.0
     min_turns: float = 2.0
+    field_n_T: np.ndarray | None = None  #: (3,) the filter's Earth field, NED; None: the WMM
+    online: bool = True                  #: calibrate online; False: the samples are calibrated
     _fit: object = dataclasses.field(default=None, init=False, repr=False)     #: the RLS fit, from the first call
 
     SCHEMA = {"sigma_deg": POS, "noise_uT": {"type": "number", "minimum": 0},
               "forgetting": {"type": "number", "exclusiveMinimum": 0, "maximum": 1},
-              "min_turns": {"type": "number", "minimum": 0}}
+              "min_turns": {"type": "number", "minimum": 0}, "calibration": {"enum": ["online", "none"]},
+              "field_uT": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}}
 
     @classmethod
     def parse(cls, node: Node, sensors: dict) -> dict:
         """The heading's ``sigma_deg``, the filter's model of the magnetometer noise ``noise_uT``
-        (per axis), the calibration's ``forgetting`` and ``min_turns``."""
+        (per axis, for the online fit), the calibration (``online`` or ``none``), its
+        ``forgetting`` and ``min_turns``, and the Earth field ``field_uT`` (None: the WMM)."""
         sensor_of_kind(node, sensors, "magnetometer")
-        return {"sigma_deg": node.get("sigma_deg", float, exclusive_minimum=0.0),
-                "noise_uT": node.get("noise_uT", float, minimum=0.0),
+        field = node.vector("field_uT", None, minimum=-math.inf) if node.data.get("field_uT") is not None else None
+        calibration = node.get("calibration", str, "online", choices=["online", "none"])
+        noise = (node.get("noise_uT", float, minimum=0.0) if calibration == "online"     # the fit's noise model
+                 else node.get("noise_uT", float, 0.0, minimum=0.0))
+        return {"sigma_deg": node.get("sigma_deg", float, exclusive_minimum=0.0), "noise_uT": noise,
+                "calibration": calibration,
                 "forgetting": node.get("forgetting", float, 1.0, exclusive_minimum=0.0, maximum=1.0),
-                "min_turns": node.get("min_turns", float, 2.0, minimum=0.0)}
+                "min_turns": node.get("min_turns", float, 2.0, minimum=0.0), "field_uT": field}
 
     @classmethod
     def from_entry(cls, entry: dict):
+        field = entry.get("field_uT")
         return cls(entry["sensor"], np.radians(entry["sigma_deg"]), entry["noise_uT"] * 1e-6,
-                   forgetting=entry["forgetting"], min_turns=entry["min_turns"])
+                   forgetting=entry["forgetting"], min_turns=entry["min_turns"],
+                   field_n_T=None if field is None else np.asarray(field, float) * 1e-6,
+                   online=entry.get("calibration", "online") == "online")
 
-    def model(self, nav: NavState, layout: Layout, data, j: int):
+    def _field_n_T(self, nav: NavState, date: str, grid: bool = True) -> np.ndarray:
+        """The filter's Earth field at the INS position ``(B, 3)``."""
+        if self.field_n_T is not None:
+            return np.broadcast_to(self.field_n_T, (nav.lat_rad.shape[0], 3))
+        return magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date, grid=grid)
+
+    def _calibrated(self, nav: NavState, data, j: int, date: str):
+        """Sample ``j`` calibrated, and the runs whose calibration may be used."""
         B = nav.lat_rad.shape[0]
-        date = data.meta.get("date", "2025-01-01")
+        mag = data.values["mag_b_T"]
+        if not self.online:
+            return mag[:, j], np.ones(B, bool)
         yaw = np.arctan2(nav.C_nb[:, 1, 0], nav.C_nb[:, 0, 0])
         if self._fit is None:
-            field = magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date, grid=False)
+            field = self._field_n_T(nav, date, grid=False)
             self._fit = magcal.EllipsoidRLS(np.linalg.norm(field, axis=-1), self.noise_T, self.forgetting)
             self._fed, self._turns, self._yaw = 0, np.zeros(B), yaw
-        mag = data.values["mag_b_T"]
         self._fit.update(mag[:, self._fed:j + 1], data.valid[:, self._fed:j + 1])
         self._fed = j + 1
         self._turns += np.abs((yaw - self._yaw + np.pi) % (2 * np.pi) - np.pi) / (2 * np.pi)
         self._yaw = yaw
         hard, soft, ok = self._fit.estimate()
-        m_n = magcal.field_model_n_T(nav.lat_rad, nav.lon_rad, nav.h_m, date)
-        z, h_att = magnetic_heading(nav.C_nb, magcal.calibrate(mag[:, j], hard, soft), m_n)
-        valid = data.valid[:, j] & ok & (self._turns >= self.min_turns) & np.isfinite(z)
+        return magcal.calibrate(mag[:, j], hard, soft), ok & (self._turns >= self.min_turns)
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        B = nav.lat_rad.shape[0]
+        date = data.meta.get("date", "2025-01-01")
+        m_b, ok = self._calibrated(nav, data, j, date)
+        z, h_att = magnetic_heading(nav.C_nb, m_b, self._field_n_T(nav, date))
+        valid = data.valid[:, j] & ok & np.isfinite(z)
         H = np.zeros((B, 1, layout.n))
         H[:, 0, layout.slice("att")] = h_att
         return (np.where(valid, z, 0.0)[:, None], H, np.full((B, 1, 1), float(self.sigma_rad) ** 2), valid)
