@@ -54,6 +54,7 @@ from navsim.scoring.closed_loop import closed_loop_metrics
 from navsim.scoring.landmarks import sighting_spans
 from navsim.scoring.metrics import RunMetrics
 from navsim.scoring.scorer import score_run
+from navsim.scoring.verdicts import judge
 
 
 @dataclass
@@ -274,7 +275,7 @@ def _score(result: Result, wall_s: float) -> None:
         closed = closed_loop_metrics(result.loop, result.reference, sc.closed_loop, result.histories)
     result.metrics = RunMetrics(sc.name, result.record["runs"], int(len(result.runs)), result.record["seed"],
                                 {str(k): v for k, v in result.failed.items()}, result.interrupted, estimators,
-                                calibration or None, closed, wall_s)
+                                calibration or None, closed, wall_s, judge(sc.reference, estimators))
     plotted = len(result.runs) if result.history_runs is None else len(result.history_runs)
     result.record.update(failed_runs=result.failed, interrupted=result.interrupted, wall_s=wall_s,
                          **provenance(), runs_plotted=plotted)

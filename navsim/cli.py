@@ -48,6 +48,7 @@ from navsim.replay import load_ulog, replay, replay_metrics
 from navsim.report.pages import attitude_lines, closed_loop_lines, divergence_lines, sighting_lines
 from navsim.report.replay import difference_table, write_replay_report
 from navsim.report.sweep import write_sweep_figure
+from navsim.scoring.verdicts import VERDICT_HEADERS, verdict_rows, verdict_summary
 from navsim.sensors import emulate
 from navsim.sensors.catalog import available
 from navsim.sensors.plots import channels, plot_sensor
@@ -219,15 +220,11 @@ def print_run_summary(result) -> None:
     _print_calibration(metrics)
 
 
-def _print_reference(reference: dict, metrics) -> None:
-    rows = []
-    fmt = lambda v: "-" if v is None else (" ".join(f"{x:.3g}" for x in v) if isinstance(v, list) else f"{v:.4g}")
-    for label, vals in reference["values"].items():
-        m = metrics.estimators.get(label)
-        for path, paper in vals.items():
-            rows.append([label, path, fmt(paper), fmt(m.get(path) if m else None)])
-    print(f"\npublished ({reference['source']}) versus ours:")
-    print(_table(["estimator", "metric", "paper", "ours"], rows))
+def _print_reference(reference, metrics) -> None:
+    if metrics.paper_checks is None:
+        return
+    print(f"\npublished ({reference.source}) versus ours: {verdict_summary(metrics.paper_checks)}")
+    print(_table(VERDICT_HEADERS, verdict_rows(metrics.paper_checks)))
 
 
 def _print_calibration(metrics) -> None:

@@ -68,6 +68,21 @@ def square_root(A: np.ndarray) -> np.ndarray:
         return V * np.sqrt(np.clip(w, 0.0, None))[None, :]
 
 
+def solve(S: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``S^-1 B`` for each run's ``S`` ``(B, m, m)``; NaN for a run whose ``S`` is singular (it
+    is flagged diverged, the others are updated)."""
+    try:
+        return np.linalg.solve(S, B)
+    except np.linalg.LinAlgError:
+        out = np.full(np.broadcast_shapes(S.shape[:-1], B.shape[:-1]) + B.shape[-1:], np.nan)
+        for b in range(S.shape[0]):
+            try:
+                out[b] = np.linalg.solve(S[b], B[b])
+            except np.linalg.LinAlgError:
+                pass
+        return out
+
+
 def sigma_points(x: np.ndarray, P: np.ndarray, scale: float) -> np.ndarray:
     """``(2n + 1, B, n)`` sigma points of ``x`` ``(B, n)``, ``P`` ``(B, n, n)``, spread by a
     square root of ``scale P`` (:func:`square_root`, run by run where the batch has no Cholesky
@@ -90,7 +105,8 @@ def _stateless(model) -> bool:
 class ErrorStateUKF(ErrorStateKF):
     """The ES-KF with the unscented measurement update (see the module docstring)."""
 
-    SCHEMA = {**ErrorStateKF.SCHEMA, "unscented": obj({"alpha": POS, "beta": NUM, "kappa": NUM})}
+    SCHEMA = {**ErrorStateKF.SCHEMA, "unscented": obj({"alpha": POS, "beta": {"type": "number", "minimum": 0},
+                                                       "kappa": NUM})}
 
     def __init__(self, layout, noise, measurements, alpha: float = UNSCENTED["alpha"],
                  beta: float = UNSCENTED["beta"], kappa: float = UNSCENTED["kappa"], **kw):
@@ -138,16 +154,16 @@ class ErrorStateUKF(ErrorStateKF):
         Z = self._predicted(model, data, j, z, H, X)
         z_hat = np.einsum("s,sbm->bm", self.wm, Z)
         dZ, dX = Z - z_hat, X - self.x
-        S = np.einsum("s,sbm,sbk->bmk", self.wc, dZ, dZ) + R
+        S = symmetrize(np.einsum("s,sbm,sbk->bmk", self.wc, dZ, dZ) + R)
         C = np.einsum("s,sbn,sbm->bnm", self.wc, dX, dZ)
-        K = np.swapaxes(np.linalg.solve(S, np.swapaxes(C, 1, 2)), 1, 2)          # C S^-1
+        K = np.swapaxes(solve(S, np.swapaxes(C, 1, 2)), 1, 2)          # C S^-1
         y = z - z_hat
         ok = np.asarray(valid, bool)
         x_new = self.x + np.einsum("bnm,bm->bn", K, y)
         P_new = symmetrize(self.P - K @ S @ np.swapaxes(K, 1, 2))
         self.x = np.where(ok[:, None], x_new, self.x)
         self.P = np.where(ok[:, None, None], P_new, self.P)
-        nis = np.where(ok, np.einsum("bm,bm->b", y, np.linalg.solve(S, y[..., None])[..., 0]), np.nan)
+        nis = np.where(ok, np.einsum("bm,bm->b", y, solve(S, y[..., None])[..., 0]), np.nan)
         bad = ~np.all(np.isfinite(self.P), axis=(1, 2)) | (np.diagonal(self.P, axis1=1, axis2=2) < 0).any(-1)
         self.diverged |= bad
         return Innovation(model.name, model.sensor, t, y, S, nis)

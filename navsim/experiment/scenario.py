@@ -28,6 +28,7 @@ import numpy as np
 
 from navsim.experiment.closed_loop import parse_closed_loop
 from navsim.experiment.driver import InitialErrors
+from navsim.experiment.reference import Reference, parse_reference
 from navsim.flight.environment import parse_environment
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import FlightConfig
@@ -54,7 +55,7 @@ class Scenario:
     initial: object = None
     settle_s: float = 0.0
     windows: tuple = ()                  #: (name, start_s, end_s)
-    reference: dict | None = None
+    reference: Reference | None = None    #: the published results it reproduces
     report: dict = field(default_factory=dict)
     closed_loop: object = None           #: navsim.experiment.closed_loop.ClosedLoopConfig, or None (open loop)
 
@@ -90,7 +91,8 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     if node.data.get("closed_loop") is not None:
         duration = math.inf           # each run's flight ends where its navigation takes it
     settle_s, windows = _metrics(node.child("metrics", None))
-    reference = _reference(node.child("reference", None), [e.label for e in estimators], windows)
+    reference = parse_reference(node.child("reference", None), [e.label for e in estimators],
+                                lambda path, key: check_metric_path(path, windows, file=node.file, key=key))
     report = _report(node.child("report", None))
     rate_hz = _rate_hz(node.child("flight", None))
     closed_loop = None
@@ -351,31 +353,6 @@ def check_metric_path(path: str, windows, *, file: str | None, key: str) -> None
         if name not in [w[0] for w in windows]:
             raise ScenarioError(f"window '{name}' is not defined under metrics.windows", file=file, key=key,
                                 hint=close_match(name, [w[0] for w in windows]))
-
-
-def _reference(node, labels, windows):
-    """``reference: {source, note, values: {estimator label: {metric path: number or [3]}}}``."""
-    if node is None:
-        return None
-    ref = {"source": node.get("source", str), "note": node.get("note", str, ""), "values": {}}
-    vals = node.child("values")
-    for label, metrics in vals.data.items():
-        if label not in labels:
-            raise vals.error(f"'{label}' is not an estimator label", str(label),
-                             expected="one of " + ", ".join(labels), hint=close_match(str(label), labels))
-        vals._seen.add(label)
-        m = Node(metrics, vals.key(str(label)), node.file)
-        for path, value in m.data.items():
-            m._seen.add(path)
-            check_metric_path(str(path), windows, file=node.file, key=m.key(str(path)))
-            number = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-            ok = number(value) or (isinstance(value, list) and len(value) == 3 and all(map(number, value)))
-            if not ok:
-                raise m.error(f"is {value!r}", str(path), expected="a finite number or a list of three")
-        ref["values"][label] = dict(m.data)
-    vals.done()
-    node.done()
-    return ref
 
 
 def load_scenario(path: str | Path) -> Scenario:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 
+from navsim.experiment.reference import RULES
 from navsim.experiment.scenario import MAX_WORKERS, RATE_HZ
 from navsim.flight.environment import MAX_WIND_MPS
 from navsim.flight.track import MAX_AIRSPEED_MPS, SEGMENT_KEYS
@@ -56,14 +57,25 @@ def scenario_schema(built_in: bool = False) -> dict:
                              "windows": {"type": "array", "items": obj(
                                  {"name": {"type": "string"}, "start_s": NUM, "end_s": NUM},
                                  ["name", "start_s", "end_s"])}}),
-            "reference": obj({"source": {"type": "string"}, "note": {"type": "string"},
-                               "values": {"type": "object", "additionalProperties": {"type": "object"}}},
-                              ["source", "values"]),
+            "reference": _reference(),
             "report": obj({"formats": {"type": "array", "items": {"enum": ["pdf", "png"]}},
                             "runs_plotted": {"type": "integer", "minimum": 0}}),
             "closed_loop": _closed_loop(),
         }, ["track"]),
     }
+
+
+def _reference() -> dict:
+    """``reference``: published numbers (``values``) and claims, each judged by a rule."""
+    rule = {"check": {"enum": list(RULES)}, "tolerance": POS}
+    number = {"oneOf": [NUM, {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3}]}
+    value = {"oneOf": [number, obj({"paper": number, **rule}, ["paper"])]}
+    threshold = {"oneOf": [number, obj({"times": POS, "of": {"type": "string"}}, ["times", "of"])]}
+    claim = obj({"claim": {"type": "string"}, "estimator": {"type": "string"}, "metric": {"type": "string"},
+                 "at_most": threshold, "at_least": threshold}, ["claim", "estimator", "metric"])
+    return obj({"source": {"type": "string"}, "note": {"type": "string"}, **rule,
+                "values": {"type": "object", "additionalProperties": {"type": "object", "additionalProperties": value}},
+                "claims": {"type": "array", "items": claim}}, ["source"])
 
 
 def _start() -> dict:

@@ -18,6 +18,7 @@ from navsim.foundations.errors import OutputError
 from navsim.foundations.outputs import OutputFolder, write_atomic
 from navsim.scoring.metrics import EULER_AXES, RunMetrics
 from navsim.scoring.stats import chi2_band
+from navsim.scoring.verdicts import VERDICT_HEADERS, verdict_rows, verdict_summary
 
 AXES = {"pos": ("position error", "m", ["north", "east", "down"]),
         "vel": ("velocity error", "m/s", ["north", "east", "down"]),
@@ -115,16 +116,11 @@ def summary_lines(scenario, record: dict, metrics: RunMetrics) -> list[str]:
     lines += closed_loop_lines(metrics.closed_loop)
     lines += sighting_lines(metrics)
     lines += attitude_lines(metrics, _table_lines)
-    if scenario.reference:
-        lines += ["", f"published ({scenario.reference['source']}) versus ours:"]
-        if scenario.reference.get("note"):
-            lines += textwrap.wrap(scenario.reference["note"], 100)
-        rows = []
-        for label, vals in scenario.reference["values"].items():
-            for path, paper in vals.items():
-                m = metrics.estimators.get(label)
-                rows.append([label, path, _fmt(paper), _fmt(m.get(path) if m else None)])
-        lines += _table_lines(["estimator", "metric", "paper", "ours"], rows)
+    if scenario.reference and metrics.paper_checks is not None:
+        lines += ["", f"published ({scenario.reference.source}) versus ours: {verdict_summary(metrics.paper_checks)}"]
+        if scenario.reference.note:
+            lines += textwrap.wrap(scenario.reference.note, 100)
+        lines += _table_lines(VERDICT_HEADERS, verdict_rows(metrics.paper_checks))
     return lines
 
 

@@ -311,6 +311,25 @@ class CalibrationScore(_Record):
 
 
 @dataclass(frozen=True)
+class Verdict(_Record):
+    """A published number or claim (:class:`navsim.experiment.reference.PaperCheck`) against
+    ours: ``passed`` is None where there is no verdict (rule ``none``, or no number of ours)."""
+
+    estimator: str
+    metric: str
+    rule: str
+    bound: float | list | None           #: the paper's number or the threshold (None: not resolved)
+    ours: float | list | None
+    passed: bool | None
+    tolerance: float | None = None       #: ``close`` only
+    claim: str | None = None
+    of: str | None = None                #: a claim relative to this estimator (``bound``: its metric × ``times``)
+    times: float | None = None
+
+    _NULLS = ("bound", "ours", "passed")
+
+
+@dataclass(frozen=True)
 class RunMetrics(_Record):
     """The scores of a run of a scenario, as ``metrics.json`` holds them.
 
@@ -327,6 +346,7 @@ class RunMetrics(_Record):
     calibration: dict[str, CalibrationScore] | None = None
     closed_loop: dict | None = None
     wall_s: float | None = None
+    paper_checks: list[Verdict] | None = None    #: the scenario's ``reference``, judged
 
 
 def lookup(metrics: dict, path: str):

@@ -27,8 +27,10 @@ def without_cost(metrics: dict) -> dict:
     return {label: {k: v for k, v in m.items() if k != "cost"} for label, m in metrics["estimators"].items()}
 
 
-def test_the_notebook_example_gives_navsim_runs_numbers(tmp_path, monkeypatch, close_metrics):
-    """examples/p0_quickstart.py (4 runs of P0) against ``navsim run`` of the same runs."""
+def test_the_notebook_example_gives_navsim_runs_numbers(tmp_path, monkeypatch, close_metrics, capsys):
+    """examples/p0_quickstart.py (4 runs of P0) against ``navsim run`` of the same runs, which
+    judges P0's claims (free SINS diverges; the integrated filter converges fast, does not
+    diverge, stays within the BD's sigma) and prints the verdicts."""
     monkeypatch.setenv("NAVSIM_EXAMPLE_RUNS", "4")
     monkeypatch.setenv("NAVSIM_EXAMPLE_OUT", str(tmp_path / "example"))
     example = runpy.run_path(str(ROOT / "examples" / "p0_quickstart.py"))
@@ -36,7 +38,12 @@ def test_the_notebook_example_gives_navsim_runs_numbers(tmp_path, monkeypatch, c
     out = tmp_path / "cli"
     assert run(ROOT / "scenarios" / "p0_bd_sins_ads.yaml", out, "--runs", "4", "--seed", "1", "--workers", "2") == 0
     written = json.loads((out / "metrics.json").read_text())
-    close_metrics(without_cost(example["result"].to_dict()), without_cost(written))
+    checks = written.pop("paper_checks")
+    assert [(c["claim"].split()[0], c["passed"]) for c in checks] == [("free", True)] + [("BD/SINS/ADS", True)] * 3
+    assert "4 of 4 paper checks pass" in capsys.readouterr().out
+    assert example["result"].metrics.paper_checks == navsim.open_result(out).metrics.paper_checks
+    close_metrics(without_cost({k: v for k, v in example["result"].to_dict().items() if k != "paper_checks"}),
+                  without_cost(written))
     ds = example["ds"]
     assert dict(ds.sizes) == {"estimator": 2, "run": 4, "epoch": 501, "axis": 3, "state": 9}
     assert ds.pos_err_m.attrs["units"] == "m" and ds.t_s.attrs["units"] == "s"

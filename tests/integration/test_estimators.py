@@ -10,6 +10,7 @@ from scipy.stats import chi2
 from navsim.experiment.driver import ARCSEC, Driver, InitialErrors, perturbed_start, run_batch
 from navsim.flight import fly, load_track
 from navsim.flight.truth import Truth
+from navsim.foundations.errors import UsageError
 from navsim.navigation.estimators import available, factory, get, measurement_types
 from navsim.navigation.estimators.error_model import PRESETS, Layout
 from navsim.navigation.estimators.eskf import ErrorStateKF
@@ -181,6 +182,21 @@ def test_third_party_estimator_through_entry_point(tmp_path, monkeypatch, p0_tru
     assert np.abs(h.pos_err_m).max() < 0.01
     with pytest.raises(KeyError, match="did you mean 'eskf'"):
         get("eskff")
+
+
+def test_an_entry_point_without_the_contract_is_refused_by_name(tmp_path, monkeypatch):
+    """An installed entry point whose class lacks a method of the contract is checked as
+    ``@register`` checks a class: a usage error that names the entry point, not a traceback
+    when the scenario first calls the missing method."""
+    (tmp_path / "half_estimator.py").write_text("class Half:\n    period_s = 1.0\n    def propagate(self, *a):\n"
+                                                 "        pass\n")
+    dist = tmp_path / "half_estimator-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: half-estimator\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[navsim.estimators]\nhalf = half_estimator:Half\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(UsageError, match=r"entry point half = 'half_estimator:Half'.*has no initialize\(\), epoch"):
+        available()
 
 
 @pytest.mark.slow

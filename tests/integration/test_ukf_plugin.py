@@ -52,6 +52,13 @@ def test_the_plugin_is_found_through_its_entry_point(plugin, capsys):
     cov = np.einsum("s,sbn,sbm->bnm", wm, X - mean, X - mean)
     np.testing.assert_allclose(mean, x, atol=1e-12)
     np.testing.assert_allclose(cov, P, rtol=1e-10)
+    # the covariance weights: the centre point's carries 1 - alpha^2 + beta more (Gaussian prior)
+    assert wc[0] == pytest.approx(wm[0] + 1 - 0.25 + 2.0) and np.array_equal(wc[1:], wm[1:])
+    assert sum(wm) == pytest.approx(1.0)
+    # a run whose innovation covariance is singular gets NaN alone
+    S = np.stack([np.eye(2), np.zeros((2, 2)), 2 * np.eye(2)])
+    out = plugin.solve(S, np.ones((3, 2, 1)))
+    assert np.isnan(out[1]).all() and np.allclose(out[0], 1.0) and np.allclose(out[2], 0.5)
 
 
 def test_the_ukf_on_p3_beside_the_eskf(plugin, repo_root):

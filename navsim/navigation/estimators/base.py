@@ -44,6 +44,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from navsim.foundations.config import close_match
+from navsim.foundations.errors import UsageError
 from navsim.navigation.strapdown import NavState
 
 _REGISTRY: dict[str, type] = {}
@@ -109,7 +110,7 @@ def register(name: str):
     def deco(cls):
         missing = [m for m in METHODS if not callable(getattr(cls, m, None))]
         if missing:
-            raise TypeError(f"estimator '{name}': {cls.__name__} has no {', '.join(missing)}()")
+            raise TypeError(f"estimator '{name}': {cls.__name__} has no {', '.join(m + '()' for m in missing)}")
         _REGISTRY[name] = cls
         cls.type_name = name
         return cls
@@ -146,7 +147,12 @@ def get(name: str) -> type:
 
 
 def _load_entry_points() -> None:
+    """Register each ``navsim.estimators`` entry point as :func:`register` does (its class
+    checked, ``type_name`` its entry point's name)."""
     for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
         if ep.name not in _REGISTRY:
-            cls = ep.load()
-            _REGISTRY[ep.name] = cls
+            try:
+                register(ep.name)(ep.load())
+            except TypeError as exc:
+                raise UsageError(f"the entry point {ep.name} = {ep.value!r} of the group '{ENTRY_POINT_GROUP}': "
+                                 f"{exc}") from exc

@@ -1,0 +1,141 @@
+"""A scenario's ``reference:``: the published results it reproduces, each a check with a rule.
+
+A paper gives numbers (P2's Table 1, P4's accuracy bounds) or only claims (P0: "free SINS
+diverges; the integrated filter converges fast and does not diverge"). Both become a
+:class:`PaperCheck` on one metric of one estimator (a dotted path of its ``metrics.json``
+entry, as :meth:`navsim.scoring.metrics.EstimatorMetrics.get` reads it), judged by a rule:
+
+- ``at_most``: ours ``<=`` the bound (an accuracy the paper claims: "within 1 m");
+- ``at_least``: ours ``>=`` the bound (free SINS "diverges": its error grows past a bound);
+- ``close``: ``|ours - paper| <= tolerance * |paper|`` (a number to reproduce);
+- ``none``: shown beside ours without a verdict.
+
+A vector (``[N, E, D]``, roll/pitch/yaw) passes when every component does. The scenario's form::
+
+    reference:
+      source: P3, simulation results
+      note: ...                      # optional, how ours is read against the paper's
+      check: at_most                 # the rule of the plain values (default none)
+      tolerance: 0.25                # for close (default 0.25)
+      values:                        # published numbers, per estimator label and metric
+        SINS/GPS 15-state: {p99.pos_m: [1, 1, 1]}          # the reference's rule
+        other: {rms.pos_m: {paper: 2.0, check: close, tolerance: 0.5}}
+      claims:                        # a paper's qualitative results, each with its threshold
+        - {claim: free SINS diverges, estimator: free SINS, metric: final.pos_m, at_least: 50}
+        - {claim: "the weights cut the error", estimator: weights, metric: rms.pos_m,
+           at_most: {times: 0.5, of: standard KF}}       # relative to another estimator's
+
+A claim's threshold relative to another estimator (``{times, of}``) is that estimator's same
+metric times the factor.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from navsim.foundations.config import Node, close_match
+
+RULES = ("at_most", "at_least", "close", "none")
+DEFAULT_TOLERANCE = 0.25
+
+
+@dataclass(frozen=True)
+class PaperCheck:
+    """One published number or claim on one estimator's metric."""
+
+    estimator: str                 #: the estimator's label
+    metric: str                    #: dotted path of its metrics, e.g. ``p99.pos_m``
+    rule: str                      #: one of :data:`RULES`
+    bound: float | list            #: the paper's number, or the claim's threshold
+    tolerance: float = DEFAULT_TOLERANCE   #: ``close``: relative to the paper's number
+    claim: str | None = None       #: the claim's words; None for a published number
+    of: str | None = None          #: a claim relative to this estimator: ``bound`` is the factor
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The published results a scenario reproduces."""
+
+    source: str
+    note: str
+    checks: tuple[PaperCheck, ...]
+
+
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _value(node: Node, key: str):
+    """A number or a list of three at ``key``."""
+    value = node.data.get(key)
+    node._seen.add(key)
+    if _number(value) or (isinstance(value, list) and len(value) == 3 and all(map(_number, value))):
+        return value
+    raise node.error(f"is {value!r}", key, expected="a finite number or a list of three")
+
+
+def _rule(node: Node, default: str = "none") -> tuple[str, float]:
+    return (node.get("check", str, default, choices=list(RULES)),
+            node.get("tolerance", float, DEFAULT_TOLERANCE, exclusive_minimum=0.0))
+
+
+def _label(node: Node, key: str, labels: list) -> str:
+    """The estimator label at ``key`` (``estimator``, ``of``) or, for another key, the key."""
+    named = key in ("estimator", "of")
+    label = node.get(key, str) if named else key
+    if label not in labels:
+        raise node.error(f"'{label}' is not an estimator label", key if named else str(label),
+                         expected="one of " + ", ".join(labels), hint=close_match(str(label), labels))
+    return label
+
+
+def parse_reference(node: Node | None, labels: list, check_path) -> Reference | None:
+    """The ``reference`` section (``None`` when absent); ``check_path(path, key)`` raises for a
+    path that is not a metric."""
+    if node is None:
+        return None
+    source, note = node.get("source", str), node.get("note", str, "")
+    rule, tol = _rule(node)
+    checks = []
+    vals = node.child("values", None)
+    for label, metrics in (vals.data.items() if vals else ()):
+        _label(vals, str(label), labels)
+        vals._seen.add(label)
+        m = Node(metrics, vals.key(str(label)), node.file)
+        for path in m.data:
+            check_path(str(path), m.key(str(path)))
+            if isinstance(m.data[path], dict):
+                one = m.child(str(path))
+                r, t = _rule(one, rule)
+                checks.append(PaperCheck(str(label), str(path), r, _value(one, "paper"), t))
+                one.done()
+            else:
+                checks.append(PaperCheck(str(label), str(path), rule, _value(m, str(path)), tol))
+    if vals:
+        vals.done()
+    for j, raw in enumerate(node.items("claims", 0, "a list of {claim, estimator, metric, at_most or at_least}")
+                            if "claims" in node.data else []):
+        checks.append(_claim(Node(raw, node.key(f"claims[{j}]"), node.file), labels, check_path))
+    if not checks:
+        raise node.error("has no values and no claims", "values", expected="at least one published number or claim")
+    node.done()
+    return Reference(source, note, tuple(checks))
+
+
+def _claim(c: Node, labels: list, check_path) -> PaperCheck:
+    text, label, path = c.get("claim", str), _label(c, "estimator", labels), c.get("metric", str)
+    check_path(path, c.key("metric"))
+    given = [k for k in ("at_most", "at_least") if k in c.data]
+    if len(given) != 1:
+        raise c.error("needs one threshold", "at_most", expected="exactly one of at_most, at_least")
+    rule = given[0]
+    if isinstance(c.data[rule], dict):              # {times, of}: relative to another estimator
+        rel = c.child(rule)
+        times, of = rel.get("times", float, exclusive_minimum=0.0), _label(rel, "of", labels)
+        rel.done()
+        out = PaperCheck(label, path, rule, times, claim=text, of=of)
+    else:
+        out = PaperCheck(label, path, rule, _value(c, rule), claim=text)
+    c.done()
+    return out

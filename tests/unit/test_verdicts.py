@@ -1,0 +1,111 @@
+"""A scenario's ``reference``: published numbers and claims read with their rules, and judged
+against metrics (:mod:`navsim.experiment.reference`, :mod:`navsim.scoring.verdicts`)."""
+
+import pytest
+
+from navsim.experiment.reference import parse_reference
+from navsim.experiment.scenario import check_metric_path
+from navsim.foundations.config import Node
+from navsim.foundations.errors import ScenarioError
+from navsim.scoring.metrics import EstimatorMetrics, RunMetrics
+from navsim.scoring.verdicts import judge, verdict_rows, verdict_summary
+
+LABELS = ["SINS", "KF"]
+
+
+def stats(pos, vel=(0.1, 0.1, 0.1), att=(0.01, 0.01, 0.1)):
+    return {"pos_m": list(pos), "vel_mps": list(vel), "att_deg": list(att)}
+
+
+ESTIMATORS = {
+    "SINS": EstimatorMetrics.from_dict({"runs_counted": 4, "diverged_runs": 0, "settle_s": 60,
+                                        "final": stats([90.0, 95.0, 70.0]), "convergence_s": None}),
+    "KF": EstimatorMetrics.from_dict({"runs_counted": 4, "diverged_runs": 0, "settle_s": 60, "convergence_s": 4.0,
+                                      "rms": stats([1.6, 1.7, 1.0]), "final": stats([2.0, 2.0, 1.0])}),
+}
+
+
+def reference(data):
+    return parse_reference(Node(data, "reference", "s.yaml"), LABELS,
+                           lambda path, key: check_metric_path(path, (), file="s.yaml", key=key))
+
+
+def test_values_take_the_reference_rule_or_their_own_and_claims_their_threshold():
+    ref = reference({
+        "source": "paper", "check": "at_most",
+        "values": {"KF": {"rms.pos_m": [2, 2, 2], "convergence_s": {"paper": 5.0, "check": "close", "tolerance": 0.1}}},
+        "claims": [{"claim": "SINS diverges", "estimator": "SINS", "metric": "final.pos_m",
+                    "at_least": {"times": 10, "of": "KF"}},
+                   {"claim": "KF does not diverge", "estimator": "KF", "metric": "diverged_runs", "at_most": 0}]})
+    rules = [(c.estimator, c.metric, c.rule, c.bound, c.of) for c in ref.checks]
+    assert rules == [("KF", "rms.pos_m", "at_most", [2, 2, 2], None), ("KF", "convergence_s", "close", 5.0, None),
+                     ("SINS", "final.pos_m", "at_least", 10.0, "KF"), ("KF", "diverged_runs", "at_most", 0, None)]
+    v = judge(ref, ESTIMATORS)
+    # 1.6/1.7/1.0 <= 2; |4 - 5| = 1 > 0.1 * 5; 90/95/70 >= 10 x 2/2/1 = 20/20/10; 0 <= 0
+    assert [x.passed for x in v] == [True, False, True, True]
+    assert v[2].bound == [20.0, 20.0, 10.0] and v[2].times == 10.0 and v[2].of == "KF"
+    assert verdict_summary(v) == "3 of 4 paper checks pass, 1 fail"
+    rows = verdict_rows(v)
+    assert rows[1][2:] == ["5 ±10%", "4", "FAIL"] and rows[2][1] == "SINS diverges (final.pos_m)"
+    assert rows[2][2] == ">= 10 x KF: 20 20 10"
+
+
+@pytest.mark.parametrize("rule, bound, passed", [
+    ("at_most", [1.6, 1.7, 1.0], True),        # equal passes
+    ("at_most", [1.6, 1.69, 1.0], False),      # one component over fails the vector
+    ("at_least", [1.6, 1.7, 1.0], True),
+    ("at_least", [1.61, 1.0, 0.5], False),
+    ("close", [2.0, 2.0, 1.25], True),         # within 25 % of each
+    ("close", [2.0, 2.0, 0.7], False),
+    ("none", [1.6, 1.7, 1.0], None),
+])
+def test_each_rule_on_a_vector(rule, bound, passed):
+    ref = reference({"source": "p", "check": rule, "values": {"KF": {"rms.pos_m": bound}}})
+    assert judge(ref, ESTIMATORS)[0].passed is passed
+
+
+def test_no_verdict_without_a_number_of_ours():
+    ref = reference({"source": "p", "check": "at_most",
+                     "values": {"SINS": {"rms.pos_m": 1.0, "convergence_s": 10.0}, "KF": {"rms.pos_m": 1.0}},
+                     "claims": [{"claim": "c", "estimator": "KF", "metric": "rms.pos_m",
+                                 "at_most": {"times": 0.5, "of": "SINS"}}]})
+    v = judge(ref, ESTIMATORS)
+    # SINS has no rms and no convergence; a scalar bound against a vector of ours; the SINS
+    # it is relative to has no rms
+    assert [x.passed for x in v] == [None, None, None, None]
+    assert verdict_summary(v) == "0 of 0 paper checks pass (4 shown without a verdict)"
+    assert judge(None, ESTIMATORS) is None
+
+
+def test_verdicts_round_trip_through_metrics_json():
+    ref = reference({"source": "p", "claims": [{"claim": "c", "estimator": "SINS", "metric": "final.pos_m",
+                                                "at_least": {"times": 10, "of": "KF"}},
+                                               {"claim": "d", "estimator": "SINS", "metric": "rms.pos_m",
+                                                "at_most": {"times": 2, "of": "KF"}}]})   # no verdict
+    m = RunMetrics("s", 4, 4, 1, {}, False, dict(ESTIMATORS), paper_checks=judge(ref, ESTIMATORS))
+    back = RunMetrics.from_dict(m.to_dict())
+    assert back.paper_checks == m.paper_checks and back.to_dict() == m.to_dict()
+
+
+@pytest.mark.parametrize("data, key, words", [
+    ({"source": "p", "check": "below", "values": {"KF": {"rms.pos_m": 1}}}, "reference.check", "at_most"),
+    ({"source": "p", "values": {"KF": {"rms.pos_m": {"paper": 1, "check": "near"}}}},
+     "reference.values.KF.rms.pos_m.check", "close"),
+    ({"source": "p", "values": {"KF": {"rms.pos_m": {"check": "close"}}}}, "reference.values.KF.rms.pos_m.paper",
+     "a finite number"),
+    ({"source": "p", "claims": [{"claim": "c", "estimator": "KF", "metric": "rms.pos_m", "at_most": 1,
+                                 "at_least": 0}]}, "reference.claims[0].at_most", "exactly one"),
+    ({"source": "p", "claims": [{"claim": "c", "estimator": "KF", "metric": "rms.pos_m",
+                                 "at_most": {"times": 2, "of": "SIN"}}]}, "reference.claims[0].at_most.of",
+     "did you mean 'SINS'"),
+    ({"source": "p", "claims": [{"claim": "c", "estimator": "KF", "metric": "rmse.pos_m", "at_most": 1}]},
+     "reference.claims[0].metric", "not a metric"),
+    ({"source": "p", "claims": [{"claim": "c", "estimator": "KF", "metric": "rms.pos_m", "at_most": 1,
+                                 "because": "x"}]}, "reference.claims[0].because", "not a known key"),
+    ({"source": "p"}, "reference.values", "no values and no claims"),
+])
+def test_bad_references_name_their_key(data, key, words):
+    with pytest.raises(ScenarioError) as exc:
+        reference(data)
+    text = str(exc.value)
+    assert key in text and words in text, text
