@@ -21,7 +21,8 @@ converted in one place: JSBSim's imperial properties in :mod:`navsim.flight.prop
 Arrays are batch-first: quantities of several Monte Carlo runs carry a leading run axis ``B``.
 
 The Python API (:mod:`navsim.api`): :func:`load_scenario`, :func:`run` (a :class:`Result`),
-:func:`open_result` (a finished run's folder, read-only), :func:`write_report` and :func:`sweep`.
+:func:`open_result` (a finished run's folder, read-only), :func:`write_report`, :func:`report_figures`
+(the report's pages as figures) and :func:`sweep`.
 
 The subpackages follow the data flow; each imports only from those before it:
 :mod:`navsim.foundations` (Earth, rotations, atmosphere, YAML, errors, output folders) ->
@@ -31,7 +32,8 @@ driver, chunks, executors, closed loop, sweep) -> :mod:`navsim.scoring` (typed m
 :mod:`navsim.replay` (PX4 logs) -> :mod:`navsim.report` -> :mod:`navsim.api` -> :mod:`navsim.cli`.
 """
 
-from navsim.api import Result, load_scenario, open_result, run, sweep, write_report  # noqa: E402
+from navsim.api import Result, load_scenario, open_result, report_figures, run, sweep, write_report  # noqa: E402
 from navsim.version import __version__  # noqa: E402
 
-__all__ = ["Result", "load_scenario", "open_result", "run", "sweep", "write_report", "__version__"]
+__all__ = ["Result", "load_scenario", "open_result", "report_figures", "run", "sweep", "write_report",
+           "__version__"]

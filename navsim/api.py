@@ -49,7 +49,7 @@ from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.provenance import provenance
-from navsim.report.pages import write_report as _write_report
+from navsim.report.pages import report_pages as _report_pages, write_report as _write_report
 from navsim.scoring.closed_loop import closed_loop_metrics
 from navsim.scoring.landmarks import sighting_spans
 from navsim.scoring.metrics import RunMetrics
@@ -339,11 +339,23 @@ def write_report(result: Result, out=None) -> list[Path]:
         if result.store is not None:
             record = dict(record, per_run_data=str(Path(result.store.folder).resolve()))
         _write_run(result, folder, record)
-    truth = result.truth
-    if truth is None and result.scenario.closed_loop is None:
-        truth = cached_flight(result.scenario.flight)[0]
-    return _write_report(folder, result.scenario, truth, result, result.metrics, result.record, result.loop,
+    return _write_report(folder, result.scenario, _truth(result), result, result.metrics, result.record,
+                         result.loop, result.reference, result.sightings)
+
+
+def report_figures(result: Result) -> list:
+    """The report's pages as matplotlib figures, ``[(name, Figure), ...]`` in the report's
+    order (``name`` is the PNG's stem), for a notebook; nothing is written. Close them with
+    ``matplotlib.pyplot.close(fig)`` when done."""
+    return _report_pages(result.scenario, _truth(result), result, result.metrics, result.record, result.loop,
                          result.reference, result.sightings)
+
+
+def _truth(result: Result):
+    """The flight the report draws: the run's, or the cached flight of an open-loop scenario."""
+    if result.truth is None and result.scenario.closed_loop is None:
+        return cached_flight(result.scenario.flight)[0]
+    return result.truth
 
 
 def open_result(folder) -> Result:

@@ -45,10 +45,9 @@ from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.provenance import provenance
 from navsim.navigation.estimators import base, measurement_types
 from navsim.replay import load_ulog, replay, replay_metrics
-from navsim.report.pages import attitude_lines, closed_loop_lines, divergence_lines, sighting_lines
 from navsim.report.replay import difference_table, write_replay_report
+from navsim.report.summary import sections as summary_sections, text_table
 from navsim.report.sweep import write_sweep_figure
-from navsim.scoring.verdicts import VERDICT_HEADERS, verdict_rows, verdict_summary
 from navsim.sensors import emulate
 from navsim.sensors.catalog import available
 from navsim.sensors.plots import channels, plot_sensor
@@ -192,39 +191,12 @@ def cmd_run(args) -> int:
 
 
 def print_run_summary(result) -> None:
-    """The summary table of a run, then its divergences, closed-loop outcome, landmark
-    sightings, attitude figures, the published numbers beside ours and the magnetometer
-    calibration."""
-    metrics = result.metrics
-    rows = []
-    f = lambda v: "-" if v is None else " ".join(f"{x:.3g}" for x in v)
-    for label, m in metrics.estimators.items():
-        rms, nees = m.rms, m.nees
-        rows.append([label, *(f(None if rms is None else getattr(rms, k)) for k in ("pos_m", "vel_mps", "att_deg")),
-                     f"{nees.average:.2f}" if nees else "-", f"{nees.fraction_inside * 100:.0f}" if nees else "-",
-                     "-" if m.convergence_s is None else f"{m.convergence_s:.0f}",
-                     f"{m.cost.ms_per_run:.1f}" if m.cost else "-", str(m.diverged_runs)])
-    print(_table(["estimator", "RMS pos N E D m", "RMS vel m/s", "RMS att deg", "NEES", "in band %",
-                  "converged s", "ms/run", "diverged"], rows))
-    if divergence_lines(metrics):
-        print("\n".join(divergence_lines(metrics)))
-    if result.loop is not None:
-        print("\n".join(closed_loop_lines(metrics.closed_loop)[1:]))
-    if result.sightings:
-        print("\n".join(sighting_lines(metrics)[1:]))
-    att_lines = attitude_lines(metrics, lambda h, r: _table(h, r).splitlines())
-    if att_lines:
-        print("\n".join(att_lines[1:]))
-    if result.scenario.reference:
-        _print_reference(result.scenario.reference, metrics)
-    _print_calibration(metrics)
-
-
-def _print_reference(reference, metrics) -> None:
-    if metrics.paper_checks is None:
-        return
-    print(f"\npublished ({reference.source}) versus ours: {verdict_summary(metrics.paper_checks)}")
-    print(_table(VERDICT_HEADERS, verdict_rows(metrics.paper_checks)))
+    """The summary of a run, section by section as the report's first page has it (results,
+    paper checks, consistency findings, diverged runs, attitude, landmarks, closed loop),
+    then the magnetometer calibration."""
+    for j, section in enumerate(summary_sections(result.metrics, result.scenario)):
+        print(("\n" if j else "") + text_table(section, _table))
+    _print_calibration(result.metrics)
 
 
 def _print_calibration(metrics) -> None:

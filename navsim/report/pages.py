@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import signal
 import sys
-import textwrap
 import threading
 import warnings
 from pathlib import Path
@@ -16,9 +15,10 @@ import yaml
 from navsim.flight.plots import flight_figures
 from navsim.foundations.errors import OutputError
 from navsim.foundations.outputs import OutputFolder, write_atomic
+from navsim.report.summary import summary_pages
+from navsim.report.tables import PNG_DPI, layout, monospace_block
 from navsim.scoring.metrics import EULER_AXES, RunMetrics
 from navsim.scoring.stats import chi2_band
-from navsim.scoring.verdicts import VERDICT_HEADERS, verdict_rows, verdict_summary
 
 AXES = {"pos": ("position error", "m", ["north", "east", "down"]),
         "vel": ("velocity error", "m/s", ["north", "east", "down"]),
@@ -56,74 +56,6 @@ def _nanmean(x):
         return np.nanmean(x, axis=0)
 
 
-def _fmt(v):
-    if v is None:
-        return "-"
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
-    return f"{v:.4g}"
-
-
-def divergence_lines(metrics: RunMetrics) -> list[str]:
-    """The runs flagged diverged (excluded from the statistics) per estimator: how many, why,
-    and the first listed runs with the time each was flagged."""
-    lines = []
-    for label, m in metrics.estimators.items():
-        div = m.divergence
-        if not div:
-            continue
-        causes = ", ".join(f"{cause}: {n}" for cause, n in div.causes.items())
-        listed = [f"run {r.run}" + ("" if r.t_s is None else f" at {r.t_s:.1f} s") for r in div.runs[:6]]
-        more = f" (+{div.count - len(listed)} more)" if div.count > len(listed) else ""
-        lines += ["", f"{label}: {div.count} of {m.runs_counted + m.diverged_runs} runs flagged diverged "
-                  f"and excluded ({causes})", "  " + ", ".join(listed) + more]
-    return lines
-
-
-def summary_lines(scenario, record: dict, metrics: RunMetrics) -> list[str]:
-    lines = textwrap.wrap(scenario.description.strip() or "(no description)", 100)
-    lines += ["", f"scenario file : {record['scenario']}", f"track         : {scenario.flight.track.name}",
-              f"runs          : {record['runs_done']} done of {record['runs']} (seed {record['seed']}, "
-              f"workers {record['workers']})",
-              f"failed runs   : {len(record['failed_runs'])}    interrupted: {record['interrupted']}",
-              *([f"plots         : the first {record['runs_plotted']} runs (metrics: all {record['runs_done']})"]
-                if record.get("runs_plotted", record["runs_done"]) < record["runs_done"] else []),
-              f"flight        : {'from cache' if record['flight_cached'] else 'flown'} ({record['flight_key']})",
-              f"wall time     : {record['wall_s']:.1f} s", f"git revision  : {record['git_revision']}",
-              *textwrap.wrap("versions      : " + ", ".join(f"{k} {v}" for k, v in record["versions"].items()),
-                             120, subsequent_indent=" " * 16), ""]
-    rows = []
-    for label, m in metrics.estimators.items():
-        rms, nees, cost = m.rms, m.nees, m.cost
-        rows.append([label, *(_fmt(None if rms is None else getattr(rms, k)) for k in ("pos_m", "vel_mps", "att_deg")),
-                     _fmt(nees and nees.average), f"{nees.fraction_inside * 100:.0f} %" if nees else "-",
-                     _fmt(m.convergence_s), _fmt(cost and cost.ms_per_run), _fmt(cost and cost.epoch_us_per_run),
-                     str(m.diverged_runs)])
-    lines += [f"RMS, NEES and NIS after {scenario.settle_s:g} s (N, E, D), over all runs; cost: wall time "
-              "per run of the batched filter (propagation + epochs), and of one epoch:", ""]
-    lines += _table_lines(["estimator", "pos m", "vel m/s", "att deg", "NEES avg", "NEES in band",
-                           "converged s", "ms/run", "epoch us/run", "diverged"], rows)
-    for label, m in metrics.estimators.items():
-        for name, w in (m.windows or {}).items():
-            lines += ["", f"{label}: window '{name}'"]
-            lines += _table_lines(["quantity", "max positive", "max negative", "std", "rms"],
-                                  [[q, _fmt(v.max_pos), _fmt(v.max_neg), _fmt(v.std), _fmt(v.rms)]
-                                   for q, v in w.quantities.items()])
-            if w.nees is not None:
-                lines += [f"  NEES average {w.nees.average:.3g}, "
-                          f"{w.nees.fraction_inside * 100:.0f} % of the epochs inside the 95 % band"]
-    lines += divergence_lines(metrics)
-    lines += closed_loop_lines(metrics.closed_loop)
-    lines += sighting_lines(metrics)
-    lines += attitude_lines(metrics, _table_lines)
-    if scenario.reference and metrics.paper_checks is not None:
-        lines += ["", f"published ({scenario.reference.source}) versus ours: {verdict_summary(metrics.paper_checks)}"]
-        if scenario.reference.note:
-            lines += textwrap.wrap(scenario.reference.note, 100)
-        lines += _table_lines(VERDICT_HEADERS, verdict_rows(metrics.paper_checks))
-    return lines
-
-
 def landmark_figure(histories: dict, metrics: RunMetrics, sightings, runs_plotted: int = 3):
     """Horizontal position error of the landmark-aided estimators on a linear scale, the
     sightings shaded, the camera's 3-sigma fix noise marked at the end of each sighting."""
@@ -159,46 +91,6 @@ def landmark_figure(histories: dict, metrics: RunMetrics, sightings, runs_plotte
     axes[0].set_title("landmark sightings (green): the error drifts between anchors and returns after each")
     fig.tight_layout()
     return [("landmarks", fig)]
-
-
-def sighting_lines(metrics: RunMetrics) -> list[str]:
-    """The landmark-sighting table (estimators with ``landmarks`` metrics)."""
-    rows = [[label, str(lm.count), _fmt(lm.rms_before_m.median), _fmt(lm.rms_after_m), _fmt(lm.max_ratio),
-             f"{lm.fraction_within_3sigma * 100:.1f} %"]
-            for label, lm in ((k, m.landmarks) for k, m in metrics.estimators.items()) if lm]
-    if not rows:
-        return []
-    return ["", "landmark sightings (shaded green): horizontal error just before a sighting (RMS, median over "
-            "sightings), after its last fix (RMS per axis), largest |error| / fix sigma, share inside 3 sigma:", ""] + \
-        _table_lines(["estimator", "sightings", "before m", "after m", "max |e|/sigma", "inside 3 sigma"], rows)
-
-
-def closed_loop_lines(m: dict | None) -> list[str]:
-    """The summary of navigation in the loop (``metrics['closed_loop']``)."""
-    if not m:
-        return []
-    lines = ["", f"navigation in the loop: flown on '{m['fly_on']}'; outcomes "
-             + ", ".join(f"{k} {v}" for k, v in m.get("outcomes", {}).items())]
-    r = m.get("return_to_land")
-    if r:
-        ref = r["truth_guided"]
-        lines += [f"return to land: {r['landed']} landed, {r['reached_area']} inside the {r['area_m']:g} m "
-                  f"recovery area; mission abandoned at {_fmt(r['abort_t_s'].get('mean'))} s (mean), "
-                  f"parachute at {_fmt(r['land_t_s'].get('mean'))} s (mean)", ""]
-        lines += _table_lines(["miss distance", "CEP50 m", "CEP95 m", "mean m", "max m", "runs"],
-                              [["true (guided on the solution)", _fmt(r["miss"]["cep50_m"]),
-                                _fmt(r["miss"]["cep95_m"]), _fmt(r["miss"]["mean_m"]),
-                                _fmt(r["miss"]["max_m"]), str(r["miss"]["n"])],
-                               ["the solution's own", _fmt(r["miss_estimate"]["cep50_m"]),
-                                _fmt(r["miss_estimate"]["cep95_m"]), _fmt(r["miss_estimate"]["mean_m"]),
-                                _fmt(r["miss_estimate"]["max_m"]), str(r["miss_estimate"]["n"])],
-                               ["same flight guided on the truth", _fmt(ref["miss_m"]), "-", "-", "-", "1"]])
-        c = r.get("consistency")
-        if c:
-            lines += ["", f"the filter at the parachute: horizontal error RMS {c['horizontal_error_rms_m']:.3g} m, "
-                      f"its sigmas predict CEP50 {c['predicted_cep50_m']:.3g} m; normalised error "
-                      f"(e/sigma)^2 {c['normalised_error']:.3g} (95 % band {c['band'][0]:.2f}-{c['band'][1]:.2f})"]
-    return lines
 
 
 def closed_loop_figures(loop: dict, reference, scenario):
@@ -494,22 +386,19 @@ def calibration_figures(calibration: dict, histories: dict, metrics: RunMetrics,
     return figs
 
 
-def write_report(folder: OutputFolder, scenario, truth, result, metrics: RunMetrics, record: dict,
-                 loop: dict | None = None, reference=None, sightings=()) -> list[Path]:
-    """Write the PNGs and ``report.pdf`` into the output folder ``folder`` (each name recorded
-    in its manifest before it is written); returns the files written. ``loop`` and
-    ``reference``: the per-run outcome of a closed-loop scenario and its truth-guided flight;
-    ``sightings``: landmark sightings ``(name, start_s, end_s, sigma_m)``, shaded in green."""
-    plt = pyplot()
+def report_pages(scenario, truth, result, metrics: RunMetrics, record: dict, loop: dict | None = None,
+                 reference=None, sightings=()) -> list:
+    """The report's pages ``[(name, figure), ...]`` in order (see :func:`write_report`)."""
     runs_plotted = scenario.report.get("runs_plotted", 5)
-    pages = [("summary", _text_page(f"navsim report: {scenario.name}", summary_lines(scenario, record, metrics)))]
+    pages = summary_pages(scenario, record, metrics)
     resolved = dict(scenario.raw)
     resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": record["runs"],
                               "seed": record["seed"], "workers": record["workers"]}
     text = yaml.safe_dump(resolved, sort_keys=False, width=110).splitlines()
     if len(text) > 120:
         text = text[:118] + ["...", "(the whole file: scenario.resolved.yaml)"]
-    pages.append(("scenario", _text_page("resolved scenario", text)))
+    pages += [("scenario" if i == 0 else f"scenario_{i + 1}", f)
+              for i, f in enumerate(layout(f"{scenario.name}: the scenario as run", [monospace_block(text)]))]
     if truth is not None:
         pages += [(f"flight_{n}", f) for n, f in flight_figures(truth)]
     if loop:
@@ -523,7 +412,19 @@ def write_report(folder: OutputFolder, scenario, truth, result, metrics: RunMetr
         pages += consistency_figure(result.histories, spans)
         pages += bias_figure(result.histories, result.truth_bias)
         pages += calibration_figures(result.calibration, result.histories, metrics, scenario.windows)
+    return pages
+
+
+def write_report(folder: OutputFolder, scenario, truth, result, metrics: RunMetrics, record: dict,
+                 loop: dict | None = None, reference=None, sightings=()) -> list[Path]:
+    """Write the PNGs and ``report.pdf`` into the output folder ``folder`` (each name recorded
+    in its manifest before it is written); returns the files written. ``loop`` and
+    ``reference``: the per-run outcome of a closed-loop scenario and its truth-guided flight;
+    ``sightings``: landmark sightings ``(name, start_s, end_s, sigma_m)``, shaded in green."""
+    plt = pyplot()
+    pages = []
     try:
+        pages = report_pages(scenario, truth, result, metrics, record, loop, reference, sightings)
         return _render(folder, pages, scenario.report.get("formats", ["pdf", "png"]),
                        f"navsim report: {scenario.name}")
     finally:
@@ -555,8 +456,6 @@ def _render(folder: OutputFolder, pages: list, fmts, title: str) -> list[Path]:
     return [p for p, _ in pngs] + ([pdf_path] if pdf_path else [])
 
 
-#: the PNGs' resolution, dots per inch
-PNG_DPI = 110
 
 
 def _write_pngs(pngs: list) -> None:
@@ -632,23 +531,6 @@ def _join_writer(pid: int, pipe: int, report: bool = True) -> None:
 
 
 # --- attitude estimators (P4): the summary's attitude table and the roll/pitch/yaw pages ---
-
-
-def attitude_lines(metrics: RunMetrics, table) -> list[str]:
-    """The attitude table of the summary page (estimators with ``attitude`` metrics)."""
-    rows = []
-    for label, m in metrics.estimators.items():
-        a, r = m.attitude, m.resets
-        if not a or r is None:          # the attitude estimators (every one has Euler errors)
-            continue
-        f = lambda v: "/".join(f"{x:.3g}" for x in v)
-        rows.append([label, f(a.p95_deg), f(a.p95_about_run_mean_deg), f(a.rms_deg), f(a.max_abs_deg),
-                     f"{r.count} in {r.runs_with_reset} runs"])
-    if not rows:
-        return []
-    return ["", "attitude error after the settling time, roll/pitch/yaw in deg (95th percentile of |error|; "
-            "about each run's own mean; RMS; max) and the divergence monitor's resets:", ""] + \
-        table(["estimator", "p95", "p95 about run mean", "RMS", "max", "resets"], rows)
 
 
 def attitude_figure(histories: dict, settle_s: float, runs_plotted: int = 5, spans=()):

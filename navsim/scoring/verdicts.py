@@ -14,7 +14,7 @@ MARKS = {True: "pass", False: "FAIL", None: "-"}
 #: how each rule reads in a table (the bound after it)
 RULE_SIGNS = {"at_most": "<=", "at_least": ">=", "close": "~", "none": ""}
 #: the columns of :func:`verdict_rows`
-VERDICT_HEADERS = ["estimator", "paper's result (our metric)", "paper", "ours", "verdict"]
+VERDICT_HEADERS = ["estimator", "paper's result", "our metric", "paper", "ours", "verdict"]
 
 
 def _passes(rule: str, ours: np.ndarray, bound: np.ndarray, tolerance: float) -> bool | None:
@@ -64,17 +64,17 @@ def _fmt(v) -> str:
 
 
 def verdict_rows(verdicts: list[Verdict]) -> list[list[str]]:
-    """``[estimator, what, paper, ours, verdict]`` per verdict: ``what`` is the claim or the
-    metric; ``paper`` the published number (with ``±`` its tolerance) or the claim's threshold."""
+    """``[estimator, result, metric, paper, ours, verdict]`` per verdict: ``result`` the claim
+    (``as published`` for a number); ``paper`` the published number (with ``±`` its tolerance)
+    or the claim's threshold (``<= 0.4 x other (1.14)`` for one relative to another estimator)."""
     rows = []
     for v in verdicts:
         paper = f"{RULE_SIGNS[v.rule]} {_fmt(v.bound)}".strip()
         if v.of is not None:
-            paper = f"{RULE_SIGNS[v.rule]} {v.times:g} x {v.of}: {_fmt(v.bound)}"
+            paper = f"{RULE_SIGNS[v.rule]} {v.times:g} x {v.of} ({_fmt(v.bound)})"
         elif v.rule == "close":
             paper = f"{_fmt(v.bound)} ±{100 * v.tolerance:.0f}%"
-        what = f"{v.claim} ({v.metric})" if v.claim else v.metric
-        rows.append([v.estimator, what, paper, _fmt(v.ours), MARKS[v.passed]])
+        rows.append([v.estimator, v.claim or "as published", v.metric, paper, _fmt(v.ours), MARKS[v.passed]])
     return rows
 
 

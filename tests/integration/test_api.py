@@ -39,7 +39,7 @@ def test_the_notebook_example_gives_navsim_runs_numbers(tmp_path, monkeypatch, c
     assert run(ROOT / "scenarios" / "p0_bd_sins_ads.yaml", out, "--runs", "4", "--seed", "1", "--workers", "2") == 0
     written = json.loads((out / "metrics.json").read_text())
     checks = written.pop("paper_checks")
-    assert [(c["claim"].split()[0], c["passed"]) for c in checks] == [("free", True)] + [("BD/SINS/ADS", True)] * 3
+    assert [(c["estimator"], c["passed"]) for c in checks] == [("free SINS", True)] + [("BD/SINS/ADS ES-KF 16", True)] * 3
     assert "4 of 4 paper checks pass" in capsys.readouterr().out
     assert example["result"].metrics.paper_checks == navsim.open_result(out).metrics.paper_checks
     close_metrics(without_cost({k: v for k, v in example["result"].to_dict().items() if k != "paper_checks"}),

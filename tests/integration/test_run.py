@@ -71,7 +71,7 @@ def test_run_writes_report_metrics_and_histories(short, tmp_path, capsys):
     assert "gnss_position:gps" in kf["nis"]
     assert max(kf["rms"]["pos_m"]) < max(free["rms"]["pos_m"])
     text = capsys.readouterr().out
-    assert "published (a test) versus ours" in text and "6/6 runs" in text
+    assert "Paper against ours: 0 of 0 paper checks pass (2 shown without a verdict)" in text and "6/6 runs" in text
     hist = np.load(out / "runs.npz")
     assert hist["KF.pos_err_m"].shape[0::2] == (6, 3) and hist["KF.pos_err_m"].shape[1] >= 45
     # the first run flew the track, the second reads the flight from the cache

@@ -46,8 +46,8 @@ def test_values_take_the_reference_rule_or_their_own_and_claims_their_threshold(
     assert v[2].bound == [20.0, 20.0, 10.0] and v[2].times == 10.0 and v[2].of == "KF"
     assert verdict_summary(v) == "3 of 4 paper checks pass, 1 fail"
     rows = verdict_rows(v)
-    assert rows[1][2:] == ["5 ±10%", "4", "FAIL"] and rows[2][1] == "SINS diverges (final.pos_m)"
-    assert rows[2][2] == ">= 10 x KF: 20 20 10"
+    assert rows[1][1:] == ["as published", "convergence_s", "5 ±10%", "4", "FAIL"]
+    assert rows[2][1:4] == ["SINS diverges", "final.pos_m", ">= 10 x KF (20 20 10)"]
 
 
 @pytest.mark.parametrize("rule, bound, passed", [

@@ -1,0 +1,243 @@
+"""The summary of a run as sections of tables, declared once for the terminal and the report.
+
+Each builder returns a :class:`Section` (a title, the sentences that say how to read it, a
+table) or None where there is nothing to show: the results per estimator, the paper checks, the
+consistency findings, the diverged runs, the attitude estimators, the landmark sightings, the
+closed loop and the metrics windows. :func:`text_table` prints a section in the terminal;
+:func:`summary_pages` typesets them (:mod:`navsim.report.tables`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from navsim.report.tables import FAIL, PASS, WARN, Heading, Paragraph, Table, layout
+from navsim.scoring.metrics import RunMetrics
+from navsim.scoring.verdicts import VERDICT_HEADERS, verdict_rows, verdict_summary
+
+#: below this share of epochs inside its 95 % band a NEES or NIS is called out
+CONSISTENT_FRACTION = 0.5
+_COLOURS = {"pass": PASS, "FAIL": FAIL}
+
+
+@dataclass
+class Section:
+    title: str
+    text: str = ""
+    headers: list[str] = field(default_factory=list)
+    rows: list[list[str]] = field(default_factory=list)
+    colours: list[list[str | None]] | None = None
+
+
+def num(v) -> str:
+    """A number as a table shows it: 3 significant digits, no exponent below 10 000."""
+    if v is None:
+        return "-"
+    if isinstance(v, (list, tuple)):
+        return " ".join(num(x) for x in v)
+    v = float(v)
+    if not math.isfinite(v):
+        return "-"
+    if abs(v) >= 1000:
+        return f"{v:.0f}" if abs(v) < 1e5 else f"{v:.2e}"
+    return f"{v:.3g}"
+
+
+def pct(fraction) -> str:
+    return "-" if fraction is None else f"{100 * fraction:.0f} %"
+
+
+def _nis_worst(m):
+    """The NIS of the estimator's measurement least often inside its band, or None."""
+    if not m.nis:
+        return None
+    return min(m.nis.items(), key=lambda kv: kv[1].fraction_inside)
+
+
+def results(metrics: RunMetrics, settle_s: float) -> Section:
+    rows, colours = [], []
+    for label, m in metrics.estimators.items():
+        rms, nees, worst = m.rms, m.nees, _nis_worst(m)
+        nis_cell = "-" if worst is None else pct(worst[1].fraction_inside)
+        rows.append([label, *(num(None if rms is None else getattr(rms, k)) for k in ("pos_m", "vel_mps", "att_deg")),
+                     num(nees and nees.average), pct(nees and nees.fraction_inside), nis_cell,
+                     num(m.convergence_s), str(m.diverged_runs), num(m.cost and m.cost.ms_per_run)])
+        low = lambda f: WARN if f is not None and f < CONSISTENT_FRACTION else None
+        colours.append([None] * 5 + [low(nees and nees.fraction_inside), low(worst and worst[1].fraction_inside)]
+                       + [None, FAIL if m.diverged_runs else None, None])
+    return Section(
+        f"Results over {metrics.runs_done} runs",
+        f"RMS of the errors after {settle_s:g} s, over every counted run and epoch (N, E, D; attitude as a "
+        "rotation vector). NEES: average of the navigation errors' NEES and the share of epochs inside its "
+        "95 % band; NIS: the same share for the measurement least often inside (which: under Consistency); "
+        "converged: when "
+        "the RMS position error settles; cost: wall time per run of the batched filter.",
+        ["estimator", "position\nm", "velocity\nm/s", "attitude\ndeg", "NEES\navg", "NEES\nin band",
+         "NIS\nin band", "converged\ns", "diverged\nruns", "cost\nms/run"], rows, colours)
+
+
+def paper_checks(metrics: RunMetrics, reference) -> Section | None:
+    if reference is None or metrics.paper_checks is None:
+        return None
+    rows = verdict_rows(metrics.paper_checks)
+    colours = [[None] * 5 + [_COLOURS.get(r[5])] for r in rows]
+    text = f"Published in {reference.source}. " + (reference.note.strip() if reference.note else "")
+    return Section(f"Paper against ours: {verdict_summary(metrics.paper_checks)}", text.strip(),
+                   VERDICT_HEADERS, rows, colours)
+
+
+def consistency(metrics: RunMetrics) -> Section | None:
+    """NEES and NIS averages inside their 95 % band on fewer than half the epochs: the filter's
+    sigmas do not describe its errors (above the band: overconfident; below: too pessimistic)."""
+    rows = []
+    for label, m in metrics.estimators.items():
+        found = ([("NEES", m.nees)] if m.nees else []) + [(f"NIS {k}", v) for k, v in (m.nis or {}).items()]
+        for what, s in found:
+            if s.fraction_inside < CONSISTENT_FRACTION:
+                side = "above: overconfident" if s.average > s.band[1] else (
+                    "below: too pessimistic" if s.average < s.band[0] else "inside on average")
+                rows.append([label, what, num(s.average), f"{num(s.band[0])}-{num(s.band[1])}",
+                             pct(s.fraction_inside), side])
+    if not rows:
+        return None
+    return Section("Consistency: sigmas that do not describe the errors",
+                   f"Each NEES or NIS whose average is inside its 95 % chi-square band on fewer than "
+                   f"{100 * CONSISTENT_FRACTION:.0f} % of the epochs.",
+                   ["estimator", "statistic", "average", "95 % band", "epochs inside", "where"], rows,
+                   [[None] * 4 + [WARN, None] for _ in rows])
+
+
+def divergence(metrics: RunMetrics) -> Section | None:
+    rows = []
+    for label, m in metrics.estimators.items():
+        div = m.divergence
+        if not div:
+            continue
+        listed = [f"run {r.run}" + ("" if r.t_s is None else f" at {r.t_s:.1f} s") for r in div.runs[:6]]
+        more = f" (+{div.count - len(listed)} more)" if div.count > len(listed) else ""
+        rows.append([label, f"{div.count} of {m.runs_counted + m.diverged_runs}",
+                     ", ".join(f"{cause}: {n}" for cause, n in div.causes.items()), ", ".join(listed) + more])
+    if not rows:
+        return None
+    return Section("Runs flagged diverged", "Left out of every statistic above; the others completed.",
+                   ["estimator", "runs", "causes", "first runs"], rows, [[None, FAIL, None, None] for _ in rows])
+
+
+def attitude(metrics: RunMetrics) -> Section | None:
+    rows = []
+    for label, m in metrics.estimators.items():
+        a, r = m.attitude, m.resets
+        if not a or r is None:          # the attitude estimators (every one has Euler errors)
+            continue
+        rows.append([label, num(a.p95_deg), num(a.p95_about_run_mean_deg), num(a.rms_deg), num(a.max_abs_deg),
+                     f"{r.count} in {r.runs_with_reset} runs"])
+    if not rows:
+        return None
+    return Section("Attitude estimators: roll, pitch, yaw",
+                   "Errors in degrees after the settling time, as Euler angles (the results table's attitude is "
+                   "the rotation vector N, E, D): the 95th percentile of |error|, the same about each run's own "
+                   "mean, RMS and maximum; and the divergence monitor's resets.",
+                   ["estimator", "p95\nroll pitch yaw", "p95 about\nrun mean", "RMS", "max", "resets"], rows)
+
+
+def landmarks(metrics: RunMetrics) -> Section | None:
+    rows = [[label, str(lm.count), num(lm.rms_before_m.median), num(lm.rms_after_m), num(lm.max_ratio),
+             pct(lm.fraction_within_3sigma)]
+            for label, lm in ((k, m.landmarks) for k, m in metrics.estimators.items()) if lm]
+    if not rows:
+        return None
+    return Section("Landmark sightings",
+                   "Horizontal error just before a sighting (RMS, median over sightings), after its last fix (RMS "
+                   "per axis), the largest |error| / fix sigma, and the share inside 3 sigma.",
+                   ["estimator", "sightings", "before\nm", "after\nm", "max\n|e|/sigma", "inside\n3 sigma"], rows)
+
+
+def closed_loop(m: dict | None) -> Section | None:
+    r = m and m.get("return_to_land")
+    if not r:
+        return None
+    ref, text = r["truth_guided"], (
+        f"Flown on '{m['fly_on']}'; outcomes " + ", ".join(f"{k} {v}" for k, v in m.get("outcomes", {}).items())
+        + f". {r['landed']} landed, {r['reached_area']} inside the {r['area_m']:g} m recovery area; mission "
+        f"abandoned at {num(r['abort_t_s'].get('mean'))} s (mean), parachute at {num(r['land_t_s'].get('mean'))} s.")
+    c = r.get("consistency")
+    if c:
+        text += (f" At the parachute the horizontal error RMS is {num(c['horizontal_error_rms_m'])} m, the "
+                 f"sigmas predict CEP50 {num(c['predicted_cep50_m'])} m; normalised error (e/sigma)^2 "
+                 f"{num(c['normalised_error'])} (95 % band {c['band'][0]:.2f}-{c['band'][1]:.2f}).")
+    row = lambda name, d: [name, num(d["cep50_m"]), num(d["cep95_m"]), num(d["mean_m"]), num(d["max_m"]), str(d["n"])]
+    return Section("Navigation in the loop: return to land", text,
+                   ["miss distance", "CEP50 m", "CEP95 m", "mean m", "max m", "runs"],
+                   [row("true (guided on the solution)", r["miss"]), row("the solution's own", r["miss_estimate"]),
+                    ["same flight guided on the truth", num(ref["miss_m"]), "-", "-", "-", "1"]])
+
+
+def windows(metrics: RunMetrics, spans=()) -> list[Section]:
+    """One section per metrics window: each estimator's quantities (``spans``: the scenario's
+    ``(name, start_s, end_s)``)."""
+    names = list(dict.fromkeys(w for m in metrics.estimators.values() for w in (m.windows or {})))
+    times = {name: (a, b) for name, a, b in spans}
+    out = []
+    for name in names:
+        rows = []
+        for label, m in metrics.estimators.items():
+            w = (m.windows or {}).get(name)
+            if w is None:
+                continue
+            nees = "" if w.nees is None else f"NEES {num(w.nees.average)}, {pct(w.nees.fraction_inside)} in band"
+            for j, (q, v) in enumerate(w.quantities.items()):
+                rows.append([label if j == 0 else "", q, num(v.max_pos), num(v.max_neg), num(v.std), num(v.rms),
+                             nees if j == 0 else ""])
+        span = f" ({times[name][0]:g}-{times[name][1]:g} s)" if name in times else ""
+        out.append(Section(f"Window '{name}'{span}", "Errors over the window, every run: largest positive and "
+                           "negative, standard deviation and RMS.",
+                           ["estimator", "quantity", "max +", "max -", "std", "RMS", "consistency"], rows))
+    return out
+
+
+def sections(metrics: RunMetrics, scenario) -> list[Section]:
+    """Every section of the summary, in order (the windows after the rest)."""
+    out = [results(metrics, scenario.settle_s), paper_checks(metrics, scenario.reference), consistency(metrics),
+           divergence(metrics), attitude(metrics), landmarks(metrics), closed_loop(metrics.closed_loop)]
+    return [s for s in out if s is not None]
+
+
+def text_table(section: Section, table) -> str:
+    """A section for the terminal: its title, then ``table(headers, rows)`` (header line breaks
+    become spaces)."""
+    return f"{section.title}:\n" + table([h.replace("\n", " ") for h in section.headers], section.rows)
+
+
+def _blocks(section: Section) -> list:
+    out = [Heading(section.title)]
+    if section.text:
+        out.append(Paragraph(section.text, size=7.5, colour="#333333"))
+    return out + [Table(section.headers, section.rows, section.colours)]
+
+
+def run_details(scenario, record: dict) -> str:
+    plotted = record.get("runs_plotted", record["runs_done"])
+    return (f"Scenario file {record['scenario']}, track {scenario.flight.track.name}; {record['runs_done']} of "
+            f"{record['runs']} runs done (seed {record['seed']}, {record['workers']} workers), "
+            f"{len(record['failed_runs'])} failed{', interrupted' if record['interrupted'] else ''}"
+            + (f"; plots show the first {plotted} runs" if plotted < record["runs_done"] else "")
+            + f". Flight {'from the cache' if record['flight_cached'] else 'flown'} ({record['flight_key']}); "
+            f"wall time {record['wall_s']:.1f} s; git {record['git_revision']}; "
+            + ", ".join(f"{k} {v}" for k, v in record["versions"].items()) + ".")
+
+
+def summary_pages(scenario, record: dict, metrics: RunMetrics) -> list:
+    """``[("summary", fig), ...]``: the description, the sections and the run's details, then
+    the metrics windows on pages of their own."""
+    blocks = [Paragraph(scenario.description.strip() or "(no description)", size=8.5)]
+    for s in sections(metrics, scenario):
+        blocks += _blocks(s)
+    blocks += [Heading("Run"), Paragraph(run_details(scenario, record), size=7, colour="#333333")]
+    figs = layout(f"navsim report: {scenario.name}", blocks)
+    pages = [("summary" if i == 0 else f"summary_{i + 1}", f) for i, f in enumerate(figs)]
+    win = [b for s in windows(metrics, scenario.windows) for b in _blocks(s)]
+    if win:
+        figs = layout(f"{scenario.name}: metrics windows", win)
+        pages += [("windows" if i == 0 else f"windows_{i + 1}", f) for i, f in enumerate(figs)]
+    return pages

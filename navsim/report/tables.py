@@ -1,0 +1,286 @@
+"""Typeset text pages: headings, paragraphs and tables laid out on A4 pages (:func:`layout`).
+
+A table is drawn as in a paper (a rule above and below the header and under the last row, no
+grid), each column as wide as its widest cell measured with the renderer's font metrics, numbers
+right-aligned. A table wider than the text block is split into column groups stacked one under
+the other, its first column repeated in each; a column wider than :data:`MAX_COLUMN_FRACTION`
+of the block has its cells wrapped; a table longer than the page continues on the next with its
+header repeated. Nothing is drawn outside the page's margins.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from dataclasses import dataclass, field
+
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.font_manager import FontProperties
+from matplotlib.lines import Line2D
+
+PAGE_IN = (8.27, 11.69)        #: A4 portrait, inches
+MARGIN_IN = 0.55               #: left, right, top and bottom
+MAX_COLUMN_FRACTION = 0.42     #: a column wider than this share of the text block is wrapped
+CELL_PAD_IN = 0.13             #: space between two columns
+SMALLER = (7.0, 6.5)           #: the font sizes a table too wide for the block tries before it is split
+LINE = 1.3                     #: line height, in font sizes
+ASCENT = 0.8                   #: the first baseline below a line's top, in font sizes
+PASS, FAIL, WARN = "#1a7f37", "#c62828", "#b45309"     #: verdict and warning colours
+#: the PNGs' resolution, dots per inch; text is measured at it (hinted glyphs at a small pixel
+#: size are wider than the font's metrics scale to: 8 % at 110 dpi against 100)
+PNG_DPI = 110
+
+
+@dataclass
+class Heading:
+    text: str
+    size: float = 11.0
+
+
+@dataclass
+class Paragraph:
+    """Text wrapped to the text block (``pre``: its lines kept as they are)."""
+
+    text: str
+    size: float = 8.5
+    colour: str = "black"
+    family: str = "sans-serif"
+    pre: bool = False
+
+
+@dataclass
+class Table:
+    """``rows`` of strings under ``headers`` (a header may hold a line break); ``colours`` the
+    text colour per cell (None: black); ``align`` ``"l"`` or ``"r"`` per column (default: the
+    first left, the others right)."""
+
+    headers: list[str]
+    rows: list[list[str]]
+    colours: list[list[str | None]] | None = None
+    align: list[str] | None = None
+    size: float = 7.5
+
+
+@dataclass
+class _Page:
+    fig: Figure
+    y_in: float = MARGIN_IN                  #: the cursor, from the top
+    measure: object = field(default=None, repr=False)
+
+
+def _new_page(title: str, continued: bool) -> _Page:
+    fig = Figure(figsize=PAGE_IN, dpi=PNG_DPI)
+    FigureCanvasAgg(fig)
+    page = _Page(fig, measure=fig.canvas.get_renderer())
+    _draw_text(page, title + (" (continued)" if continued else ""), MARGIN_IN, 14, weight="bold")
+    page.y_in += 14 * LINE / 72 + 0.1
+    return page
+
+
+def _width_in(page: _Page, text: str, size: float, weight: str = "normal", family: str = "sans-serif") -> float:
+    if not text:
+        return 0.0
+    prop = FontProperties(size=size, weight=weight, family=family)
+    w = max(page.measure.get_text_width_height_descent(line, prop, ismath=False)[0] for line in text.split("\n"))
+    return w / page.fig.dpi
+
+
+def _draw_text(page: _Page, text: str, x_in: float, size: float, ha: str = "left", colour: str = "black",
+               weight: str = "normal", family: str = "sans-serif") -> None:
+    W, H = PAGE_IN
+    for k, line in enumerate(text.split("\n")):            # each line on its own baseline
+        baseline_in = page.y_in + (ASCENT + k * LINE) * size / 72
+        page.fig.text(x_in / W, 1 - baseline_in / H, line, fontsize=size, ha=ha, va="baseline", color=colour,
+                      weight=weight, family=family)
+
+
+def _rule(page: _Page, x0_in: float, x1_in: float, lw: float) -> None:
+    W, H = PAGE_IN
+    y = 1 - page.y_in / H
+    page.fig.add_artist(Line2D([x0_in / W, x1_in / W], [y, y], lw=lw, color="black"))
+
+
+def _block_width() -> float:
+    return PAGE_IN[0] - 2 * MARGIN_IN
+
+
+def _room(page: _Page) -> float:
+    return PAGE_IN[1] - MARGIN_IN - page.y_in
+
+
+def _wrap(page: _Page, text: str, width_in: float, size: float, family: str = "sans-serif") -> list[str]:
+    """``text``'s lines wrapped to ``width_in`` (each paragraph of it, measured)."""
+    out = []
+    for para in text.split("\n"):
+        words, line = para.split(" "), ""
+        for w in words:
+            trial = f"{line} {w}" if line else w
+            if line and _width_in(page, trial, size, family=family) > width_in:
+                out.append(line)
+                line = w
+            else:
+                line = trial
+        out.append(line)
+    return out
+
+
+class _Layout:
+    """The pages so far and the cursor on the last."""
+
+    def __init__(self, title: str):
+        self.title = title
+        self.pages = [_new_page(title, False)]
+
+    def new(self) -> _Page:
+        self.pages.append(_new_page(self.title, True))
+        return self.pages[-1]
+
+    def page(self, height_in: float) -> _Page:
+        """The last page, or a new one if ``height_in`` does not fit on what is left of it."""
+        last = self.pages[-1]
+        return self.new() if _room(last) < height_in and last.y_in > MARGIN_IN + 0.5 else last
+
+
+def layout(title: str, blocks: list) -> list[Figure]:
+    """The pages holding ``blocks`` (:class:`Heading`, :class:`Paragraph`, :class:`Table`) in
+    order under ``title``."""
+    lay = _Layout(title)
+    for b in blocks:
+        if isinstance(b, Heading):
+            p = lay.page(b.size * LINE / 72 * 3)              # a heading keeps two lines of what follows
+            p.y_in += 0.08
+            _draw_text(p, b.text, MARGIN_IN, b.size, weight="bold")
+            p.y_in += b.size * LINE / 72 + 0.04
+        elif isinstance(b, Paragraph):
+            lines = b.text.split("\n") if b.pre else _wrap(lay.pages[-1], b.text, _block_width(), b.size, b.family)
+            step = b.size * LINE / 72
+            for line in lines:
+                p = lay.page(step)
+                _draw_text(p, line, MARGIN_IN, b.size, colour=b.colour, family=b.family)
+                p.y_in += step
+            lay.pages[-1].y_in += 0.06
+        else:
+            _table(lay, b)
+    return [p.fig for p in lay.pages]
+
+
+def _cell_lines(page: _Page, table: Table, width_in: float) -> list[list[list[str]]]:
+    """Each row's cells as lines, wrapped where a column is capped at ``width_in``."""
+    out = []
+    for row in table.rows:
+        cells = []
+        for text in row:
+            text = str(text)
+            wide = _width_in(page, text, table.size) > width_in
+            cells.append(_wrap(page, text, width_in, table.size) if wide else text.split("\n"))
+        out.append(cells)
+    return out
+
+
+def _column_widths(page: _Page, table: Table, cells) -> list[float]:
+    n = len(table.headers)
+    return [max([_width_in(page, table.headers[j], table.size, weight="bold")]
+                + [_width_in(page, "\n".join(r[j]), table.size) for r in cells]) for j in range(n)]
+
+
+def _groups(widths: list[float]) -> list[list[int]]:
+    """Columns in groups that fit the text block, the first column in each."""
+    room = _block_width()
+    groups, cur, used = [], [0], widths[0] + CELL_PAD_IN
+    for j in range(1, len(widths)):
+        if used + widths[j] > room and len(cur) > 1:
+            groups.append(cur)
+            cur, used = [0], widths[0] + CELL_PAD_IN
+        cur.append(j)
+        used += widths[j] + CELL_PAD_IN
+    groups.append(cur)
+    return groups
+
+
+_NUMERIC = re.compile(r"[-+0-9.e %±<>=]*")
+
+
+def numeric(cell: str) -> bool:
+    """Whether a cell holds numbers only (a vector, a percentage, a bound): set right."""
+    return bool(_NUMERIC.fullmatch(cell)) and (any(c.isdigit() for c in cell) or cell.strip() == "-")
+
+
+def _alignment(table: Table) -> list[str]:
+    if table.align:
+        return table.align
+    return ["l"] + ["r" if table.rows and all(numeric(str(r[j])) for r in table.rows) else "l"
+                    for j in range(1, len(table.headers))]
+
+
+def _measured(page: _Page, table: Table):
+    """``(table, cells, widths)``: at the table's size, or the largest of :data:`SMALLER` at
+    which it fits the text block whole (else at its size, to be split in column groups)."""
+    cap = MAX_COLUMN_FRACTION * _block_width()
+    first = None
+    for size in (table.size, *(s for s in SMALLER if s < table.size)):
+        t = dataclasses.replace(table, size=size)
+        cells = _cell_lines(page, t, cap)
+        widths = [min(w, cap) for w in _column_widths(page, t, cells)]
+        first = first or (t, cells, widths)
+        if sum(widths) + CELL_PAD_IN * (len(widths) - 1) <= _block_width():
+            return t, cells, widths
+    return first
+
+
+def _table(lay: _Layout, table: Table) -> None:
+    table, cells, widths = _measured(lay.pages[-1], table)
+    align = _alignment(table)
+    colours = table.colours or [[None] * len(table.headers) for _ in table.rows]
+    line_in = table.size * LINE / 72
+    head_lines = max(h.count("\n") + 1 for h in table.headers)
+    for cols in _groups(widths):
+        rows = list(range(len(cells)))
+        while True:
+            p = lay.page((head_lines + min(3, len(rows)) + 1) * line_in)
+            fit = max(1, int(math.floor((_room(p) - (head_lines + 0.6) * line_in) / line_in)))
+            taken, used = [], 0
+            for r in rows:
+                n = max(len(cells[r][j]) for j in cols)
+                if taken and used + n > fit:
+                    break
+                taken.append(r)
+                used += n
+            _draw_rows(p, table, cols, widths, align, cells, colours, taken, head_lines, line_in)
+            rows = rows[len(taken):]
+            if not rows:
+                break
+            lay.new()
+        lay.pages[-1].y_in += 0.12
+
+
+def _draw_rows(p: _Page, table: Table, cols, widths, align, cells, colours, rows, head_lines, line_in) -> None:
+    xs, x = [], MARGIN_IN
+    for j in cols:
+        xs.append(x)
+        x += widths[j] + CELL_PAD_IN
+    right = x - CELL_PAD_IN
+    _rule(p, MARGIN_IN, right, 0.9)
+    p.y_in += 0.04
+    for j, x0 in zip(cols, xs):
+        ha, xa = ("right", x0 + widths[j]) if align[j] == "r" else ("left", x0)
+        _draw_text(p, table.headers[j], xa, table.size, ha=ha, weight="bold")
+    p.y_in += head_lines * line_in + 0.02
+    _rule(p, MARGIN_IN, right, 0.5)
+    p.y_in += 0.04
+    for r in rows:
+        for j, x0 in zip(cols, xs):
+            ha, xa = ("right", x0 + widths[j]) if align[j] == "r" else ("left", x0)
+            _draw_text(p, "\n".join(cells[r][j]), xa, table.size, ha=ha, colour=colours[r][j] or "black")
+        p.y_in += max(len(cells[r][j]) for j in cols) * line_in
+    p.y_in += 0.02
+    _rule(p, MARGIN_IN, right, 0.9)
+
+
+def monospace_block(lines: list[str], size: float = 6.5) -> Paragraph:
+    """Preformatted lines (a YAML file) as one paragraph, each line kept as it is (cut at the
+    text block's width at ``size``)."""
+    width = int(_block_width() * 72 / (0.62 * size))       # DejaVu Sans Mono: 0.6 em per character
+    return Paragraph("\n".join(line if len(line) <= width else line[:width - 4] + " ..." for line in lines),
+                     size=size, family="monospace", pre=True)
