@@ -311,7 +311,7 @@ class _Recorder:
         self.label = label
         self.t, self.att, self.vel, self.pos, self.sig, self.nees = [], [], [], [], [], []
         self.euler = []
-        self.bg, self.ba = [], []
+        self.bg, self.ba, self.bsig = [], [], []
         self.nis: dict = {}
         self.nis_dim: dict = {}
         self.propagate_s = self.epoch_s = 0.0
@@ -344,6 +344,8 @@ class _Recorder:
         if sol.gyro_bias is not None:
             self.bg.append(sol.gyro_bias.copy())
             self.ba.append(sol.accel_bias.copy())
+        if sol.gyro_bias_sigma is not None:
+            self.bsig.append(np.concatenate([sol.gyro_bias_sigma, sol.accel_bias_sigma], -1))
         if nees is not None:
             self.nees.append(nees)
             self.sig.append(sig)
@@ -393,6 +395,8 @@ class _Recorder:
         self.t.append(t)
         for xs in (self.att, self.euler, self.vel, self.pos) + ((self.bg, self.ba) if self.bg else ()):
             xs.append(nan)
+        if self.bsig:
+            self.bsig.append(np.full((self.runs, 6), np.nan))
         if self.sig:
             self.sig.append(np.full((self.runs, self.sig[0].shape[-1]), np.nan))
             self.nees.append(np.full(self.runs, np.nan))
@@ -422,6 +426,8 @@ class _Recorder:
             nees=np.stack(self.nees, axis=1) if self.nees else None, nis=nis, nis_dim=self.nis_dim,
             diverged=diverged | self.flagged,
             gyro_bias=stack(self.bg) if self.bg else None, accel_bias=stack(self.ba) if self.ba else None,
+            gyro_bias_sigma=stack(self.bsig)[..., :3] if self.bsig else None,
+            accel_bias_sigma=stack(self.bsig)[..., 3:] if self.bsig else None,
             cost={"propagate_s": self.propagate_s, "epoch_s": self.epoch_s, "runs": len(self.pos[0]),
                   "epochs": E - 1, "batches": 1},
             euler_err_rad=stack(self.euler), resets=_copy_resets(extra.get("resets")),

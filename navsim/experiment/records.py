@@ -43,6 +43,9 @@ class EstimatorHistory:
     diverged: np.ndarray = _array(("run",), "bool")
     gyro_bias: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "rad/s", default=None)      #: estimated
     accel_bias: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "m/s^2", default=None)     #: estimated
+    #: 1-sigma of the estimates (NaN on an axis that is not a state)
+    gyro_bias_sigma: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "rad/s", default=None)
+    accel_bias_sigma: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "m/s^2", default=None)
     #: CPU seconds spent in ``propagate`` and in the epochs (predict + corrections), summed over
     #: the batches, and the number of runs and filter epochs they covered (:func:`sum_cost`)
     cost: dict | None = None

@@ -12,13 +12,26 @@ from navsim.foundations.outputs import write_atomic
 
 
 def _segments(truth: Truth, ax, label: bool = True) -> None:
-    """Shade alternate segments and name them along the top of ``ax``."""
+    """Shade alternate segments and number them along the top of ``ax`` (the numbers of
+    :func:`segment_names`)."""
     for j, (_, name, a, b) in enumerate(truth.segment_spans()):
         if j % 2:
             ax.axvspan(a, b, color="0.92", zorder=0)
         if label:
-            ax.text(0.5 * (a + b), 1.0, name, transform=ax.get_xaxis_transform(), rotation=90,
-                    fontsize=6, ha="center", va="bottom", clip_on=False)
+            ax.text(0.5 * (a + b), 1.01, str(j + 1), transform=ax.get_xaxis_transform(), fontsize=7,
+                    ha="center", va="bottom", clip_on=False)
+
+
+def segment_names(truth: Truth) -> list[str]:
+    """``"3 turn"``: each segment numbered in flight order (a track repeats its names)."""
+    return [f"{j + 1} {name}" for j, (_, name, _, _) in enumerate(truth.segment_spans())]
+
+
+def _number_segments(ax, east, north, truth: Truth) -> None:
+    """The segment's number where it starts on the ground track (colour is not the only cue)."""
+    for j, (_, _, a, _) in enumerate(truth.segment_spans()):
+        k = min(int(np.searchsorted(truth.t_s, a)), len(east) - 1)
+        ax.text(east[k], north[k], str(j + 1), fontsize=7, ha="center", va="center", color="0.15")
 
 
 def plot_flight(truth: Truth, out_dir: str | Path, prefix: str = "flight") -> list[Path]:
@@ -39,6 +52,7 @@ def flight_figures(truth: Truth) -> list:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     north, east = local_ne(truth.lat_rad, truth.lon_rad, truth.lat_rad[0], truth.lon_rad[0])
     h = truth.h_m
@@ -46,11 +60,14 @@ def flight_figures(truth: Truth) -> list:
     colors = plt.cm.tab20(np.linspace(0, 1, max(len(spans), 2)))
     figs = []
 
+    names = segment_names(truth)
     fig = plt.figure(figsize=(8, 6.5))
     ax = fig.add_subplot(projection="3d")
-    for j, (_, name, a, b) in enumerate(spans):
+    for j, (_, _, a, b) in enumerate(spans):
         m = (truth.t_s >= a) & (truth.t_s <= b)
-        ax.plot(east[m], north[m], h[m], color=colors[j], lw=1.5, label=name)
+        ax.plot(east[m], north[m], h[m], color=colors[j], lw=1.5, label=names[j])
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(5))
     # same scale on both horizontal axes, so turns look like turns
     half = 0.5 * max(np.ptp(east), np.ptp(north), 1.0)
     ce, cn = 0.5 * (east.max() + east.min()), 0.5 * (north.max() + north.min())
@@ -64,9 +81,10 @@ def flight_figures(truth: Truth) -> list:
     figs.append(("3d", fig))
 
     fig, ax = plt.subplots(figsize=(7.5, 7))
-    for j, (_, name, a, b) in enumerate(spans):
+    for j, (_, _, a, b) in enumerate(spans):
         m = (truth.t_s >= a) & (truth.t_s <= b)
-        ax.plot(east[m], north[m], color=colors[j], lw=1.5, label=name)
+        ax.plot(east[m], north[m], color=colors[j], lw=1.5, label=names[j])
+    _number_segments(ax, east, north, truth)
     ax.plot(east[0], north[0], "k^", ms=8, label="start")
     ax.plot(east[-1], north[-1], "ks", ms=7, label="end")
     ax.set_aspect("equal", adjustable="datalim")
@@ -76,6 +94,7 @@ def flight_figures(truth: Truth) -> list:
     ax.set_title(f"{truth.meta.get('track', '')}: ground track "
                  f"(origin {np.degrees(truth.lat_rad[0]):.4f}°N, {np.degrees(truth.lon_rad[0]):.4f}°E)")
     ax.legend(fontsize=7, loc="best", ncol=2)
+    fig.tight_layout()
     figs.append(("ground", fig))
 
     fig, axs = plt.subplots(4, 1, figsize=(10, 10), sharex=True)
@@ -99,7 +118,8 @@ def flight_figures(truth: Truth) -> list:
     for j, ax in enumerate(axs):
         _segments(truth, ax, label=(j == 0))
         ax.grid(alpha=0.3)
-    fig.suptitle(f"{truth.meta.get('track', '')}: flight versus time", y=1.0)
+    fig.suptitle(f"{truth.meta.get('track', '')}: flight versus time; segments numbered on top: "
+                 + ", ".join(names[:12]) + (", ..." if len(names) > 12 else ""), fontsize=9, wrap=True)
     fig.tight_layout()
     figs.append(("time", fig))
     return figs

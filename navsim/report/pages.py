@@ -153,7 +153,8 @@ def closed_loop_figures(loop: dict, reference, scenario):
 
 def _shade(ax, spans, label: bool = False):
     """Shade the metric windows ``(name, start_s, end_s)`` (fault, interference) in orange and
-    landmark sightings ``(name, start_s, end_s, sigma_m)`` in green, unlabelled."""
+    landmark sightings ``(name, start_s, end_s, sigma_m)`` in green; ``label``: each window's
+    name at the top of its span."""
     for span in spans:
         name, a, b = span[:3]
         if len(span) > 3:
@@ -161,57 +162,103 @@ def _shade(ax, spans, label: bool = False):
             continue
         ax.axvspan(a, b, color="tab:orange", alpha=0.12, lw=0)
         if label:
-            ax.text(a, 1.0, name, transform=ax.get_xaxis_transform(), fontsize=6, rotation=90, va="top")
+            ax.text((a + b) / 2, 0.97, name, transform=ax.get_xaxis_transform(), fontsize=6.5, ha="center",
+                    va="top", color="0.3", clip_on=True)
+
+
+#: a free-inertial envelope this many times the aided ones' gets an axis of its own
+OWN_AXIS_RATIO = 5.0
+
+
+def _envelopes(h, key: str):
+    """``(rms, sigma)`` ``(T, 3)`` over the runs that did not diverge (``sigma`` None without a
+    covariance), and the errors ``(R, T, 3)``; None if every run diverged."""
+    good = ~np.asarray(h.diverged, bool)
+    if not good.any():
+        return None
+    err = {"pos": h.pos_err_m, "vel": h.vel_err_mps, "att": np.degrees(h.att_err_rad)}[key][good]
+    sig = None
+    if h.sigma is not None:
+        s = {"pos": h.sigma[..., 6:9], "vel": h.sigma[..., 3:6], "att": np.degrees(h.sigma[..., 0:3])}[key]
+        sig = np.sqrt(_nanmean(s[good] ** 2))
+    return np.sqrt(_nanmean(err ** 2)), sig, err
+
+
+def _split_free(env: dict, after) -> tuple[list, list]:
+    """The estimators drawn on the main axes and those (free inertial, no covariance) whose
+    errors after the settling time exceed :data:`OWN_AXIS_RATIO` times the others'."""
+    scale = {k: float(np.nanmax(np.abs(e[0][after]))) for k, e in env.items() if after.any()}
+    aided = [k for k in env if env[k][1] is not None]
+    top = max((scale.get(k, 0.0) for k in aided), default=0.0)
+    free = [k for k in env if env[k][1] is None and aided and scale.get(k, 0.0) > OWN_AXIS_RATIO * top > 0]
+    return [k for k in env if k not in free], free
+
+
+def _draw_envelope(ax, t, e, j: int, colour, runs_plotted: int) -> None:
+    """One estimator on axis ``j``: a few runs (thin), the RMS (solid), the filter's 3 sigma
+    (dashed)."""
+    rms, sig, err = e
+    for r in range(min(runs_plotted, err.shape[0])):
+        ax.plot(t, err[r, :, j], color=colour, lw=0.4, alpha=0.35)
+    ax.plot(t, rms[:, j], color=colour, lw=1.6)
+    ax.plot(t, -rms[:, j], color=colour, lw=1.6)
+    if sig is not None:
+        ax.plot(t, 3 * sig[:, j], "--", color=colour, lw=1.0)
+        ax.plot(t, -3 * sig[:, j], "--", color=colour, lw=1.0)
+
+
+def _ylim(ax, envs, j: int, after) -> None:
+    """The y range the estimators on ``ax`` need after the settling time (RMS and 3 sigma)."""
+    peak = max([float(np.nanmax(np.abs(e[0][after, j]))) for e in envs]
+               + [3 * float(np.nanmax(e[1][after, j])) for e in envs if e[1] is not None], default=0.0)
+    if after.any() and np.isfinite(peak) and peak > 0:
+        ax.set_ylim(-1.15 * peak, 1.15 * peak)
 
 
 def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5, spans=()):
-    """Per quantity: each axis against time, estimators overlaid: Monte Carlo RMS (solid),
-    the filter's mean 3-sigma (dashed), a few runs (thin); the metric windows shaded."""
+    """Per quantity, each axis against time: the Monte Carlo RMS (solid), the filter's 3 sigma
+    (dashed) and a few runs (thin) of every estimator, the y range set by them after the
+    settling time; a free-inertial estimator that would flatten the others on axes of its own
+    (right); the metric windows shaded."""
+    from matplotlib.lines import Line2D
     plt = pyplot()
-    colors = plt.cm.tab10(np.arange(10))
+    colours = dict(zip(histories, plt.cm.tab10(np.arange(len(histories)) % 10)))
     figs = []
     for key, (title, unit, names) in AXES.items():
-        fig, axs = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
-        for c, (label, h) in enumerate(histories.items()):
-            good = ~np.asarray(h.diverged, bool)
-            if not good.any():
-                continue
-            err = {"pos": h.pos_err_m, "vel": h.vel_err_mps, "att": np.degrees(h.att_err_rad)}[key][good]
-            sig = None
-            if h.sigma is not None:
-                s = {"pos": h.sigma[..., 6:9], "vel": h.sigma[..., 3:6], "att": np.degrees(h.sigma[..., 0:3])}[key]
-                sig = np.sqrt(_nanmean(s[good] ** 2))
-            rms = np.sqrt(_nanmean(err ** 2))
-            for j, ax in enumerate(axs):
-                for r in range(min(runs_plotted, err.shape[0])):
-                    ax.plot(h.t_s, err[r, :, j], color=colors[c % 10], lw=0.4, alpha=0.35)
-                ax.plot(h.t_s, rms[:, j], color=colors[c % 10], lw=1.6, label=f"{label}: MC RMS")
-                ax.plot(h.t_s, -rms[:, j], color=colors[c % 10], lw=1.6)
-                if sig is not None:
-                    ax.plot(h.t_s, 3 * sig[:, j], "--", color=colors[c % 10], lw=1.0, label=f"{label}: ±3σ filter")
-                    ax.plot(h.t_s, -3 * sig[:, j], "--", color=colors[c % 10], lw=1.0)
-        for j, ax in enumerate(axs):
-            ax.set_ylabel(f"{names[j]}, {unit}", fontsize=8)
-            ax.grid(alpha=0.3)
-            ax.axvline(settle_s, color="0.5", lw=0.8, ls=":")
-            _shade(ax, spans, label=j == 0)
-            _symlog_if_needed(ax)
-        axs[0].legend(fontsize=7, loc="upper right", ncol=2)
-        axs[-1].set_xlabel("time, s")
-        fig.suptitle(f"{title}: Monte Carlo RMS envelope, filter ±3σ, {runs_plotted} runs (thin)")
-        fig.tight_layout()
+        env = {k: e for k, h in histories.items() if (e := _envelopes(h, key)) is not None}
+        if not env:
+            continue
+        t = next(iter(histories.values())).t_s
+        after = t >= settle_s
+        main, free = _split_free(env, after)
+        cols = 2 if free else 1
+        fig, axs = plt.subplots(3, cols, figsize=(11, 9), sharex=True, squeeze=False,
+                                gridspec_kw={"width_ratios": [2.2, 1]} if free else None)
+        for j in range(3):
+            for c, group in enumerate([main] + ([free] if free else [])):
+                ax = axs[j, c]
+                for k in group:
+                    _draw_envelope(ax, histories[k].t_s, env[k], j, colours[k], runs_plotted)
+                _ylim(ax, [env[k] for k in group], j, after)
+                ax.axvline(settle_s, color="0.4", lw=0.8, ls=":")
+                _shade(ax, spans, label=j == 0)
+                ax.grid(alpha=0.3)
+                ax.set_ylabel(f"{names[j]}, {unit}" if c == 0 else f"{unit} (own scale)", fontsize=8)
+            if free and j == 0:
+                axs[0, 1].set_title("free inertial, on its own scale", fontsize=9)
+        for ax in axs[-1]:
+            ax.set_xlabel("time, s")
+        handles = [Line2D([], [], color=colours[k], lw=1.6, label=k) for k in env]
+        handles += [Line2D([], [], color="0.3", lw=1.6, label="Monte Carlo RMS"),
+                    Line2D([], [], color="0.3", lw=1.0, ls="--", label="filter ±3σ"),
+                    Line2D([], [], color="0.3", lw=0.4, label=f"first {runs_plotted} runs"),
+                    Line2D([], [], color="0.4", lw=0.8, ls=":", label=f"settling time {settle_s:g} s")]
+        fig.suptitle(title, fontsize=12)
+        fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), 4), fontsize=7.5, frameon=False,
+                   bbox_to_anchor=(0.5, 0.962))
+        fig.tight_layout(rect=(0, 0, 1, 0.935))
         figs.append((f"errors_{key}", fig))
     return figs
-
-
-def _symlog_if_needed(ax):
-    lines = [ln.get_ydata() for ln in ax.get_lines() if len(ln.get_ydata()) > 2]
-    if not lines:
-        return
-    y = np.concatenate([np.abs(np.asarray(v, float)) for v in lines])
-    y = y[np.isfinite(y) & (y > 0)]
-    if y.size and np.percentile(y, 99) > 30 * np.percentile(y, 50):
-        ax.set_yscale("symlog", linthresh=max(np.percentile(y, 50), 1e-9))
 
 
 def consistency_figure(histories: dict, spans=()):
@@ -299,32 +346,96 @@ def height_figure(histories: dict, scenario, runs_plotted: int = 3):
     return [("height", fig)]
 
 
+#: a bias whose 1-sigma ends above this share of its initial value was not observed
+UNOBSERVED_SIGMA_SHARE = 0.8
+#: the largest number of bias pages (one per estimator with bias estimates)
+MAX_BIAS_PAGES = 4
+_BIAS_UNITS = {"gyro_bias": ("gyro", 180 / np.pi * 3600, "deg/h"), "accel_bias": ("accelerometer", 1e6 / 9.80665, "µg")}
+#: the larger unit a bias is drawn in when its truth exceeds 1000 of the small one
+_BIAS_LARGE = {"gyro_bias": (180 / np.pi, "deg/s"), "accel_bias": (1e3 / 9.80665, "mg")}
+
+
+def _bias_unit(key: str, truth_bias: dict) -> tuple[float, str]:
+    """The scale and unit of ``key``'s plots: deg/h or deg/s, µg or mg, by the truth's size."""
+    _, scale, unit = _BIAS_UNITS[key]
+    truth = truth_bias.get(f"{key}_seen", truth_bias.get(key))
+    if truth is not None and np.nanmax(np.abs(truth)) * scale > 1000:
+        return _BIAS_LARGE[key]
+    return scale, unit
+
+
+def _seen_differs(truth_bias: dict) -> bool:
+    """Whether the bias a state sees differs from the additive bias (scale factors or
+    misalignments in the truth model)."""
+    return any(f"{k}_seen" in truth_bias and k in truth_bias and np.nanmax(np.abs(truth_bias[f"{k}_seen"]
+               - truth_bias[k])) * _BIAS_UNITS[k][1] > 1e-3 for k in _BIAS_UNITS)
+
+
+def _bias_axis(ax, h, key: str, j: int, truth_bias: dict, runs: int, colours) -> None:
+    """One bias axis of one estimator: per run (its own colour) the estimate (solid) with its
+    ±1 sigma band, the bias its state can see (dashed) and the additive bias alone (dotted)
+    where they differ; the title says when the sigma never left its initial value."""
+    name = _BIAS_UNITS[key][0]
+    scale, unit = _bias_unit(key, truth_bias)
+    est, sig = getattr(h, key), getattr(h, f"{key}_sigma")
+    seen, additive = truth_bias.get(f"{key}_seen"), truth_bias.get(key)
+    differs = _seen_differs(truth_bias)
+    for r in range(min(runs, est.shape[0])):
+        c = colours[r]
+        ax.plot(h.t_s, est[r, :, j] * scale, color=c, lw=1.0)
+        if sig is not None and np.isfinite(sig[r, :, j]).any():
+            ax.fill_between(h.t_s, (est[r, :, j] - sig[r, :, j]) * scale, (est[r, :, j] + sig[r, :, j]) * scale,
+                            color=c, alpha=0.15, lw=0)
+        truth = seen if seen is not None else additive
+        if truth is not None:
+            ax.plot(h.t_s, truth[r, :, j] * scale, color=c, lw=1.0, ls="--")
+        if differs:
+            ax.plot(h.t_s, additive[r, :, j] * scale, color=c, lw=0.8, ls=":")
+    ax.set_ylabel(f"{name} {'xyz'[j]}, {unit}", fontsize=8)
+    ax.grid(alpha=0.3)
+    if sig is not None and np.isfinite(sig[:, :, j]).all():
+        share = np.nanmedian(sig[:, -1, j] / np.maximum(sig[:, 0, j], 1e-300))
+        if share > UNOBSERVED_SIGMA_SHARE:
+            ax.set_title(f"not observable on this flight: sigma ends at {100 * share:.0f} % of its start",
+                         fontsize=7.5, color="#b45309", loc="left")
+    elif sig is not None:
+        ax.set_title("not a state of this filter", fontsize=7.5, color="0.4", loc="left")
+
+
 def bias_figure(histories: dict, truth_bias: dict, runs_plotted: int = 3):
+    """Per estimator with bias estimates: the gyro (left) and accelerometer (right) biases of
+    its first runs against the truth, each run in its own colour (:func:`_bias_axis`)."""
+    from matplotlib.lines import Line2D
     plt = pyplot()
-    filters = {k: h for k, h in histories.items() if h.gyro_bias is not None}
+    filters = [(k, h) for k, h in histories.items() if h.gyro_bias is not None][:MAX_BIAS_PAGES]
     if not filters or not truth_bias:
         return []
-    fig, axs = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
-    colors = plt.cm.tab10(np.arange(10))
-    for col, (key, scale, unit) in enumerate((("gyro_bias", 180 / np.pi * 3600, "deg/h"),
-                                              ("accel_bias", 1e6 / 9.80665, "µg"))):
-        true = truth_bias[key] * scale
-        for j in range(3):
-            ax = axs[j, col]
-            for r in range(min(runs_plotted, true.shape[0])):
-                ax.plot(next(iter(filters.values())).t_s, true[r, :, j], color="k", lw=1.0,
-                        label="truth" if r == 0 else None)
-                for c, (label, h) in enumerate(filters.items()):
-                    ax.plot(h.t_s, getattr(h, key)[r, :, j] * scale, color=colors[c % 10], lw=0.8,
-                            label=label if r == 0 else None)
-            ax.set_ylabel(f"{key.split('_')[0]} {'xyz'[j]}, {unit}", fontsize=8)
-            ax.grid(alpha=0.3)
-    axs[0, 0].legend(fontsize=7)
-    axs[-1, 0].set_xlabel("time, s")
-    axs[-1, 1].set_xlabel("time, s")
-    fig.suptitle(f"IMU bias estimates against the truth (first {runs_plotted} runs)")
-    fig.tight_layout()
-    return [("biases", fig)]
+    colours = plt.cm.tab10(np.arange(10))
+    figs = []
+    for label, h in filters:
+        fig, axs = plt.subplots(3, 2, figsize=(11, 8.5), sharex=True)
+        for col, key in enumerate(("gyro_bias", "accel_bias")):
+            for j in range(3):
+                _bias_axis(axs[j, col], h, key, j, truth_bias, runs_plotted, colours)
+        for ax in axs[-1]:
+            ax.set_xlabel("time, s")
+        seen = _seen_differs(truth_bias)
+        handles = [Line2D([], [], color="0.3", lw=1.0, label="estimate (band: ±1σ)"),
+                   Line2D([], [], color="0.3", lw=1.0, ls="--",
+                          label="truth the state sees: bias + (scale factor + misalignment) × rate or force"
+                          if seen else "true bias"),
+                   Line2D([], [], color="0.3", lw=0.8, ls=":", label="additive bias alone" if seen else "")]
+        styles = [hd for hd in handles if hd.get_label()]
+        runs = [Line2D([], [], color=colours[r], lw=1.0, label=f"run {r}")
+                for r in range(min(runs_plotted, h.gyro_bias.shape[0]))]
+        fig.suptitle(f"{label}: IMU bias estimates against the truth, first {runs_plotted} runs", fontsize=11)
+        fig.add_artist(fig.legend(handles=styles, loc="upper center", ncol=len(styles), fontsize=7.5, frameon=False,
+                                  bbox_to_anchor=(0.5, 0.965)))
+        fig.legend(handles=runs, loc="upper center", ncol=len(runs), fontsize=7.5, frameon=False,
+                   bbox_to_anchor=(0.5, 0.94))
+        fig.tight_layout(rect=(0, 0, 1, 0.915))
+        figs.append(("biases" if not figs else f"biases_{_slug(label)}", fig))
+    return figs
 
 
 def calibration_figures(calibration: dict, histories: dict, metrics: RunMetrics, spans=(), runs_plotted: int = 3):

@@ -252,9 +252,16 @@ class ImuStream:
 
     def bias(self, samples) -> dict:
         """``gyro_bias``, ``accel_bias`` ``(B, len(samples), 3)`` at samples that ended a block
-        since :meth:`record_bias` (or sample 0, which the first block after it passes)."""
-        return {key: np.stack([t.bias_at[int(k)] for k in samples], axis=1)
-                for key, t in (("gyro_bias", self.gyro), ("accel_bias", self.accel))}
+        since :meth:`record_bias` (or sample 0, which the first block after it passes), and
+        ``gyro_bias_seen``, ``accel_bias_seen``: the whole error of the sample less its noise,
+        ``b + (S + M) x`` with the scale factors and misalignments ``S + M`` times the true rate
+        or specific force ``x``: what a bias state of a filter without those states sees."""
+        out = {}
+        idx = np.asarray(samples, int)
+        for key, t in (("gyro_bias", self.gyro), ("accel_bias", self.accel)):
+            out[key] = np.stack([t.bias_at[int(k)] for k in idx], axis=1)
+            out[f"{key}_seen"] = out[key] + np.einsum("bij,ej->bei", t.matrix - np.eye(3), t.truth_x[idx])
+        return out
 
 
 def _saturate_quantize(rate, incr, e: AxisErrors, dt: float) -> None:

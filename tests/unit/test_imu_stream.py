@@ -33,10 +33,16 @@ def test_blocks_of_any_size_give_the_whole_records_numbers(truth, model):
     for k, name in enumerate(("dtheta_b_rad", "dv_b_mps")):
         assert np.array_equal(np.concatenate([g[k] for g in got], axis=1), whole.values[name][:, 1:]), name
     idx = np.array([0] + [e - 1 for e in ends])
-    for key, v in stream.bias(idx).items():
+    biases = stream.bias(idx)
+    for key in ("gyro_bias", "accel_bias"):
         ref = np.broadcast_to(whole.errors[key], (3, stream.n, 3)) if whole.errors[key].shape[1] > 1 else \
             np.repeat(whole.errors[key], stream.n, axis=1)
-        assert np.array_equal(v, ref[:, idx]), key
+        assert np.array_equal(biases[key], ref[:, idx]), key
+        # what a bias state sees: the bias plus (scale factor + misalignment) times the truth
+        triad = key.split("_")[0]
+        x = {"gyro": truth.omega_ib_b_rps, "accel": truth.f_b_mps2}[triad][idx]
+        seen = ref[:, idx] + np.einsum("bij,ej->bei", whole.errors[f"{triad}_matrix"] - np.eye(3), x)
+        np.testing.assert_allclose(biases[f"{key}_seen"], seen, rtol=1e-12, atol=1e-15)
     assert np.any(whole.errors["gyro_bias"] != 0)
 
 

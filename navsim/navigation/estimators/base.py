@@ -67,6 +67,8 @@ class Solution:
     P_nav: np.ndarray | None = None          #: (B, 9, 9): att (rad), vel (m/s), pos (rad, rad, m)
     gyro_bias: np.ndarray | None = None      #: (B, 3) estimated, rad/s
     accel_bias: np.ndarray | None = None     #: (B, 3) estimated, m/s^2
+    gyro_bias_sigma: np.ndarray | None = None    #: (B, 3) 1-sigma of ``gyro_bias``, rad/s (NaN: not a state)
+    accel_bias_sigma: np.ndarray | None = None   #: (B, 3) 1-sigma of ``accel_bias``, m/s^2 (NaN: not a state)
     extra: dict = field(default_factory=dict)
 
 

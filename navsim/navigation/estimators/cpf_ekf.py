@@ -284,10 +284,12 @@ class CpfEkf:
         T[:, 3:6, V] = np.eye(3)
         T[:, 6:9, S] = self.frame.pos_to_filter_units()[:, :, None] * np.eye(3)
         P_nav = T @ self.P @ np.swapaxes(T, -1, -2)
-        accel_bias = np.zeros((self.B, 3))
-        accel_bias[:, 2] = x[:, AZ]
+        accel_bias, accel_sigma = np.zeros((self.B, 3)), np.full((self.B, 3), np.nan)
+        accel_bias[:, 2], accel_sigma[:, 2] = x[:, AZ], np.sqrt(self.P[:, AZ, AZ])    # the z axis only
+        gyro_sigma = np.sqrt(np.diagonal(self.P[:, WB][:, :, WB], axis1=1, axis2=2))
         return Solution(nav=self.frame.nav_state(normalize(q), x[:, V], x[:, S]), P_nav=P_nav,
                         gyro_bias=x[:, WB].copy(), accel_bias=accel_bias,
+                        gyro_bias_sigma=gyro_sigma, accel_bias_sigma=accel_sigma,
                         extra={"diverged": self.diverged, "resets": self.resets, "P": self.P,
                                "mag_bias_T": x[:, MB] * UT, "field_n_T": x[:, ME] * UT,
                                "cpf_euler_rad": self.cpf.euler(), "distance2_rad2": self.distance2})

@@ -187,9 +187,20 @@ class ErrorStateKF:
             P_nav = self.P[:, :9, :9].copy()
         else:
             P_nav = self.P[:, idx][:, :, idx]
+        sg, sa = self._bias_sigma()
         return Solution(nav=self.sd.state, P_nav=P_nav,
                         gyro_bias=self.b_gyro + self.m_gyro, accel_bias=self.b_accel + self.m_accel,
-                        extra={"P": self.P, "diverged": self.diverged})
+                        gyro_bias_sigma=sg, accel_bias_sigma=sa, extra={"P": self.P, "diverged": self.diverged})
+
+    def _bias_sigma(self):
+        """1-sigma of the estimated gyro and accelerometer biases ``(B, 3)`` each: their constant
+        and Markov blocks together (the estimate is their sum); NaN where neither is a state."""
+        d = np.diagonal(self.P, axis1=1, axis2=2)
+        out = []
+        for blocks in (("gyro_bias", "gyro_markov"), ("accel_bias", "accel_markov")):
+            var = [d[:, self.layout.slice(b)] for b in blocks if self.layout.has(b)]
+            out.append(np.sqrt(sum(var)) if var else np.full((d.shape[0], 3), np.nan))
+        return out
 
     # --- filter steps -------------------------------------------------------------------------
     def _system(self):
