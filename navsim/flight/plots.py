@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -118,8 +119,9 @@ def flight_figures(truth: Truth) -> list:
     for j, ax in enumerate(axs):
         _segments(truth, ax, label=(j == 0))
         ax.grid(alpha=0.3)
-    fig.suptitle(f"{truth.meta.get('track', '')}: flight versus time; segments numbered on top: "
-                 + ", ".join(names[:12]) + (", ..." if len(names) > 12 else ""), fontsize=9, wrap=True)
-    fig.tight_layout()
+    fig.suptitle(f"{truth.meta.get('track', '')}: flight against time", fontsize=11, y=0.995)
+    listed = "segments (numbered on top): " + ", ".join(names[:16]) + (", ..." if len(names) > 16 else "")
+    fig.text(0.5, 0.965, "\n".join(textwrap.wrap(listed, 130)), ha="center", va="top", fontsize=7.5)
+    fig.tight_layout(rect=(0, 0, 1, 0.94))
     figs.append(("time", fig))
     return figs

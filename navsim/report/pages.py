@@ -261,88 +261,142 @@ def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5, spans
     return figs
 
 
-def consistency_figure(histories: dict, spans=()):
-    plt = pyplot()
-    filters = {k: h for k, h in histories.items() if h.nees is not None}
-    if not filters:
-        return []
-    n_nis = sum(len(h.nis) for h in filters.values())
-    fig, axs = plt.subplots(1 + n_nis, 1, figsize=(10, 2.6 * (1 + n_nis)), sharex=True, squeeze=False)
-    axs = axs[:, 0]
-    colors = plt.cm.tab10(np.arange(10))
-    i = 1
+#: the most panels on one consistency page (more go to the next)
+PANELS_PER_PAGE = 5
+
+
+def _inside(series: np.ndarray, lo: float, hi: float) -> str:
+    ok = np.isfinite(series)
+    return f"{100 * np.mean((series[ok] >= lo) & (series[ok] <= hi)):.0f} % of epochs inside" if ok.any() else ""
+
+
+def _band(ax, lo: float, hi: float, colour) -> None:
+    """A 95 % band as two dashed lines (no fill: the windows' shading stays readable)."""
+    for y in (lo, hi):
+        ax.axhline(y, color=colour, lw=0.9, ls="--", alpha=0.8)
+
+
+def _consistency_panels(filters: dict, colours) -> list:
+    """``(ylabel, [(label, t, series, lo, hi, colour, marker)])`` per panel: the NEES of every
+    filter together, then each filter's NIS per measurement."""
+    nees, nis = [], []
     for c, (label, h) in enumerate(filters.items()):
         good = ~np.asarray(h.diverged, bool)
         n = int(good.sum())
         if n == 0:
             continue
         lo, hi = chi2_band(9, n)
-        axs[0].plot(h.t_s[1:], np.nanmean(h.nees[good], axis=0)[1:], color=colors[c % 10], label=label)
-        axs[0].axhspan(lo, hi, color=colors[c % 10], alpha=0.12)
-        for key, nis in h.nis.items():
-            d = h.nis_dim[key]
-            v = nis[good]
+        nees.append((label, h.t_s[1:], np.nanmean(h.nees[good], axis=0)[1:], lo, hi, colours[c % 10], "-"))
+        for key, v in h.nis.items():
+            d, v = h.nis_dim[key], v[good]
             cols = ~np.isnan(v).all(axis=0)
             lo, hi = chi2_band(d, n)
-            axs[i].plot(h.t_s[cols], np.nanmean(v[:, cols], axis=0), ".", ms=2, color=colors[c % 10])
-            axs[i].axhspan(lo, hi, color="0.8", alpha=0.5)
-            axs[i].set_ylabel(f"NIS {key}\n({label}, dim {d})", fontsize=7)
-            axs[i].grid(alpha=0.3)
-            i += 1
-    for j, ax in enumerate(axs):
-        _shade(ax, spans, label=j == 0)
-    axs[0].set_ylabel("average NEES\n(pos, vel, att: 9)", fontsize=8)
-    axs[0].legend(fontsize=7)
-    axs[0].grid(alpha=0.3)
-    axs[-1].set_xlabel("time, s")
-    fig.suptitle("Consistency: average NEES and NIS over the runs with their two-sided 95 % chi-square bands")
-    fig.tight_layout()
-    return [("consistency", fig)]
+            nis.append((f"NIS {key}, dim {d}\n{label}",
+                        [(label, h.t_s[cols], np.nanmean(v[:, cols], axis=0), lo, hi, colours[c % 10], ".")]))
+    return ([("average NEES, dim 9\n(att, vel, pos)", nees)] if nees else []) + nis
+
+
+def consistency_figure(histories: dict, spans=()):
+    """The average NEES and NIS over the runs against their two-sided 95 % chi-square bands
+    (dashed), each panel saying the share of epochs inside; :data:`PANELS_PER_PAGE` a page."""
+    from matplotlib.lines import Line2D
+    plt = pyplot()
+    filters = {k: h for k, h in histories.items() if h.nees is not None}
+    colours = plt.cm.tab10(np.arange(10))
+    panels = _consistency_panels(filters, colours)
+    figs = []
+    for start in range(0, len(panels), PANELS_PER_PAGE):
+        page = panels[start:start + PANELS_PER_PAGE]
+        fig, axs = plt.subplots(len(page), 1, figsize=(10, 1.2 + 2.3 * len(page)), sharex=True, squeeze=False)
+        for ax, (ylabel, series) in zip(axs[:, 0], page):
+            notes = []
+            for label, t, y, lo, hi, colour, marker in series:
+                ax.plot(t, y, marker, ms=2, lw=1.2, color=colour)
+                _band(ax, lo, hi, colour)
+                notes.append(f"{label}: {_inside(y, lo, hi)}" if len(series) > 1 else _inside(y, lo, hi))
+            ax.text(0.01, 0.96, "\n".join(notes), transform=ax.transAxes, fontsize=7, va="top",
+                    bbox={"facecolor": "white", "alpha": 0.8, "lw": 0})
+            _shade(ax, spans, label=ax is axs[0, 0])
+            ax.set_ylabel(ylabel, fontsize=7.5)
+            ax.grid(alpha=0.3)
+        axs[-1, 0].set_xlabel("time, s")
+        handles = [Line2D([], [], color=colours[c % 10], lw=1.2, label=k) for c, k in enumerate(filters)]
+        handles.append(Line2D([], [], color="0.4", lw=0.9, ls="--", label="95 % chi-square band of the average"))
+        fig.suptitle("Consistency: the average NEES and NIS over the runs" + (" (continued)" if start else ""),
+                     fontsize=11)
+        fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), 4), fontsize=7.5, frameon=False,
+                   bbox_to_anchor=(0.5, 1 - 0.35 / fig.get_figheight()))
+        fig.tight_layout(rect=(0, 0, 1, 1 - 0.75 / fig.get_figheight()))
+        figs.append(("consistency" if not start else f"consistency_{start // PANELS_PER_PAGE + 1}", fig))
+    return figs
+
+
+def _height_panel(ax, histories: dict, labels: list, colours, runs_plotted: int, faults, spans, after) -> None:
+    """The height errors (up) of ``labels``: a few runs (thin) and the RMS over runs, the y
+    range set by them after the settling time; sensor faults shaded red, windows orange."""
+    peak = 0.0
+    for k in labels:
+        h = histories[k]
+        good = ~np.asarray(h.diverged, bool)
+        dh = -h.pos_err_m[good][..., 2]
+        for r in range(min(runs_plotted, dh.shape[0])):
+            ax.plot(h.t_s, dh[r], color=colours[k], lw=0.5, alpha=0.5)
+        ax.plot(h.t_s, np.sqrt(_nanmean(dh ** 2)), color=colours[k], lw=1.6)
+        if after.any():
+            peak = max(peak, float(np.nanpercentile(np.abs(dh[:, after]), 99.5)))
+    end = next(iter(histories.values())).t_s[-1]
+    for name, f in faults:
+        ax.axvspan(f.start_s, min(f.end_s, end), color="tab:red", alpha=0.15, lw=0)
+        ax.text(f.start_s, 0.97, f" {name} {f.type}", transform=ax.get_xaxis_transform(), fontsize=6.5, va="top",
+                color="tab:red", clip_on=True)
+    _shade(ax, spans)
+    if peak > 0 and np.isfinite(peak):
+        ax.set_ylim(-1.15 * peak, 1.15 * peak)
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.grid(alpha=0.3)
 
 
 def height_figure(histories: dict, scenario, runs_plotted: int = 3):
-    """Height error against time (P2's Figures 4-5): Monte Carlo RMS and a few runs per
-    estimator, sensor fault windows shaded; a second panel zooms on the first metric window."""
+    """Height error against time (P2's Figures 4-5): the RMS over runs and a few runs of each
+    estimator, a free-inertial one that would flatten the others on axes of its own; a second
+    row zooms on the first metric window."""
+    from matplotlib.lines import Line2D
     plt = pyplot()
     faults = [(c.name, f) for c in scenario.sensors for f in c.faults if f.type != "interference"]
-    if not faults and not scenario.windows:
+    env = {k: e for k, h in histories.items() if (e := _envelopes(h, "pos")) is not None}
+    if not env or (not faults and not scenario.windows):
         return []
-    fig, axs = plt.subplots(2, 1, figsize=(10, 8))
-    colors = plt.cm.tab10(np.arange(10))
-    for ax in axs:
-        for c, (label, h) in enumerate(histories.items()):
-            good = ~np.asarray(h.diverged, bool)
-            if not good.any():
-                continue
-            dh = -h.pos_err_m[good][..., 2]
-            for r in range(min(runs_plotted, dh.shape[0])):
-                ax.plot(h.t_s, dh[r], color=colors[c % 10], lw=0.5, alpha=0.5)
-            ax.plot(h.t_s, np.sqrt(_nanmean(dh ** 2)), color=colors[c % 10], lw=1.6,
-                    label=f"{label}: RMS over runs")
-        for name, f in faults:
-            ax.axvspan(f.start_s, min(f.end_s, histories[next(iter(histories))].t_s[-1]), color="tab:red",
-                       alpha=0.15)
-            ax.text(f.start_s, 1.0, f"{name} {f.type}", transform=ax.get_xaxis_transform(), fontsize=6,
-                    rotation=90, va="top")
-        ax.axhline(0.0, color="k", lw=0.5)
-        ax.grid(alpha=0.3)
-        ax.set_ylabel("height error (up), m")
+    colours = dict(zip(histories, plt.cm.tab10(np.arange(len(histories)) % 10)))
+    t = next(iter(histories.values())).t_s
+    after = t >= scenario.settle_s
+    main, free = _split_free({k: (e[0][:, 2:], e[1], e[2]) for k, e in env.items()}, after)
+    rows = 2 if scenario.windows else 1
+    fig, axs = plt.subplots(rows, 2 if free else 1, figsize=(11, 4 + 3.5 * rows), squeeze=False,
+                            gridspec_kw={"width_ratios": [2.2, 1]} if free else None)
+    _height_panel(axs[0, 0], histories, main, colours, runs_plotted, faults, scenario.windows, after)
+    axs[0, 0].set_ylabel("height error (up), m")
+    if free:
+        _height_panel(axs[0, 1], histories, free, colours, runs_plotted, faults, scenario.windows, after)
+        axs[0, 1].set_title("free inertial, on its own scale", fontsize=9)
     if scenario.windows:
         name, a, b = scenario.windows[0]
-        axs[1].set_xlim(a, b)
-        axs[1].set_title(f"window '{name}' ({a:g}-{b:g} s)", fontsize=9)
-        lim = []
-        for h in histories.values():
-            m = (h.t_s >= a) & (h.t_s <= b)
-            good = ~np.asarray(h.diverged, bool)
-            if m.any() and good.any():
-                lim.append(np.nanpercentile(np.abs(h.pos_err_m[good][:, m, 2]), 99.5))
-        if lim:
-            axs[1].set_ylim(-1.2 * max(lim), 1.2 * max(lim))
-    axs[0].legend(fontsize=7, loc="upper right")
-    axs[1].set_xlabel("time, s")
-    fig.suptitle("Height error against time, sensor fault windows shaded")
-    fig.tight_layout()
+        m = (t >= a) & (t <= b)
+        _height_panel(axs[1, 0], histories, main, colours, runs_plotted, faults, (), m)
+        axs[1, 0].set_xlim(a, b)
+        axs[1, 0].set_title(f"window '{name}' ({a:g}-{b:g} s)", fontsize=9)
+        axs[1, 0].set_ylabel("height error (up), m")
+        if free:
+            axs[1, 1].set_visible(False)
+    for ax in axs.flat:
+        if ax.get_visible():
+            ax.set_xlabel("time, s")
+    handles = [Line2D([], [], color=colours[k], lw=1.6, label=f"{k}: RMS over runs") for k in env]
+    handles.append(Line2D([], [], color="0.3", lw=0.5, label=f"first {runs_plotted} runs"))
+    shaded = (["sensor faults red"] if faults else []) + (["metric windows orange"] if scenario.windows else [])
+    fig.suptitle("Height error against time" + (f" ({', '.join(shaded)})" if shaded else ""), fontsize=11)
+    fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), 3), fontsize=7.5, frameon=False,
+               bbox_to_anchor=(0.5, 1 - 0.35 / fig.get_figheight()))
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.8 / fig.get_figheight()))
     return [("height", fig)]
 
 
@@ -519,7 +573,8 @@ def report_pages(scenario, truth, result, metrics: RunMetrics, record: dict, loo
         pages += error_figures(result.histories, scenario.settle_s, runs_plotted, spans)
         pages += height_figure(result.histories, scenario)
         pages += landmark_figure(result.histories, metrics, sightings, runs_plotted)
-        pages += attitude_figure(result.histories, scenario.settle_s, runs_plotted, spans)
+        pages += attitude_figure(result.histories, scenario.settle_s, runs_plotted, spans,
+                                 paper_attitude_bounds(scenario.reference))
         pages += consistency_figure(result.histories, spans)
         pages += bias_figure(result.histories, result.truth_bias)
         pages += calibration_figures(result.calibration, result.histories, metrics, scenario.windows)
@@ -644,7 +699,26 @@ def _join_writer(pid: int, pipe: int, report: bool = True) -> None:
 # --- attitude estimators (P4): the summary's attitude table and the roll/pitch/yaw pages ---
 
 
-def attitude_figure(histories: dict, settle_s: float, runs_plotted: int = 5, spans=()):
+def paper_attitude_bounds(reference) -> dict:
+    """Estimator label -> ``{axis index: (bound_deg, what)}``: the roll/pitch/yaw accuracy a
+    scenario's ``reference`` claims (``attitude.p95*`` values, ``windows.*.<axis>_deg.p95_abs``)
+    with the rule ``at_most``, to draw on the attitude pages."""
+    out = {}
+    for c in (reference.checks if reference else ()):
+        if c.rule != "at_most" or c.of is not None:
+            continue
+        parts = c.metric.split(".")
+        if parts[0] == "attitude" and parts[1].startswith("p95") and isinstance(c.bound, list):
+            for j, b in enumerate(c.bound):
+                out.setdefault(c.estimator, {}).setdefault(j, (float(b), f"{reference.source.split(',')[0]}: ±{b:g}°"))
+        elif parts[0] == "windows" and len(parts) == 4 and parts[2] in ("roll_deg", "pitch_deg", "yaw_deg"):
+            j = ("roll_deg", "pitch_deg", "yaw_deg").index(parts[2])
+            out.setdefault(c.estimator, {}).setdefault(
+                j, (float(c.bound), f"{reference.source.split(',')[0]}: ±{c.bound:g}° ({parts[1]})"))
+    return out
+
+
+def attitude_figure(histories: dict, settle_s: float, runs_plotted: int = 5, spans=(), bounds=None):
     """Roll, pitch, yaw error of each attitude estimator: a few runs, the 95th percentile of
     |error| over the runs, and a tick per reset of the divergence monitor (red, with its time
     listed for the first run)."""
@@ -668,8 +742,16 @@ def attitude_figure(histories: dict, settle_s: float, runs_plotted: int = 5, spa
             if lim and np.isfinite(lim):
                 ax.set_ylim(-lim, lim)
             _shade(ax, spans)
+            b = (bounds or {}).get(label, {}).get(j)
+            if b is not None:
+                for y in (b[0], -b[0]):
+                    ax.axhline(y, color="tab:red", lw=1.0, ls="-.", label=b[1] if y > 0 else None)
+                if lim is not None and np.isfinite(lim) and lim < 1.3 * b[0]:
+                    ax.set_ylim(-1.3 * b[0], 1.3 * b[0])
             ax.set_ylabel(f"{EULER_AXES[j]} error, deg")
             ax.grid(alpha=0.3)
+            if b is not None:
+                ax.legend(fontsize=7, loc="upper right")
         times = [t for r in h.resets for t, _ in r]
         for t in sorted(set(round(t, 1) for t in times)):
             for ax in axes:

@@ -37,8 +37,10 @@ def text_outside(fig, renderer) -> list[str]:
              for t in (tick.label1, tick.label2)}
     drawn = {id(t) for ax in fig.axes for a in _axes(ax) for t in drawn_tick_labels(a)}
     out = []
+    hidden = {id(t) for ax in fig.axes if not ax.get_visible() for t in ax.findobj(Text)}
     for t in fig.findobj(Text):
-        if not t.get_visible() or not t.get_text().strip() or (id(t) in ticks and id(t) not in drawn):
+        if (not t.get_visible() or not t.get_text().strip() or id(t) in hidden
+                or (id(t) in ticks and id(t) not in drawn)):
             continue
         e = t.get_window_extent(renderer)
         if e.x0 < -EDGE_PX or e.y0 < -EDGE_PX or e.x1 > W + EDGE_PX or e.y1 > H + EDGE_PX:
