@@ -11,7 +11,8 @@ its report. ``navsim run`` is this API with a progress bar and a summary table.
 
 A run written to a folder holds ``metrics.json`` (:attr:`Result.metrics`), ``run.json``
 (:attr:`Result.record`: seed, runs, versions, git revision), ``scenario.resolved.yaml`` and
-the per-run histories (``chunks/``, and ``runs.npz`` when every run is held in memory).
+the per-run histories once: in ``chunks/``, or in ``runs.npz`` for a run held in memory and
+written with :func:`write_report`.
 """
 
 from __future__ import annotations
@@ -159,7 +160,7 @@ def run(scenario, runs: int | None = None, seed: int | None = None, workers: int
         Default: the scenario's ``montecarlo`` settings.
     out : path, optional
         Write the run there (chunks streamed as they finish, ``metrics.json``, ``run.json``,
-        ``scenario.resolved.yaml``, ``runs.npz``); None: nothing is written.
+        ``scenario.resolved.yaml``); None: nothing is written.
     executor, scheduler, chunk_runs, resume
         As ``navsim run``'s options (``resume`` needs ``out``).
     progress : callable, optional
@@ -283,14 +284,15 @@ def _score(result: Result, wall_s: float) -> None:
 
 def _write_run(result: Result, folder: OutputFolder, record: dict | None = None) -> None:
     """``metrics.json``, ``scenario.resolved.yaml``, ``run.json`` (``record``, default the
-    result's) and, when every run's history is in memory, ``runs.npz`` into ``folder``."""
+    result's) and, for a run without a chunk store whose every history is in memory, ``runs.npz``
+    into ``folder``: per-run data is kept once, in ``chunks/`` or there."""
     record = result.record if record is None else record
     folder.text("metrics.json", json.dumps(result.metrics.to_dict(), indent=2))
     folder.text("scenario.resolved.yaml",
                 f"# resolved by navsim {result.record['versions']['navsim']} at git {result.record['git_revision']}\n"
                 + yaml.safe_dump(resolved_scenario(result), sort_keys=False))
     folder.text("run.json", json.dumps(record, indent=2, default=str))
-    if result.histories and result.record["runs_plotted"] == len(result.runs):   # else in chunks/ only
+    if result.store is None and result.histories and result.record["runs_plotted"] == len(result.runs):
         arrays = {"runs": result.runs}
         for label, h in result.histories.items():
             key = npz_key(label)

@@ -179,15 +179,24 @@ def cmd_run(args) -> int:
         run, why = min(result.failed.items())
         note += f"; {len(result.failed)} run(s) failed, the first (run {run}): {why}"
     out = folder.path
-    print(f"\n{len(result.runs)}/{runs} runs in {result.record['wall_s']:.1f} s{note}; wrote {out}/ "
-          f"(report.pdf, {len([f for f in files if f.suffix == '.png'])} PNGs, metrics.json"
-          + (", runs.npz)" if (out / "runs.npz").exists() else ", per-run data in chunks/)"))
+    print(f"\n{len(result.runs)}/{runs} runs in {result.record['wall_s']:.1f} s{note}; wrote {out}/: "
+          + artifacts(out, files))
     if result.interrupted:
         return 130
     if not len(result.runs):
         print(f"error: no run succeeded (see {out}/run.json)", file=sys.stderr)
         return 1
     return 0
+
+
+def artifacts(out: Path, files) -> str:
+    """Every file a run wrote into ``out``: the report's and the run's own."""
+    pngs = [f for f in files if f.suffix == ".png"]
+    names = [f.name for f in files if f.suffix == ".pdf"] + ([f"{len(pngs)} PNGs"] if pngs else [])
+    names += [n for n in ("metrics.json", "run.json", "scenario.resolved.yaml", "runs.npz") if (out / n).exists()]
+    if (out / "chunks" / "index.json").exists():
+        names.append(f"chunks/ (per-run data, {len(listed_runs(out / 'chunks'))} runs)")
+    return ", ".join(names)
 
 
 def print_run_summary(result) -> None:
@@ -436,7 +445,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("run", help="run a scenario's Monte Carlo and write its report",
                        description="Fly the track (cached), emulate the sensors and run every "
                        "estimator over the Monte Carlo runs; write report.pdf, PNGs, metrics.json, "
-                       "scenario.resolved.yaml and runs.npz; print a summary table.")
+                       "scenario.resolved.yaml and the per-run data (chunks/); print a summary table.")
     p.add_argument("scenario", help="scenario YAML file")
     p.add_argument("--runs", type=RUNS, help="Monte Carlo runs, >= 1 (default: montecarlo.runs)")
     p.add_argument("--seed", type=SEED, help="seed, >= 0 (default: montecarlo.seed)")

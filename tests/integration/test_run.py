@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pytest
 
+import navsim
 from navsim.cli import main
 
 SHORT = """
@@ -58,7 +59,7 @@ def run(path, out, *extra):
 def test_run_writes_report_metrics_and_histories(short, tmp_path, capsys):
     out = tmp_path / "out"
     assert run(short, out) == 0
-    for name in ("report.pdf", "metrics.json", "scenario.resolved.yaml", "runs.npz", "run.json",
+    for name in ("report.pdf", "metrics.json", "scenario.resolved.yaml", "chunks/index.json", "run.json",
                  "summary.png", "scenario.png", "errors_pos.png", "consistency.png", "biases.png", "flight_3d.png"):
         assert (out / name).stat().st_size > 0, name
     m = json.loads((out / "metrics.json").read_text())
@@ -72,8 +73,9 @@ def test_run_writes_report_metrics_and_histories(short, tmp_path, capsys):
     assert max(kf["rms"]["pos_m"]) < max(free["rms"]["pos_m"])
     text = capsys.readouterr().out
     assert "Paper against ours: 0 of 0 paper checks pass (2 shown without a verdict)" in text and "6/6 runs" in text
-    hist = np.load(out / "runs.npz")
-    assert hist["KF.pos_err_m"].shape[0::2] == (6, 3) and hist["KF.pos_err_m"].shape[1] >= 45
+    assert not (out / "runs.npz").exists()                    # the per-run data once: in chunks/
+    hist = navsim.open_result(out).histories["KF"].pos_err_m
+    assert hist.shape[0::2] == (6, 3) and hist.shape[1] >= 45
     # the first run flew the track, the second reads the flight from the cache
     assert json.loads((out / "run.json").read_text())["flight_cached"] is False
     assert run(short, tmp_path / "out2") == 0
@@ -90,8 +92,8 @@ def test_workers_do_not_change_the_numbers(short, tmp_path, monkeypatch):
     timing_free = lambda m: {k: {q: v for q, v in e.items() if q != "cost"} for k, e in m["estimators"].items()}
     assert timing_free(a) == timing_free(b)           # the cost is a wall time, the rest must match
     assert all("cost" in e for e in b["estimators"].values())
-    assert np.array_equal(np.load(tmp_path / "w1" / "runs.npz")["KF.pos_err_m"],
-                          np.load(tmp_path / "w2" / "runs.npz")["KF.pos_err_m"])
+    assert np.array_equal(navsim.open_result(tmp_path / "w1").histories["KF"].pos_err_m,
+                          navsim.open_result(tmp_path / "w2").histories["KF"].pos_err_m)
 
 
 def test_a_failing_chunk_is_flagged_and_the_others_complete(short, tmp_path, monkeypatch, capsys):
