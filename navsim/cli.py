@@ -16,13 +16,13 @@ import json
 import math
 import shutil
 import sys
+import textwrap
 import time
 import urllib.parse
 from pathlib import Path
 
 import numpy as np
 import yaml
-from tqdm import tqdm
 
 from navsim import api
 from navsim.experiment.chunkstore import listed_runs
@@ -42,14 +42,17 @@ from navsim.flight.simulator import fly
 from navsim.flight.track import available_tracks, load_track, nominal_duration_s
 from navsim.foundations.errors import FlightError, NavsimError, OutputError, UsageError
 from navsim.foundations.outputs import OutputFolder
+from navsim.foundations.progress import Progress
 from navsim.foundations.provenance import provenance
 from navsim.navigation.estimators import base, measurement_types
+from navsim.navigation.estimators.error_model import PRESETS, Layout
+from navsim.navigation.estimators.measurements import measurement_class
 from navsim.replay import load_ulog, replay, replay_metrics
 from navsim.report.replay import difference_table, write_replay_report
 from navsim.report.summary import sections as summary_sections, text_table
 from navsim.report.sweep import write_sweep_figure
 from navsim.sensors import emulate
-from navsim.sensors.catalog import available
+from navsim.sensors.catalog import entries as catalog_entries
 from navsim.sensors.plots import channels, plot_sensor
 from navsim.version import __version__
 
@@ -83,8 +86,9 @@ def flight_summary(truth) -> str:
 
 
 def _progress(desc: str):
-    bar = tqdm(total=100, desc=desc, unit="%", disable=None, leave=False,
-               bar_format="{l_bar}{bar}| {elapsed}<{remaining}")
+    """A :class:`Progress` in percent and ``update(t_s, nominal_s)`` for work measured in
+    simulated seconds (a flight, a replay)."""
+    bar = Progress(100, desc, unit="%", leave=False)
 
     def update(t_s, nominal_s):
         target = min(int(100 * t_s / max(nominal_s, 1.0)), 99)
@@ -168,7 +172,7 @@ def cmd_run(args) -> int:
         if args.resume:
             todo -= len(listed_runs(folder.path / "chunks"))
             desc += f", {todo} left"
-    with tqdm(total=todo, desc=desc, unit="run", disable=None) as pbar:
+    with Progress(todo, f"{scenario.name}: {desc}", unit="run") as pbar:
         result = api.run(scenario, runs, args.seed, args.workers, out=folder.path, executor=args.executor,
                          scheduler=args.scheduler, chunk_runs=args.chunk_runs, resume=args.resume,
                          progress=pbar.update, flight=flight)
@@ -250,7 +254,7 @@ def cmd_sweep(args) -> int:
     _, _, _, points = parse_sweep(args.sweep)
     folder = OutputFolder(Path(args.out) if args.out else Path("reports") / Path(args.sweep).stem)
     folder.clear_earlier()
-    with tqdm(total=len(points), desc="sweep points", disable=None) as bar:
+    with Progress(len(points), f"sweep {Path(args.sweep).stem}", unit="point") as bar:
         sweep = api.sweep(args.sweep, args.workers, progress=bar.update, executor=args.executor,
                           scheduler=args.scheduler)
     labels = list(sweep.rows[0][1]) if sweep.rows else []
@@ -337,17 +341,46 @@ def cmd_validate(args) -> int:
     return 0
 
 
+def _first_sentence(text: str) -> str:
+    """The first sentence of a text, its whitespace collapsed."""
+    para = " ".join((text or "").strip().split("\n\n")[0].split())
+    end = para.find(". ")
+    return para if end < 0 else para[:end + 1]
+
+
+def _summary(obj) -> str:
+    """The first sentence of a class's docstring, or of its module's where the class's has no
+    summary of its own (it starts with its parameters, or sends the reader to the module)."""
+    doc = (obj.__doc__ or "").strip()
+    if not doc or doc.startswith("Parameters") or "see the module docstring" in _first_sentence(doc):
+        doc = sys.modules[obj.__module__].__doc__ or ""
+    return _first_sentence(doc)
+
+
+def _listing(title: str, rows: list) -> str:
+    """``title:`` then ``name  tag  text`` per row, the columns aligned and the text wrapped
+    to the terminal under itself (never cut)."""
+    width = max(60, shutil.get_terminal_size((100, 24)).columns)
+    w0, w1 = (max((len(r[k]) for r in rows), default=0) for k in (0, 1))
+    indent = 2 + w0 + 2 + (w1 + 2 if w1 else 0)
+    out = [f"{title}:"]
+    for name, tag, text in rows:
+        lines = textwrap.wrap(text, max(width - indent, 30)) or [""]
+        head = f"  {name:<{w0}}  " + (f"{tag:<{w1}}  " if w1 else "")
+        out += [head + lines[0]] + [" " * indent + ln for ln in lines[1:]]
+    return "\n".join(out)
+
+
 def cmd_list(args) -> int:
-    print("aircraft: " + ", ".join(available_aircraft()))
-    print("sensors:")
-    for name, kind in available().items():
-        print(f"  {name:20s} {kind}")
-    print("tracks:")
-    for name in available_tracks():
-        tr = load_track(name)
-        print(f"  {name:8s} ~{nominal_duration_s(tr):5.0f} s  {tr.description.strip()[:90]}")
-    print("estimators: " + ", ".join(base.available()))
-    print("measurements: " + ", ".join(measurement_types()))
+    print(_listing("aircraft", [(a, "", "") for a in available_aircraft()]))
+    print(_listing("sensors (catalog entries)", [(n, k, d) for n, (k, d) in catalog_entries().items()]))
+    tracks = [(n, load_track(n)) for n in available_tracks()]
+    print(_listing("tracks", [(n, f"{nominal_duration_s(t):.0f} s", _first_sentence(t.description)) for n, t in tracks]))
+    print(_listing("estimators (type:)", [(n, "" if base.get(n).__module__.startswith("navsim.") else "plug-in",
+                                           _summary(base.get(n))) for n in base.available()]))
+    print(_listing("state presets (states:)", [(n, f"{Layout(b).n} states", ", ".join(b)) for n, b in PRESETS.items()]))
+    print(_listing("measurement types (measurements: - type:)",
+                   [(n, "", _summary(measurement_class(n))) for n in measurement_types()]))
     return 0
 
 

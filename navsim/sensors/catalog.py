@@ -104,11 +104,16 @@ META_KEYS = {"kind", "description", "source", "name"}
 
 def available() -> dict[str, str]:
     """Catalog entries: name -> kind."""
+    return {name: kind for name, (kind, _) in entries().items()}
+
+
+def entries() -> dict[str, tuple[str, str]]:
+    """Catalog entries: name -> (kind, description)."""
     out = {}
     for path in sorted(CATALOG_DIR.glob("*.yaml")):
         data = load_yaml(path)
         if isinstance(data, dict):
-            out[path.stem] = data.get("kind", "?")
+            out[path.stem] = (data.get("kind", "?"), str(data.get("description", "")).strip())
     return out
 
 

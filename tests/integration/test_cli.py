@@ -70,10 +70,20 @@ def test_help_on_every_command():
         assert proc.returncode == 0 and "usage: navsim" in proc.stdout
 
 
-def test_list(capsys):
+def test_list(capsys, monkeypatch):
+    """Every section aligned and wrapped to the terminal (80 columns here), nothing cut."""
+    monkeypatch.setenv("COLUMNS", "80")
     assert main(["list"]) == 0
     out = capsys.readouterr().out
     assert "survey10" in out and "p2_sea" in out
+    for section in ("sensors", "tracks", "estimators", "state presets", "measurement types"):
+        assert f"\n{section}" in out, section
+    assert max(len(line) for line in out.splitlines()) <= 80
+    presets = out.split("state presets (states:):\n")[1].splitlines()[:3]
+    assert presets[0].split() == ["p3_15", "15", "states", "att,", "vel,", "pos,", "gyro_bias,", "accel_bias"]
+    assert len({line.index("states") for line in presets}) == 1          # the columns line up
+    rows = [ln for ln in out.split("measurement types")[1].splitlines()[1:] if ln.startswith("  ") and ln[2] != " "]
+    assert [r.split()[0] for r in rows] == sorted(r.split()[0] for r in rows) and "zero_velocity" in out
 
 
 def test_sensors_command_plots_each_sensor(tmp_path, capsys, monkeypatch):

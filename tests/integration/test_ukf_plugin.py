@@ -41,7 +41,8 @@ def p3_with_ukf(repo_root) -> dict:
 def test_the_plugin_is_found_through_its_entry_point(plugin, capsys):
     assert "eskf_ukf" in available() and get("eskf_ukf") is plugin.ErrorStateUKF
     assert main(["list"]) == 0
-    assert "eskf_ukf" in capsys.readouterr().out.split("estimators: ")[1].splitlines()[0]
+    listed = capsys.readouterr().out.split("estimators (type:):\n")[1].splitlines()
+    assert any(line.split()[:2] == ["eskf_ukf", "plug-in"] for line in listed)
     # the unscented weights: the mean of the sigma points is x, their covariance P, exactly
     rng = np.random.default_rng(2)
     A = rng.normal(size=(3, 5, 5))
