@@ -391,7 +391,7 @@ def open_result(folder) -> Result:
 
 
 def sweep(path, workers: int | None = None, *, executor: str = "local", scheduler: str | None = None,
-          progress=None) -> SweepResult:
+          progress=None, on_point=None) -> SweepResult:
     """Every point of a sweep file (``navsim sweep``) through :func:`run`, held in memory, so
     every scenario feature works at every point (closed loop, landmarks, magnetometer
     calibration). All points are parsed and checked before the first runs.
@@ -406,6 +406,8 @@ def sweep(path, workers: int | None = None, *, executor: str = "local", schedule
         As :func:`run`.
     progress : callable, optional
         ``progress(1)`` after each point.
+    on_point : callable, optional
+        ``on_point(index, point, values, result)`` after each point (its :class:`Result`).
 
     Returns
     -------
@@ -423,6 +425,9 @@ def sweep(path, workers: int | None = None, *, executor: str = "local", schedule
         if not len(res.runs):
             result.failed_points[i] = min(res.failed.items())[1] if res.failed else "no run"
         result.rows.append((point, point_values(plan, res.metrics.estimators)))
+        result.metrics.append(res.metrics)
+        if on_point:
+            on_point(i, point, result.rows[-1][1], res)
         if progress:
             progress(1)
     return result

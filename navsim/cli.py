@@ -12,6 +12,8 @@
 from __future__ import annotations
 
 import argparse
+import csv
+import io
 import json
 import math
 import shutil
@@ -49,8 +51,8 @@ from navsim.navigation.estimators.error_model import PRESETS, Layout
 from navsim.navigation.estimators.measurements import measurement_class
 from navsim.replay import load_ulog, replay, replay_metrics
 from navsim.report.replay import difference_table, write_replay_report
-from navsim.report.summary import sections as summary_sections, text_table
-from navsim.report.sweep import write_sweep_figure
+from navsim.report.summary import num, sections as summary_sections, text_table
+from navsim.report.sweep import short_key, write_sweep_figure
 from navsim.sensors import emulate
 from navsim.sensors.catalog import entries as catalog_entries
 from navsim.sensors.plots import channels, plot_sensor
@@ -250,28 +252,49 @@ def cmd_sensors(args) -> int:
     return 0
 
 
+def _point_line(n: int, total: int, point: dict, values: dict, res) -> str:
+    what = ", ".join(f"{short_key(k)}={v}" for k, v in point.items())
+    got = ", ".join(f"{lb} {num(v)}" for lb, v in values.items())
+    return f"point {n + 1}/{total} ({what}): {got} [{len(res.runs)} runs, {res.record['wall_s']:.1f} s]"
+
+
 def cmd_sweep(args) -> int:
     _, _, _, points = parse_sweep(args.sweep)
     folder = OutputFolder(Path(args.out) if args.out else Path("reports") / Path(args.sweep).stem)
     folder.clear_earlier()
     with Progress(len(points), f"sweep {Path(args.sweep).stem}", unit="point") as bar:
         sweep = api.sweep(args.sweep, args.workers, progress=bar.update, executor=args.executor,
-                          scheduler=args.scheduler)
+                          scheduler=args.scheduler,
+                          on_point=lambda i, p, v, r: print(_point_line(i, len(points), p, v, r), flush=True))
     labels = list(sweep.rows[0][1]) if sweep.rows else []
-    table = [[", ".join(f"{k}={v}" for k, v in p.items())] + [f"{vals.get(lb, float('nan')):.4g}"
-             if vals.get(lb) is not None else "-" for lb in labels] for p, vals in sweep.rows]
-    print(_table(["point"] + [f"{lb}: {sweep.metric}" for lb in labels], table))
-    folder.text("sweep.json", json.dumps({"metric": sweep.metric, "points": [
-        {"point": p, "values": v} for p, v in sweep.rows], "failed_points": sweep.failed_points,
-        "interrupted": sweep.interrupted}, indent=2, default=str))
-    write_sweep_figure(folder, sweep, f"sweep {Path(args.sweep).name}: {sweep.metric}")
-    print(f"\nwrote {folder.path}/ (sweep.json, sweep.png)")
+    table = [[", ".join(f"{short_key(k)}={v}" for k, v in p.items())] + [num(vals.get(lb)) for lb in labels]
+             for p, vals in sweep.rows]
+    print("\n" + _table(["point"] + [f"{lb}: {sweep.metric}" for lb in labels], table))
+    write_sweep_files(folder, sweep)
+    write_sweep_figure(folder, sweep, f"sweep {Path(args.sweep).name}: {sweep.metric} (vectors by their norm)")
+    print(f"\nwrote {folder.path}/: sweep.json (every point's metrics), sweep.csv, sweep.png")
     for i, why in sweep.failed_points.items():
         print(f"error: no run of point {i} succeeded: {why}", file=sys.stderr)
     if sweep.interrupted:
         print(f"interrupted after {len(sweep.rows)} of {len(points)} points", file=sys.stderr)
         return 130
     return 1 if sweep.failed_points else 0
+
+
+def write_sweep_files(folder: OutputFolder, sweep) -> None:
+    """``sweep.json``: each point with its values and its whole ``metrics.json``; ``sweep.csv``:
+    one row per point, the swept parameters then the metric of each estimator."""
+    folder.text("sweep.json", json.dumps({"metric": sweep.metric, "points": [
+        {"point": p, "values": v, "metrics": m.to_dict()} for (p, v), m in zip(sweep.rows, sweep.metrics)],
+        "failed_points": sweep.failed_points, "interrupted": sweep.interrupted}, indent=2, default=str))
+    keys = list(sweep.axes())
+    labels = list(sweep.rows[0][1]) if sweep.rows else []
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(["point", *keys, *(f"{lb}: {sweep.metric}" for lb in labels)])
+    for n, (p, vals) in enumerate(sweep.rows):
+        w.writerow([n, *(p.get(k) for k in keys), *("" if vals.get(lb) is None else repr(vals[lb]) for lb in labels)])
+    folder.text("sweep.csv", buf.getvalue())
 
 
 def parse_settings(items: list[str] | None) -> dict:

@@ -104,6 +104,18 @@ class SweepResult:
     metric: str
     failed_points: dict = field(default_factory=dict)
     interrupted: bool = False
+    #: each point's whole :class:`~navsim.scoring.metrics.RunMetrics`, in the order of ``rows``
+    metrics: list = field(default_factory=list)
+
+    def axes(self) -> dict:
+        """Parameter -> its values in the order the points take them (a grid's axes)."""
+        out = {}
+        for point, _ in self.rows:
+            for k, v in point.items():
+                values = out.setdefault(k, [])
+                if v not in values:
+                    values.append(v)
+        return out
 
 
 @dataclass(frozen=True)

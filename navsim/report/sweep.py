@@ -1,4 +1,12 @@
-"""The figure of a ``navsim sweep``: the metric of every estimator at every point."""
+"""The figure of a ``navsim sweep``, shaped by its grid (:func:`write_sweep_figure`).
+
+- one swept parameter: the metric of each estimator against the parameter's values, a line
+  each;
+- two: small multiples, one heat map per estimator (rows the first parameter, columns the
+  second), each cell holding its number;
+- more, or a list of points: the metric of each estimator at each point, the points numbered
+  on the axis (``sweep.csv`` says which point is which).
+"""
 
 from __future__ import annotations
 
@@ -7,27 +15,75 @@ import numpy as np
 from navsim.experiment.sweep import SweepResult
 from navsim.foundations.outputs import OutputFolder
 from navsim.report.pages import pyplot
+from navsim.report.summary import num
+
+
+def short_key(path: str) -> str:
+    """A swept key path as a column or axis names it: its last two parts (``gyro.bias_sigma``)."""
+    parts = [p for p in path.replace("[", ".").replace("]", "").split(".") if p and not p.isdigit()]
+    return ".".join(parts[-2:])
+
+
+def _values(sweep: SweepResult, label: str) -> list:
+    return [np.nan if v.get(label) is None else float(v[label]) for _, v in sweep.rows]
+
+
+def _log_if_positive(ax, values) -> None:
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if v.size and np.all(v > 0) and v.max() > 10 * v.min():
+        ax.set_yscale("log")
+
+
+def _lines(fig, sweep: SweepResult, labels: list, key: str | None) -> None:
+    """One axis: the metric per estimator over the parameter's values (or the points)."""
+    ax = fig.add_subplot()
+    ticks = [str(p[key]) for p, _ in sweep.rows] if key else [str(i) for i in range(len(sweep.rows))]
+    for lb in labels:
+        ax.plot(range(len(sweep.rows)), _values(sweep, lb), "o-", label=lb)
+    ax.set_xticks(range(len(sweep.rows)), ticks, rotation=30 if max(map(len, ticks)) > 8 else 0,
+                  ha="right" if max(map(len, ticks)) > 8 else "center", fontsize=8)
+    ax.set_xlabel(short_key(key) if key else "point (see sweep.csv)")
+    ax.set_ylabel(sweep.metric)
+    _log_if_positive(ax, [x for lb in labels for x in _values(sweep, lb)])
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+
+
+def _heatmaps(fig, sweep: SweepResult, labels: list, rows_key: str, cols_key: str, axes: dict) -> None:
+    """A heat map per estimator over a two-parameter grid, each cell annotated."""
+    R, C = axes[rows_key], axes[cols_key]
+    grid_axes = fig.subplots(1, len(labels), squeeze=False)[0]
+    for ax, lb in zip(grid_axes, labels):
+        M = np.full((len(R), len(C)), np.nan)
+        for (p, _), v in zip(sweep.rows, _values(sweep, lb)):
+            M[R.index(p[rows_key]), C.index(p[cols_key])] = v
+        im = ax.imshow(M, cmap="viridis", aspect="auto")
+        for i in range(len(R)):
+            for j in range(len(C)):
+                dark = np.isfinite(M[i, j]) and M[i, j] < np.nanmean(M)
+                ax.text(j, i, num(M[i, j]), ha="center", va="center", fontsize=8, color="w" if dark else "k")
+        ax.set_xticks(range(len(C)), [str(c) for c in C], fontsize=7, rotation=20, ha="right")
+        ax.set_yticks(range(len(R)), [str(r) for r in R], fontsize=7)
+        ax.set_xlabel(short_key(cols_key), fontsize=8)
+        ax.set_ylabel(short_key(rows_key), fontsize=8)
+        ax.set_title(lb, fontsize=9)
+        fig.colorbar(im, ax=ax, shrink=0.8)
 
 
 def write_sweep_figure(folder: OutputFolder, sweep: SweepResult, title: str) -> None:
-    """``sweep.png`` in ``folder``: each estimator's metric (vectors by their norm) over the
-    points, on a log scale when the values are positive."""
+    """``sweep.png`` in ``folder``: the metric of every estimator over the grid (see the module
+    docstring for the shape)."""
     plt = pyplot()
-    rows = sweep.rows
-    labels = list(rows[0][1]) if rows else []
-    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(rows)), 4.5))
-    for lb in labels:
-        ax.plot(range(len(rows)), [v.get(lb, np.nan) if v.get(lb) is not None else np.nan for _, v in rows],
-                "o-", label=lb)
-    ax.set_xticks(range(len(rows)))
-    ax.set_xticklabels(["\n".join(f"{k.split('.')[-1]}={v}" for k, v in p.items()) for p, _ in rows], fontsize=7)
-    ax.set_ylabel(sweep.metric + " (norm)")
-    if any(v is not None and v > 0 for _, vals in rows for v in vals.values()):
-        ax.set_yscale("log")
-    ax.grid(alpha=0.3)
-    if labels:
-        ax.legend(fontsize=8)
-    ax.set_title(title)
-    fig.tight_layout()
+    labels = list(sweep.rows[0][1]) if sweep.rows else []
+    axes = sweep.axes()
+    grid = len(axes) == 2 and len(sweep.rows) == np.prod([len(v) for v in axes.values()])
+    width = max(6.5, 3.6 * len(labels)) if grid else max(6.5, 0.9 * len(sweep.rows) + 3)
+    fig = plt.figure(figsize=(min(width, 16), 4.8), layout="constrained")
+    if grid:
+        _heatmaps(fig, sweep, labels, *axes, axes)
+    else:
+        _lines(fig, sweep, labels, next(iter(axes)) if len(axes) == 1 else None)
+    fig.suptitle(title, fontsize=10)
     folder.write("sweep.png", lambda p: fig.savefig(p, dpi=110))
     plt.close(fig)

@@ -2,6 +2,7 @@
 a corpus of malformed scenarios that must each get a clear error and exit code 2."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -240,7 +241,18 @@ metric: rms.pos_m
     kf = [p["values"]["KF"] for p in data["points"]]
     # a noisier GPS gives a larger position error, whatever the filter assumes
     assert kf[2] > kf[0] and kf[3] > kf[1]
-    assert "KF: rms.pos_m" in capsys.readouterr().out
+    # every point's whole metrics, its norm the value compared
+    assert all(p["metrics"]["runs_done"] == 2 for p in data["points"])
+    assert kf[0] == pytest.approx(np.linalg.norm(data["points"][0]["metrics"]["estimators"]["KF"]["rms"]["pos_m"]))
+    rows = (out / "sweep.csv").read_text().splitlines()
+    assert rows[0] == "point,sensors.gps.override.position_sigma,estimators[1].measurements[0].sigma_m," \
+                      "free SINS: rms.pos_m,KF: rms.pos_m" and len(rows) == 5
+    assert float(rows[3].rsplit(",", 1)[1]) == kf[2]
+    out_text = capsys.readouterr().out
+    assert "KF: rms.pos_m" in out_text
+    # a line per point as it finishes
+    assert [ln.split(" (")[0] for ln in out_text.splitlines() if re.match(r"point \d+/", ln)] == \
+        [f"point {n}/4" for n in range(1, 5)]
     bad = tmp_path / "bad.yaml"
     bad.write_text(f"scenario: {short.name}\ngrid:\n  estimators[5].type: [sins]\n")
     assert main(["sweep", str(bad)]) == 2
