@@ -55,7 +55,7 @@ from navsim.report.summary import num, sections as summary_sections, text_table
 from navsim.report.sweep import short_key, write_sweep_figure
 from navsim.sensors import emulate
 from navsim.sensors.catalog import entries as catalog_entries
-from navsim.sensors.plots import channels, plot_sensor
+from navsim.sensors.plots import channels, plot_allan, plot_sensor
 from navsim.version import __version__
 
 
@@ -236,10 +236,15 @@ def cmd_sensors(args) -> int:
     truth, _, _ = _fly_or_save(scenario, args.scenario, folder)
     check_scenario(scenario, truth.duration_s)
     folder.clear_earlier()
-    rows = []
+    rows, allan = [], []
     for cfg in scenario.sensors:
         data = emulate(truth, cfg, seed, range(runs))
         folder.record([plot_sensor(data, truth, out / f"sensor_{cfg.name}.png", run=0)])
+        if cfg.kind == "imu":
+            folder.record([out / f"allan_{cfg.name}.png"])
+            _, ratios = plot_allan(f"{cfg.name} ({cfg.model})", cfg.spec, seed, out / f"allan_{cfg.name}.png")
+            allan.append(f"{cfg.name}: white noise read from its Allan deviation at the shortest tau, over the "
+                         "datasheet's: " + ", ".join(f"{k} {v:.3f}" for k, v in ratios.items()))
         for label, unit, _, _, _ in channels(data, truth, 0):
             errs = np.concatenate([np.where(data.valid[r], c[3] - c[4], np.nan)
                                    for r in range(runs) for c in channels(data, truth, r) if c[0] == label])
@@ -248,7 +253,9 @@ def cmd_sensors(args) -> int:
                          f"{np.percentile(np.abs(errs), 95):.4g}", f"{data.valid.mean() * 100:.1f}"])
     print(_table(["sensor", "model", "channel", "unit", "error mean", "error std", "|error| 95%",
                   "output %"], rows))
-    print(f"\n{runs} run(s), seed {seed}; wrote {out}/ (sensor_<name>.png, run 0)")
+    print("\n".join([""] + allan))
+    print(f"\n{runs} run(s), seed {seed}; wrote {out}/: sensor_<name>.png (run 0)"
+          + (", allan_<imu>.png (at rest)" if allan else ""))
     return 0
 
 

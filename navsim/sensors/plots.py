@@ -4,12 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import allantools
 import numpy as np
 
+from navsim.flight.truth import Truth
 from navsim.foundations import earth
 from navsim.foundations.outputs import write_atomic
 from navsim.foundations.transform import dcm_from_quat
 from navsim.sensors.base import SensorData
+from navsim.sensors.imu import FLICKER_FLOOR, emulate_imu
 
 
 def channels(data: SensorData, truth, run: int = 0):
@@ -32,14 +35,16 @@ def channels(data: SensorData, truth, run: int = 0):
         out += [("north", "m", t, n_m, n_t), ("east", "m", t, e_m, e_t),
                 ("height", "m", t, v["h_m"][run], truth.h_m[s])]
         if "vel_n_mps" in v:
-            out.append(("speed north", "m/s", t, v["vel_n_mps"][run, :, 0], truth.vel_n_mps[s, 0]))
+            out += [(f"velocity {a}", "m/s", t, v["vel_n_mps"][run, :, j], truth.vel_n_mps[s, j])
+                    for j, a in enumerate(("north", "east", "down"))]
     elif data.kind == "baro":
         out.append(("baro height", "m", t, v["h_baro_m"][run], truth.h_m[s]))
     elif data.kind == "ads":
         out += [("static pressure", "Pa", t, v["p_static_pa"][run], truth.p_static_pa[s]),
                 ("pressure altitude", "m", t, v["h_pressure_m"][run], truth.h_m[s]),
-                ("true airspeed", "m/s", t, v["tas_mps"][run], truth.tas_mps[s]),
-                ("ground speed north", "m/s", t, v["vel_n_mps"][run, :, 0], truth.vel_n_mps[s, 0])]
+                ("true airspeed", "m/s", t, v["tas_mps"][run], truth.tas_mps[s])]
+        out += [(f"ground velocity {a}", "m/s", t, v["vel_n_mps"][run, :, j], truth.vel_n_mps[s, j])
+                for j, a in enumerate(("north", "east", "down"))]
     elif data.kind == "radar_altimeter":
         out.append(("height above surface", "m", t, v["h_agl_m"][run], truth.h_agl_m[s]))
     elif data.kind == "magnetometer":
@@ -69,6 +74,7 @@ def plot_sensor(data: SensorData, truth, path: str | Path, run: int = 0) -> Path
         err = m - true
         b.plot(t, err, lw=0.6 if len(t) > 2000 else 1.0, color="tab:red")
         b.axhline(0.0, color="k", lw=0.5)
+        b.set_ylabel(f"error, {unit}", fontsize=8)
         finite = err[np.isfinite(err)]
         if finite.size:
             b.set_title(f"error: mean {finite.mean():.3g}, std {finite.std():.3g} {unit}", fontsize=8)
@@ -80,8 +86,78 @@ def plot_sensor(data: SensorData, truth, path: str | Path, run: int = 0) -> Path
     axs[0, 0].legend(fontsize=7, loc="best")
     axs[-1, 0].set_xlabel("time, s")
     axs[-1, 1].set_xlabel("time, s")
-    fig.suptitle(f"{data.name} ({data.kind}, {data.meta.get('rate_hz', 0):g} Hz): output and error, run {run}")
+    fig.suptitle(f"{data.name} ({data.kind}, {data.meta.get('rate_hz', 0):g} Hz): output and error, run {run}",
+                 fontsize=10)
     fig.tight_layout()
     path = write_atomic(Path(path), lambda p: fig.savefig(p, dpi=110))
     plt.close(fig)
     return path
+
+
+#: the record an IMU's Allan deviation is computed over, s (the vehicle at rest)
+ALLAN_RECORD_S = 2000.0
+#: per triad: the rate's key, the plot's scale from SI and unit, the white noise's name and unit
+_TRIADS = (("gyro", "omega_ib_b_rps", 180 / np.pi * 3600, "deg/h", "ARW"),
+           ("accel", "f_b_mps2", 1e6 / 9.80665, "µg", "VRW"))
+
+
+def allan_deviation(spec, seed: int, duration_s: float = ALLAN_RECORD_S):
+    """The overlapping Allan deviation of each axis of an IMU emulated at rest for
+    ``duration_s``: ``{triad: (tau_s (K,), adev (3, K) in SI)}`` (allantools, octave taus)."""
+    truth = Truth.static(duration_s, rate_hz=spec.rate_hz)
+    data = emulate_imu(truth, spec, seed, [0])
+    out = {}
+    for triad, key, *_ in _TRIADS:
+        err = data.values[key][0] - (truth.omega_ib_b_rps if key == "omega_ib_b_rps" else truth.f_b_mps2)
+        curves = [allantools.oadev(err[:, j] - err[:, j].mean(), rate=spec.rate_hz, data_type="freq",
+                                   taus="octave") for j in range(3)]
+        tau = curves[0][0]
+        out[triad] = (tau, np.stack([np.interp(tau, c[0], c[1]) for c in curves]))
+    return out
+
+
+def datasheet_lines(e, tau: np.ndarray) -> dict:
+    """The datasheet's Allan lines of a triad (SI, the axes' mean): white noise ``N / sqrt(tau)``,
+    the bias-instability floor ``0.664 B``, the random walk ``K sqrt(tau / 3)``; those it gives."""
+    lines = {}
+    for name, value, shape in (("white noise", e.noise_density, lambda v: v / np.sqrt(tau)),
+                               ("bias instability", e.bias_instability, lambda v: FLICKER_FLOOR * v * np.ones_like(tau)),
+                               ("random walk", e.random_walk, lambda v: v * np.sqrt(tau / 3.0))):
+        v = float(np.mean(value))
+        if v > 0:
+            lines[name] = shape(v)
+    return lines
+
+
+def plot_allan(name: str, spec, seed: int, path: str | Path) -> tuple[Path, dict]:
+    """``allan_<name>.png``: each axis's Allan deviation of the emulated IMU at rest against the
+    datasheet's lines, gyros (deg/h) and accelerometers (µg) against tau (s). Returns the path
+    and, per triad, the white-noise density read at the shortest tau over the datasheet's."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    adev = allan_deviation(spec, seed)
+    fig, axs = plt.subplots(1, 2, figsize=(12, 5))
+    ratios = {}
+    for ax, (triad, _, scale, unit, white) in zip(axs, _TRIADS):
+        tau, dev = adev[triad]
+        e = getattr(spec, triad)
+        for j, axis in enumerate("xyz"):
+            ax.loglog(tau, dev[j] * scale, lw=1.2, label=f"emulated, {axis}")
+        for label, line in datasheet_lines(e, tau).items():
+            ax.loglog(tau, line * scale, "--", lw=1.0, color="k" if label == "white noise" else "0.45",
+                      label=f"datasheet: {white if label == 'white noise' else label}")
+        if np.mean(e.noise_density) > 0:
+            ratios[triad] = float(np.mean(dev[:, 0] * np.sqrt(tau[0])) / np.mean(e.noise_density))
+        ax.set_xlabel("averaging time tau, s")
+        ax.set_ylabel(f"Allan deviation, {unit}")
+        ax.set_title(f"{'gyros' if triad == 'gyro' else 'accelerometers'} at rest", fontsize=9)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7)
+    fig.suptitle(f"{name}: Allan deviation of the emulated IMU ({ALLAN_RECORD_S:g} s at rest, "
+                 f"{spec.rate_hz:g} Hz) against its datasheet", fontsize=10)
+    fig.tight_layout()
+    path = write_atomic(Path(path), lambda p: fig.savefig(p, dpi=110))
+    plt.close(fig)
+    return path, ratios
