@@ -221,6 +221,7 @@ def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5, spans
     settling time; a free-inertial estimator that would flatten the others on axes of its own
     (right); the metric windows shaded."""
     from matplotlib.lines import Line2D
+    from matplotlib.ticker import MaxNLocator
     plt = pyplot()
     colours = dict(zip(histories, plt.cm.tab10(np.arange(len(histories)) % 10)))
     figs = []
@@ -246,6 +247,8 @@ def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5, spans
                 ax.set_ylabel(f"{names[j]}, {unit}" if c == 0 else f"{unit} (own scale)", fontsize=8)
             if free and j == 0:
                 axs[0, 1].set_title("free inertial, on its own scale", fontsize=9)
+        for ax in axs.flat:                       # the narrow column too: a few time ticks
+            ax.xaxis.set_major_locator(MaxNLocator(6 if ax in axs[:, 0] else 4))
         for ax in axs[-1]:
             ax.set_xlabel("time, s")
         handles = [Line2D([], [], color=colours[k], lw=1.6, label=k) for k in env]
@@ -559,7 +562,7 @@ def report_pages(scenario, truth, result, metrics: RunMetrics, record: dict, loo
     resolved = dict(scenario.raw)
     resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": record["runs"],
                               "seed": record["seed"], "workers": record["workers"]}
-    text = yaml.safe_dump(resolved, sort_keys=False, width=110).splitlines()
+    text = yaml.safe_dump(resolved, sort_keys=False, width=110, default_flow_style=None).splitlines()
     if len(text) > 120:
         text = text[:118] + ["...", "(the whole file: scenario.resolved.yaml)"]
     pages += [("scenario" if i == 0 else f"scenario_{i + 1}", f)
