@@ -32,22 +32,6 @@ def pyplot():
     return plt
 
 
-def _text_page(title: str, lines: list[str]):
-    plt = pyplot()
-    fig = plt.figure(figsize=(8.27, 11.69))
-    fig.text(0.06, 0.96, title, fontsize=14, weight="bold", va="top")
-    fig.text(0.04, 0.93, "\n".join(lines), fontsize=6.3, family="monospace", va="top")
-    return fig
-
-
-def _table_lines(headers, rows):
-    widths = [max(len(str(h)), *(len(str(r[i])) for r in rows)) if rows else len(h) for i, h in enumerate(headers)]
-    out = ["  ".join(str(h).ljust(w) for h, w in zip(headers, widths)),
-           "  ".join("-" * w for w in widths)]
-    out += ["  ".join(str(c).ljust(w) for c, w in zip(r, widths)) for r in rows]
-    return out
-
-
 def _nanmean(x):
     """Mean over the runs (axis 0) of what they have: a closed-loop run's records end at its
     landing (NaN after it)."""

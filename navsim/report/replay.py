@@ -9,7 +9,8 @@ import numpy as np
 from navsim.foundations.outputs import write_atomic
 from navsim.replay.metrics import AXES
 from navsim.replay.run import ReplayResult
-from navsim.report.pages import _table_lines, _text_page, pyplot
+from navsim.report.pages import pyplot
+from navsim.report.tables import Heading, Paragraph, Table, layout
 
 
 def attitude_figure(result: ReplayResult):
@@ -43,32 +44,36 @@ def attitude_figure(result: ReplayResult):
     return fig
 
 
-def summary_lines(metrics: dict, record: dict) -> list[str]:
-    """The summary page: the log, the replay's setup, the differences, the cost."""
+def summary_blocks(metrics: dict, record: dict) -> list:
+    """The summary page's blocks: the differences to PX4, the replay's setup, the cost, the
+    resets and the log's notes."""
     log, a = metrics["log"], metrics["alignment"]
-    lines = [f"log           : {log['file']} ({log['duration_s']:.1f} s, {log.get('ver_hw')}, "
-             f"PX4 {str(log.get('ver_sw'))[:10]})",
-             f"rates         : IMU {log['imu_rate_hz']:.1f} Hz (grid {metrics['imu_grid_hz']:g} Hz), "
-             f"magnetometer {log['mag_rate_hz']:.1f} Hz, baro {log['baro_rate_hz']:.1f} Hz, "
-             f"PX4 attitude {log['px4_attitude_rate_hz']:.1f} Hz",
-             f"estimator     : {metrics['estimator']} {metrics['params']}, epochs every {metrics['period_s']:g} s",
-             f"alignment     : first {a['window_s']:g} s, roll/pitch/yaw "
-             + "/".join(f"{x:.2f}" for x in a["euler_deg"]) + " deg (PX4 "
-             + "/".join(f"{x:.2f}" for x in a["px4_euler_deg"]) + f"), field N/E/D "
-             + "/".join(f"{x * 1e6:.1f}" for x in a["field_n_T"]) + " uT",
-             f"declination   : {log['declination_deg']:.2f} deg ({log['declination_source']})",
-             f"scored        : after {metrics['settle_s']:g} s, {metrics['samples_scored']} samples "
-             f"(every {metrics['record_s']:g} s)",
-             f"navsim        : {record['versions']['navsim']} at git {record['git_revision']}", ""]
-    lines += _table_lines(*difference_table(metrics))
+    deg = lambda v: " / ".join(f"{x:.2f}" for x in v)
+    setup = [["log", f"{log['file']} ({log['duration_s']:.1f} s, {log.get('ver_hw')}, PX4 {str(log.get('ver_sw'))[:10]})"],
+             ["rates", f"IMU {log['imu_rate_hz']:.1f} Hz (grid {metrics['imu_grid_hz']:g} Hz), magnetometer "
+                       f"{log['mag_rate_hz']:.1f} Hz, baro {log['baro_rate_hz']:.1f} Hz, PX4 attitude "
+                       f"{log['px4_attitude_rate_hz']:.1f} Hz"],
+             ["estimator", f"{metrics['estimator']}, epochs every {metrics['period_s']:g} s"],
+             ["parameters", str(metrics["params"])],
+             ["alignment", f"first {a['window_s']:g} s: roll / pitch / yaw {deg(a['euler_deg'])} deg (PX4 "
+                           f"{deg(a['px4_euler_deg'])}), field N / E / D "
+                           + " / ".join(f"{x * 1e6:.1f}" for x in a["field_n_T"]) + " µT"],
+             ["declination", f"{log['declination_deg']:.2f} deg ({log['declination_source']})"],
+             ["scored", f"after {metrics['settle_s']:g} s, {metrics['samples_scored']} samples "
+                        f"(every {metrics['record_s']:g} s)"],
+             ["navsim", f"{record['versions']['navsim']} at git {record['git_revision']}"]]
     c = metrics["cost"]
-    lines += ["", f"cost: {c['us_per_imu_step_propagated']:.1f} us per IMU step propagated, {c['us_per_epoch']:.0f} us per "
-              f"epoch, {c['us_per_imu_cycle']:.0f} us per IMU cycle ({c['real_time_factor']:.0f}x real time)"]
+    blocks = [Heading(f"{metrics['estimator']} against PX4's vehicle_attitude"), Table(*difference_table(metrics)),
+              Heading("Replay"), Table(["item", "value"], setup, align=["l", "l"], max_column=0.85),
+              Paragraph(f"Cost: {c['us_per_imu_step_propagated']:.1f} µs per IMU step propagated, "
+                        f"{c['us_per_epoch']:.0f} µs per epoch, {c['us_per_imu_cycle']:.0f} µs per IMU cycle "
+                        f"({c['real_time_factor']:.0f}x real time).", size=8)]
     if metrics["resets"]:
-        lines += ["", "resets:"] + [f"  {x['t_s']:8.2f} s  {x['cause']}" for x in metrics["resets"]]
+        blocks += [Heading("Resets"), Table(["t, s", "cause"], [[f"{x['t_s']:.2f}", x["cause"]]
+                                                                 for x in metrics["resets"]])]
     if log["notes"]:
-        lines += ["", "notes:"] + [f"  - {n}" for n in log["notes"]]
-    return lines
+        blocks += [Heading("Notes on the log")] + [Paragraph(f"- {n}", size=8) for n in log["notes"]]
+    return blocks
 
 
 def difference_table(metrics: dict) -> tuple[list[str], list[list[str]]]:
@@ -87,14 +92,15 @@ def write_replay_report(out: Path, result: ReplayResult, metrics: dict, record: 
     out = Path(out)
     fig = attitude_figure(result)
     png = write_atomic(out / "attitude.png", lambda p: fig.savefig(p, dpi=110))
-    page = _text_page(f"navsim replay: {result.log.path.name}, {result.estimator}",
-                      summary_lines(metrics, record))
+    pages = layout(f"navsim replay: {result.log.path.name}, {result.estimator}", summary_blocks(metrics, record))
     def write_pdf(path):
         with PdfPages(path) as pdf:
-            pdf.savefig(page)
+            for page in pages:
+                pdf.savefig(page)
             pdf.savefig(fig)
             pdf.infodict()["Title"] = f"navsim replay {result.log.path.name}"
     pdf_path = write_atomic(out / "replay.pdf", write_pdf)
-    plt.close(page)
+    for page in pages:
+        plt.close(page)
     plt.close(fig)
     return [png, pdf_path]

@@ -73,7 +73,7 @@ def results(metrics: RunMetrics, settle_s: float) -> Section:
         "95 % band; NIS: the same share for the measurement least often inside (which: under Consistency); "
         "converged: when "
         "the RMS position error settles; cost: wall time per run of the batched filter.",
-        ["estimator", "position\nm", "velocity\nm/s", "attitude\ndeg", "NEES\navg", "NEES\nin band",
+        ["estimator", "position\nN E D, m", "velocity\nN E D, m/s", "attitude\nN E D, deg", "NEES\navg", "NEES\nin band",
          "NIS\nin band", "converged\ns", "diverged\nruns", "cost\nms/run"], rows, colours)
 
 

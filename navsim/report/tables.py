@@ -3,9 +3,9 @@
 A table is drawn as in a paper (a rule above and below the header and under the last row, no
 grid), each column as wide as its widest cell measured with the renderer's font metrics, numbers
 right-aligned. A table wider than the text block is split into column groups stacked one under
-the other, its first column repeated in each; a column wider than :data:`MAX_COLUMN_FRACTION`
-of the block has its cells wrapped; a table longer than the page continues on the next with its
-header repeated. Nothing is drawn outside the page's margins.
+the other, its first column repeated in each; a column wider than its table's ``max_column``
+share of the block has its cells wrapped; a table longer than the page continues on the next
+with its header repeated. Nothing is drawn outside the page's margins.
 """
 
 from __future__ import annotations
@@ -22,7 +22,6 @@ from matplotlib.lines import Line2D
 
 PAGE_IN = (8.27, 11.69)        #: A4 portrait, inches
 MARGIN_IN = 0.55               #: left, right, top and bottom
-MAX_COLUMN_FRACTION = 0.42     #: a column wider than this share of the text block is wrapped
 CELL_PAD_IN = 0.13             #: space between two columns
 SMALLER = (7.0, 6.5)           #: the font sizes a table too wide for the block tries before it is split
 LINE = 1.3                     #: line height, in font sizes
@@ -61,6 +60,7 @@ class Table:
     colours: list[list[str | None]] | None = None
     align: list[str] | None = None
     size: float = 7.5
+    max_column: float = 0.42       #: the share of the text block a column may take before it wraps
 
 
 @dataclass
@@ -217,7 +217,7 @@ def _alignment(table: Table) -> list[str]:
 def _measured(page: _Page, table: Table):
     """``(table, cells, widths)``: at the table's size, or the largest of :data:`SMALLER` at
     which it fits the text block whole (else at its size, to be split in column groups)."""
-    cap = MAX_COLUMN_FRACTION * _block_width()
+    cap = table.max_column * _block_width()
     first = None
     for size in (table.size, *(s for s in SMALLER if s < table.size)):
         t = dataclasses.replace(table, size=size)

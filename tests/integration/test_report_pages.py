@@ -104,3 +104,19 @@ def test_every_page_written_as_a_png_and_the_verdicts_on_the_first(report, tmp_p
         return
     assert len(texts) == len(result.metrics.paper_checks) > 0 and headed
     assert all(matplotlib.colors.to_hex(t.get_color()) == (PASS if t.get_text() == "pass" else FAIL) for t in texts)
+
+
+def test_the_replay_summary_page_fits(repo_root, tmp_path):
+    """``navsim replay``'s summary page, typeset from its metrics.json, keeps its text inside."""
+    import json
+
+    from navsim.cli import main
+    from navsim.report.replay import summary_blocks
+    from navsim.report.tables import layout
+    assert main(["replay", str(repo_root / "tests" / "data" / "px4_quad_real_69s.ulg.gz"), "--out",
+                 str(tmp_path / "r")]) == 0
+    m = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    for fig in layout("navsim replay", summary_blocks(m, m["provenance"])):
+        fig.canvas.draw()
+        assert not text_outside(fig, fig.canvas.get_renderer())
+    assert (tmp_path / "r" / "replay.pdf").stat().st_size > 10_000
