@@ -110,11 +110,25 @@ def _room(page: _Page) -> float:
     return PAGE_IN[1] - MARGIN_IN - page.y_in
 
 
+def _pieces(page: _Page, word: str, width_in: float, size: float, family: str) -> list[str]:
+    """A word too long for the line cut after its dots, underscores and slashes (a metric's
+    path), where it has them."""
+    if _width_in(page, word, size, family=family) <= width_in:
+        return [word]
+    parts, out = re.findall(r"[^._/]+[._/]?|[._/]", word), [""]
+    for part in parts:
+        if out[-1] and _width_in(page, out[-1] + part, size, family=family) > width_in:
+            out.append(part)
+        else:
+            out[-1] += part
+    return out
+
+
 def _wrap(page: _Page, text: str, width_in: float, size: float, family: str = "sans-serif") -> list[str]:
     """``text``'s lines wrapped to ``width_in`` (each paragraph of it, measured)."""
     out = []
     for para in text.split("\n"):
-        words, line = para.split(" "), ""
+        words, line = [p for w in para.split(" ") for p in _pieces(page, w, width_in, size, family)], ""
         for w in words:
             trial = f"{line} {w}" if line else w
             if line and _width_in(page, trial, size, family=family) > width_in:
@@ -166,15 +180,15 @@ def layout(title: str, blocks: list) -> list[Figure]:
     return [p.fig for p in lay.pages]
 
 
-def _cell_lines(page: _Page, table: Table, width_in: float) -> list[list[list[str]]]:
-    """Each row's cells as lines, wrapped where a column is capped at ``width_in``."""
+def _cell_lines(page: _Page, table: Table, caps: list[float]) -> list[list[list[str]]]:
+    """Each row's cells as lines, wrapped where a column is wider than its cap (inches)."""
     out = []
     for row in table.rows:
         cells = []
-        for text in row:
+        for text, cap in zip(row, caps):
             text = str(text)
-            wide = _width_in(page, text, table.size) > width_in
-            cells.append(_wrap(page, text, width_in, table.size) if wide else text.split("\n"))
+            wide = _width_in(page, text, table.size) > cap
+            cells.append(_wrap(page, text, cap, table.size) if wide else text.split("\n"))
         out.append(cells)
     return out
 
@@ -214,18 +228,26 @@ def _alignment(table: Table) -> list[str]:
                     for j in range(1, len(table.headers))]
 
 
+#: the widths (inches) a table too wide for the block wraps its text columns to, in turn
+TEXT_CAPS_IN = (2.0, 1.6, 1.3)
+
+
 def _measured(page: _Page, table: Table):
-    """``(table, cells, widths)``: at the table's size, or the largest of :data:`SMALLER` at
-    which it fits the text block whole (else at its size, to be split in column groups)."""
+    """``(table, cells, widths)``: the first layout that fits the text block whole, trying the
+    table's size, then :data:`SMALLER` sizes, each with its text columns (left-aligned) wrapped
+    to :data:`TEXT_CAPS_IN`; else the table's own, to be split in column groups."""
     cap = table.max_column * _block_width()
+    text = [a == "l" for a in _alignment(table)]
     first = None
     for size in (table.size, *(s for s in SMALLER if s < table.size)):
         t = dataclasses.replace(table, size=size)
-        cells = _cell_lines(page, t, cap)
-        widths = [min(w, cap) for w in _column_widths(page, t, cells)]
-        first = first or (t, cells, widths)
-        if sum(widths) + CELL_PAD_IN * (len(widths) - 1) <= _block_width():
-            return t, cells, widths
+        for narrow in (cap, *(c for c in TEXT_CAPS_IN if c < cap)):
+            caps = [min(cap, narrow) if is_text else cap for is_text in text]
+            cells = _cell_lines(page, t, caps)
+            widths = [min(w, c) for w, c in zip(_column_widths(page, t, cells), caps)]
+            first = first or (t, cells, widths)
+            if sum(widths) + CELL_PAD_IN * (len(widths) - 1) <= _block_width():
+                return t, cells, widths
     return first
 
 
