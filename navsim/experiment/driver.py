@@ -344,8 +344,10 @@ class _Recorder:
         if sol.gyro_bias is not None:
             self.bg.append(sol.gyro_bias.copy())
             self.ba.append(sol.accel_bias.copy())
-        if sol.gyro_bias_sigma is not None:
-            self.bsig.append(np.concatenate([sol.gyro_bias_sigma, sol.accel_bias_sigma], -1))
+        if sol.gyro_bias_sigma is not None or sol.accel_bias_sigma is not None:
+            nan = np.full((len(phi), 3), np.nan)
+            self.bsig.append(np.concatenate([nan if s is None else s for s in (sol.gyro_bias_sigma,
+                                                                                   sol.accel_bias_sigma)], -1))
         if nees is not None:
             self.nees.append(nees)
             self.sig.append(sig)

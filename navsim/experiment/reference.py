@@ -75,9 +75,10 @@ def _value(node: Node, key: str):
     raise node.error(f"is {value!r}", key, expected="a finite number or a list of three")
 
 
-def _rule(node: Node, default: str = "none") -> tuple[str, float]:
+def _rule(node: Node, default: str = "none", tolerance: float = DEFAULT_TOLERANCE) -> tuple[str, float]:
+    """The node's ``check`` and ``tolerance``, the given defaults (the reference's) otherwise."""
     return (node.get("check", str, default, choices=list(RULES)),
-            node.get("tolerance", float, DEFAULT_TOLERANCE, exclusive_minimum=0.0))
+            node.get("tolerance", float, tolerance, exclusive_minimum=0.0))
 
 
 def _label(node: Node, key: str, labels: list) -> str:
@@ -107,7 +108,7 @@ def parse_reference(node: Node | None, labels: list, check_path) -> Reference | 
             check_path(str(path), m.key(str(path)))
             if isinstance(m.data[path], dict):
                 one = m.child(str(path))
-                r, t = _rule(one, rule)
+                r, t = _rule(one, rule, tol)
                 checks.append(PaperCheck(str(label), str(path), r, _value(one, "paper"), t))
                 one.done()
             else:

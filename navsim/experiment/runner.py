@@ -33,7 +33,7 @@ from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.navigation.estimators import factory
 from navsim.navigation.magcal import calibration_history
 from navsim.sensors import emulate
-from navsim.sensors.imu import ImuStream, emulate_imu
+from navsim.sensors.imu import ImuStream, emulate_imu, seen_bias
 from navsim.version import __version__
 
 #: runs per chunk, by measurement (benchmarks/chunk_size.py, P0, 1000 runs, 2 workers): 125 runs
@@ -160,6 +160,10 @@ def _chunk_work(truth_or_path, scenario, seed, runs):
         bias = {k: np.broadcast_to(imu.errors[k], (len(runs), max(imu.errors[k].shape[1], 1), 3))
                 for k in ("gyro_bias", "accel_bias")}
         bias = {k: (v[:, idx] if v.shape[1] > 1 else np.repeat(v, len(idx), axis=1)) for k, v in bias.items()}
+        at = np.searchsorted(truth.t_s, imu.t_s[np.minimum(idx, len(imu.t_s) - 1)] - 1e-9)
+        for key, x in (("gyro", truth.omega_ib_b_rps), ("accel", truth.f_b_mps2)):
+            if f"{key}_matrix" in imu.errors:
+                bias[f"{key}_bias_seen"] = seen_bias(bias[f"{key}_bias"], imu.errors[f"{key}_matrix"], x[at])
     calib = {name: calibration_history(truth, others[name], s["noise_uT"] * 1e-6, s["forgetting"])
              for name, s in calibrated.items()}
     return ChunkPart(list(runs), hist, bias, calib)

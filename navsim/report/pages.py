@@ -150,13 +150,27 @@ def _shade(ax, spans, label: bool = False):
                     va="top", color="0.3", clip_on=True)
 
 
+def estimator_colours(labels) -> dict:
+    """A colour per estimator, distinct up to 20 (tab10, or tab20 beyond ten)."""
+    labels = list(labels)
+    cmap = pyplot().cm.tab10 if len(labels) <= 10 else pyplot().cm.tab20
+    return {k: cmap(i % cmap.N) for i, k in enumerate(labels)}
+
+
+def _legend_columns(labels) -> int:
+    """Legend columns that keep a row of long labels inside the figure."""
+    longest = max((len(str(lb)) for lb in labels), default=0)
+    return 4 if longest <= 28 else 2 if longest <= 60 else 1
+
+
 #: a free-inertial envelope this many times the aided ones' gets an axis of its own
 OWN_AXIS_RATIO = 5.0
 
 
 def _envelopes(h, key: str):
-    """``(rms, sigma)`` ``(T, 3)`` over the runs that did not diverge (``sigma`` None without a
-    covariance), and the errors ``(R, T, 3)``; None if every run diverged."""
+    """``(rms, sigma, errors, t_s)``: RMS and sigma ``(T, 3)`` over the runs that did not diverge
+    (``sigma`` None without a covariance), their errors ``(R, T, 3)`` and the estimator's own
+    epoch times ``(T,)`` (estimators record at their own periods); None if every run diverged."""
     good = ~np.asarray(h.diverged, bool)
     if not good.any():
         return None
@@ -165,13 +179,22 @@ def _envelopes(h, key: str):
     if h.sigma is not None:
         s = {"pos": h.sigma[..., 6:9], "vel": h.sigma[..., 3:6], "att": np.degrees(h.sigma[..., 0:3])}[key]
         sig = np.sqrt(_nanmean(s[good] ** 2))
-    return np.sqrt(_nanmean(err ** 2)), sig, err
+    return np.sqrt(_nanmean(err ** 2)), sig, err, h.t_s
 
 
-def _split_free(env: dict, after) -> tuple[list, list]:
+def _span(t_s: np.ndarray, span) -> np.ndarray:
+    """The epochs of ``t_s`` inside ``span = (start_s, end_s)``."""
+    return (t_s >= span[0]) & (t_s <= span[1])
+
+
+def _split_free(env: dict, span) -> tuple[list, list]:
     """The estimators drawn on the main axes and those (free inertial, no covariance) whose
-    errors after the settling time exceed :data:`OWN_AXIS_RATIO` times the others'."""
-    scale = {k: float(np.nanmax(np.abs(e[0][after]))) for k, e in env.items() if after.any()}
+    errors in ``span`` (after the settling time) exceed :data:`OWN_AXIS_RATIO` times the others'."""
+    scale = {}
+    for k, e in env.items():
+        m = _span(e[3], span)
+        if m.any():
+            scale[k] = float(np.nanmax(np.abs(e[0][m])))
     aided = [k for k in env if env[k][1] is not None]
     top = max((scale.get(k, 0.0) for k in aided), default=0.0)
     free = [k for k in env if env[k][1] is None and aided and scale.get(k, 0.0) > OWN_AXIS_RATIO * top > 0]
@@ -181,7 +204,7 @@ def _split_free(env: dict, after) -> tuple[list, list]:
 def _draw_envelope(ax, t, e, j: int, colour, runs_plotted: int) -> None:
     """One estimator on axis ``j``: a few runs (thin), the RMS (solid), the filter's 3 sigma
     (dashed)."""
-    rms, sig, err = e
+    rms, sig, err, _ = e
     for r in range(min(runs_plotted, err.shape[0])):
         ax.plot(t, err[r, :, j], color=colour, lw=0.4, alpha=0.35)
     ax.plot(t, rms[:, j], color=colour, lw=1.6)
@@ -191,11 +214,17 @@ def _draw_envelope(ax, t, e, j: int, colour, runs_plotted: int) -> None:
         ax.plot(t, -3 * sig[:, j], "--", color=colour, lw=1.0)
 
 
-def _ylim(ax, envs, j: int, after) -> None:
-    """The y range the estimators on ``ax`` need after the settling time (RMS and 3 sigma)."""
-    peak = max([float(np.nanmax(np.abs(e[0][after, j]))) for e in envs]
-               + [3 * float(np.nanmax(e[1][after, j])) for e in envs if e[1] is not None], default=0.0)
-    if after.any() and np.isfinite(peak) and peak > 0:
+def _ylim(ax, envs, j: int, span) -> None:
+    """The y range the estimators on ``ax`` need in ``span`` (after the settling time: RMS and
+    3 sigma)."""
+    peaks = []
+    for e in envs:
+        m = _span(e[3], span)
+        if m.any():
+            peaks += [float(np.nanmax(np.abs(e[0][m, j])))] + ([3 * float(np.nanmax(e[1][m, j]))]
+                                                              if e[1] is not None else [])
+    peak = max(peaks, default=0.0)
+    if np.isfinite(peak) and peak > 0:
         ax.set_ylim(-1.15 * peak, 1.15 * peak)
 
 
@@ -207,14 +236,13 @@ def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5, spans
     from matplotlib.lines import Line2D
     from matplotlib.ticker import MaxNLocator
     plt = pyplot()
-    colours = dict(zip(histories, plt.cm.tab10(np.arange(len(histories)) % 10)))
+    colours = estimator_colours(histories)
     figs = []
     for key, (title, unit, names) in AXES.items():
         env = {k: e for k, h in histories.items() if (e := _envelopes(h, key)) is not None}
         if not env:
             continue
-        t = next(iter(histories.values())).t_s
-        after = t >= settle_s
+        after = (settle_s, np.inf)
         main, free = _split_free(env, after)
         cols = 2 if free else 1
         fig, axs = plt.subplots(3, cols, figsize=(11, 9), sharex=True, squeeze=False,
@@ -241,8 +269,8 @@ def error_figures(histories: dict, settle_s: float, runs_plotted: int = 5, spans
                     Line2D([], [], color="0.3", lw=0.4, label=f"first {runs_plotted} runs"),
                     Line2D([], [], color="0.4", lw=0.8, ls=":", label=f"settling time {settle_s:g} s")]
         fig.suptitle(title, fontsize=12)
-        fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), 4), fontsize=7.5, frameon=False,
-                   bbox_to_anchor=(0.5, 0.962))
+        fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), _legend_columns(histories)),
+                   fontsize=7.5, frameon=False, bbox_to_anchor=(0.5, 0.962))
         fig.tight_layout(rect=(0, 0, 1, 0.935))
         figs.append((f"errors_{key}", fig))
     return figs
@@ -311,8 +339,8 @@ def consistency_figure(histories: dict, spans=()):
         handles.append(Line2D([], [], color="0.4", lw=0.9, ls="--", label="95 % chi-square band of the average"))
         fig.suptitle("Consistency: the average NEES and NIS over the runs" + (" (continued)" if start else ""),
                      fontsize=11)
-        fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), 4), fontsize=7.5, frameon=False,
-                   bbox_to_anchor=(0.5, 1 - 0.35 / fig.get_figheight()))
+        fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), _legend_columns(filters)),
+                   fontsize=7.5, frameon=False, bbox_to_anchor=(0.5, 1 - 0.35 / fig.get_figheight()))
         fig.tight_layout(rect=(0, 0, 1, 1 - 0.75 / fig.get_figheight()))
         figs.append(("consistency" if not start else f"consistency_{start // PANELS_PER_PAGE + 1}", fig))
     return figs
@@ -320,7 +348,7 @@ def consistency_figure(histories: dict, spans=()):
 
 def _height_panel(ax, histories: dict, labels: list, colours, runs_plotted: int, faults, spans, after) -> None:
     """The height errors (up) of ``labels``: a few runs (thin) and the RMS over runs, the y
-    range set by them after the settling time; sensor faults shaded red, windows orange."""
+    range set by them in the time span ``after``; sensor faults shaded red, windows orange."""
     peak = 0.0
     for k in labels:
         h = histories[k]
@@ -329,8 +357,9 @@ def _height_panel(ax, histories: dict, labels: list, colours, runs_plotted: int,
         for r in range(min(runs_plotted, dh.shape[0])):
             ax.plot(h.t_s, dh[r], color=colours[k], lw=0.5, alpha=0.5)
         ax.plot(h.t_s, np.sqrt(_nanmean(dh ** 2)), color=colours[k], lw=1.6)
-        if after.any():
-            peak = max(peak, float(np.nanpercentile(np.abs(dh[:, after]), 99.5)))
+        m = _span(h.t_s, after)
+        if m.any():
+            peak = max(peak, float(np.nanpercentile(np.abs(dh[:, m]), 99.5)))
     end = next(iter(histories.values())).t_s[-1]
     for name, f in faults:
         ax.axvspan(f.start_s, min(f.end_s, end), color="tab:red", alpha=0.15, lw=0)
@@ -353,10 +382,9 @@ def height_figure(histories: dict, scenario, runs_plotted: int = 3):
     env = {k: e for k, h in histories.items() if (e := _envelopes(h, "pos")) is not None}
     if not env or (not faults and not scenario.windows):
         return []
-    colours = dict(zip(histories, plt.cm.tab10(np.arange(len(histories)) % 10)))
-    t = next(iter(histories.values())).t_s
-    after = t >= scenario.settle_s
-    main, free = _split_free({k: (e[0][:, 2:], e[1], e[2]) for k, e in env.items()}, after)
+    colours = estimator_colours(histories)
+    after = (scenario.settle_s, np.inf)
+    main, free = _split_free({k: (e[0][:, 2:], e[1], e[2], e[3]) for k, e in env.items()}, after)
     rows = 2 if scenario.windows else 1
     fig, axs = plt.subplots(rows, 2 if free else 1, figsize=(11, 4 + 3.5 * rows), squeeze=False,
                             gridspec_kw={"width_ratios": [2.2, 1]} if free else None)
@@ -367,8 +395,7 @@ def height_figure(histories: dict, scenario, runs_plotted: int = 3):
         axs[0, 1].set_title("free inertial, on its own scale", fontsize=9)
     if scenario.windows:
         name, a, b = scenario.windows[0]
-        m = (t >= a) & (t <= b)
-        _height_panel(axs[1, 0], histories, main, colours, runs_plotted, faults, (), m)
+        _height_panel(axs[1, 0], histories, main, colours, runs_plotted, faults, (), (a, b))
         axs[1, 0].set_xlim(a, b)
         axs[1, 0].set_title(f"window '{name}' ({a:g}-{b:g} s)", fontsize=9)
         axs[1, 0].set_ylabel("height error (up), m")
@@ -412,10 +439,11 @@ def _seen_differs(truth_bias: dict) -> bool:
                - truth_bias[k])) * _BIAS_UNITS[k][1] > 1e-3 for k in _BIAS_UNITS)
 
 
-def _bias_axis(ax, h, key: str, j: int, truth_bias: dict, runs: int, colours) -> None:
+def _bias_axis(ax, h, key: str, j: int, truth_bias: dict, runs: int, colours, truth_t) -> None:
     """One bias axis of one estimator: per run (its own colour) the estimate (solid) with its
     ±1 sigma band, the bias its state can see (dashed) and the additive bias alone (dotted)
-    where they differ; the title says when the sigma never left its initial value."""
+    where they differ (``truth_t``: their times, the first estimator's epochs); the title says
+    when the sigma never left its initial value."""
     name = _BIAS_UNITS[key][0]
     scale, unit = _bias_unit(key, truth_bias)
     est, sig = getattr(h, key), getattr(h, f"{key}_sigma")
@@ -429,18 +457,29 @@ def _bias_axis(ax, h, key: str, j: int, truth_bias: dict, runs: int, colours) ->
                             color=c, alpha=0.15, lw=0)
         truth = seen if seen is not None else additive
         if truth is not None:
-            ax.plot(h.t_s, truth[r, :, j] * scale, color=c, lw=1.0, ls="--")
+            ax.plot(truth_t, truth[r, :, j] * scale, color=c, lw=1.0, ls="--")
         if differs:
-            ax.plot(h.t_s, additive[r, :, j] * scale, color=c, lw=0.8, ls=":")
+            ax.plot(truth_t, additive[r, :, j] * scale, color=c, lw=0.8, ls=":")
     ax.set_ylabel(f"{name} {'xyz'[j]}, {unit}", fontsize=8)
     ax.grid(alpha=0.3)
-    if sig is not None and np.isfinite(sig[:, :, j]).all():
-        share = np.nanmedian(sig[:, -1, j] / np.maximum(sig[:, 0, j], 1e-300))
-        if share > UNOBSERVED_SIGMA_SHARE:
+    if sig is not None and np.isnan(sig[:, :, j]).all():
+        ax.set_title("not a state of this filter", fontsize=7.5, color="0.4", loc="left")
+    elif sig is not None:
+        share = _sigma_share(sig[:, :, j])
+        if np.isfinite(share) and share > UNOBSERVED_SIGMA_SHARE:
             ax.set_title(f"not observable on this flight: sigma ends at {100 * share:.0f} % of its start",
                          fontsize=7.5, color="#b45309", loc="left")
-    elif sig is not None:
-        ax.set_title("not a state of this filter", fontsize=7.5, color="0.4", loc="left")
+
+
+def _sigma_share(sig: np.ndarray) -> float:
+    """The median over runs of each run's last finite sigma over its first ``(R, E)`` (a run
+    that stopped or landed ends in NaN)."""
+    shares = []
+    for s in sig:
+        ok = np.flatnonzero(np.isfinite(s))
+        if ok.size:
+            shares.append(s[ok[-1]] / max(s[ok[0]], 1e-300))
+    return float(np.median(shares)) if shares else float("nan")
 
 
 def bias_figure(histories: dict, truth_bias: dict, runs_plotted: int = 3):
@@ -452,12 +491,13 @@ def bias_figure(histories: dict, truth_bias: dict, runs_plotted: int = 3):
     if not filters or not truth_bias:
         return []
     colours = plt.cm.tab10(np.arange(10))
+    truth_t = next(iter(histories.values())).t_s          # the truth is recorded at the first estimator's epochs
     figs = []
     for label, h in filters:
         fig, axs = plt.subplots(3, 2, figsize=(11, 8.5), sharex=True)
         for col, key in enumerate(("gyro_bias", "accel_bias")):
             for j in range(3):
-                _bias_axis(axs[j, col], h, key, j, truth_bias, runs_plotted, colours)
+                _bias_axis(axs[j, col], h, key, j, truth_bias, runs_plotted, colours, truth_t)
         for ax in axs[-1]:
             ax.set_xlabel("time, s")
         seen = _seen_differs(truth_bias)
@@ -698,7 +738,8 @@ def paper_attitude_bounds(reference) -> dict:
         if parts[0] == "attitude" and parts[1].startswith("p95") and isinstance(c.bound, list):
             for j, b in enumerate(c.bound):
                 out.setdefault(c.estimator, {}).setdefault(j, (float(b), f"{reference.source.split(',')[0]}: ±{b:g}°"))
-        elif parts[0] == "windows" and len(parts) == 4 and parts[2] in ("roll_deg", "pitch_deg", "yaw_deg"):
+        elif (parts[0] == "windows" and len(parts) == 4 and parts[2] in ("roll_deg", "pitch_deg", "yaw_deg")
+              and isinstance(c.bound, (int, float))):
             j = ("roll_deg", "pitch_deg", "yaw_deg").index(parts[2])
             out.setdefault(c.estimator, {}).setdefault(
                 j, (float(c.bound), f"{reference.source.split(',')[0]}: ±{c.bound:g}° ({parts[1]})"))

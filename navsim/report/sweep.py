@@ -38,7 +38,7 @@ def _log_if_positive(ax, values) -> None:
 def _lines(fig, sweep: SweepResult, labels: list, key: str | None) -> None:
     """One axis: the metric per estimator over the parameter's values (or the points)."""
     ax = fig.add_subplot()
-    ticks = [str(p[key]) for p, _ in sweep.rows] if key else [str(i) for i in range(len(sweep.rows))]
+    ticks = [str(p.get(key, "-")) for p, _ in sweep.rows] if key else [str(i) for i in range(len(sweep.rows))]
     for lb in labels:
         ax.plot(range(len(sweep.rows)), _values(sweep, lb), "o-", label=lb)
     ax.set_xticks(range(len(sweep.rows)), ticks, rotation=30 if max(map(len, ticks)) > 8 else 0,
@@ -77,10 +77,14 @@ def write_sweep_figure(folder: OutputFolder, sweep: SweepResult, title: str) -> 
     plt = pyplot()
     labels = list(sweep.rows[0][1]) if sweep.rows else []
     axes = sweep.axes()
-    grid = len(axes) == 2 and len(sweep.rows) == np.prod([len(v) for v in axes.values()])
+    combos = {tuple(repr(p.get(k)) for k in axes) for p, _ in sweep.rows}
+    grid = (len(axes) == 2 and all(set(p) == set(axes) for p, _ in sweep.rows)
+            and len(combos) == len(sweep.rows) == np.prod([len(v) for v in axes.values()]))
     width = max(6.5, 3.6 * len(labels)) if grid else max(6.5, 0.9 * len(sweep.rows) + 3)
     fig = plt.figure(figsize=(min(width, 16), 4.8), layout="constrained")
-    if grid:
+    if not sweep.rows:                        # interrupted before its first point finished
+        fig.text(0.5, 0.5, "no point finished", ha="center", va="center")
+    elif grid:
         _heatmaps(fig, sweep, labels, *axes, axes)
     else:
         _lines(fig, sweep, labels, next(iter(axes)) if len(axes) == 1 else None)

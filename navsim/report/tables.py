@@ -116,6 +116,8 @@ def _pieces(page: _Page, word: str, width_in: float, size: float, family: str) -
     if _width_in(page, word, size, family=family) <= width_in:
         return [word]
     parts, out = re.findall(r"[^._/]+[._/]?|[._/]", word), [""]
+    # a piece still too long is cut between characters
+    parts = [q for p in parts for q in ([p] if _width_in(page, p, size, family=family) <= width_in else list(p))]
     for part in parts:
         if out[-1] and _width_in(page, out[-1] + part, size, family=family) > width_in:
             out.append(part)
@@ -163,10 +165,11 @@ def layout(title: str, blocks: list) -> list[Figure]:
     lay = _Layout(title)
     for b in blocks:
         if isinstance(b, Heading):
-            p = lay.page(b.size * LINE / 72 * 3)              # a heading keeps two lines of what follows
+            lines = _wrap(lay.pages[-1], b.text, 0.93 * _block_width(), b.size)      # bold is wider
+            p = lay.page(b.size * LINE / 72 * (len(lines) + 2))   # a heading keeps two lines of what follows
             p.y_in += 0.08
-            _draw_text(p, b.text, MARGIN_IN, b.size, weight="bold")
-            p.y_in += b.size * LINE / 72 + 0.04
+            _draw_text(p, "\n".join(lines), MARGIN_IN, b.size, weight="bold")
+            p.y_in += len(lines) * b.size * LINE / 72 + 0.04
         elif isinstance(b, Paragraph):
             lines = b.text.split("\n") if b.pre else _wrap(lay.pages[-1], b.text, _block_width(), b.size, b.family)
             step = b.size * LINE / 72

@@ -9,8 +9,13 @@ import numpy as np
 from navsim.experiment.reference import Reference
 from navsim.scoring.metrics import EstimatorMetrics, Verdict
 
-#: the mark of each verdict, in the terminal and on the report's first page
+#: the mark of each verdict, in the terminal and on the report's first page: a check with a rule
+#: whose metric we do not have (or is not a number of the bound's shape) is "no value", never
+#: a silent "-" (which is a value shown without a verdict, rule ``none``)
 MARKS = {True: "pass", False: "FAIL", None: "-"}
+NO_VALUE = "no value"
+#: metrics whose absence is a result: a filter that never converged has no convergence time
+ABSENT_IS_INFINITE = ("convergence_s",)
 #: how each rule reads in a table (the bound after it)
 RULE_SIGNS = {"at_most": "<=", "at_least": ">=", "close": "~", "none": ""}
 #: the columns of :func:`verdict_rows`
@@ -36,14 +41,15 @@ def judge(reference: Reference | None, estimators: dict[str, EstimatorMetrics]) 
     out = []
     for c in reference.checks:
         ours, bound = _metric(estimators, c.estimator, c.metric), c.bound
+        if ours is None and c.metric in ABSENT_IS_INFINITE and c.estimator in estimators:
+            ours = math.inf
         if c.of is not None:
-            base = _metric(estimators, c.of, c.metric)
-            bound = None if base is None else (np.asarray(base, float) * c.bound).tolist()
+            base = _numbers(_metric(estimators, c.of, c.metric))
+            bound = None if base is None else (base * c.bound).tolist()
         passed = None
-        if ours is not None and bound is not None:
-            a, b = np.atleast_1d(np.asarray(ours, float)), np.atleast_1d(np.asarray(bound, float))
-            if a.shape == b.shape and np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
-                passed = _passes(c.rule, a, b, c.tolerance)
+        a, b = _numbers(ours), _numbers(bound)
+        if a is not None and b is not None and a.shape == b.shape and not np.isnan(a).any() and np.isfinite(b).all():
+            passed = _passes(c.rule, a, b, c.tolerance)
         out.append(Verdict(c.estimator, c.metric, c.rule, bound, ours, passed,
                            c.tolerance if c.rule == "close" else None, c.claim, c.of,
                            c.bound if c.of is not None else None))
@@ -55,12 +61,25 @@ def _metric(estimators: dict, label: str, path: str):
     return m.get(path) if m is not None else None
 
 
+def _numbers(v) -> np.ndarray | None:
+    """``v`` as a 1-d float array, or None if it is not a number or a list of numbers (a group
+    of metrics, a string, a ragged list)."""
+    if v is None or isinstance(v, (dict, str, bool)):
+        return None
+    try:
+        return np.atleast_1d(np.asarray(v, float))
+    except (TypeError, ValueError):
+        return None
+
+
 def _fmt(v) -> str:
-    if v is None:
+    if v is None or isinstance(v, (dict, str)):
         return "-"
     if isinstance(v, (list, tuple)):
         return " ".join(_fmt(x) for x in v)
-    return "-" if not math.isfinite(v) else f"{v:.3g}"
+    if math.isinf(v):
+        return "never" if v > 0 else "-inf"
+    return "-" if not math.isfinite(v) else (f"{v:.0f}" if 1000 <= abs(v) < 1e5 else f"{v:.3g}")
 
 
 def verdict_rows(verdicts: list[Verdict]) -> list[list[str]]:
@@ -74,15 +93,19 @@ def verdict_rows(verdicts: list[Verdict]) -> list[list[str]]:
             paper = f"{RULE_SIGNS[v.rule]} {v.times:g} x {v.of} ({_fmt(v.bound)})"
         elif v.rule == "close":
             paper = f"{_fmt(v.bound)} ±{100 * v.tolerance:.0f}%"
-        rows.append([v.estimator, v.claim or "as published", v.metric, paper, _fmt(v.ours), MARKS[v.passed]])
+        mark = NO_VALUE if v.passed is None and v.rule != "none" else MARKS[v.passed]
+        rows.append([v.estimator, v.claim or "as published", v.metric, paper, _fmt(v.ours), mark])
     return rows
 
 
 def verdict_summary(verdicts: list[Verdict]) -> str:
-    """``"5 of 6 checks pass, 1 fails"`` (those without a verdict counted apart)."""
+    """``"5 of 6 checks pass, 1 fails"``: the checks without a value of ours counted with the
+    judged ones (they did not pass), those shown without a verdict apart."""
     passed = sum(v.passed is True for v in verdicts)
     failed = sum(v.passed is False for v in verdicts)
-    judged = passed + failed
-    text = f"{passed} of {judged} paper checks pass" + (f", {failed} fail" if failed else "")
+    missing = sum(v.passed is None and v.rule != "none" for v in verdicts)
+    judged = passed + failed + missing
+    text = f"{passed} of {judged} paper checks pass" + (f", {failed} fail" if failed else "") \
+        + (f", {missing} without a value" if missing else "")
     rest = len(verdicts) - judged
     return text + (f" ({rest} shown without a verdict)" if rest else "")

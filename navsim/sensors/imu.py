@@ -260,8 +260,14 @@ class ImuStream:
         idx = np.asarray(samples, int)
         for key, t in (("gyro_bias", self.gyro), ("accel_bias", self.accel)):
             out[key] = np.stack([t.bias_at[int(k)] for k in idx], axis=1)
-            out[f"{key}_seen"] = out[key] + np.einsum("bij,ej->bei", t.matrix - np.eye(3), t.truth_x[idx])
+            out[f"{key}_seen"] = seen_bias(out[key], t.matrix, t.truth_x[idx])
         return out
+
+
+def seen_bias(bias: np.ndarray, matrix: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """What a bias state sees ``(B, E, 3)``: the bias plus the scale factors and misalignments
+    ``matrix - I`` ``(B, 3, 3)`` times the true rate or specific force ``x`` ``(E, 3)``."""
+    return bias + np.einsum("bij,ej->bei", matrix - np.eye(3), x)
 
 
 def _saturate_quantize(rate, incr, e: AxisErrors, dt: float) -> None:

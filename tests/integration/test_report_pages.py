@@ -120,3 +120,25 @@ def test_the_replay_summary_page_fits(repo_root, tmp_path):
         fig.canvas.draw()
         assert not text_outside(fig, fig.canvas.get_renderer())
     assert (tmp_path / "r" / "replay.pdf").stat().st_size > 10_000
+
+
+def test_estimators_at_different_periods_share_the_pages(repo_root, shipped_flight):
+    """Each estimator records at its own period: P0 with the free SINS every 0.5 s beside the
+    ES-KF's 1 s draws every page (the ranges and the split are taken on each one's epochs)."""
+    from navsim.experiment.scenario import parse_scenario
+    from navsim.foundations.config import load_yaml
+    shipped_flight("p0_bd_sins_ads")                        # the flight cached
+    raw = load_yaml(repo_root / "scenarios" / "p0_bd_sins_ads.yaml")
+    raw["estimators"][0]["period_s"] = 0.5
+    result = navsim.run(parse_scenario(raw, "p0.yaml"), runs=2, seed=1, workers=1)
+    h = result.histories
+    assert len(h["free SINS"].t_s) != len(h["BD/SINS/ADS ES-KF 16"].t_s)
+    pages = navsim.report_figures(result)
+    try:
+        for name, fig in pages:
+            fig.set_dpi(PNG_DPI)
+            fig.canvas.draw()
+            assert not text_outside(fig, fig.canvas.get_renderer()), name
+    finally:
+        for _, fig in pages:
+            plt.close(fig)

@@ -222,3 +222,20 @@ def test_the_filter_falls_back_to_phi_p_phi_where_the_covariance_series_would_no
     assert _covariance_series_fits(F, 1.0, 6) and not _covariance_series_fits(F, 1.0, 3)
     F[:, 15, 15] = -1.0                                  # a 1 s Markov state over a 1 s period
     assert not _covariance_series_fits(F, 1.0, 6)
+
+
+def test_the_bias_sigma_is_the_sigma_of_the_estimated_sum():
+    """P2's gyro bias estimate is its constant plus its Markov part: the sigma reported is that
+    of the sum, their cross-covariance included (``T P T^T`` with ``T = [I I]``)."""
+    from navsim.navigation.estimators.eskf import ErrorStateKF
+    layout = Layout(PRESETS["p2_18"])
+    A = np.random.default_rng(1).normal(size=(2, 18, 18))
+    P = A @ np.swapaxes(A, 1, 2)
+    holder = type("Holder", (), {"layout": layout, "P": P})()
+    gyro, accel = ErrorStateKF._bias_sigma(holder)
+    T = np.zeros((3, 18))
+    T[:, layout.slice("gyro_bias")] = T[:, layout.slice("gyro_markov")] = np.eye(3)
+    np.testing.assert_allclose(gyro, np.sqrt(np.diagonal(T @ P @ T.T, axis1=1, axis2=2)), rtol=1e-12)
+    T = np.zeros((3, 18))
+    T[:, layout.slice("accel_markov")] = np.eye(3)             # no constant accelerometer block in p2_18
+    np.testing.assert_allclose(accel, np.sqrt(np.diagonal(T @ P @ T.T, axis1=1, axis2=2)), rtol=1e-12)

@@ -27,7 +27,7 @@ ESTIMATORS = {
 
 def reference(data):
     return parse_reference(Node(data, "reference", "s.yaml"), LABELS,
-                           lambda path, key: check_metric_path(path, (), file="s.yaml", key=key))
+                           lambda path, key: check_metric_path(path, [("w", 0, 1)], file="s.yaml", key=key))
 
 
 def test_values_take_the_reference_rule_or_their_own_and_claims_their_threshold():
@@ -70,11 +70,24 @@ def test_no_verdict_without_a_number_of_ours():
                      "claims": [{"claim": "c", "estimator": "KF", "metric": "rms.pos_m",
                                  "at_most": {"times": 0.5, "of": "SINS"}}]})
     v = judge(ref, ESTIMATORS)
-    # SINS has no rms and no convergence; a scalar bound against a vector of ours; the SINS
-    # it is relative to has no rms
-    assert [x.passed for x in v] == [None, None, None, None]
-    assert verdict_summary(v) == "0 of 0 paper checks pass (4 shown without a verdict)"
+    # SINS has no rms; it never converged (no convergence time: it fails "within 10 s"); a
+    # scalar bound against a vector of ours; the SINS it is relative to has no rms
+    assert [x.passed for x in v] == [None, False, None, None]
+    assert verdict_summary(v) == "0 of 4 paper checks pass, 1 fail, 3 without a value"
+    assert [r[-1] for r in verdict_rows(v)] == ["no value", "FAIL", "no value", "no value"]
+    assert verdict_rows(v)[1][4] == "never"
     assert judge(None, ESTIMATORS) is None
+
+
+def test_a_group_of_metrics_gets_no_value_and_the_tolerance_is_inherited():
+    ref = reference({"source": "p", "check": "close", "tolerance": 0.5,
+                     "values": {"KF": {"rms.pos_m": {"paper": [2, 2, 2]}, "windows.w.height_m": 1.0}}})
+    assert [c.tolerance for c in ref.checks] == [0.5, 0.5]
+    kf = EstimatorMetrics.from_dict({**ESTIMATORS["KF"].to_dict(), "windows": {"w": {"height_m": {
+        "max_pos": 1.0, "max_neg": -1.0, "std": 0.5, "rms": 0.6, "p95_abs": 0.9}}}})
+    v = judge(ref, {"KF": kf})
+    # 1.6/1.7/1.0 within 50 % of 2; "windows.w.height_m" is a group of five numbers, not one
+    assert [x.passed for x in v] == [True, None] and verdict_rows(v)[1][-1] == "no value"
 
 
 def test_verdicts_round_trip_through_metrics_json():

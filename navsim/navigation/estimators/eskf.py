@@ -193,13 +193,15 @@ class ErrorStateKF:
                         gyro_bias_sigma=sg, accel_bias_sigma=sa, extra={"P": self.P, "diverged": self.diverged})
 
     def _bias_sigma(self):
-        """1-sigma of the estimated gyro and accelerometer biases ``(B, 3)`` each: their constant
-        and Markov blocks together (the estimate is their sum); NaN where neither is a state."""
-        d = np.diagonal(self.P, axis1=1, axis2=2)
+        """1-sigma of the estimated gyro and accelerometer biases ``(B, 3)`` each: of the sum of
+        their constant and Markov blocks (the estimate), their cross-covariance included (only
+        the sum is observed, so the two are strongly anti-correlated); NaN where neither is a
+        state."""
         out = []
         for blocks in (("gyro_bias", "gyro_markov"), ("accel_bias", "accel_markov")):
-            var = [d[:, self.layout.slice(b)] for b in blocks if self.layout.has(b)]
-            out.append(np.sqrt(sum(var)) if var else np.full((d.shape[0], 3), np.nan))
+            sl = [self.layout.slice(b) for b in blocks if self.layout.has(b)]
+            var = sum(np.diagonal(self.P[:, a, b], axis1=1, axis2=2) for a in sl for b in sl) if sl else None
+            out.append(np.sqrt(np.maximum(var, 0.0)) if sl else np.full((self.P.shape[0], 3), np.nan))
         return out
 
     # --- filter steps -------------------------------------------------------------------------
