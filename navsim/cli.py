@@ -51,8 +51,9 @@ from navsim.navigation.estimators.error_model import PRESETS, Layout
 from navsim.navigation.estimators.measurements import measurement_class
 from navsim.replay import load_ulog, replay, replay_metrics
 from navsim.report.replay import difference_table, write_replay_report
-from navsim.report.summary import num, sections as summary_sections, text_table
+from navsim.report.summary import sections as summary_sections, text_table
 from navsim.report.sweep import short_key, write_sweep_figure
+from navsim.scoring.verdicts import num
 from navsim.sensors import emulate
 from navsim.sensors.catalog import entries as catalog_entries
 from navsim.sensors.plots import channels, plot_allan, plot_sensor

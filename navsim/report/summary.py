@@ -9,12 +9,11 @@ closed loop and the metrics windows. :func:`text_table` prints a section in the 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 from navsim.report.tables import FAIL, PASS, WARN, Heading, Paragraph, Table, layout
 from navsim.scoring.metrics import RunMetrics
-from navsim.scoring.verdicts import VERDICT_HEADERS, verdict_rows, verdict_summary
+from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary
 
 #: below this share of epochs inside its 95 % band a NEES or NIS is called out
 CONSISTENT_FRACTION = 0.5
@@ -28,20 +27,6 @@ class Section:
     headers: list[str] = field(default_factory=list)
     rows: list[list[str]] = field(default_factory=list)
     colours: list[list[str | None]] | None = None
-
-
-def num(v) -> str:
-    """A number as a table shows it: 3 significant digits, no exponent below 10 000."""
-    if v is None:
-        return "-"
-    if isinstance(v, (list, tuple)):
-        return " ".join(num(x) for x in v)
-    v = float(v)
-    if not math.isfinite(v):
-        return "-"
-    if abs(v) >= 1000:
-        return f"{v:.0f}" if abs(v) < 1e5 else f"{v:.2e}"
-    return f"{v:.3g}"
 
 
 def pct(fraction) -> str:

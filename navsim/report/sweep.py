@@ -15,7 +15,7 @@ import numpy as np
 from navsim.experiment.sweep import SweepResult
 from navsim.foundations.outputs import OutputFolder
 from navsim.report.pages import pyplot
-from navsim.report.summary import num
+from navsim.scoring.verdicts import num
 
 
 def short_key(path: str) -> str:

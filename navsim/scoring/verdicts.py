@@ -72,14 +72,26 @@ def _numbers(v) -> np.ndarray | None:
         return None
 
 
-def _fmt(v) -> str:
+def num(v) -> str:
+    """A number as the tables show it (terminal and report): 3 significant digits, no exponent
+    below 100 000, a vector's components separated by spaces, "-" for none or NaN."""
     if v is None or isinstance(v, (dict, str)):
         return "-"
-    if isinstance(v, (list, tuple)):
-        return " ".join(_fmt(x) for x in v)
-    if math.isinf(v):
-        return "never" if v > 0 else "-inf"
-    return "-" if not math.isfinite(v) else (f"{v:.0f}" if 1000 <= abs(v) < 1e5 else f"{v:.3g}")
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return " ".join(num(x) for x in v)
+    v = float(v)
+    if not math.isfinite(v):
+        return "-"
+    if abs(v) >= 1000:
+        return f"{v:.0f}" if abs(v) < 1e5 else f"{v:.2e}"
+    return f"{v:.3g}"
+
+
+def _fmt(v) -> str:
+    """A verdict's value: :func:`num`, and "never" for a metric whose absence is infinite."""
+    if isinstance(v, float) and math.isinf(v) and v > 0:
+        return "never"
+    return num(v)
 
 
 def verdict_rows(verdicts: list[Verdict]) -> list[list[str]]:
