@@ -15,6 +15,7 @@ import argparse
 import csv
 import io
 import json
+import logging
 import math
 import shutil
 import sys
@@ -557,7 +558,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _ToStderr(logging.Handler):
+    """Log records as plain lines on the current ``sys.stderr`` (the progress of long work)."""
+
+    def emit(self, record) -> None:
+        print(self.format(record), file=sys.stderr, flush=True)
+
+
+def _show_progress() -> None:
+    """Send the library's progress lines (logger ``navsim.progress``) to stderr, once."""
+    log = logging.getLogger("navsim.progress")
+    if not any(isinstance(h, _ToStderr) for h in log.handlers):
+        log.addHandler(_ToStderr())
+        log.setLevel(logging.INFO)
+
+
 def main(argv: list[str] | None = None) -> int:
+    _show_progress()
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

@@ -1,11 +1,12 @@
 """Progress of long work that shows everywhere: :class:`Progress`.
 
 On a terminal it is a ``tqdm`` bar. Elsewhere (a log file, a batch job, CI) a bar would print
-nothing or garbage, so it writes a plain line every tenth of the work and at the end::
+nothing or garbage, so it logs a plain line every tenth of the work and at the end (logger
+``navsim.progress``, level INFO)::
 
     navsim run p0_bd_sins_ads: 250/1000 runs (25 %), 12 s elapsed, about 36 s left
 
-and logs the same line (logger ``navsim.progress``, level INFO).
+The library only logs; ``navsim``'s command line sends that logger to stderr.
 """
 
 from __future__ import annotations
@@ -38,9 +39,9 @@ class Progress:
     unit : str
         ``run``, ``point``, ``%``, ...
     stream : file, optional
-        Where it writes (default ``sys.stderr``).
+        Where the bar is drawn (default ``sys.stderr``).
     tty : bool, optional
-        Force the bar (True) or the plain lines (False); default: whether ``stream`` is a
+        Force the bar (True) or the logged lines (False); default: whether ``stream`` is a
         terminal.
     leave : bool
         Whether the bar stays on the terminal when closed.
@@ -71,9 +72,7 @@ class Progress:
         return f"{self.desc}: {count}, {_seconds(elapsed)} elapsed{left}"
 
     def _line(self) -> None:
-        text = self.line()
-        print(text, file=self.stream, flush=True)
-        log.info(text)
+        log.info(self.line())
 
     def close(self) -> None:
         if self.bar is not None:
