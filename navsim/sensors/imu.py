@@ -11,8 +11,9 @@ Outputs (``SensorData.values``), ``(B, M, 3)``, body axes:
 The measurement model, per triad: ``y = (I + M) x + b(t) + n + v``, where ``M`` holds scale-factor
 errors on the diagonal and misalignments off it, ``b`` is the sum of the fixed bias, the random
 constant, the bias-instability and Markov Gauss-Markov processes and the random walk, ``n`` white
-noise of density ``noise_density`` (std ``density / sqrt(dt)``), ``v`` vibration; then
-saturation at ``range`` and quantization to ``quantization``. ``errors`` holds ``gyro_bias``,
+noise of density ``noise_density`` (std ``density / sqrt(dt)``, less the quantization's share:
+:func:`white_noise_std`), ``v`` vibration; then saturation at ``range`` and quantization to
+``quantization``. ``errors`` holds ``gyro_bias``,
 ``accel_bias`` (``b(t)``), ``gyro_matrix``, ``accel_matrix`` (``I + M``, ``(B, 3, 3)``).
 
 :class:`ImuStream` generates the same numbers block by block (a Monte Carlo chunk asks for the
@@ -46,11 +47,37 @@ GM_ALLAN_PEAK = 0.61736
 FLICKER_FLOOR = 0.6643
 
 
+def gm_allan_variance(x: np.ndarray) -> np.ndarray:
+    """Allan variance of a first-order Gauss-Markov process of unit std at averaging times
+    ``x = T / tau``: ``2/x (1 - (3 - 4 e^-x + e^-2x) / (2x))``."""
+    x = np.asarray(x, float)
+    return 2.0 / x * (1.0 - (3.0 - 4.0 * np.exp(-x) + np.exp(-2.0 * x)) / (2.0 * x))
+
+
+def gauss_markov_biases(e: AxisErrors) -> tuple:
+    """The triad's Gauss-Markov bias processes ``((sigma (3,), tau_s), ...)``: the bias
+    instability (its std set so that its Allan peak is the flicker floor ``0.664 B``), then the
+    Markov bias."""
+    return ((np.asarray(e.bias_instability, float) * FLICKER_FLOOR / GM_ALLAN_PEAK, e.bias_instability_tau_s),
+            (np.asarray(e.markov_sigma, float), e.markov_tau_s))
+
+
 def gm_allan_peak() -> float:
     """max_T sigma_A(T)/sigma of a first-order Gauss-Markov process (numerically)."""
-    x = np.logspace(-2, 3, 20001)        # T / tau
-    avar = 2.0 / x * (1.0 - (3.0 - 4.0 * np.exp(-x) + np.exp(-2.0 * x)) / (2.0 * x))
-    return float(np.sqrt(avar.max()))
+    return float(np.sqrt(gm_allan_variance(np.logspace(-2, 3, 20001)).max()))
+
+
+def allan_variance(e: AxisErrors, tau_s: np.ndarray) -> np.ndarray:
+    """The Allan variance ``(3, K)`` that a triad's datasheet predicts at averaging times
+    ``tau_s`` (white noise ``N^2 / tau``, the bias instability's and the Markov bias's
+    Gauss-Markov processes as emulated, the random walk ``K^2 tau / 3``; constants have
+    none): what the emulator's output at rest must show."""
+    tau = np.asarray(tau_s, float)
+    col = lambda v: np.broadcast_to(np.asarray(v, float), (3,))[:, None]
+    avar = col(e.noise_density) ** 2 / tau + col(e.random_walk) ** 2 * tau / 3.0
+    for sigma, tau_c in gauss_markov_biases(e):
+        avar = avar + col(sigma) ** 2 * gm_allan_variance(tau / tau_c)
+    return avar
 
 
 def _constants(gens, e: AxisErrors):
@@ -78,16 +105,27 @@ def _processes(e: AxisErrors, dt: float) -> list:
     Gauss-Markov, 1 random walk, 2 white noise): bias instability (a Gauss-Markov process
     whose Allan peak is the flicker floor), Markov bias, random walk, white noise."""
     out = []
-    for sigma, tau in ((np.asarray(e.bias_instability, float) * FLICKER_FLOOR / GM_ALLAN_PEAK, e.bias_instability_tau_s),
-                       (np.asarray(e.markov_sigma, float), e.markov_tau_s)):
+    for sigma, tau in gauss_markov_biases(e):
         if np.any(sigma):
             a = math.exp(-dt / tau)
             out.append((0, _three(sigma), _three(sigma * math.sqrt(1.0 - a * a)), a))
     if np.any(e.random_walk):
         out.append((1, np.zeros(3), _three(np.asarray(e.random_walk, float) * math.sqrt(dt)), 1.0))
-    if np.any(e.noise_density):
-        out.append((2, np.zeros(3), _three(np.asarray(e.noise_density, float) / math.sqrt(dt)), 0.0))
+    white = white_noise_std(e, dt)
+    if np.any(white):
+        out.append((2, np.zeros(3), _three(white), 0.0))
     return out
+
+
+def white_noise_std(e: AxisErrors, dt: float) -> np.ndarray:
+    """The std of the white noise drawn per sample ``(3,)``: the datasheet's noise density over
+    ``sqrt(dt)`` less the quantization's own share. A datasheet measures the noise density on
+    the quantized output, so rounding to the LSB ``q`` (uniform, variance ``q^2 / 12`` per
+    sample, white once the noise spans a few LSBs) is already in it; drawing the full density
+    and then rounding would count it twice (the MPU6050's gyro: 1.12 times its density). An LSB
+    coarser than the datasheet noise leaves no white noise to draw."""
+    var = np.asarray(e.noise_density, float) ** 2 / dt - e.quantization ** 2 / 12.0
+    return np.where(np.asarray(e.noise_density, float) > 0, np.sqrt(np.maximum(var, 0.0)), 0.0)
 
 
 def _three(x) -> np.ndarray:

@@ -241,3 +241,34 @@ def test_declared_output_fields_are_what_each_emulator_produces(truth, kind, ove
     if kind == "camera":
         cfg = config(kind, override={"landmarks": landmarks_under(truth)})
     assert set(output_fields(cfg.spec)) == set(emulate(truth, cfg, 1, range(2)).values)
+
+
+
+@pytest.mark.parametrize("pitot", ["differential", "absolute"])
+def test_air_velocity_R_describes_the_ads_error(truth, pitot):
+    """The air_velocity model's R, derived from the filter's ADS model (here the truth's), is
+    the covariance of what the ADS gets wrong: at the true navigation state the NIS averages
+    3, with the pitot's per-run bias in R, and with that bias taken out as its state would
+    (the bias column of H times the run's bias), with R of the noise alone."""
+    from navsim.navigation.estimators.error_model import Layout
+    from navsim.navigation.estimators.measurements import AirVelocity
+    from navsim.navigation.strapdown import NavState
+
+    spec = load_spec("p0_ads", {"velocity_axis": "air", "vane_noise": "0.5 deg", "pitot": pitot})
+    data = emulate(truth, SensorConfig("ads", "x", spec), 3, range(300))
+    step, B = 10, data.valid.shape[0]
+    qc = data.values["p_total_pa"] - data.values["p_static_pa"]
+    bias_pa = (qc - (truth.p_total_pa - truth.p_static_pa)[::step]).mean(axis=1)   # the noise averages out
+    model = AirVelocity("ads", spec)
+    for layout in (Layout(("att", "vel", "pos")), Layout(("att", "vel", "pos", "pitot_bias"))):
+        nis = []
+        for j in range(0, data.t_s.size, 3):
+            k = j * step
+            nav = NavState(np.full(B, truth.lat_rad[k]), np.full(B, truth.lon_rad[k]), np.full(B, truth.h_m[k]),
+                           np.broadcast_to(truth.vel_n_mps[k], (B, 3)).copy(),
+                           np.broadcast_to(dcm_from_quat(truth.quat_nb[k]), (B, 3, 3)).copy())
+            z, H, R, _ = model.model(nav, layout, data, j)
+            if layout.has("pitot_bias"):
+                z = z - H[:, :, layout.slice("pitot_bias").start] * bias_pa[:, None]
+            nis.append(np.einsum("bi,bij,bj->b", z, np.linalg.inv(R), z))
+        assert np.mean(nis) == pytest.approx(3.0, rel=0.06), layout.blocks

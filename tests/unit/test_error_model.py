@@ -1,5 +1,7 @@
 """The analytic error model against finite differences of the nonlinear SINS equations."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -9,6 +11,7 @@ from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.error_model import PRESETS, Layout, system_matrix
 from navsim.navigation.estimators.eskf import _covariance_series_fits
 from navsim.navigation.estimators.measurements import (
+    AirVelocity,
     GnssPosition,
     Height,
     MagneticHeading,
@@ -16,6 +19,7 @@ from navsim.navigation.estimators.measurements import (
     ZeroVelocity,
 )
 from navsim.navigation.strapdown import NavState, rates_n
+from navsim.sensors import load_spec
 
 LAYOUT = Layout(PRESETS["p3_15"])
 
@@ -83,16 +87,28 @@ class FakeData:
 FIELD_N_T = np.array([2.2e-5, -0.4e-5, 4.5e-5])
 
 
+def _air_data(v, C):
+    """ADS values that agree with the nominal state in calm air: the air velocity's angles in
+    the body, its speed, ISA pressure and temperature near 350 m."""
+    u = C.T @ v / np.linalg.norm(v)
+    return {"tas_mps": np.linalg.norm(v), "alpha_rad": np.arctan2(u[2], u[0]), "beta_rad": np.arcsin(u[1]),
+            "p_static_pa": 97000.0, "temp_k": 286.0}
+
+
+VANES = AirVelocity("a", dataclasses.replace(load_spec("p0_ads"), velocity_axis="air", vane_noise=0.01))
+
+
 @pytest.mark.parametrize("model", [GnssPosition("g", np.ones(3)), Velocity("g", np.ones(3)),
                                    Height("b", 1.0, field="h_m"), ZeroVelocity("m", np.ones(3)),
                                    ZeroVelocity("m", np.ones(3), vertical=True),
-                                   MagneticHeading("m", 0.01, 0.0, field_n_T=FIELD_N_T, online=False)],
+                                   MagneticHeading("m", 0.01, 0.0, field_n_T=FIELD_N_T, online=False), VANES],
                          ids=["gnss_position", "velocity", "height", "zero_velocity", "zero_velocity_ned",
-                              "mag_heading"])
+                              "mag_heading", "air_velocity"])
 def test_H_matches_finite_differences(model):
     lat, lon, h, v, C, _, _ = nominal()
     # the sensor agrees with the nominal state: the linearisation point of a closed-loop filter
-    data = FakeData({"lat_rad": lat, "lon_rad": lon, "h_m": h, "vel_n_mps": v, "mag_b_T": C.T @ FIELD_N_T})
+    data = FakeData({"lat_rad": lat, "lon_rad": lon, "h_m": h, "vel_n_mps": v, "mag_b_T": C.T @ FIELD_N_T,
+                     **_air_data(v, C)})
 
     def z_of(dx):
         dp, dv = dx[6:9], dx[3:6]

@@ -13,9 +13,11 @@ accel_bias 3     residual accelerometer constant bias, m/s^2, body (nabla)
 baro       1     barometric altimeter first-order Markov error, m (P0's dh_b)
 gyro_markov 3    first-order Markov gyro drift, rad/s (P2's eps_r)
 accel_markov 3   first-order Markov accelerometer bias, m/s^2 (P2's nabla)
+pitot_bias 1     the ADS's dynamic-pressure bias, Pa, a random constant (``air_velocity``)
 ========== ===== =========================================================================
 
-P3's 15 states are ``att vel pos gyro_bias accel_bias``; P0's 16 add ``baro``; P2's 18 are
+The sensor-error blocks ``baro`` and ``pitot_bias`` stay in the filter (they are the sensors'
+errors, not fed back). P3's 15 states are ``att vel pos gyro_bias accel_bias``; P0's 16 add ``baro``; P2's 18 are
 ``att vel pos gyro_bias gyro_markov accel_markov``.
 """
 
@@ -28,7 +30,7 @@ import numpy as np
 from navsim.navigation import kernels
 
 BLOCK_SIZES = {"att": 3, "vel": 3, "pos": 3, "gyro_bias": 3, "accel_bias": 3, "baro": 1,
-               "gyro_markov": 3, "accel_markov": 3}
+               "gyro_markov": 3, "accel_markov": 3, "pitot_bias": 1}
 REQUIRED = ("att", "vel", "pos")
 PRESETS = {"p3_15": ("att", "vel", "pos", "gyro_bias", "accel_bias"),
            "p0_16": ("att", "vel", "pos", "gyro_bias", "accel_bias", "baro"),
@@ -38,7 +40,7 @@ STATE_LABELS = {"att": ["phi_N", "phi_E", "phi_D"], "vel": ["dv_N", "dv_E", "dv_
                 "pos": ["dL", "dlambda", "dh"], "gyro_bias": ["eps_x", "eps_y", "eps_z"],
                 "accel_bias": ["nabla_x", "nabla_y", "nabla_z"], "baro": ["dh_b"],
                 "gyro_markov": ["eps_r_x", "eps_r_y", "eps_r_z"],
-                "accel_markov": ["nabla_r_x", "nabla_r_y", "nabla_r_z"]}
+                "accel_markov": ["nabla_r_x", "nabla_r_y", "nabla_r_z"], "pitot_bias": ["dq_c"]}
 
 
 @dataclass(frozen=True)

@@ -83,6 +83,8 @@ class ErrorStateKF:
         self.period_s, self.discretization = period_s, discretization
         self.series_order, self.latest_sample = series_order, latest_sample
         self.initial_sigma = dict(initial_sigma or {})
+        for m in self.measurements:         # the sensor-error states a measurement model observes
+            self.initial_sigma.update(getattr(m, "state_sigma", {}))
         self.Qc = process_noise(layout, noise)
 
     @classmethod

@@ -40,12 +40,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navsim.foundations import earth
+from navsim.foundations import atmosphere, earth
 from navsim.foundations.config import Node, close_match
 from navsim.foundations.jsonschema import NUM, POS, VEC3, merge_properties
+from navsim.foundations.transform import skew
 from navsim.navigation import magcal
 from navsim.navigation.estimators.error_model import Layout
 from navsim.navigation.strapdown import NavState
+from navsim.sensors.catalog import load_spec
+from navsim.sensors.specs import AdsSpec
 
 _MEASUREMENTS: dict[str, type] = {}
 
@@ -262,6 +265,129 @@ class ZeroVelocity:
         H[:, np.arange(m), s + np.arange(m)] = 1.0
         sig2 = np.asarray(self.sigma_mps, float)[:m] ** 2
         return nav.vel_n_mps[:, :m].copy(), H, _diag(sig2, B), data.valid[:, j]
+
+
+@measurement("air_velocity")
+@dataclass
+class AirVelocity:
+    """INS velocity minus the ground velocity the air data make with the INS attitude, m/s:
+    ``z = v - (C_nb u V + w)``, ``V`` the ADS's true airspeed, ``u`` its direction in the body,
+    ``[cos a cos b, sin b, sin a cos b]``, from the angle-of-attack and sideslip vanes when the
+    filter's ADS model has them (``velocity_axis: air``), else the body x axis (P0's ground
+    velocity), ``w`` the filter's wind (``wind_n_mps``, default calm).
+
+    ``model`` (and ``override``) is the filter's own model of the ADS, a catalog entry as the
+    ES-KF's ``noise.imu``: ``R`` is derived from it at each epoch, from the measured airspeed
+    and density, in the air axes: along ``u`` the airspeed's std ``sigma_qc / (rho V)`` (the
+    dynamic-pressure sensor's noise and per-run bias, the static one's too with an absolute
+    pitot) with the density's share ``V/2 sqrt((sigma_ps/ps)^2 + (sigma_T/T)^2)``; across it
+    ``V sigma_angle``, ``sigma_angle`` the vanes' noise, or without vanes ``angle_sigma_deg``,
+    what the filter allows for the angles it does not measure (about 4 deg on P0's track: the
+    mean angle of attack and its spread). With ``C_nb_est = (I - [phi x]) C_nb`` the
+    attitude row is ``-[a x]``, ``a = C_nb u V``: the INS attitude error turns the air velocity.
+
+    With a ``pitot_bias`` state in the filter (the dynamic pressure's per-run bias ``b``, Pa, a
+    random constant whose initial std is the ADS model's), ``V = V_true + b / (rho V)``: its
+    column is ``-C_nb u / (rho V)`` and ``R`` leaves the bias out. Without it, the bias is in
+    ``R`` as if it were white.
+    """
+
+    sensor: str
+    spec: object                         #: the filter's AdsSpec
+    angle_sigma_rad: float = 0.0         #: the unmeasured angles' std (an ADS model without vanes)
+    wind_n_mps: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    SCHEMA = {"model": {"type": "string"}, "override": {"type": "object"}, "angle_sigma_deg": {"type": "number", "minimum": 0},
+              "wind_n_mps": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}}
+
+    @classmethod
+    def parse(cls, node: Node, sensors: dict) -> dict:
+        sensor_of_kind(node, sensors, "ads")
+        name = node.get("model", str)
+        override = node.child("override", None)
+        spec = _ads_spec(name, override.data if override else None, node)
+        vanes = spec.velocity_axis == "air"
+        angle = node.get("angle_sigma_deg", float, 0.0, minimum=0.0)
+        if not vanes and angle == 0.0:
+            raise node.error(f"the ADS model '{name}' has no vanes: the angles it leaves out need a sigma",
+                             "angle_sigma_deg", expected="a number > 0 (about 4 deg at a cruise angle of attack)")
+        wind = node.vector("wind_n_mps", 0.0, minimum=-math.inf) if node.data.get("wind_n_mps") is not None else [0.0] * 3
+        return {"model": name, "override": override.data if override else None, "angle_sigma_deg": angle,
+                "wind_n_mps": wind}
+
+    @classmethod
+    def from_entry(cls, entry: dict):
+        return cls(entry["sensor"], _ads_spec(entry["model"], entry["override"]),
+                   math.radians(entry["angle_sigma_deg"]), np.asarray(entry["wind_n_mps"], float))
+
+    def axes_b(self, data, j: int) -> tuple:
+        """The air axes in the body ``(B, 3)`` each (along the airspeed, the sideslip's and the
+        angle of attack's directions) and their angles' std."""
+        v = data.values
+        if self.spec.velocity_axis == "air":
+            if "alpha_rad" not in v:
+                raise ValueError(f"air_velocity: the filter's ADS model has vanes, sensor '{self.sensor}' has "
+                                 "none (velocity_axis: air in its catalog entry)")
+            a, b, sigma = v["alpha_rad"][:, j], v["beta_rad"][:, j], self.spec.vane_noise
+        else:
+            a = b = np.zeros(data.valid.shape[0])
+            sigma = self.angle_sigma_rad
+        ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+        u = np.stack([ca * cb, sb, sa * cb], -1)
+        e_b = np.stack([-ca * sb, cb, -sa * sb], -1)
+        e_a = np.stack([-sa, np.zeros_like(a), ca], -1)
+        return u, e_b, e_a, sigma
+
+    @property
+    def state_sigma(self) -> dict:
+        """The initial std of the sensor-error state this model observes: ``pitot_bias``, the
+        dynamic pressure's per-run bias by the filter's ADS model, Pa."""
+        s = self.spec
+        static = s.static_bias_sigma if s.pitot == "absolute" else 0.0
+        return {"pitot_bias": np.array([math.hypot(s.total_bias_sigma, static)])}
+
+    def airspeed_sigma(self, data, j: int, bias_state: bool) -> tuple:
+        """The std of the ADS's true airspeed ``(B,)`` by the filter's model, m/s (the
+        dynamic pressure's bias in it unless a ``bias_state`` carries it), and ``dV/dq_c =
+        1 / (rho V)`` ``(B,)``, (m/s)/Pa."""
+        s, v = self.spec, data.values
+        V, ps, T = v["tas_mps"][:, j], v["p_static_pa"][:, j], v["temp_k"][:, j]
+        dv_dqc = 1.0 / (ps / (atmosphere.R_AIR * T) * np.maximum(V, 1.0))
+        var_ps = s.static_noise ** 2 + s.static_bias_sigma ** 2
+        var_qc = s.total_noise ** 2 + (s.static_noise ** 2 if s.pitot == "absolute" else 0.0)
+        if not bias_state:
+            var_qc = var_qc + self.state_sigma["pitot_bias"][0] ** 2
+        density = 0.5 * V * np.sqrt(var_ps / ps ** 2 + (s.temperature_noise / T) ** 2)
+        return np.hypot(np.sqrt(var_qc) * dv_dqc, density), dv_dqc
+
+    def model(self, nav: NavState, layout: Layout, data, j: int):
+        B = nav.lat_rad.shape[0]
+        V = data.values["tas_mps"][:, j]
+        u, e_b, e_a, sigma = self.axes_b(data, j)
+        air_n = np.einsum("bij,bj->bi", nav.C_nb, u * V[:, None])
+        z = nav.vel_n_mps - air_n - self.wind_n_mps
+        H = np.zeros((B, 3, layout.n))
+        s = layout.slice("vel").start
+        H[:, [0, 1, 2], [s, s + 1, s + 2]] = 1.0
+        H[:, :, layout.slice("att")] = -skew(air_n)
+        bias_state = layout.has("pitot_bias")
+        sv, dv_dqc = self.airspeed_sigma(data, j, bias_state)
+        if bias_state:                   # V = V_true + b / (rho V): z = ... - C_nb u b / (rho V)
+            H[:, :, layout.slice("pitot_bias").start] = -air_n / np.maximum(V, 1.0)[:, None] * dv_dqc[:, None]
+        sa = V * sigma
+        R_b = (sv[:, None, None] ** 2 * np.einsum("bi,bj->bij", u, u)
+               + sa[:, None, None] ** 2 * (np.einsum("bi,bj->bij", e_b, e_b) + np.einsum("bi,bj->bij", e_a, e_a)))
+        R = nav.C_nb @ R_b @ np.swapaxes(nav.C_nb, 1, 2)
+        return z, H, R, data.valid[:, j]
+
+
+def _ads_spec(name: str, override, node: Node | None = None):
+    """The filter's ADS model, catalog entry ``name`` with ``override``."""
+    spec = load_spec(name, override, (), node.file if node else None, node.path if node else "")
+    if not isinstance(spec, AdsSpec):
+        if node is None:
+            raise ValueError(f"'{name}' is not an ADS")
+        raise node.error(f"'{name}' is not an ADS", "model", expected="an ads catalog entry")
+    return spec
 
 
 @measurement("gnss_horizontal")
