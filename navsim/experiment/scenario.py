@@ -36,6 +36,7 @@ from navsim.flight.track import nominal_duration_s, parse_track
 from navsim.foundations.config import Node, close_match, load_yaml, plain_name
 from navsim.foundations.errors import ScenarioError
 from navsim.navigation.estimators.factory import parse_estimators
+from navsim.navigation.estimators.measurements import measurement_class
 from navsim.sensors import HEIGHT_FIELDS, VELOCITY_FIELDS, output_fields, parse_sensors
 from navsim.sensors.base import check_faults
 
@@ -254,6 +255,7 @@ def check_scenario(scenario: Scenario, duration_s: float) -> None:
                                 expected=f"a whole number of the IMU's steps ({dt:g} s at {imu[0].spec.rate_hz:g} Hz)")
         for key, m in _measurement_entries(est.params, f"estimators[{i}]"):
             _check_field(m, outputs[m["sensor"]], file, key)
+            _check_reads(m, outputs[m["sensor"]], file, key)
 
 
 def _measurement_entries(params: dict, path: str):
@@ -275,6 +277,18 @@ def _check_field(m: dict, produced: tuple, file, key: str) -> None:
                             f"that sensor '{m['sensor']}' produces", file=file, key=f"{key}.field",
                             expected="one of " + ", ".join(usable) if usable else "another sensor",
                             hint=close_match(m["field"], usable) if usable else None)
+
+
+def _check_reads(m: dict, produced: tuple, file, key: str) -> None:
+    """The values a measurement model reads beyond its ``field`` (its class's ``reads(entry)``,
+    if it has one) are ones its sensor produces."""
+    reads = getattr(measurement_class(m["type"]), "reads", None)
+    missing = [f for f in (reads(m) if reads else ()) if f not in produced]
+    if missing:
+        raise ScenarioError(f"reads {', '.join(missing)}, which sensor '{m['sensor']}' does not produce", file=file,
+                            key=key, expected="a sensor that produces them",
+                            hint="an ADS model with vanes (velocity_axis: air) needs a sensor with vanes"
+                            if m["type"] == "air_velocity" else None)
 
 
 ARCSEC = math.pi / 180 / 3600

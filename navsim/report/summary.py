@@ -11,12 +11,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from navsim.experiment.records import SIGMA_STATES
 from navsim.report.tables import FAIL, PASS, WARN, Heading, Paragraph, Table, layout
 from navsim.scoring.metrics import RunMetrics
 from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary
 
 #: below this share of epochs inside its 95 % band a NEES or NIS is called out
 CONSISTENT_FRACTION = 0.5
+#: the mean (error/sigma)^2 of a navigation error that the consistency section leaves unmentioned
+PER_STATE_RANGE = (0.8, 1.25)
 _COLOURS = {"pass": PASS, "FAIL": FAIL}
 
 
@@ -82,13 +85,17 @@ def consistency(metrics: RunMetrics) -> Section | None:
             if s.fraction_inside < CONSISTENT_FRACTION:
                 side = "above: overconfident" if s.average > s.band[1] else (
                     "below: too pessimistic" if s.average < s.band[0] else "inside on average")
+                off = [f"{n} {num(v)}" for n, v in zip(SIGMA_STATES, getattr(s, "per_state", None) or [])
+                       if not PER_STATE_RANGE[0] <= v <= PER_STATE_RANGE[1]]
+                side += f"; (e/σ)² {', '.join(off)}" if off else ""
                 rows.append([label, what, num(s.average), f"{num(s.band[0])}-{num(s.band[1])}",
                              pct(s.fraction_inside), side])
     if not rows:
         return None
     return Section("Consistency: sigmas that do not describe the errors",
                    f"Each NEES or NIS whose average is inside its 95 % chi-square band on fewer than "
-                   f"{100 * CONSISTENT_FRACTION:.0f} % of the epochs.",
+                   f"{100 * CONSISTENT_FRACTION:.0f} % of the epochs, with the navigation errors whose mean "
+                   f"(error/sigma)² is outside {PER_STATE_RANGE[0]:g}-{PER_STATE_RANGE[1]:g}.",
                    ["estimator", "statistic", "average", "95 % band", "epochs inside", "where"], rows,
                    [[None] * 4 + [WARN, None] for _ in rows])
 

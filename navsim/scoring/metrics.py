@@ -180,6 +180,10 @@ class Nees(_Record):
     fraction_inside: float       #: of the epochs whose average is inside its own band
     dim: int
     average_from_start: float    #: over every epoch after the first
+    #: the mean of (error / sigma)^2 of each navigation error from the settling time on, over
+    #: runs and epochs, in the order of :data:`~navsim.experiment.records.SIGMA_STATES`
+    #: (att, vel, pos; N, E, D): 1 where the sigma describes the error
+    per_state: list[float] | None = None
 
 
 @dataclass(frozen=True)

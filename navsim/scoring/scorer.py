@@ -214,6 +214,10 @@ class EstimatorScore:
             self.resets = (self.resets or []) + [r for r, g in zip(h.resets, good) if g]
         self.costs.append(h.cost)
         self._window_sums(c)
+        if h.sigma is not None:
+            e = np.concatenate([h.att_err_rad, h.vel_err_mps, h.pos_err_m], -1)[good][:, c.after]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                self._a("nsq", Sum).add((e / h.sigma[good][:, c.after]) ** 2, (0, 1))
         if h.nees is not None:
             self._a("nees", Sum).add(h.nees[good], 0)
             self._a("nees_finite", Sum).add(np.where(np.isfinite(h.nees[good]), 1.0, np.nan), 0)
@@ -287,7 +291,8 @@ class EstimatorScore:
         # the band of each epoch's own number of runs (closed-loop runs end at their landing)
         lo_e, hi_e = chi2_bands(NEES_DIM, np.maximum(self.acc["nees_finite"].n[sel], 1))
         return Nees(float(np.nanmean(mean)), list(chi2_band(NEES_DIM, self.good)),
-                    float(np.mean((mean > lo_e) & (mean < hi_e))), NEES_DIM, float(np.nanmean(mean_all[1:])))
+                    float(np.mean((mean > lo_e) & (mean < hi_e))), NEES_DIM, float(np.nanmean(mean_all[1:])),
+                    self.acc["nsq"].mean().tolist() if "nsq" in self.acc else None)
 
     def _nis(self) -> dict:
         out = {}

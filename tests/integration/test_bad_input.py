@@ -77,6 +77,18 @@ CASES = [
                                                   {"type": "height", "sensor": "bd", "field": "h_baro_m",
                                                    "sigma_m": 3.0}})},
      VALIDATE, 2, ["estimators[1].measurements[1].field", "h_m"]),
+    # the filter's ADS model has vanes, the sensor none; an ADS model without vanes and no sigma
+    # for the angles it leaves out; a model that is not an ADS
+    ("air-velocity-no-vanes", {S: scenario(**{"estimators[1].measurements[1]":
+                                              {"type": "air_velocity", "sensor": "ads", "model": "p0_ads",
+                                               "override": {"velocity_axis": "air", "vane_noise": "0.5 deg"}}})},
+     VALIDATE, 2, ["estimators[1].measurements[1]", "alpha_rad", "vanes"]),
+    ("air-velocity-angle-sigma", {S: scenario(**{"estimators[1].measurements[1]":
+                                                 {"type": "air_velocity", "sensor": "ads", "model": "p0_ads"}})},
+     VALIDATE, 2, ["estimators[1].measurements[1].angle_sigma_deg", "no vanes"]),
+    ("air-velocity-not-ads", {S: scenario(**{"estimators[1].measurements[1]":
+                                             {"type": "air_velocity", "sensor": "ads", "model": "p0_imu"}})},
+     VALIDATE, 2, ["estimators[1].measurements[1].model", "not an ADS"]),
     ("zero-velocity-axes", {S: scenario(**{"estimators[1].measurements[1]":
                                            {"type": "zero_velocity", "sensor": "ads", "sigma_mps": 1.0, "axes": "up"}})},
      VALIDATE, 2, ["estimators[1].measurements[1].axes", "horizontal, ned"]),

@@ -237,7 +237,7 @@ def test_ideal_increments_follow_the_truth_from_the_first_step(track, environmen
 
 
 #: shipped scenarios that together fly every built-in estimator and measurement type
-EVERY_TYPE = ("p0_bd_sins_ads", "p0_two_step", "p1_emi_powerline", "p1_federated", "p1_gnss_denied_landmarks",
+EVERY_TYPE = ("p0_bd_sins_ads", "p0_matched_ads", "p0_two_step", "p1_emi_powerline", "p1_federated", "p1_gnss_denied_landmarks",
               "p1_mag_calibration", "p2_sea_height", "p4_circle", "p4_static")
 
 

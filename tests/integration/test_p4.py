@@ -4,6 +4,8 @@ divergence of the EKF alone under the magnetic disturbance against the CPF-EKF's
 Whole-scenario figures (20 runs, ``navsim run``) are in the README; these tests run a few runs
 (and the divergence flight up to 560 s) to stay inside the CI budget."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -84,3 +86,14 @@ def test_the_cpf_ekf_is_reset_and_tracks_again(divergence):
     # and the CPF it was reset from stayed with the truth through the disturbance
     cpf = np.degrees(np.abs(res.histories["CPF"].euler_err_rad[:, res.histories["CPF"].t_s > 60]))
     assert cpf.max() < 2.0
+
+
+def test_three_switches_of_the_pump_reset_the_cpf_ekf_at_p4s_times(shipped_flight):
+    """P4's three resets (320, 780, 960 s): the pump's field on, off and on again, one reset
+    after each, from the CPF (one run, the CPF-EKF alone: the numbers are the scenario's)."""
+    scenario, truth, _ = shipped_flight("p4_three_resets")
+    scenario = dataclasses.replace(scenario, estimators=[e for e in scenario.estimators if e.label == "CPF-EKF"])
+    res = run_monte_carlo(scenario, truth, None, 1, scenario.seed, 1)
+    (resets,) = res.histories["CPF-EKF"].resets
+    assert [cause for _, cause in resets] == ["cpf"] * 3
+    np.testing.assert_allclose([t for t, _ in resets], [320.0, 780.0, 960.0], atol=20.0)

@@ -178,7 +178,7 @@ CORPUS = [
     (lambda s: s.replace("states: p3_15", "states: [att, vel, pos, gyro_bais]"), "estimators[1].states", "gyro_bias"),
     (lambda s: s.replace("sensor: gps, sigma_m", "sensor: gnss, sigma_m"), "estimators[1].measurements[0].sensor", "did you mean 'gps'"),
     (lambda s: s.replace("sigma_m: [2, 2, 1]", "sigma_m: [2, 2]"), "estimators[1].measurements[0].sigma_m", "a list of three"),
-    (lambda s: s.replace("{type: velocity, sensor", "{type: speed, sensor"), "estimators[1].measurements[1].type", "one of gnss_horizontal, gnss_position"),
+    (lambda s: s.replace("{type: velocity, sensor", "{type: speed, sensor"), "estimators[1].measurements[1].type", "one of air_velocity, gnss_horizontal, gnss_position"),
     (lambda s: s.replace("noise: {imu: p3_imu}", "noise: {imu: p3_gps}"), "estimators[1].noise.imu", "not an IMU"),
     (lambda s: s.replace("- {label: free SINS, type: sins}", "- {label: KF, type: sins}"), "estimators[1].label", "used twice"),
     (lambda s: s.replace("montecarlo: {runs: 6, seed: 4}", "montecarlo: {runs: 0, seed: 4}"), "montecarlo.runs", ">= 1"),

@@ -46,7 +46,7 @@ def history(rng, runs, E=120, nees=True, euler=True):
     nis["gnss:bd"][:, 100:] = np.nan                  # an outage: epochs with no NIS at all
     return EstimatorHistory(
         label="KF", t_s=t, att_err_rad=att, vel_err_mps=vel, pos_err_m=pos,
-        sigma=np.abs(rng.normal(size=(runs, E, 15))) if nees else None,
+        sigma=np.abs(rng.normal(size=(runs, E, 9))) if nees else None,
         nees=rng.chisquare(9, size=(runs, E)) if nees else None,
         nis=nis if nees else {}, nis_dim={"gnss:bd": 3, "height:ads": 1} if nees else {},
         diverged=diverged, gyro_bias=None, accel_bias=None,
@@ -103,8 +103,10 @@ def numpy_scores(h, settle_s, windows) -> dict:
         mean = np.nanmean(h.nees[good], axis=0)
         n = np.sum(np.isfinite(h.nees[good][:, sel]), axis=0)        # runs recorded at each epoch
         lo, hi = chi2.ppf(0.025, 9 * n) / n, chi2.ppf(0.975, 9 * n) / n
+        e = np.concatenate([h.att_err_rad, h.vel_err_mps, h.pos_err_m], -1)[good][:, after]
         out["nees"] = {"average": np.nanmean(mean[sel]), "fraction_inside": np.mean((mean[sel] > lo) & (mean[sel] < hi)),
-                       "average_from_start": np.nanmean(mean[1:])}
+                       "average_from_start": np.nanmean(mean[1:]),
+                       "per_state": np.nanmean((e / h.sigma[good][:, after]) ** 2, axis=(0, 1)).tolist()}
         out["nis"] = {k: {"average": np.nanmean(np.nanmean(v[good][:, after], axis=0))} for k, v in h.nis.items()}
     return out
 

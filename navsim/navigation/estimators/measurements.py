@@ -30,6 +30,11 @@ own the same way::
 
         def model(self, nav, layout, data, j):
             ...   # z (B, m), H (B, m, n), R (B, m, m), valid (B,)
+
+Optional: a classmethod ``reads(entry)`` naming the sensor values the model reads (checked
+against what its sensor produces before anything runs), and a ``state_sigma`` mapping of the
+initial std of a sensor-error state block the model observes (``air_velocity``'s
+``pitot_bias``), which the filter takes as that block's initial uncertainty.
 """
 
 from __future__ import annotations
@@ -319,14 +324,18 @@ class AirVelocity:
         return cls(entry["sensor"], _ads_spec(entry["model"], entry["override"]),
                    math.radians(entry["angle_sigma_deg"]), np.asarray(entry["wind_n_mps"], float))
 
+    @classmethod
+    def reads(cls, entry: dict) -> tuple:
+        """The sensor values the model of ``entry`` reads: the vanes' angles when its ADS model
+        has vanes, the air data always (checked against the sensor before anything runs)."""
+        vanes = _ads_spec(entry["model"], entry["override"]).velocity_axis == "air"
+        return ("tas_mps", "p_static_pa", "temp_k") + (("alpha_rad", "beta_rad") if vanes else ())
+
     def axes_b(self, data, j: int) -> tuple:
         """The air axes in the body ``(B, 3)`` each (along the airspeed, the sideslip's and the
         angle of attack's directions) and their angles' std."""
         v = data.values
         if self.spec.velocity_axis == "air":
-            if "alpha_rad" not in v:
-                raise ValueError(f"air_velocity: the filter's ADS model has vanes, sensor '{self.sensor}' has "
-                                 "none (velocity_axis: air in its catalog entry)")
             a, b, sigma = v["alpha_rad"][:, j], v["beta_rad"][:, j], self.spec.vane_noise
         else:
             a = b = np.zeros(data.valid.shape[0])
