@@ -30,7 +30,7 @@ def rows_of(name: str, runs, seed) -> list[str]:
     for label, m in result.metrics.estimators.items():
         if m.nees is None:
             continue
-        per = m.nees.per_state or []
+        per = m.nees.per_state or [float("nan")]
         worst = sorted(zip(SIGMA_STATES, per), key=lambda kv: abs(kv[1] - 1.0), reverse=True)[:2]
         nis = "; ".join(f"{k} {v.average:.2f} ({100 * v.fraction_inside:.0f} %)" for k, v in (m.nis or {}).items())
         out.append(f"| `{name}` | {label} | {result.record['runs']} / {result.record['seed']} | "

@@ -89,6 +89,16 @@ CASES = [
     ("air-velocity-not-ads", {S: scenario(**{"estimators[1].measurements[1]":
                                              {"type": "air_velocity", "sensor": "ads", "model": "p0_imu"}})},
      VALIDATE, 2, ["estimators[1].measurements[1].model", "not an ADS"]),
+    ("air-velocity-angle-with-vanes", {S: scenario(**{
+        "sensors.ads.override": {"velocity_axis": "air"},
+        "estimators[1].measurements[1]": {"type": "air_velocity", "sensor": "ads", "model": "p0_ads",
+                                          "override": {"velocity_axis": "air"}, "angle_sigma_deg": 4}})},
+     VALIDATE, 2, ["estimators[1].measurements[1].angle_sigma_deg", "vane_noise"]),
+    ("pitot-bias-unobserved", {S: scenario(**{"estimators[1].states": ["att", "vel", "pos", "pitot_bias"]})},
+     VALIDATE, 2, ["estimators[1].states", "pitot_bias", "0 air_velocity"]),
+    ("sage-husa-air-velocity", {S: scenario(**{"estimators[1].type": "sage_husa",
+                                               "estimators[1].measurements[1]": {"type": "air_velocity", "sensor": "ads", "model": "p0_ads", "angle_sigma_deg": 4}})},
+     VALIDATE, 2, ["estimators[1].measurements", "air_velocity", "Sage-Husa"]),
     ("zero-velocity-axes", {S: scenario(**{"estimators[1].measurements[1]":
                                            {"type": "zero_velocity", "sensor": "ads", "sigma_mps": 1.0, "axes": "up"}})},
      VALIDATE, 2, ["estimators[1].measurements[1].axes", "horizontal, ned"]),

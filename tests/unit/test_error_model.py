@@ -122,6 +122,23 @@ def test_H_matches_finite_differences(model):
     assert valid.all() and R.shape == (1, H.shape[1], H.shape[1])
 
 
+def test_pitot_bias_column_matches_finite_differences():
+    """``air_velocity``'s ``pitot_bias`` column: the change of ``z`` with a dynamic-pressure bias
+    ``b`` in the data, which moves the airspeed by ``b / (rho V)``."""
+    from navsim.foundations.atmosphere import R_AIR
+    lat, lon, h, v, C, _, _ = nominal()
+    layout = Layout(PRESETS["p3_15"] + ("pitot_bias",))
+    air = _air_data(v, C)
+    rho_v = air["p_static_pa"] / (R_AIR * air["temp_k"]) * air["tas_mps"]
+
+    def z_of(b):
+        data = FakeData({**air, "tas_mps": air["tas_mps"] + b / rho_v})
+        return VANES.model(nav(lat, lon, h, v, C), layout, data, 0)[0][0]
+
+    H = VANES.model(nav(lat, lon, h, v, C), layout, FakeData(air), 0)[1][0]
+    np.testing.assert_allclose(H[:, layout.slice("pitot_bias").start], (z_of(0.5) - z_of(-0.5)) / 1.0, rtol=1e-9)
+
+
 def test_series_and_van_loan_agree():
     lat, lon, h, v, C, w, f = nominal()
     F = system_matrix(LAYOUT, np.array([lat] * 2), np.array([h] * 2), np.stack([v, -v]), np.stack([C, C.T]),

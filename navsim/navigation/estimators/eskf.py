@@ -9,7 +9,7 @@ Van Loan (from the sixth order, the Taylor series of the covariance equation its
 in place: :func:`_covariance_series_fits`), then applies each available
 measurement with the Joseph form (all of them in one compiled call), and feeds the
 estimated errors back: attitude, velocity and position into the mechanization, biases into the
-IMU compensation. The ``baro`` state (a sensor error) stays in the filter.
+IMU compensation. The sensor-error states ``baro`` and ``pitot_bias`` stay in the filter.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from navsim.navigation.estimators.error_model import (
 )
 from navsim.navigation.estimators.measurements import (
     build_measurements,
+    check_observed_states,
     parse_measurements,
 )
 from navsim.navigation.strapdown import BlockStrapdown, NavState
@@ -111,7 +112,9 @@ class ErrorStateKF:
         ``discretization`` (``series``), ``series_order`` (6), ``noise: {imu, override}`` (the
         filter's own IMU model, a catalog entry), ``baro: {sigma_m, tau_s}`` (the baro Markov
         state's model) and ``measurements`` (registered models); a subclass adds its keys."""
-        return {**filter_params(node), "measurements": parse_measurements(node, sensors)}
+        params = {**filter_params(node), "measurements": parse_measurements(node, sensors)}
+        check_observed_states(node, params["states"], params["measurements"])
+        return params
 
     @classmethod
     def from_params(cls, params: dict):

@@ -41,6 +41,7 @@ from navsim.navigation.estimators.error_model import Layout
 from navsim.navigation.estimators.eskf import ErrorStateKF, filter_options, filter_params
 from navsim.navigation.estimators.measurements import (
     build_measurements,
+    check_observed_states,
     parse_measurements,
 )
 from navsim.sensors.catalog import load_spec
@@ -95,6 +96,7 @@ class FederatedKF(ErrorStateKF):
             locals_.append({"name": loc.get("name", str), "beta": loc.get("beta", float, exclusive_minimum=0.0),
                             "measurements": parse_measurements(loc, sensors)})
             loc.done()
+        check_observed_states(node, params["states"], [m for o in locals_ for m in o["measurements"]])
         master = node.get("master_beta", float, 0.0, minimum=0.0)
         total = sum(o["beta"] for o in locals_) + master
         if abs(total - 1.0) > 1e-6:

@@ -288,17 +288,20 @@ class AirVelocity:
     pitot) with the density's share ``V/2 sqrt((sigma_ps/ps)^2 + (sigma_T/T)^2)``; across it
     ``V sigma_angle``, ``sigma_angle`` the vanes' noise, or without vanes ``angle_sigma_deg``,
     what the filter allows for the angles it does not measure (about 4 deg on P0's track: the
-    mean angle of attack and its spread). With ``C_nb_est = (I - [phi x]) C_nb`` the
+    mean angle of attack and its spread; that mean is a bias, not white, so this mode is not
+    consistent: P0's ES-KF with it has NEES 12.5 on 200 runs). With ``C_nb_est = (I - [phi x]) C_nb`` the
     attitude row is ``-[a x]``, ``a = C_nb u V``: the INS attitude error turns the air velocity.
 
     With a ``pitot_bias`` state in the filter (the dynamic pressure's per-run bias ``b``, Pa, a
     random constant whose initial std is the ADS model's), ``V = V_true + b / (rho V)``: its
     column is ``-C_nb u / (rho V)`` and ``R`` leaves the bias out. Without it, the bias is in
-    ``R`` as if it were white.
+    ``R`` as if it were white. With an absolute pitot the static sensor's bias is in both
+    ``pitot_bias`` and a ``baro`` state (their correlation is not in the initial covariance):
+    the shipped ``p0_ads`` is differential.
     """
 
     sensor: str
-    spec: object                         #: the filter's AdsSpec
+    spec: AdsSpec                        #: the filter's model of the ADS
     angle_sigma_rad: float = 0.0         #: the unmeasured angles' std (an ADS model without vanes)
     wind_n_mps: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
     SCHEMA = {"model": {"type": "string"}, "override": {"type": "object"}, "angle_sigma_deg": {"type": "number", "minimum": 0},
@@ -311,13 +314,21 @@ class AirVelocity:
         override = node.child("override", None)
         spec = _ads_spec(name, override.data if override else None, node)
         vanes = spec.velocity_axis == "air"
+        given = node.data.get("angle_sigma_deg") is not None
         angle = node.get("angle_sigma_deg", float, 0.0, minimum=0.0)
+        if vanes and given:
+            raise node.error(f"the ADS model '{name}' has vanes: their noise is the angles' sigma", "angle_sigma_deg",
+                             expected="no angle_sigma_deg with a vane-fitted ADS model (its vane_noise is used)")
         if not vanes and angle == 0.0:
             raise node.error(f"the ADS model '{name}' has no vanes: the angles it leaves out need a sigma",
                              "angle_sigma_deg", expected="a number > 0 (about 4 deg at a cruise angle of attack)")
-        wind = node.vector("wind_n_mps", 0.0, minimum=-math.inf) if node.data.get("wind_n_mps") is not None else [0.0] * 3
+        wind = node.data.get("wind_n_mps", [0.0, 0.0, 0.0])
+        node._seen.add("wind_n_mps")
+        if not (isinstance(wind, list) and len(wind) == 3
+                and all(isinstance(w, (int, float)) and not isinstance(w, bool) and math.isfinite(w) for w in wind)):
+            raise node.error(f"is {wind!r}", "wind_n_mps", expected="[north, east, down] in m/s")
         return {"model": name, "override": override.data if override else None, "angle_sigma_deg": angle,
-                "wind_n_mps": wind}
+                "wind_n_mps": [float(w) for w in wind]}
 
     @classmethod
     def from_entry(cls, entry: dict):
@@ -382,11 +393,35 @@ class AirVelocity:
         sv, dv_dqc = self.airspeed_sigma(data, j, bias_state)
         if bias_state:                   # V = V_true + b / (rho V): z = ... - C_nb u b / (rho V)
             H[:, :, layout.slice("pitot_bias").start] = -air_n / np.maximum(V, 1.0)[:, None] * dv_dqc[:, None]
-        sa = V * sigma
+        s_across = V * sigma
         R_b = (sv[:, None, None] ** 2 * np.einsum("bi,bj->bij", u, u)
-               + sa[:, None, None] ** 2 * (np.einsum("bi,bj->bij", e_b, e_b) + np.einsum("bi,bj->bij", e_a, e_a)))
+               + s_across[:, None, None] ** 2 * (np.einsum("bi,bj->bij", e_b, e_b) + np.einsum("bi,bj->bij", e_a, e_a)))
         R = nav.C_nb @ R_b @ np.swapaxes(nav.C_nb, 1, 2)
         return z, H, R, data.valid[:, j]
+
+
+def check_observed_states(node: Node, blocks, entries: list) -> None:
+    """A ``pitot_bias`` state needs the one ``air_velocity`` model that observes it, with an
+    ADS model whose bias is not zero (its initial std)."""
+    if "pitot_bias" not in blocks:
+        return
+    air = [e for e in entries if e["type"] == "air_velocity"]
+    if len(air) != 1:
+        raise node.error(f"the 'pitot_bias' state is observed by {len(air)} air_velocity measurements", "states",
+                         expected="exactly one air_velocity measurement with a pitot_bias state")
+    if not AirVelocity.from_entry(air[0]).state_sigma["pitot_bias"][0] > 0:
+        raise node.error(f"the ADS model '{air[0]['model']}' has no pitot bias for the 'pitot_bias' state", "states",
+                         expected="an ADS model with total_bias_sigma > 0, or no pitot_bias state")
+
+
+def reject_rotating_R(node: Node, entries: list, adapted, who: str) -> None:
+    """An adaptive filter that estimates R in NED from the innovations cannot adapt
+    ``air_velocity``'s, which turns with the attitude and grows with the airspeed."""
+    for e in entries:
+        if e["type"] == "air_velocity" and (adapted is None or e["sensor"] in adapted):
+            raise node.error(f"{who} adapts the R of sensor '{e['sensor']}' in NED; air_velocity's R turns with "
+                             "the attitude and the airspeed", "measurements",
+                             expected="air_velocity on a sensor that is not adapted (or another filter)")
 
 
 def _ads_spec(name: str, override, node: Node | None = None):

@@ -25,7 +25,7 @@ from navsim.foundations.jsonschema import POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import register
 from navsim.navigation.estimators.eskf import ErrorStateKF
-from navsim.navigation.estimators.measurements import sensor_names
+from navsim.navigation.estimators.measurements import reject_rotating_R, sensor_names
 
 
 @register("sage_husa")
@@ -52,7 +52,9 @@ class SageHusaKF(ErrorStateKF):
         read = lambda sub: {"forgetting": sub.get("forgetting", float, 0.95, exclusive_minimum=0.0, maximum=0.9999),
                             "floor": sub.get("floor", float, 1.0, exclusive_minimum=0.0),
                             "sensors": sensor_names(sub, "sensors", sensors)}
-        return {**super().parse(node, sensors), "adaptive": node.section("sage_husa", read)}
+        params = {**super().parse(node, sensors), "adaptive": node.section("sage_husa", read)}
+        reject_rotating_R(node, params["measurements"], params["adaptive"].get("sensors"), "the Sage-Husa filter")
+        return params
 
     @classmethod
     def options(cls, params: dict) -> dict:

@@ -40,6 +40,7 @@ from navsim.foundations.jsonschema import POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import Innovation, Solution, register
 from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.measurements import reject_rotating_R
 
 BIAS_BLOCKS = ("gyro_bias", "accel_bias")
 
@@ -77,6 +78,8 @@ class TwoStageAdaptiveKF(ErrorStateKF):
                                   "window": ad.get("window", int, 30, minimum=1),
                                   "floor": ad.get("floor", float, 1.0, exclusive_minimum=0.0)}
             ad.done()
+        if params["adaptive"]["adaptive"]:
+            reject_rotating_R(node, params["measurements"], None, "the two-stage adaptive filter")
         return params
 
     @classmethod
