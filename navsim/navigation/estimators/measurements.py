@@ -383,7 +383,8 @@ class AirVelocity:
         B = nav.lat_rad.shape[0]
         V = data.values["tas_mps"][:, j]
         u, e_b, e_a, sigma = self.axes_b(data, j)
-        air_n = np.einsum("bij,bj->bi", nav.C_nb, u * V[:, None])
+        u_n = np.einsum("bij,bj->bi", nav.C_nb, u)            # the airspeed's direction, NED
+        air_n = u_n * V[:, None]
         z = nav.vel_n_mps - air_n - self.wind_n_mps
         H = np.zeros((B, 3, layout.n))
         s = layout.slice("vel").start
@@ -392,7 +393,7 @@ class AirVelocity:
         bias_state = layout.has("pitot_bias")
         sv, dv_dqc = self.airspeed_sigma(data, j, bias_state)
         if bias_state:                   # V = V_true + b / (rho V): z = ... - C_nb u b / (rho V)
-            H[:, :, layout.slice("pitot_bias").start] = -air_n / np.maximum(V, 1.0)[:, None] * dv_dqc[:, None]
+            H[:, :, layout.slice("pitot_bias").start] = -u_n * dv_dqc[:, None]
         s_across = V * sigma
         R_b = (sv[:, None, None] ** 2 * np.einsum("bi,bj->bij", u, u)
                + s_across[:, None, None] ** 2 * (np.einsum("bi,bj->bij", e_b, e_b) + np.einsum("bi,bj->bij", e_a, e_a)))
