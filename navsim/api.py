@@ -18,6 +18,7 @@ written with :func:`write_report`.
 from __future__ import annotations
 
 import json
+import logging
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -28,7 +29,7 @@ import yaml
 
 from navsim.experiment import runner
 from navsim.experiment.chunkstore import ChunkStore
-from navsim.experiment.executors import import_distributed
+from navsim.experiment.executors import children_die_with_parent, lend_client
 from navsim.experiment.records import (
     ARRAY_FIELDS,
     ARRAYS,
@@ -45,6 +46,7 @@ from navsim.experiment.runner import (
     run_monte_carlo,
     scenario_hash,
 )
+from navsim.experiment import resources
 from navsim.experiment.scenario import Scenario, check_scenario, load_scenario as _load_file, parse_scenario
 from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
 from navsim.foundations.errors import ScenarioError, UsageError
@@ -148,7 +150,7 @@ def load_scenario(source) -> Scenario:
 
 def run(scenario, runs: int | None = None, seed: int | None = None, workers: int | None = None, *,
         out=None, executor: str = "local", scheduler: str | None = None, chunk_runs: int | None = None,
-        resume: bool = False, progress=None, flight=None) -> Result:
+        resume: bool = False, progress=None, flight=None, force: bool = False) -> Result:
     """Fly the scenario's track (cached), emulate its sensors and run every estimator over the
     Monte Carlo runs; score them.
 
@@ -168,6 +170,10 @@ def run(scenario, runs: int | None = None, seed: int | None = None, workers: int
     flight : tuple, optional
         The scenario's flight already at hand, ``(truth, cached_path, from_cache)`` as
         :func:`navsim.experiment.runner.cached_flight` returns it (default: that call).
+    force : bool
+        Write into ``out`` even when it is a non-empty folder that is not navsim's (else a
+        :class:`UsageError` naming its files). ``out`` is locked while the run writes it
+        (another writer is refused, :class:`~navsim.foundations.outputs.OutputFolder`).
 
     Returns
     -------
@@ -179,13 +185,23 @@ def run(scenario, runs: int | None = None, seed: int | None = None, workers: int
         raise ScenarioError("has no estimators to run", file=scenario.path, key="estimators",
                             expected="a list of estimators", hint="'navsim fly' flies a track alone")
     runs = scenario.runs if runs is None else runs
+    if flight is None:                    # the memory and disk it needs, before cached_flight flies
+        resources.check_run(scenario, runs, chunk_runs, out)
     seed = scenario.seed if seed is None else seed
     workers = scenario.workers if workers is None else workers
-    folder = OutputFolder(Path(out)) if out is not None else None
-    if resume and folder is None:
+    if resume and out is None:
         raise UsageError("resume needs the folder of the interrupted run (out=...)")
-    t0 = time.perf_counter()
     how = _How(runs, seed, workers, executor, scheduler, chunk_runs, resume, progress, flight)
+    if out is None:
+        return _run(scenario, how, None)
+    with OutputFolder(Path(out), force=force) as folder:
+        return _run(scenario, how, folder)
+
+
+def _run(scenario, how: "_How", folder) -> Result:
+    """:func:`run` once its arguments are read, into ``folder`` (held) or none."""
+    runs, seed, workers = how.runs, how.seed, how.workers
+    t0 = time.perf_counter()
     result = (_closed_loop if scenario.closed_loop is not None else _open_loop)(scenario, how, folder)
     result.record = {"scenario": None if scenario.path is None else str(scenario.path), "runs": runs, "runs_done": int(len(result.runs)),
                      "seed": seed, "workers": workers, **result.record}
@@ -217,7 +233,8 @@ def _closed_loop(scenario, how: _How, folder) -> Result:
                          "(drop --executor dask and --resume)")
     if folder is not None:
         folder.clear_earlier()
-    rr, loop, reference = run_closed_loop(scenario, how.runs, how.seed, how.workers, progress=how.progress)
+    with children_die_with_parent():
+        rr, loop, reference = run_closed_loop(scenario, how.runs, how.seed, how.workers, progress=how.progress)
     record = {"flight_cached": False, "flight_key": flight_key(scenario.flight), "executor": how.executor,
               "scheduler": None, "resumed": False}
     return Result(scenario, rr.runs, rr.histories, None, record, truth=reference.truth,
@@ -228,16 +245,17 @@ def _closed_loop(scenario, how: _How, folder) -> Result:
 def _open_loop(scenario, how: _How, folder) -> Result:
     truth, truth_path, cached = how.flight if how.flight is not None else cached_flight(scenario.flight)
     check_scenario(scenario, truth.duration_s)     # the duration flown, before any sensor
-    if how.executor == "dask":               # before the store clears an earlier run's chunks
-        import_distributed()
-    store = None
-    if folder is not None:
-        store = _open_store(folder.path, scenario, how)
-        folder.clear_earlier()               # the earlier run's metrics, report, runs.npz
-    size = store.key["chunk_runs"] if store is not None else (how.chunk_runs or runner.CHUNK_RUNS)
-    rr = run_monte_carlo(scenario, truth, truth_path, how.runs, how.seed, how.workers, progress=how.progress,
-                         chunk_runs=size, store=store, executor=how.executor, scheduler=how.scheduler,
-                         keep_runs=runner.REPORT_RUNS if store is not None else None)
+    # the executor first: an unreachable scheduler must find the earlier run in the folder untouched
+    early = how.executor == "dask" and folder is not None
+    with lend_client(how.workers, how.scheduler) if early else children_die_with_parent():
+        store = None
+        if folder is not None:
+            store = _open_store(folder.path, scenario, how)
+            folder.clear_earlier()               # the earlier run's metrics, report, runs.npz
+        size = store.key["chunk_runs"] if store is not None else (how.chunk_runs or runner.CHUNK_RUNS)
+        rr = run_monte_carlo(scenario, truth, truth_path, how.runs, how.seed, how.workers, progress=how.progress,
+                             chunk_runs=size, store=store, executor=how.executor, scheduler=how.scheduler,
+                             keep_runs=runner.REPORT_RUNS if store is not None else None)
     record = {"flight_cached": cached, "flight_key": flight_key(scenario.flight), "executor": how.executor,
               "scheduler": how.scheduler, "resumed": bool(how.resume), "chunk_runs": size}
     if store is not None:
@@ -254,7 +272,7 @@ def _open_store(out: Path, scenario, how: _How) -> ChunkStore:
     chunk_runs = how.chunk_runs
     if chunk_runs is None:
         index = ChunkStore.read_index(folder) if how.resume else None
-        chunk_runs = index.get("chunk_runs") if index else runner.CHUNK_RUNS
+        chunk_runs = (index or {}).get("chunk_runs") or runner.CHUNK_RUNS    # typed by read_index
     chunk_ranges(how.runs, chunk_runs)              # a bad chunk size stops before anything is cleared
     key = {"scenario_hash": scenario_hash(scenario), "seed": how.seed, "runs": how.runs, "chunk_runs": chunk_runs}
     return ChunkStore(folder, key, mode="resume" if how.resume else "new")
@@ -287,13 +305,13 @@ def _write_run(result: Result, folder: OutputFolder, record: dict | None = None)
     result's) and, for a run without a chunk store whose every history is in memory, ``runs.npz``
     into ``folder``: per-run data is kept once, in ``chunks/`` or there."""
     record = result.record if record is None else record
-    folder.text("metrics.json", json.dumps(result.metrics.to_dict(), indent=2))
+    folder.json("metrics.json", result.metrics.to_dict())
     folder.text("scenario.resolved.yaml",
                 f"# resolved by navsim {result.record['versions']['navsim']} at git {result.record['git_revision']}\n"
                 + yaml.safe_dump(resolved_scenario(result), sort_keys=False))
-    folder.text("run.json", json.dumps(record, indent=2, default=str))
+    folder.json("run.json", record)
     if result.store is None and result.histories and result.record["runs_plotted"] == len(result.runs):
-        arrays = {"runs": result.runs}
+        arrays = {"runs": result.runs, NPZ_KEYS: np.array(NPZ_KEYS_VERSION)}
         for label, h in result.histories.items():
             key = npz_key(label)
             arrays.update({f"{key}.{name}": getattr(h, name) for name in ARRAY_FIELDS
@@ -304,18 +322,38 @@ def _write_run(result: Result, folder: OutputFolder, record: dict | None = None)
         folder.write("runs.npz", lambda p: np.savez(p, **arrays))
 
 
+#: the entry of a ``runs.npz`` naming how its keys are made (absent: the older, clashing keys)
+NPZ_KEYS, NPZ_KEYS_VERSION = "npz_keys", "percent-1"
+_NPZ_SAFE = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-")
+
+
 def npz_key(label: str) -> str:
-    """An estimator label as the prefix of its arrays in ``runs.npz``."""
+    """An estimator label as the prefix of its arrays in ``runs.npz``: every character outside
+    ``[A-Za-z0-9_-]`` percent-encoded (its UTF-8 bytes), so two labels never share a key."""
+    return "".join(c if c in _NPZ_SAFE else "".join(f"%{b:02X}" for b in c.encode()) for c in label)
+
+
+def _old_npz_key(label: str) -> str:
+    """The key of runs.npz written before :data:`NPZ_KEYS` (``"a b"`` and ``"a_b"`` clash)."""
     return label.replace(" ", "_").replace("/", "-")
 
 
 def _npz_histories(path: Path, labels) -> tuple:
-    """``(runs, histories)`` from a ``runs.npz`` (the NIS are not stored there)."""
+    """``(runs, histories)`` from a ``runs.npz`` (the NIS are not stored there); an older file
+    is read with its keys, and labels that clash there get no history (with a warning)."""
     with np.load(path, allow_pickle=False) as data:
         arrays = {k: data[k] for k in data.files}
+    key = npz_key if NPZ_KEYS in arrays else _old_npz_key
+    labels = list(labels)
+    keys = [key(label) for label in labels]
     hist = {}
-    for label in labels:
-        got = {name: arrays.get(f"{npz_key(label)}.{name}") for name in ARRAY_FIELDS}
+    for label, k in zip(labels, keys):
+        if keys.count(k) > 1:
+            logging.getLogger(__name__).warning("%s: estimators %s share the key %r in this older file; "
+                                                "%r is not read", path, [la for la, o in zip(labels, keys) if o == k],
+                                                k, label)
+            continue
+        got = {name: arrays.get(f"{k}.{name}") for name in ARRAY_FIELDS}
         if got["t_s"] is not None:
             hist[label] = EstimatorHistory(label=label, nis={}, nis_dim={}, **got)
     return np.asarray(arrays.get("runs", []), int), hist
@@ -329,13 +367,18 @@ def resolved_scenario(result: Result) -> dict:
     return resolved
 
 
-def write_report(result: Result, out=None) -> list[Path]:
+def write_report(result: Result, out=None, *, force: bool = False) -> list[Path]:
     """``report.pdf`` and its PNGs for ``result`` into ``out`` (default: the folder the run was
     written to); also writes the run's ``metrics.json``, ``run.json`` and
-    ``scenario.resolved.yaml`` there when it is another folder. Returns the report's files."""
+    ``scenario.resolved.yaml`` there when it is another folder. Returns the report's files.
+    The folder is locked meanwhile; ``force``: as :func:`run`'s."""
     if out is None and result.folder is None:
         raise UsageError("write_report needs a folder: out=... (the run was held in memory)")
-    folder = OutputFolder(Path(out) if out is not None else result.folder)
+    with OutputFolder(Path(out) if out is not None else result.folder, force=force) as folder:
+        return _write_report_into(folder, result)
+
+
+def _write_report_into(folder: OutputFolder, result: Result) -> list[Path]:
     if result.folder is None or folder.path.resolve() != Path(result.folder).resolve():
         record = result.record                  # the chunks stay where the run wrote them
         if result.store is not None:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-import json
 import logging
 import math
 import shutil
@@ -29,7 +28,9 @@ import yaml
 
 from navsim import api
 from navsim.experiment.chunkstore import listed_runs
+from navsim.experiment.executors import TERMINATED_EXIT, Terminated, stop_on_sigterm
 from navsim.experiment.runner import cached_flight
+from navsim.experiment import resources
 from navsim.experiment.scenario import (
     MAX_SEED,
     MAX_WORKERS,
@@ -43,6 +44,7 @@ from navsim.experiment.sweep import parse_sweep
 from navsim.flight.plots import plot_flight
 from navsim.flight.simulator import fly
 from navsim.flight.track import available_tracks, load_track, nominal_duration_s
+from navsim.foundations.config import MAX_RUNS
 from navsim.foundations.errors import FlightError, NavsimError, OutputError, UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.progress import Progress
@@ -101,11 +103,24 @@ def _progress(desc: str):
     return bar, update
 
 
+#: the output folders the command being run holds (closed by :func:`main` however it ends)
+_OPEN: list = []
+
+
+def _open_folder(args, default: Path) -> OutputFolder:
+    """The command's output folder (``--out``, else ``default``), locked until the command
+    ends; ``--force`` writes into a folder that is not navsim's."""
+    folder = OutputFolder(Path(args.out) if args.out else default, force=args.force)
+    _OPEN.append(folder)
+    return folder
+
+
 def cmd_fly(args) -> int:
     scenario = load_scenario(args.scenario)
     if args.rate_hz is not None:
         scenario.flight.rate_hz = args.rate_hz
-    out = OutputFolder(Path(args.out) if args.out else Path("reports") / scenario.name / "flight")
+    resources.check_flight(scenario)
+    out = _open_folder(args, Path("reports") / scenario.name / "flight")
     out.clear_earlier()
     bar, update = _progress(f"flying {scenario.flight.track.name}")
     t0 = time.perf_counter()
@@ -142,7 +157,7 @@ def save_flight(out: OutputFolder, truth, scenario_file, scenario, wall_s: float
         files += plots
         record.update(duration_s=truth.duration_s, samples=truth.n,
                       real_time_factor=truth.duration_s / max(wall_s, 1e-9))
-    files.append(out.text("run.json", json.dumps(record, indent=2)))
+    files.append(out.json("run.json", record))
     return files
 
 
@@ -155,9 +170,9 @@ def _fly_or_save(scenario, scenario_file, out: OutputFolder):
         return cached_flight(scenario.flight, progress=update)
     except FlightError as exc:
         out.clear_earlier()               # an earlier run's results do not stand beside this failure
-        folder = OutputFolder(out.path / "flight")
-        folder.clear_earlier()
-        save_flight(folder, getattr(exc, "truth", None), scenario_file, scenario, time.perf_counter() - t0, exc)
+        with OutputFolder(out.path / "flight", force=True) as folder:    # inside the locked folder
+            folder.clear_earlier()
+            save_flight(folder, getattr(exc, "truth", None), scenario_file, scenario, time.perf_counter() - t0, exc)
         print(f"the part flown is saved in {folder.path}/", file=sys.stderr)
         raise
     finally:
@@ -167,7 +182,8 @@ def _fly_or_save(scenario, scenario_file, out: OutputFolder):
 def cmd_run(args) -> int:
     scenario = load_scenario(args.scenario)
     runs = scenario.runs if args.runs is None else args.runs
-    folder = OutputFolder(Path(args.out) if args.out else Path("reports") / scenario.name)
+    resources.check_run(scenario, runs, args.chunk_runs, Path(args.out) if args.out else Path("reports"))
+    folder = _open_folder(args, Path("reports") / scenario.name)
     todo, desc, flight = runs, f"{runs} runs", None
     if scenario.closed_loop is not None:
         desc += ", navigation in the loop"
@@ -232,8 +248,9 @@ def cmd_sensors(args) -> int:
         print(f"error: {args.scenario} has no 'sensors'", file=sys.stderr)
         return 2
     runs = scenario.runs if args.runs is None else args.runs
+    resources.check_flight(scenario)
     seed = scenario.seed if args.seed is None else args.seed
-    folder = OutputFolder(Path(args.out) if args.out else Path("reports") / scenario.name / "sensors")
+    folder = _open_folder(args, Path("reports") / scenario.name / "sensors")
     out = folder.path
     truth, _, _ = _fly_or_save(scenario, args.scenario, folder)
     check_scenario(scenario, truth.duration_s)
@@ -269,8 +286,7 @@ def _point_line(n: int, total: int, point: dict, values: dict, res) -> str:
 
 def cmd_sweep(args) -> int:
     _, _, _, points = parse_sweep(args.sweep)
-    folder = OutputFolder(Path(args.out) if args.out else Path("reports") / Path(args.sweep).stem)
-    folder.clear_earlier()
+    folder = _open_folder(args, Path("reports") / Path(args.sweep).stem)
     with Progress(len(points), f"sweep {Path(args.sweep).stem}", unit="point") as bar:
         sweep = api.sweep(args.sweep, args.workers, progress=bar.update, executor=args.executor,
                           scheduler=args.scheduler,
@@ -279,6 +295,7 @@ def cmd_sweep(args) -> int:
     table = [[", ".join(f"{short_key(k)}={v}" for k, v in p.items())] + [num(vals.get(lb)) for lb in labels]
              for p, vals in sweep.rows]
     print("\n" + _table(["point"] + [f"{lb}: {sweep.metric}" for lb in labels], table))
+    folder.clear_earlier()                 # only now: a sweep that cannot start leaves the earlier one
     write_sweep_files(folder, sweep)
     write_sweep_figure(folder, sweep, f"sweep {Path(args.sweep).name}: {sweep.metric} (vectors by their norm)")
     print(f"\nwrote {folder.path}/: sweep.json (every point's metrics), sweep.csv, sweep.png")
@@ -293,9 +310,9 @@ def cmd_sweep(args) -> int:
 def write_sweep_files(folder: OutputFolder, sweep) -> None:
     """``sweep.json``: each point with its values and its whole ``metrics.json``; ``sweep.csv``:
     one row per point, the swept parameters then the metric of each estimator."""
-    folder.text("sweep.json", json.dumps({"metric": sweep.metric, "points": [
+    folder.json("sweep.json", {"metric": sweep.metric, "points": [
         {"point": p, "values": v, "metrics": m.to_dict()} for (p, v), m in zip(sweep.rows, sweep.metrics)],
-        "failed_points": sweep.failed_points, "interrupted": sweep.interrupted}, indent=2, default=str))
+        "failed_points": sweep.failed_points, "interrupted": sweep.interrupted})
     keys = list(sweep.axes())
     labels = list(sweep.rows[0][1]) if sweep.rows else []
     buf = io.StringIO()
@@ -330,6 +347,7 @@ def cmd_replay(args) -> int:
         raise UsageError(f"no estimator '{name}' registered; choose one with --estimator: "
                           + ", ".join(base.available()))
     params = parse_settings(args.set)
+    folder = _open_folder(args, Path("reports") / f"replay_{Path(args.log).name.split('.')[0]}_{name}")
     log = load_ulog(args.log, allow_damaged=args.allow_damaged)
     for note in log.notes:
         print(f"warning: {note}", file=sys.stderr)
@@ -340,14 +358,12 @@ def cmd_replay(args) -> int:
                         align_s=args.align, progress=update)
     finally:
         bar.close()
-    folder = OutputFolder(Path(args.out) if args.out else
-                          Path("reports") / f"replay_{Path(args.log).name.split('.')[0]}_{name}")
     folder.clear_earlier()
     out = folder.path
     metrics = replay_metrics(result)
     record = provenance()
     metrics.update(wall_s=time.perf_counter() - t0, provenance=record)
-    folder.text("metrics.json", json.dumps(metrics, indent=2, default=str))
+    folder.json("metrics.json", metrics)
     folder.record(write_replay_report(out, result, metrics, record))
     print(f"{name} against PX4's vehicle_attitude, after {args.settle:g} s:")
     print(_table(*difference_table(metrics)))
@@ -437,7 +453,7 @@ def _number(kind, minimum=None, maximum=None, exclusive_minimum=None):
     return read
 
 
-RUNS = _number(int, minimum=1)
+RUNS = _number(int, minimum=1, maximum=MAX_RUNS)
 SEED = _number(int, minimum=0, maximum=MAX_SEED)
 WORKERS = _number(int, minimum=1, maximum=MAX_WORKERS)
 #: the Dask schemes a scheduler address may use
@@ -456,6 +472,24 @@ def scheduler_address(text: str) -> str:
         raise argparse.ArgumentTypeError(f"'{text}' is not a scheduler address (expected scheme://host:port, "
                                          f"scheme one of {', '.join(SCHEDULER_SCHEMES)}, e.g. tcp://10.0.0.5:8786)")
     return text
+
+
+#: the end of the --help of every command that writes an output folder
+WRITER_EPILOG = ("The output folder is locked while the command writes it: a second command writing "
+                 "there is refused (exit 2) with the holder's pid and start time; a lock left by a "
+                 "killed command is taken over. A non-empty folder that is not a navsim result is "
+                 "refused (exit 2, its files named) unless --force. Ctrl-C or SIGTERM (how Slurm, "
+                 "Kubernetes and Dask stop a job) stops it as an interrupt: what finished is kept "
+                 "(a run's chunks: --resume completes it), exit 130 for Ctrl-C, 143 for SIGTERM "
+                 "('terminated'); the worker processes end with it, also when it is killed.")
+
+
+def _writer_options(p) -> None:
+    """--force, and the epilog on locks and signals, of a command that writes a folder."""
+    p.add_argument("--force", action="store_true",
+                   help="write into --out even when it is a non-empty folder that is not a navsim "
+                   "result (its files of the same names are replaced)")
+    p.epilog = WRITER_EPILOG
 
 
 def _executor_options(p) -> None:
@@ -490,6 +524,7 @@ def _replay_parser(sub) -> None:
                    help="coarse-alignment window from the first sample, s (default 1)")
     p.add_argument("--allow-damaged", action="store_true",
                    help="replay what a truncated or corrupt log still holds instead of refusing it")
+    _writer_options(p)
     p.set_defaults(func=cmd_replay)
 
 
@@ -506,6 +541,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="output folder (default reports/<name>/flight)")
     p.add_argument("--rate-hz", type=_number(float, minimum=RATE_HZ[0], maximum=RATE_HZ[1]),
                    help=f"simulation and truth rate, {RATE_HZ[0]:g}-{RATE_HZ[1]:g} Hz (default: scenario's, 100)")
+    _writer_options(p)
     p.set_defaults(func=cmd_fly)
     p = sub.add_parser("run", help="run a scenario's Monte Carlo and write its report",
                        description="Fly the track (cached), emulate the sensors and run every "
@@ -523,6 +559,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true",
                    help="complete an interrupted run in --out: run only the chunks missing from "
                    "<out>/chunks (same scenario, seed and runs, else exit 2)")
+    _writer_options(p)
     p.set_defaults(func=cmd_run)
     p = sub.add_parser("sensors", help="emulate a scenario's sensors and plot them against the truth",
                        description="Fly the scenario's track, emulate its sensors for the Monte "
@@ -532,6 +569,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--runs", type=RUNS, help="number of runs (default: the scenario's montecarlo.runs)")
     p.add_argument("--seed", type=SEED, help="seed (default: the scenario's montecarlo.seed)")
     p.add_argument("--out", help="output folder (default reports/<name>/sensors)")
+    _writer_options(p)
     p.set_defaults(func=cmd_sensors)
     p = sub.add_parser("validate", help="check scenario files without running them",
                        description="Check scenario files; exit 2 on the first malformed one.")
@@ -544,6 +582,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=WORKERS, help="worker processes (default: the scenario's)")
     p.add_argument("--out", help="output folder (default reports/<sweep name>)")
     _executor_options(p)
+    _writer_options(p)
     p.set_defaults(func=cmd_sweep)
     _replay_parser(sub)
     p = sub.add_parser("schema", help="print the JSON Schema of scenario files",
@@ -580,6 +619,16 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    with stop_on_sigterm() as stop:
+        code = _run_command(args)
+    if stop.terminated and code in (130, TERMINATED_EXIT):
+        print("terminated (SIGTERM): what finished is kept", file=sys.stderr)
+        return TERMINATED_EXIT
+    return code
+
+
+def _run_command(args) -> int:
+    """``args.func(args)``, its errors as messages and exit codes; the folders it held closed."""
     try:
         return args.func(args)
     except NavsimError as exc:
@@ -588,9 +637,14 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:                     # the disk, a permission: the environment, not a bug
         print(f"error: {OutputError(exc.filename or '?', exc)}", file=sys.stderr)
         return OutputError.exit_code
+    except Terminated:
+        return TERMINATED_EXIT
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    finally:
+        while _OPEN:
+            _OPEN.pop().close()
 
 
 if __name__ == "__main__":

@@ -10,6 +10,46 @@ matplotlib.use("Agg")
 # point NAVSIM_CACHE at a folder of their own would otherwise compile the kernels again)
 os.environ.setdefault("NUMBA_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".pytest_cache" / "numba"))
 
+#: the checkout's output folder: tests write only under their tmp_path, never here
+CHECKOUT_REPORTS = Path(__file__).resolve().parents[1] / "reports"
+#: set to 1 (as .ci/run does) to fail a session that left files in :data:`CHECKOUT_REPORTS`
+STRICT_ENV = "NAVSIM_REQUIRE_CLEAN_CHECKOUT"
+_REPORTS_BEFORE = pytest.StashKey[set]()     # the listing when the session started
+_REPORTS_NEW = pytest.StashKey[list]()       # what the session added
+
+
+def _reports_listing() -> set:
+    return {str(p.relative_to(CHECKOUT_REPORTS)) for p in CHECKOUT_REPORTS.rglob("*")} \
+        if CHECKOUT_REPORTS.is_dir() else set()
+
+
+def pytest_sessionstart(session):
+    if not hasattr(session.config, "workerinput"):
+        session.config.stash[_REPORTS_BEFORE] = _reports_listing()
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """A test that left files or folders in the checkout's reports/ (a command run without
+    ``--out`` in the repository): named in the summary; the session fails under
+    ``NAVSIM_REQUIRE_CLEAN_CHECKOUT=1`` (CI)."""
+    if hasattr(session.config, "workerinput") or _REPORTS_BEFORE not in session.config.stash:
+        return
+    new = sorted(_reports_listing() - session.config.stash[_REPORTS_BEFORE])
+    session.config.stash[_REPORTS_NEW] = new
+    if new and os.environ.get(STRICT_ENV) == "1":
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    new = config.stash.get(_REPORTS_NEW, [])
+    if new:
+        terminalreporter.write_line(
+            f"the tests wrote into the checkout's {CHECKOUT_REPORTS}: {', '.join(new[:10])}"
+            + (f" and {len(new) - 10} more" if len(new) > 10 else "")
+            + " (a command without --out; give it a folder under tmp_path)"
+            + ("" if os.environ.get(STRICT_ENV) == "1" else f"; {STRICT_ENV}=1 fails the session"),
+            red=True, bold=True)
+
 
 def pytest_configure(config):
     """Compile the kernels once, in the controlling process before the workers start (each

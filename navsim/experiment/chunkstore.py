@@ -10,31 +10,46 @@ A chunk is the worker's :class:`~navsim.experiment.records.ChunkPart`; every fie
 :class:`~navsim.experiment.records.EstimatorHistory` round-trips exactly: arrays are stored as they are
 (no pickle), the per-run reset events, the NIS names and dimensions and the cost go to a JSON
 string inside the same file.
+
+Each chunk file also carries its identity (``ident``: the store's key, i.e. the scenario hash,
+seed, runs and chunk size, and the chunk's first and last run), checked whenever a chunk is
+read (resume, :meth:`ChunkStore.open`, :meth:`ChunkStore.parts`, :meth:`ChunkStore.merged`): a
+chunk of another run, a chunk whose runs are not the ones its name says, or an index listing
+chunks outside the run is refused with a :class:`ResumeError`, never merged. The store never
+deletes through a symbolic link: a ``chunks`` folder that is a link, or listed files that are
+links, are refused.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import os
 import re
+import stat
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from navsim.experiment.records import ARRAY_FIELDS, ChunkPart, EstimatorHistory, sum_cost
-from navsim.foundations.errors import NavsimError, OutputError
+from navsim.foundations.errors import OutputError, UsageError
 from navsim.foundations.outputs import temporary_name, write_atomic
 
 log = logging.getLogger(__name__)
 INDEX = "index.json"
 _ARRAYS = ARRAY_FIELDS
+#: the entry of a chunk file holding its identity (JSON: the store's key and ``chunk``)
+IDENT = "ident"
+#: the entries of a chunk file that are not arrays over its runs
+_META_ENTRIES = ("meta", IDENT)
+#: the index's entries -> the JSON type they must have (the key's and the chunk lists)
+INDEX_TYPES = {"scenario_hash": str, "seed": int, "runs": int, "chunk_runs": int, "chunks": dict, "failed": dict}
 
 
-class ResumeError(NavsimError):
-    """An output folder that cannot be resumed: missing, or written for another run."""
-
-    exit_code = 2
+class ResumeError(UsageError):
+    """A chunk folder that cannot be used: missing, written for another run, holding chunks of
+    another run, damaged in a way that cannot be repaired by running again."""
 
 
 def chunk_name(runs) -> str:
@@ -48,8 +63,14 @@ def _savez(path: Path, arrays: dict) -> None:
         np.savez(f, **arrays)
 
 
-def part_arrays(part: ChunkPart) -> dict:
-    """The arrays of a chunk part for :func:`numpy.savez`, with a JSON ``meta`` entry."""
+def job_chunks(runs: int, size: int) -> list[range]:
+    """Runs ``0 .. runs-1`` cut into chunks of ``size`` (``size`` at least 1)."""
+    return [range(a, min(a + size, runs)) for a in range(0, runs, size)]
+
+
+def part_arrays(part: ChunkPart, ident: dict | None = None) -> dict:
+    """The arrays of a chunk part for :func:`numpy.savez`, with a JSON ``meta`` entry and, with
+    ``ident`` (the store's key), the JSON identity entry :data:`IDENT`."""
     runs, hist, bias, calib = part.runs, part.histories, part.truth_bias, part.calibration
     arrays = {"runs": np.asarray(list(runs), dtype=np.int64)}
     meta = {"labels": list(hist), "bias": list(bias), "calibration": {}, "histories": []}
@@ -65,6 +86,10 @@ def part_arrays(part: ChunkPart) -> dict:
         meta["calibration"][name] = list(c)
         arrays.update({f"c{i}.{k}": np.asarray(v) for k, v in c.items()})
     arrays["meta"] = np.array(json.dumps(meta, default=float))
+    if ident is not None:
+        runs = list(part.runs)
+        arrays[IDENT] = np.array(json.dumps({**ident, "chunk": [int(runs[0]), int(runs[-1])]},
+                                            default=lambda v: v.item() if hasattr(v, "item") else str(v)))
     return arrays
 
 
@@ -128,7 +153,40 @@ def _readable(path: Path) -> bool:
 
 def _shared(key: str) -> bool:
     """Whether an array of a stored part is the same for every chunk (no leading run axis)."""
-    return key == "meta" or key.endswith((".t_s", ".turns"))
+    return key in _META_ENTRIES or key.endswith((".t_s", ".turns"))
+
+
+def check_index(index, path: Path) -> dict:
+    """``index`` (read from ``path``) if it is a chunk index: a mapping whose entries of
+    :data:`INDEX_TYPES` have their types (``runs`` at least 0, ``chunk_runs`` at least 1, the
+    chunk lists mapping names to text); a :class:`ResumeError` naming the entry otherwise."""
+    if not isinstance(index, dict):
+        raise ResumeError(f"{path}: not a chunk index (expected a JSON object, found {type(index).__name__})")
+    for key, tp in INDEX_TYPES.items():
+        if key not in index:
+            continue
+        value = index[key]
+        bad = not isinstance(value, tp) or isinstance(value, bool)
+        if not bad and tp is int:
+            bad = value < (1 if key == "chunk_runs" else 0)
+        if not bad and tp is dict:
+            bad = not all(isinstance(k, str) and isinstance(v, str) for k, v in value.items())
+        if bad:
+            what = {str: "text", int: "a whole number" + (" >= 1" if key == "chunk_runs" else " >= 0"),
+                    dict: "a mapping of chunk names to text"}[tp]
+            raise ResumeError(f"{path}: {key} is {value!r} (expected {what}); the folder was not written by "
+                              "this navsim: run without --resume into a fresh folder")
+    return index
+
+
+def _span(runs: list) -> str:
+    """``"a-b"`` of a list of runs (``"none"`` when empty)."""
+    return f"{runs[0]}-{runs[-1]}" if runs else "none"
+
+
+def _read_entry(data, name: str):
+    """A JSON entry of a chunk file, or None when the file has none."""
+    return json.loads(str(data[name])) if name in data.files else None
 
 
 class ChunkStore:
@@ -159,6 +217,7 @@ class ChunkStore:
         self.done: dict = {}         #: chunk name -> file name
         self.failed: dict = {}       #: chunk name -> error message
         self.read_only = False
+        self._refuse_links()
         if mode == "resume":
             self._reopen()
         else:
@@ -176,8 +235,10 @@ class ChunkStore:
         store = cls.__new__(cls)
         store.folder, store.read_only = Path(folder), True
         store.key = {k: v for k, v in index.items() if k not in ("chunks", "failed")}
-        listed = _chunk_files(index)
+        listed = store._check_listed(_chunk_files(index))
         store.done = {name: file for name, file in listed.items() if _readable(store.folder / file)}
+        for file in store._files():
+            store._check_file(file)
         failed = index.get("failed")
         store.failed = dict(failed) if isinstance(failed, dict) else {}
         return store
@@ -192,9 +253,75 @@ class ChunkStore:
             index = json.loads(path.read_text())
         except (OSError, ValueError) as exc:
             raise ResumeError(f"{path}: unreadable index ({exc})") from None
-        if not isinstance(index, dict):
-            raise ResumeError(f"{path}: not a chunk index (expected a JSON object)")
-        return index
+        return check_index(index, path)
+
+    def _refuse_links(self) -> None:
+        """A :class:`UsageError` when the folder, its index or a chunk file it lists is a
+        symbolic link (or not a plain file): writing or clearing it would reach another folder."""
+        if self.folder.is_symlink():
+            raise UsageError(f"{self.folder}: is a symbolic link (to {os.readlink(self.folder)}); navsim writes "
+                             "and removes chunks only in a folder of its own: remove the link, or write elsewhere "
+                             "with --out")
+        try:
+            index = self.read_index(self.folder) if not (self.folder / INDEX).is_symlink() else None
+        except ResumeError:
+            index = None
+        for file in (INDEX, *_chunk_files(index or {}).values()):
+            for path in (self.folder / file, temporary_name(self.folder / file)):
+                try:
+                    mode = os.lstat(path).st_mode
+                except OSError:
+                    continue
+                if not stat.S_ISREG(mode):
+                    kind = "a symbolic link" if stat.S_ISLNK(mode) else "not a plain file"
+                    raise UsageError(f"{path}: is {kind}; navsim writes and removes only plain files it wrote: "
+                                     "remove it, or write elsewhere with --out")
+
+    def _check_listed(self, listed: dict) -> dict:
+        """``listed`` (chunk name -> file) if every chunk is one of the run's
+        (:func:`job_chunks` of the key's ``runs`` and ``chunk_runs``); a :class:`ResumeError`
+        naming the first that is not."""
+        runs, size = self.key.get("runs"), self.key.get("chunk_runs")
+        if not (isinstance(runs, int) and isinstance(size, int) and size >= 1):
+            return listed
+        expected = {chunk_name(ch) for ch in job_chunks(runs, size)}
+        for name in sorted(set(listed) - expected, key=lambda n: chunk_runs(n)[0]):
+            raise ResumeError(f"{self.folder / INDEX}: lists chunk {name}, which is not a chunk of this run "
+                              f"({runs} runs in chunks of {size}); the folder was altered: run again without "
+                              "--resume")
+        return listed
+
+    def _check_file(self, file: str) -> None:
+        """Open a stored chunk and check it (:meth:`_check_data`)."""
+        with np.load(self.folder / file, allow_pickle=False) as data:
+            self._check_data(file, data)
+
+    def _check_data(self, file: str, data) -> None:
+        """A :class:`ResumeError` naming ``file`` unless the chunk's runs are those of its name and
+        its identity (:data:`IDENT`) matches the store's key. A read-only store accepts a chunk
+        without an identity (written by an older navsim) with a warning."""
+        path = self.folder / file
+        named = list(chunk_runs(file[len("chunk_"):-len(".npz")]))
+        try:
+            held = [int(r) for r in np.asarray(data["runs"]).reshape(-1)]
+            ident = _read_entry(data, IDENT)
+        except (KeyError, ValueError, TypeError) as exc:
+            raise ResumeError(f"{path}: not a navsim chunk ({type(exc).__name__}: {exc})") from None
+        if held != named:
+            raise ResumeError(f"{path}: holds runs {_span(held)} but its name says {_span(named)}; the folder "
+                              "was altered: run again without --resume")
+        if ident is None or not isinstance(ident, dict):
+            if self.read_only:
+                log.warning("%s: carries no identity (written by an older navsim); not checked", path)
+                return
+            raise ResumeError(f"{path}: carries no identity (scenario hash, seed, runs); it was not written by "
+                              "this navsim for this run: run again without --resume")
+        want = {**self.key, "chunk": [named[0], named[-1]]}
+        diff = [f"{k} {ident.get(k)!r} in the chunk, {v!r} in the index" for k, v in want.items()
+                if ident.get(k) != v]
+        if diff:
+            raise ResumeError(f"{path}: belongs to another run ({'; '.join(diff)}); it is not merged: remove it, "
+                              "or run again without --resume")
 
     def _reopen(self) -> None:
         index = self.read_index(self.folder)
@@ -204,14 +331,17 @@ class ChunkStore:
         if diff:
             raise ResumeError(f"{self.folder} holds another run ({'; '.join(diff)}); resume it with the same "
                               "scenario, seed, runs and chunk size, or run without --resume")
-        listed = _chunk_files(index)
+        listed = self._check_listed(_chunk_files(index))
         self.done = {name: file for name, file in listed.items() if _readable(self.folder / file)}
         for name in sorted(set(listed) - set(self.done)):
             log.warning("%s: chunk %s is missing or damaged; its runs are run again", self.folder, name)
+        for file in self._files():           # before anything runs: never merged with another run's
+            self._check_file(file)
 
     def _clear(self) -> None:
-        """Remove the chunk files the folder's index lists (and their temporary files), nothing
-        else: a folder without an index is left as it is."""
+        """Remove the chunk files the folder's index lists (and their temporary files) that are
+        plain files (``lstat``: a link is never followed; :meth:`_refuse_links` refused them),
+        nothing else: a folder without an index is left as it is."""
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
             index = self.read_index(self.folder)
@@ -220,7 +350,10 @@ class ChunkStore:
         for file in _chunk_files(index or {}).values():
             for path in (self.folder / file, temporary_name(self.folder / file)):
                 try:
-                    path.unlink(missing_ok=True)
+                    if stat.S_ISREG(os.lstat(path).st_mode):
+                        path.unlink()
+                except FileNotFoundError:
+                    continue
                 except OSError as exc:
                     raise OutputError(path, exc) from None
 
@@ -242,7 +375,7 @@ class ChunkStore:
         self._writable()
         name = chunk_name(part.runs)
         file = f"chunk_{name}.npz"
-        write_atomic(self.folder / file, lambda p: _savez(p, part_arrays(part)), fsync=True)
+        write_atomic(self.folder / file, lambda p: _savez(p, part_arrays(part, self.key)), fsync=True)
         self.done[name] = file
         self.failed.pop(name, None)
         self._write_index()
@@ -264,12 +397,42 @@ class ChunkStore:
         in run order (one chunk in memory at a time)."""
         for file in self._files():
             with np.load(self.folder / file, allow_pickle=False) as data:
+                self._check_data(file, data)
                 part = part_from_arrays({k: data[k] for k in data.files})
             yield part
 
     def runs(self) -> list:
         """The run indices stored, in order."""
         return [r for n in self._names() for r in chunk_runs(n)]
+
+    def _copy_rows(self, file: str, first: str, data, out: dict, offset: int) -> int:
+        """Copy a chunk's rows into the merged arrays ``out`` at ``offset``; returns its number of
+        runs. A chunk whose fields, shapes, epochs or estimators differ from the first chunk's
+        (``first``) is refused with a :class:`ResumeError` (else rows would stay uninitialised or
+        mix two runs)."""
+        path = self.folder / file
+        if set(data.files) != set(out):
+            raise ResumeError(f"{path}: holds other fields than {first} "
+                              f"({', '.join(sorted(set(data.files) ^ set(out)))})")
+        labels = json.loads(str(data["meta"])).get("labels")
+        if labels != json.loads(str(out["meta"])).get("labels"):
+            raise ResumeError(f"{path}: holds the estimators {labels}, {first} others; it is not merged")
+        n = len(data["runs"])
+        for k in data.files:
+            if k in _META_ENTRIES:
+                continue
+            a, want = data[k], out[k]
+            if _shared(k):
+                if a.shape != want.shape or not np.array_equal(a, want, equal_nan=a.dtype.kind == "f"):
+                    raise ResumeError(f"{path}: {k} differs from {first}'s ({a.shape[0] if a.ndim else a} "
+                                      f"against {want.shape[0] if want.ndim else want} epochs or other times); "
+                                      "it is of another run and is not merged")
+            elif a.shape[:1] != (n,) or a.shape[1:] != want.shape[1:] or offset + n > len(want):
+                raise ResumeError(f"{path}: {k} has the shape {a.shape}, {first}'s rows {want.shape[1:]} "
+                                  f"({n} runs); it is of another run and is not merged")
+            else:
+                want[offset:offset + n] = a
+        return n
 
     def merged(self, limit: int | None = None) -> ChunkPart | None:
         """The stored chunks as one :class:`~navsim.experiment.records.ChunkPart`, or None:
@@ -294,15 +457,9 @@ class ChunkStore:
         metas, offset = [], 0
         for file in files:
             with np.load(self.folder / file, allow_pickle=False) as data:
-                if set(data.files) != set(out):     # else rows would stay uninitialised
-                    raise ResumeError(f"{self.folder / file}: holds other fields than {files[0]} "
-                                      f"({', '.join(sorted(set(data.files) ^ set(out)))})")
-                n = len(data["runs"])
-                for k in data.files:
-                    if not _shared(k):
-                        out[k][offset:offset + n] = data[k]
+                self._check_data(file, data)
+                offset += self._copy_rows(file, files[0], data, out, offset)
                 metas.append(json.loads(str(data["meta"])))
-                offset += n
         for i, h in enumerate(meta["histories"]):
             parts = [m["histories"][i] for m in metas]
             h["cost"] = sum_cost([m["cost"] for m in parts])

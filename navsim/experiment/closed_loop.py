@@ -53,7 +53,7 @@ from navsim.flight.simulator import Aircraft, Watchdog
 from navsim.flight.track import Segment
 from navsim.flight.truth import Truth, truth_from_rows
 from navsim.foundations import atmosphere, earth
-from navsim.foundations.config import Node, close_match
+from navsim.foundations.config import MAX_DURATION_S, Node, close_match
 from navsim.foundations.errors import FlightError, ScenarioError
 from navsim.foundations.transform import quat_from_euler
 from navsim.navigation.estimators import factory
@@ -89,7 +89,7 @@ def parse_closed_loop(node: Node, labels: list[str], sensors, track, duration_s:
         raise node.error(f"'{fly_on}' is not an estimator of this scenario", "fly_on",
                          expected="an estimator label or 'truth'", hint=close_match(fly_on, labels))
     default_limit = (duration_s * 1.5 + 300.0) if math.isfinite(duration_s) else 3600.0
-    limit = node.get("time_limit_s", float, default_limit, exclusive_minimum=0.0)
+    limit = node.get("time_limit_s", float, default_limit, exclusive_minimum=0.0, maximum=MAX_DURATION_S)
     if track.start.type != "air":
         what = "starts on a launcher" if track.start.type == "launch" else "is parked on the ground"
         raise ScenarioError(what, file=node.file, key="track.start.type", expected="with closed_loop, an air start",
@@ -126,7 +126,7 @@ def parse_closed_loop(node: Node, labels: list[str], sensors, track, duration_s:
                      "lon_deg": sub.get("lon_deg", float, minimum=-180.0, maximum=180.0)}
         else:
             point = {"north_m": sub.get("north_m", float), "east_m": sub.get("east_m", float)}
-        rtl = ReturnToLand(gnss=gnss, lost_s=sub.get("lost_s", float, 10.0, exclusive_minimum=0.0),
+        rtl = ReturnToLand(gnss=gnss, lost_s=sub.get("lost_s", float, 10.0, exclusive_minimum=0.0, maximum=MAX_DURATION_S),
                            point=point, alt_m=sub.get("alt_m", float, None),
                            acceptance_m=sub.get("acceptance_m", float, 0.0, minimum=0.0),
                            area_m=sub.get("area_m", float, 150.0, exclusive_minimum=0.0))

@@ -7,21 +7,127 @@ with the workers: on a local cluster as the path of its cached ``.npz`` (the wor
 on a remote scheduler the :class:`~navsim.flight.truth.Truth` is scattered to every worker,
 so the workers need no shared filesystem. A chunk whose task raises or whose worker dies is
 retried once; a chunk that fails twice marks its runs failed and the others complete.
+:func:`lend_client` connects (or starts the cluster) before the caller touches its output
+folder, so an unreachable scheduler deletes nothing.
+
+How runs stop, whatever runs them: :func:`stop_on_sigterm` makes a SIGTERM (Slurm, Kubernetes,
+Dask stopping a job) act as Ctrl-C does (:class:`Terminated`, a ``KeyboardInterrupt``: the
+finished chunks are kept), and :func:`children_die_with_parent` makes the processes forked for
+a run (the local pool's workers) end with the process that started them, also when that one is
+killed with SIGKILL.
 """
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import ctypes.util
+import multiprocessing
+import os
+import signal
+import threading
+import time
 import uuid
 
-from navsim.foundations.errors import NavsimError
+from navsim.foundations.errors import UsageError
 
 RETRIES = 1
+#: seconds a connection to a Dask scheduler may take
+CONNECT_TIMEOUT_S = 10
+#: exit code of a command stopped by SIGTERM (128 + 15, as a shell reports it)
+TERMINATED_EXIT = 128 + signal.SIGTERM
+#: how often a worker without ``prctl`` looks whether its parent is still there, s
+PARENT_POLL_S = 1.0
+_PR_SET_PDEATHSIG = 1
 
 
-class ExecutorError(NavsimError):
-    """The Dask executor cannot start: the extra is missing or the scheduler is unreachable."""
+class ExecutorError(UsageError):
+    """The Dask executor cannot start: the extra is missing, the scheduler is unreachable or
+    is not a Dask scheduler."""
 
     exit_code = 2
+
+
+class Terminated(KeyboardInterrupt):
+    """A SIGTERM, handled as Ctrl-C is (what finished is kept) and reported as terminated."""
+
+
+class StopState:
+    """What :func:`stop_on_sigterm` saw: ``terminated`` once a SIGTERM came."""
+
+    terminated = False
+
+
+@contextlib.contextmanager
+def stop_on_sigterm():
+    """While inside: a SIGTERM raises :class:`Terminated` in the main thread (and terminates the
+    local pool's workers); yields a :class:`StopState`. Nothing changes outside the main thread."""
+    state = StopState()
+
+    def handler(signum, frame):
+        state.terminated = True
+        for child in multiprocessing.active_children():  # the pool's workers stop with us
+            if "Dask" not in child.name:                  # a Dask cluster is closed by its client
+                with contextlib.suppress(OSError, AttributeError):
+                    child.terminate()
+        raise Terminated()
+
+    if threading.current_thread() is not threading.main_thread():
+        yield state
+        return
+    earlier = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield state
+    finally:
+        signal.signal(signal.SIGTERM, earlier)
+
+
+def die_with_parent() -> None:
+    """In a worker process: end (SIGTERM, its default action) when the parent ends. Linux:
+    ``prctl(PR_SET_PDEATHSIG)``; elsewhere a thread that polls the parent's pid."""
+    with contextlib.suppress(ValueError):                # not the parent's Terminated handler
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    parent = os.getppid()
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or None, use_errno=True)
+        if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0) == 0:
+            if os.getppid() != parent:                   # it died before prctl took effect
+                os.kill(os.getpid(), signal.SIGTERM)
+            return
+    except (OSError, AttributeError):
+        pass
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True, name="navsim-parent-watch").start()
+
+
+def _watch_parent(parent: int) -> None:
+    while os.getppid() == parent:
+        time.sleep(PARENT_POLL_S)
+    os.kill(os.getpid(), signal.SIGTERM)
+
+
+_DIE_WITH_PARENT = []
+
+
+def _after_fork_in_child() -> None:
+    if _DIE_WITH_PARENT:
+        _DIE_WITH_PARENT.clear()
+        die_with_parent()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+@contextlib.contextmanager
+def children_die_with_parent():
+    """While inside: every process forked from this one (the local pool's workers, started with
+    ``fork``) calls :func:`die_with_parent` first, so none outlives a killed run."""
+    _DIE_WITH_PARENT.append(True)
+    try:
+        yield
+    finally:
+        with contextlib.suppress(IndexError):
+            _DIE_WITH_PARENT.pop()
 
 
 def import_distributed():
@@ -43,9 +149,14 @@ def open_client(workers: int, scheduler: str | None):
     distributed = import_distributed()
     if scheduler:
         try:
-            return distributed.Client(scheduler, timeout="30s"), None
+            return distributed.Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s"), None
         except (OSError, TimeoutError) as exc:
-            raise ExecutorError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+            raise ExecutorError(f"cannot reach the Dask scheduler at {scheduler} within {CONNECT_TIMEOUT_S} s: "
+                                f"{exc}") from None
+        except Exception as exc:             # garbage read as a message (a 3 EiB frame): not Dask
+            raise ExecutorError(f"{scheduler} is not a Dask scheduler (its answer could not be read: "
+                                f"{type(exc).__name__}: {exc}); give the address of a running "
+                                "dask scheduler (tcp://host:8786)") from None
     import dask
 
     # a chunk whose worker process dies is retried once too, then flagged (KilledWorker); one
@@ -99,9 +210,10 @@ def run_chunks_dask(fn, chunks, truth, truth_path, rest: tuple, workers: int, sc
         return parts, failed, interrupted
     distributed = import_distributed()
     keep = on_part or parts.append
-    client, cluster = open_client(workers, scheduler)
+    lent = _LENT.get((workers, scheduler))
+    client, cluster = lent if lent is not None else open_client(workers, scheduler)
     try:
-        shared = client.scatter(truth, broadcast=True) if scheduler else str(truth_path)
+        shared = client.scatter(truth, broadcast=True) if scheduler or truth_path is None else str(truth_path)
         tag = uuid.uuid4().hex[:12]                  # keys unique on a scheduler shared by many runs
         futures = {client.submit(_task, fn, shared, rest, ch, retries=RETRIES, pure=False,
                                  key=f"navsim-chunk-{ch[0]}-{ch[-1]}-{tag}"): ch for ch in chunks}
@@ -119,7 +231,33 @@ def run_chunks_dask(fn, chunks, truth, truth_path, rest: tuple, workers: int, sc
             interrupted = True
             client.cancel(list(futures))
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        if lent is None:
+            _close(client, cluster)
     return parts, failed, interrupted
+
+
+def _close(client, cluster) -> None:
+    client.close()
+    if cluster is not None:
+        cluster.close()
+
+
+#: (workers, scheduler) -> (client, cluster) opened by :func:`lend_client`
+_LENT: dict = {}
+
+
+@contextlib.contextmanager
+def lend_client(workers: int, scheduler: str | None):
+    """Connect to ``scheduler`` (or start the ``LocalCluster`` of ``workers``) now, and have
+    :func:`run_chunks_dask` use that client while inside; closed on leaving. An
+    :class:`ExecutorError` when it cannot start, before the caller has touched anything."""
+    if (workers, scheduler) in _LENT:
+        yield _LENT[(workers, scheduler)][0]
+        return
+    client, cluster = open_client(workers, scheduler)
+    _LENT[(workers, scheduler)] = (client, cluster)
+    try:
+        yield client
+    finally:
+        del _LENT[(workers, scheduler)]
+        _close(client, cluster)

@@ -6,9 +6,12 @@ Arrays carry the run axis first: ``(B, E, ...)`` over the ``B`` runs and the ``E
 
 from __future__ import annotations
 
+import threading
+import time
 from dataclasses import dataclass, field, fields
 
 import numpy as np
+from numba.core import event as numba_event
 
 #: the states of :attr:`EstimatorHistory.sigma`'s last axis
 SIGMA_STATES = ("att_N", "att_E", "att_D", "vel_N", "vel_E", "vel_D", "pos_N", "pos_E", "pos_D")
@@ -47,7 +50,9 @@ class EstimatorHistory:
     gyro_bias_sigma: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "rad/s", default=None)
     accel_bias_sigma: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "m/s^2", default=None)
     #: CPU seconds spent in ``propagate`` and in the epochs (predict + corrections), summed over
-    #: the batches, and the number of runs and filter epochs they covered (:func:`sum_cost`)
+    #: the batches, and the number of runs and filter epochs they covered (:func:`sum_cost`);
+    #: the seconds compiling kernels inside those calls are apart, in ``compile_s``
+    #: (:func:`compute_clock`)
     cost: dict | None = None
     #: roll, pitch, yaw of the solution minus the truth's, wrapped to [-pi, pi)
     euler_err_rad: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "rad", default=None)
@@ -79,7 +84,45 @@ def sum_cost(costs):
         return None
     return {"propagate_s": sum(c["propagate_s"] for c in costs), "epoch_s": sum(c["epoch_s"] for c in costs),
             "runs": sum(c["runs"] for c in costs), "epochs": costs[0]["epochs"],
-            "batches": sum(c["batches"] for c in costs)}
+            "batches": sum(c["batches"] for c in costs),
+            "compile_s": sum(c.get("compile_s", 0.0) for c in costs)}
+
+
+class _CompileTimer(numba_event.Listener):
+    """Seconds this process spent in numba's compiler (compiling kernels, or loading them from
+    its cache): the outermost holds of its compiler lock, summed, per thread."""
+
+    def __init__(self):
+        self._local = threading.local()
+        self.total_s = 0.0
+
+    def on_start(self, event):
+        local = self._local
+        local.depth = getattr(local, "depth", 0) + 1
+        if local.depth == 1:
+            local.t0 = time.perf_counter()
+
+    def on_end(self, event):
+        local = self._local
+        local.depth -= 1
+        if local.depth == 0:
+            self.total_s += time.perf_counter() - local.t0
+
+
+_COMPILE_TIMER = _CompileTimer()
+numba_event.register("numba:compiler_lock", _COMPILE_TIMER)
+
+
+def compile_seconds() -> float:
+    """Seconds this process has spent compiling (or loading compiled) numba kernels so far."""
+    return _COMPILE_TIMER.total_s
+
+
+def compute_clock() -> float:
+    """:func:`time.perf_counter` less :func:`compile_seconds`: the differences of two readings
+    are the time spent computing, without the kernels' one-off compilation (the cost of a run,
+    :attr:`EstimatorHistory.cost`, never counts it; its ``compile_s`` does, apart)."""
+    return time.perf_counter() - _COMPILE_TIMER.total_s
 
 
 @dataclass

@@ -31,10 +31,9 @@ metric times the factor.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-from navsim.foundations.config import Node, close_match
+from navsim.foundations.config import Node, check_number, check_numbers, close_match
 
 RULES = ("at_most", "at_least", "close", "none")
 DEFAULT_TOLERANCE = 0.25
@@ -62,17 +61,17 @@ class Reference:
     checks: tuple[PaperCheck, ...]
 
 
-def _number(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-
-
 def _value(node: Node, key: str):
-    """A number or a list of three at ``key``."""
+    """A number or a list of three at ``key`` (each within the global bounds of
+    :func:`~navsim.foundations.config.check_number`)."""
     value = node.data.get(key)
     node._seen.add(key)
-    if _number(value) or (isinstance(value, list) and len(value) == 3 and all(map(_number, value))):
-        return value
-    raise node.error(f"is {value!r}", key, expected="a finite number or a list of three")
+    if value is None:
+        raise node.missing(key, "a finite number or a list of three")
+    err = lambda m, e: node.error(m, key, expected=f"a finite number or a list of three ({e})")
+    if isinstance(value, list):
+        return check_numbers(value, 3, error=err)
+    return check_number(value, float, error=err)
 
 
 def _rule(node: Node, default: str = "none", tolerance: float = DEFAULT_TOLERANCE) -> tuple[str, float]:

@@ -13,14 +13,17 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import logging
 import os
+import uuid
+import zipfile
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from navsim.experiment.chunkstore import chunk_name
+from navsim.experiment.chunkstore import chunk_name, job_chunks
 from navsim.experiment.closed_loop import end_records, fly_batch
 from navsim.experiment.driver import run_batch
 from navsim.experiment.executors import run_chunks_dask
@@ -35,6 +38,8 @@ from navsim.navigation.magcal import calibration_history
 from navsim.sensors import emulate
 from navsim.sensors.imu import ImuStream, emulate_imu, seen_bias
 from navsim.version import __version__
+
+log = logging.getLogger(__name__)
 
 #: runs per chunk, by measurement (benchmarks/chunk_size.py, P0, 1000 runs, 2 workers): 125 runs
 #: 21.0 s, 250 runs 19.0 s, 500 runs 18.8 s with a worker's peak memory 505 -> 813 MB
@@ -94,20 +99,44 @@ def flight_key(config) -> str:
     return h.hexdigest()[:20]
 
 
-def cached_flight(config, progress=None) -> tuple[Truth, Path, bool]:
-    """The truth of ``config``, flown or read from the cache; returns (truth, path, was_cached)."""
-    path = cache_dir() / "flights" / f"{flight_key(config)}.npz"
-    if path.is_file():
-        try:
-            return Truth.load(path), path, True
-        except (OSError, ValueError, KeyError):
-            path.unlink(missing_ok=True)
+def cached_flight(config, progress=None) -> tuple[Truth, Path | None, bool]:
+    """The truth of ``config``, flown or read from the cache; returns (truth, path, was_cached),
+    ``path`` None where the cache folder is unusable (:func:`cache_dir` warned; flown each time).
+
+    A cached flight carries its key and a SHA-256 of its contents (:meth:`Truth.save`); one
+    that is damaged (truncated), foreign (another flight's under this key) or of an older
+    navsim is flown again and replaced, with a warning. It is written under a name of its own
+    (two runs flying the same flight at once never share a file) and renamed into place."""
+    key = flight_key(config)
+    folder = cache_dir("flights")
+    if folder is None:                   # an unusable cache (warned): flown, not cached
+        return fly(config, progress=progress), None, False
+    path = folder / f"{key}.npz"
+    truth = _read_cached(path, key)
+    if truth is not None:
+        return truth, path, True
     truth = fly(config, progress=progress)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp.npz")
-    truth.save(tmp)
-    os.replace(tmp, path)
+    tmp = path.with_name(f".{key}.{os.getpid()}.{uuid.uuid4().hex}.tmp.npz")
+    try:
+        truth.save(tmp, key=key)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return truth, path, False
+
+
+def _read_cached(path: Path, key: str) -> Truth | None:
+    """The cached flight ``key`` at ``path`` if it is there and checks (:meth:`Truth.load`), else
+    None (a warning when it was there but unusable)."""
+    if not path.is_file():
+        return None
+    try:
+        return Truth.load(path, key=key)
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        log.warning("%s: the cached flight is unusable (%s); flying it again", path, exc)
+        return None
 
 
 @dataclass
@@ -228,7 +257,7 @@ def chunk_ranges(runs: int, size: int) -> list[range]:
     """Runs ``0 .. runs-1`` cut into chunks of ``size``."""
     if size < 1:
         raise UsageError(f"chunk size must be at least 1, not {size}")
-    return [range(a, min(a + size, runs)) for a in range(0, runs, size)]
+    return job_chunks(runs, size)
 
 
 def _chunk_failures(chunks, failed: dict) -> dict:
@@ -271,7 +300,7 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: i
             _chunk, pending, truth, truth_path, (scenario, seed), workers, scheduler, progress, on_part)
     else:
         parts, failed, interrupted = run_chunks(
-            _chunk, pending, lambda ch, remote: (str(truth_path) if remote else truth, scenario, seed, ch),
+            _chunk, pending, lambda ch, remote: (str(truth_path) if remote and truth_path else truth, scenario, seed, ch),
             workers, progress, on_part)
     if store is not None:
         store.flag(_chunk_failures(pending, failed))

@@ -33,12 +33,22 @@ from navsim.flight.environment import parse_environment
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import FlightConfig
 from navsim.flight.track import nominal_duration_s, parse_track
-from navsim.foundations.config import Node, close_match, load_yaml, plain_name
+from navsim.foundations.config import (
+    MAX_DURATION_S,
+    MAX_RATE_HZ,
+    MAX_RUNS,
+    Node,
+    check_number,
+    check_numbers,
+    close_match,
+    load_yaml,
+    plain_name,
+)
 from navsim.foundations.errors import ScenarioError
 from navsim.navigation.estimators.factory import parse_estimators
 from navsim.navigation.estimators.measurements import measurement_class
 from navsim.sensors import HEIGHT_FIELDS, VELOCITY_FIELDS, output_fields, parse_sensors
-from navsim.sensors.base import check_faults
+from navsim.sensors.base import check_faults, decimation
 
 
 @dataclass
@@ -88,14 +98,13 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     runs, seed, workers = _montecarlo(node.child("montecarlo", None))
     estimators = _estimators(node, sensors, file)
     initial = _initial(node.child("initial_errors", None))
-    duration = nominal_s = nominal_duration_s(track)
-    if node.data.get("closed_loop") is not None:
-        duration = math.inf           # each run's flight ends where its navigation takes it
+    nominal_s = _duration(track, file)
     settle_s, windows = _metrics(node.child("metrics", None))
     reference = parse_reference(node.child("reference", None), [e.label for e in estimators],
                                 lambda path, key: check_metric_path(path, windows, file=node.file, key=key))
     report = _report(node.child("report", None))
     rate_hz = _rate_hz(node.child("flight", None))
+    _check_rates(sensors, rate_hz, file)
     closed_loop = None
     cl_node = node.child("closed_loop", None)
     if cl_node is not None:
@@ -109,8 +118,32 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
                         path=Path(file) if file else None, raw=data, sensors=sensors, runs=runs, seed=seed,
                         workers=workers, estimators=estimators, initial=initial, settle_s=settle_s,
                         windows=windows, reference=reference, report=report, closed_loop=closed_loop)
-    check_scenario(scenario, duration)
+    check_scenario(scenario, nominal_s)   # closed loop too: its windows lie within the track as planned
     return scenario
+
+
+def _duration(track, file: str | None) -> float:
+    """The track's nominal duration, at most :data:`MAX_DURATION_S`."""
+    duration = nominal_duration_s(track)
+    if not duration <= MAX_DURATION_S:
+        raise ScenarioError(f"lasts {duration:.6g} s at its speeds", file=file, key="track",
+                            expected=f"a flight of at most {MAX_DURATION_S:g} s")
+    return duration
+
+
+def _check_rates(sensors, rate_hz: float, file: str | None) -> None:
+    """Each sensor samples the truth at its rate: at most the flight's (truth) rate, dividing it."""
+    for cfg in sensors:
+        rate = cfg.spec.rate_hz
+        key = f"sensors.{cfg.name}.rate_hz"
+        if rate > rate_hz + 1e-9:
+            raise ScenarioError(f"is {rate:g} Hz, above the flight's (truth) rate {rate_hz:g} Hz", file=file, key=key,
+                                expected=f"at most flight.rate_hz ({rate_hz:g} Hz), dividing it",
+                                hint=f"flight: {{rate_hz: {rate:g}}}, or a lower sensor rate")
+        try:
+            decimation(rate_hz, rate, cfg.name)
+        except ScenarioError as exc:
+            raise exc.with_file(file or "<scenario>") from None
 
 
 def _name(node: Node, file: str | None) -> str:
@@ -151,7 +184,7 @@ def _montecarlo(mc: Node | None) -> tuple:
     """``montecarlo: {runs, seed, workers}`` as a tuple (defaults 1, 0, 1)."""
     if mc is None:
         return 1, 0, 1
-    runs = mc.get("runs", int, 1, minimum=1)
+    runs = mc.get("runs", int, 1, minimum=1, maximum=MAX_RUNS)
     seed = mc.get("seed", int, 0, minimum=0, maximum=MAX_SEED)
     workers = mc.get("workers", int, 1, minimum=1, maximum=MAX_WORKERS)
     mc.done()
@@ -175,7 +208,7 @@ def _metrics(node: Node | None) -> tuple:
     """``metrics: {settle_s, windows}`` as ``(settle_s, windows)``."""
     if node is None:
         return 0.0, ()
-    settle_s = node.get("settle_s", float, 0.0, minimum=0.0)
+    settle_s = node.get("settle_s", float, 0.0, minimum=0.0, maximum=MAX_DURATION_S)
     windows = _windows(node)
     node.done()
     return settle_s, windows
@@ -191,7 +224,7 @@ def _report(node: Node | None) -> dict:
     if not (isinstance(fmts, list) and fmts and all(f in ("pdf", "png") for f in fmts)):
         raise node.error(f"is {fmts!r}", "formats", expected="a list of pdf and/or png")
     report["formats"] = fmts
-    report["runs_plotted"] = node.get("runs_plotted", int, 5, minimum=0)
+    report["runs_plotted"] = node.get("runs_plotted", int, 5, minimum=0, maximum=MAX_RUNS)
     node.done()
     return report
 
@@ -218,11 +251,13 @@ def _check_start(track, environment, file) -> None:
 
 
 def check_scenario(scenario: Scenario, duration_s: float) -> None:
-    """The checks that need the whole scenario and its flight's duration: sensor faults and
-    ``metrics.settle_s`` within the flight, each estimator's period a whole number of IMU
-    steps, each measurement's ``field`` one its sensor produces.
+    """The checks that need the whole scenario and its flight's duration: every time window
+    (sensor faults, ``metrics.settle_s``, the metric windows) within the flight (a closed-loop
+    metric window may end up to ``closed_loop.time_limit_s``), each estimator's period a whole
+    number of IMU steps, each measurement's ``field`` one its sensor produces.
 
-    :func:`parse_scenario` runs it with the track's nominal duration; ``navsim run`` runs it
+    :func:`parse_scenario` runs it with the track's nominal duration (closed loop too);
+    ``navsim run`` runs it
     again with the duration actually flown, before any sensor is emulated. Raises
     :class:`ScenarioError` naming the scenario file and the key.
     """
@@ -236,12 +271,15 @@ def check_scenario(scenario: Scenario, duration_s: float) -> None:
         raise ScenarioError(f"is {scenario.settle_s:g} s, not before the end of the flight ({duration_s:.0f} s)",
                             file=file, key="metrics.settle_s",
                             expected=f"a time within the flight (0-{duration_s:.0f} s)")
-    for name, a, b in scenario.windows:
-        if b > duration_s + 1e-6:
-            i = [w[0] for w in scenario.windows].index(name)
-            raise ScenarioError(f"is {b:g} s, after the end of the flight ({duration_s:.0f} s)", file=file,
-                                key=f"metrics.windows[{i}].end_s",
-                                expected=f"a time within the flight (0-{duration_s:.0f} s)")
+    # a closed-loop flight ends where its navigation takes it, at the latest at its time limit
+    last_s = scenario.closed_loop.time_limit_s if scenario.closed_loop is not None else duration_s
+    for i, (name, a, b) in enumerate(scenario.windows):
+        for key, t, end in (("start_s", a, duration_s), ("end_s", b, last_s + 1e-6)):
+            if t >= end:
+                raise ScenarioError(f"window '{name}' [{a:g}, {b:g}] s {'starts' if key == 'start_s' else 'ends'} "
+                                    f"after the end of the flight ({end:.6g} s)", file=file,
+                                    key=f"metrics.windows[{i}].{key}",
+                                    expected=f"a window within the flight (0 to {end:.6g} s)")
     imu = [c for c in scenario.sensors if c.kind == "imu"]
     if not scenario.estimators or not imu:
         return
@@ -295,23 +333,30 @@ ARCSEC = math.pi / 180 / 3600
 #: the most worker processes, the largest seed, the simulation (truth) rate range in Hz
 MAX_WORKERS = 256
 MAX_SEED = 2**63 - 1
-RATE_HZ = (20.0, 1000.0)
+RATE_HZ = (20.0, MAX_RATE_HZ)
 #: the lowest an air start may be above the surface, m
 MIN_START_AGL_M = 10.0
 
 
+#: the largest initial error (1-sigma per axis) of each kind: position m, velocity m/s,
+#: attitude arcsec (30 deg: beyond it an error-state filter's small angles do not hold)
+MAX_INITIAL = {"pos_m": 10_000.0, "vel_mps": 50.0, "att_arcsec": 30 * 3600.0}
+
+
 def _three(node, key, default, scale=1.0):
+    """``key``: a non-negative number or three (N, E, D), at most ``MAX_INITIAL[key]``."""
     node._seen.add(key)
     v = node.data.get(key, default)
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) or (
-        isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v))
-    if not ok or not np.all(np.isfinite(v)) or np.any(np.asarray(v, float) < 0):
-        raise node.error(f"is {v!r}", key, expected="a non-negative number or a list of three (N, E, D)")
-    return np.broadcast_to(np.asarray(v, float) * scale, (3,)).copy()
+    err = lambda m, e: node.error(m, key, expected=f"a non-negative number or a list of three (N, E, D): {e}")
+    bounds = dict(minimum=0.0, maximum=MAX_INITIAL[key])
+    values = (check_numbers(v, 3, error=err, **bounds) if isinstance(v, list)
+              else [check_number(v, float, error=err, **bounds)])
+    return np.broadcast_to(np.asarray(values, float) * scale, (3,)).copy()
 
 
 def _initial(node):
-    """``initial_errors: {pos_m, vel_mps, att_arcsec, fixed}`` (1-sigma, NED axes)."""
+    """``initial_errors: {pos_m, vel_mps, att_arcsec, fixed}`` (1-sigma, NED axes, within
+    :data:`MAX_INITIAL`)."""
     if node is None:
         return InitialErrors()
     out = InitialErrors(pos_m=_three(node, "pos_m", 0.0), vel_mps=_three(node, "vel_mps", 0.0),
@@ -333,8 +378,8 @@ def _windows(node):
         if name in names:
             raise w.error(f"'{name}' is used twice", "name", expected="a unique window name")
         names.add(name)
-        a = w.get("start_s", float, minimum=0.0)
-        b = w.get("end_s", float, exclusive_minimum=a)
+        a = w.get("start_s", float, minimum=0.0, maximum=MAX_DURATION_S)
+        b = w.get("end_s", float, exclusive_minimum=a, maximum=MAX_DURATION_S)
         w.done()
         out.append((name, a, b))
     return tuple(out)

@@ -9,15 +9,24 @@ from __future__ import annotations
 import json
 
 from navsim.experiment.reference import RULES
-from navsim.experiment.scenario import MAX_WORKERS, RATE_HZ
-from navsim.flight.environment import MAX_WIND_MPS
+from navsim.experiment.scenario import MAX_INITIAL, MAX_SEED, MAX_WORKERS, RATE_HZ
+from navsim.flight.environment import MAX_TURBULENCE_SEED, MAX_WIND_MPS
 from navsim.flight.track import MAX_AIRSPEED_MPS, SEGMENT_KEYS
-from navsim.foundations.config import PLAIN_NAME_PATTERN
-from navsim.foundations.jsonschema import NUM, POS, VEC3, merge_properties, obj
+from navsim.foundations.config import MAX_DURATION_S, MAX_RUNS, PLAIN_NAME_PATTERN
+from navsim.foundations.jsonschema import NUM, POS, merge_properties, obj
 from navsim.navigation.estimators import available as available_estimators, get as get_estimator
 from navsim.navigation.estimators.measurements import measurements_schema
 from navsim.sensors.base import FAULT_TYPES
 from navsim.sensors.catalog import available
+
+TIME = {"type": "number", "minimum": 0, "maximum": MAX_DURATION_S}
+
+
+def _vec3(minimum: float, maximum: float) -> dict:
+    """A number or three, each within ``[minimum, maximum]``."""
+    one = {"type": "number", "minimum": minimum, "maximum": maximum}
+    return {"oneOf": [one, {"type": "array", "items": one, "minItems": 3, "maxItems": 3}]}
+
 
 AIRSPEED = {"type": "number", "exclusiveMinimum": 0, "maximum": MAX_AIRSPEED_MPS}
 WIND = {"type": "number", "minimum": -MAX_WIND_MPS, "maximum": MAX_WIND_MPS}
@@ -27,10 +36,15 @@ QUANTITY = {"description": "a number with its unit, e.g. '0.2 deg/h' or '[1, 1, 
                        "required": ["value", "unit"], "additionalProperties": False}]}
 
 
+#: the parser's bounds (navsim.foundations.config.Node.get) by their JSON Schema names
+_JSON_BOUND = {"minimum": "minimum", "maximum": "maximum", "exclusive_minimum": "exclusiveMinimum"}
+
+
 def _segment(kind: str) -> dict:
     props = {"type": {"const": kind}, "label": {"type": "string"}, "speed_mps": AIRSPEED}
     for key, (typ, _default, cons) in SEGMENT_KEYS[kind].items():
-        props[key] = {"type": "string", "enum": list(cons["choices"])} if "choices" in cons else {"type": "number"}
+        props[key] = ({"type": "string", "enum": list(cons["choices"])} if "choices" in cons
+                      else {"type": "number", **{_JSON_BOUND[k]: v for k, v in cons.items()}})
     return obj(props, ["type"])
 
 
@@ -50,12 +64,13 @@ def scenario_schema(built_in: bool = False) -> dict:
             "flight": obj({"rate_hz": {"type": "number", "minimum": RATE_HZ[0], "maximum": RATE_HZ[1]}}),
             "sensors": {"type": "object", "additionalProperties": _sensor()},
             "estimators": {"type": "array", "minItems": 1, "items": _estimator(built_in)},
-            "initial_errors": obj({"pos_m": VEC3, "vel_mps": VEC3, "att_arcsec": VEC3, "fixed": {"type": "boolean"}}),
-            "montecarlo": obj({"runs": {"type": "integer", "minimum": 1}, "seed": {"type": "integer", "minimum": 0},
+            "initial_errors": obj({**{k: _vec3(0.0, m) for k, m in MAX_INITIAL.items()}, "fixed": {"type": "boolean"}}),
+            "montecarlo": obj({"runs": {"type": "integer", "minimum": 1, "maximum": MAX_RUNS},
+                               "seed": {"type": "integer", "minimum": 0, "maximum": MAX_SEED},
                                 "workers": {"type": "integer", "minimum": 1, "maximum": MAX_WORKERS}}),
-            "metrics": obj({"settle_s": {"type": "number", "minimum": 0},
+            "metrics": obj({"settle_s": TIME,
                              "windows": {"type": "array", "items": obj(
-                                 {"name": {"type": "string"}, "start_s": NUM, "end_s": NUM},
+                                 {"name": {"type": "string"}, "start_s": TIME, "end_s": TIME},
                                  ["name", "start_s", "end_s"])}}),
             "reference": _reference(),
             "report": obj({"formats": {"type": "array", "items": {"enum": ["pdf", "png"]}},
@@ -107,17 +122,17 @@ def _environment() -> dict:
                       "north_mps": WIND, "east_mps": WIND, "down_mps": WIND}),
         "turbulence": obj({"type": {"enum": ["none", "milspec", "tustin"]}, "wind20_mps": NUM,
                             "severity": {"type": "integer", "minimum": 0, "maximum": 7},
-                            "seed": {"type": "integer", "minimum": 0}}),
+                            "seed": {"type": "integer", "minimum": 0, "maximum": MAX_TURBULENCE_SEED}}),
         "surface_m": NUM})
 
 
 def _sensor() -> dict:
     """One entry of ``sensors``: catalog model, overrides, error sources off, faults."""
-    fault = obj({"type": {"enum": list(FAULT_TYPES)}, "start_s": NUM, "end_s": NUM,
+    fault = obj({"type": {"enum": list(FAULT_TYPES)}, "start_s": TIME, "end_s": TIME,
                   "value_m": {"oneOf": [NUM, {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3}]},
                   "factor": NUM, "source": {"type": "array"}, "radius_m": POS, "lost_m": NUM,
                   "hard_iron_uT": {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3},
-                  "ramp_s": {"type": "number", "minimum": 0}}, ["type"])
+                  "ramp_s": TIME}, ["type"])
     return obj({"model": {"enum": sorted(available())}, "override": {"type": "object"},
                  "off": {"oneOf": [{"const": "all"}, {"type": "array", "items": {"type": "string"}}]},
                  "faults": {"type": "array", "items": fault}}, ["model"])

@@ -31,6 +31,8 @@ class Environment:
 
 #: the strongest wind a scenario may set, m/s (Beaufort 12, a hurricane, starts at 32.7 m/s)
 MAX_WIND_MPS = 40.0
+#: the largest turbulence seed (JSBSim's random seed is a 32-bit integer)
+MAX_TURBULENCE_SEED = 2**31 - 1
 
 
 def wind_from(speed_mps: float, from_deg: float) -> tuple[float, float, float]:
@@ -73,7 +75,7 @@ def parse_environment(data, path: str = "environment", file: str | None = None) 
         kw["turbulence"] = turb.get("type", str, "milspec", choices=("none", "milspec", "tustin"))
         kw["turbulence_wind20_mps"] = turb.get("wind20_mps", float, 0.0, minimum=0.0, maximum=MAX_WIND_MPS)
         kw["turbulence_severity"] = turb.get("severity", int, 3, minimum=0, maximum=7)
-        kw["turbulence_seed"] = turb.get("seed", int, 0, minimum=0)
+        kw["turbulence_seed"] = turb.get("seed", int, 0, minimum=0, maximum=MAX_TURBULENCE_SEED)
         turb.done()
     kw["surface_m"] = node.get("surface_m", float, 0.0, minimum=-400.0, maximum=8000.0)
     node.done()

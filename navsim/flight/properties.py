@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from navsim.foundations.resources import data_folder
+
 FT_TO_M = 0.3048
 SLUG_TO_KG = 14.59390293720636
 LBF_TO_N = 4.4482216152605
@@ -100,8 +102,9 @@ INTEGRATORS = {"simulation/integrator/rate/rotational": 4,
                "simulation/integrator/position/rotational": 4,
                "simulation/integrator/position/translational": 4}
 
-#: The aircraft shipped with navsim live here (the repository's ``aircraft/`` folder).
-AIRCRAFT_DIR = Path(__file__).resolve().parents[2] / "aircraft"
+#: The aircraft shipped with navsim live here: the package ``navsim.data.aircraft`` (edited in the
+#: repository's ``aircraft/`` folder), read through importlib.resources.
+AIRCRAFT_DIR = data_folder("aircraft")
 
 
 class JSBSimIO:

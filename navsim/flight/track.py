@@ -28,10 +28,11 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from navsim.foundations.config import Node, close_match, load_yaml, resolve_file
+from navsim.foundations.config import MAX_DURATION_S, Node, close_match, load_yaml, resolve_file
 from navsim.foundations.errors import ScenarioError
+from navsim.foundations.resources import data_folder
 
-TRACKS_DIR = Path(__file__).resolve().parents[1] / "tracks"
+TRACKS_DIR = data_folder("tracks")
 
 
 @dataclass(frozen=True)
@@ -90,18 +91,19 @@ MAX_AIRSPEED_MPS = 40.0
 # type -> {key: (kind, default or REQUIRED, constraint)}; one of the "one_of" groups is required
 _REQ = object()
 _POS = dict(exclusive_minimum=0.0)
+_TIME = dict(exclusive_minimum=0.0, maximum=MAX_DURATION_S)
 SEGMENT_KEYS: dict[str, dict] = {
-    "straight": {"time_s": (float, None, _POS), "distance_m": (float, None, _POS),
-                 "until_s": (float, None, _POS)},
+    "straight": {"time_s": (float, None, _TIME), "distance_m": (float, None, _POS),
+                 "until_s": (float, None, _TIME)},
     "speed": {"to_mps": (float, _REQ, dict(exclusive_minimum=0.0, maximum=MAX_AIRSPEED_MPS)), "accel_mps2": (float, 0.5, _POS)},
     "climb": {"to_m": (float, _REQ, {}), "rate_mps": (float, 2.0, _POS)},
     "descend": {"to_m": (float, _REQ, {}), "rate_mps": (float, 2.0, _POS)},
     "turn": {"by_deg": (float, _REQ, {}), "bank_deg": (float, None, dict(exclusive_minimum=0.0,
                                                                          maximum=45.0)),
              "rate_dps": (float, None, _POS)},
-    "hold": {"time_s": (float, _REQ, _POS)},
+    "hold": {"time_s": (float, _REQ, _TIME)},
     "circle": {"radius_m": (float, _REQ, _POS), "laps": (float, None, _POS),
-               "time_s": (float, None, _POS),
+               "time_s": (float, None, _TIME),
                "direction": (str, "right", dict(choices=("right", "left")))},
     "goto": {"north_m": (float, None, {}), "east_m": (float, None, {}),
              "lat_deg": (float, None, dict(minimum=-90.0, maximum=90.0)),
@@ -119,7 +121,7 @@ def parse_track(data, path: str = "track", file: str | None = None) -> Track:
     file beside or below the scenario ``file`` (:func:`navsim.foundations.config.resolve_file`)."""
     if isinstance(data, str):
         track_file = resolve_file(data, catalog=TRACKS_DIR, file=file, key=path or "track",
-                                  what="a shipped track", choices=available_tracks())
+                                  what="a shipped track", choices=available_tracks)
         return _track_file(track_file, file, path or "track")
     node = Node(data, path, file)
     name = node.get("name", str, "custom")
@@ -164,7 +166,7 @@ def _parse_start(node: Node) -> Start:
             pitch_deg=node.get("pitch_deg", float, 14.0, minimum=0.0, maximum=45.0),
             launcher_height_m=node.get("launcher_height_m", float, 2.0, exclusive_minimum=0.5),
             booster_thrust_n=node.get("booster_thrust_n", float, 120.0, minimum=0.0),
-            booster_time_s=node.get("booster_time_s", float, 1.2, minimum=0.0))
+            booster_time_s=node.get("booster_time_s", float, 1.2, minimum=0.0, maximum=MAX_DURATION_S))
     node.done()
     return Start(**values)
 

@@ -30,6 +30,7 @@ segment            (N,)         index of the active track segment (-1 during the
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -44,6 +45,20 @@ ARRAY_FIELDS = ("t_s", "lat_rad", "lon_rad", "h_m", "vel_n_mps", "quat_nb", "eul
                 "omega_ib_b_rps", "f_b_mps2", "tas_mps", "cas_mps", "p_static_pa", "p_total_pa",
                 "temp_k", "h_agl_m", "terrain_m", "wind_n_mps", "alpha_rad", "beta_rad",
                 "throttle", "segment")
+#: what :meth:`Truth.save` writes of a truth: the arrays, the segment labels, the meta (JSON)
+_CONTENT = (*ARRAY_FIELDS, "segment_labels", "meta")
+#: the entries a cached flight carries beside: its cache key and the SHA-256 of its contents
+CACHE_KEY, DIGEST = "cache_key", "sha256"
+
+
+def _digest(entries: dict, key: str) -> str:
+    """SHA-256 of ``key`` and the :data:`_CONTENT` entries (name, dtype, shape, bytes)."""
+    h = hashlib.sha256(key.encode())
+    for name in _CONTENT:
+        a = np.ascontiguousarray(entries[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 @dataclass
@@ -104,19 +119,34 @@ class Truth:
         kw = {name: getattr(self, name)[start:stop] for name in ARRAY_FIELDS}
         return Truth(**kw, segment_labels=list(self.segment_labels), meta=dict(self.meta))
 
-    def save(self, path: str | Path) -> None:
-        """Write to a compressed ``.npz``."""
-        arrays = {name: getattr(self, name) for name in ARRAY_FIELDS}
-        np.savez_compressed(path, **arrays, segment_labels=np.array(self.segment_labels),
-                            meta=np.array(json.dumps(self.meta)))
+    def save(self, path: str | Path, *, key: str | None = None) -> None:
+        """Write to a compressed ``.npz``; with ``key`` (a cache key), the key and a SHA-256 of
+        the contents and the key are stored with it (:meth:`load` checks them)."""
+        entries = {name: getattr(self, name) for name in ARRAY_FIELDS}
+        entries.update(segment_labels=np.array(self.segment_labels), meta=np.array(json.dumps(self.meta)))
+        if key is not None:
+            entries.update({CACHE_KEY: np.array(key), DIGEST: np.array(_digest(entries, key))})
+        np.savez_compressed(path, **entries)
 
     @classmethod
-    def load(cls, path: str | Path) -> "Truth":
+    def load(cls, path: str | Path, *, key: str | None = None) -> "Truth":
+        """The truth written by :meth:`save`; with ``key``, a :class:`ValueError` unless the file
+        was saved with that key and its contents match their stored SHA-256 (a damaged or a
+        foreign file)."""
         with np.load(path, allow_pickle=False) as data:
-            kw = {name: data[name] for name in ARRAY_FIELDS}
-            labels = [str(s) for s in data["segment_labels"]]
-            meta = json.loads(str(data["meta"]))
-        return cls(**kw, segment_labels=labels, meta=meta)
+            entries = {name: data[name] for name in (*_CONTENT, CACHE_KEY, DIGEST) if name in data.files}
+        missing = [name for name in _CONTENT if name not in entries]
+        if missing:
+            raise KeyError(f"{path}: not a flight's truth (no {', '.join(missing)})")
+        if key is not None:
+            stored = str(entries[CACHE_KEY]) if CACHE_KEY in entries else None
+            if stored != key:
+                raise ValueError(f"{path}: holds the flight {stored or '(no key)'}, not {key}")
+            if DIGEST not in entries or str(entries[DIGEST]) != _digest(entries, key):
+                raise ValueError(f"{path}: its contents do not match their SHA-256 (damaged)")
+        kw = {name: entries[name] for name in ARRAY_FIELDS}
+        labels = [str(s) for s in entries["segment_labels"]]
+        return cls(**kw, segment_labels=labels, meta=json.loads(str(entries["meta"])))
 
     @classmethod
     def static(cls, duration_s: float, rate_hz: float = 100.0, lat_deg: float = 37.38,

@@ -6,15 +6,17 @@ YAML is read with a ``yaml.SafeLoader`` subclass (YAML 1.2 booleans) and nothing
 from __future__ import annotations
 
 import difflib
+import logging
 import math
 import os
 import re
+import tempfile
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from navsim.foundations.errors import ScenarioError
+from navsim.foundations.errors import ScenarioError, UsageError
 
 _MISSING = object()
 _TYPE_NAMES = {float: "a number", int: "an integer", str: "a string", bool: "true or false",
@@ -41,6 +43,32 @@ MAX_DEPTH = 40
 MAX_VALUES = 200_000
 #: the largest configuration file read, bytes
 MAX_BYTES = 4_000_000
+
+# --- the ranges of numbers, declared once ---------------------------------------------------------
+#: the largest magnitude of a number a configuration takes where its key declares no bound of its
+#: own: far above any physical quantity in a scenario's units, far below a float's overflow
+MAX_FLOAT = 1e12
+#: the smallest magnitude of a non-zero number (smaller ones are refused: a 1e-308 sigma or period
+#: only ends in a division by almost zero)
+MIN_FLOAT = 1e-12
+#: the largest magnitude of an integer where its key declares no bound of its own (a float holds
+#: every integer up to it exactly)
+MAX_INT = 2**53
+#: the longest flight, time window or time constant of a scenario, s (about 11.6 days)
+MAX_DURATION_S = 1e6
+#: the longest time constant (a Gauss-Markov tau; 1e7 s and more model a random constant), s
+MAX_TIME_CONSTANT_S = 1e10
+#: the highest rate of a simulation or a sensor, Hz
+MAX_RATE_HZ = 1000.0
+#: the most Monte Carlo runs of a scenario or a command line
+MAX_RUNS = 1_000_000
+#: the shortest period or time constant, s (a thousandth of the fastest step)
+MIN_DURATION_S = 1e-3 / MAX_RATE_HZ
+#: the longest averaging window of an adaptive filter, epochs; the most rules of a fuzzy one
+MAX_WINDOW = 1_000_000
+MAX_RULES = 1_000
+#: how close an unread key must be to a missing one to be named as its misspelling
+TYPO_CUTOFF = 0.8
 
 
 def _construct_mapping(loader, node, deep=False):
@@ -106,10 +134,12 @@ def load_yaml(path: str | Path) -> Any:
     try:
         if path.is_dir():
             raise ScenarioError("is a folder", file=str(path), expected="a YAML file")
-        if path.stat().st_size > MAX_BYTES:
+        with path.open("rb") as f:        # the read itself bounded: a device or a growing file too
+            raw = f.read(MAX_BYTES + 1)
+        if len(raw) > MAX_BYTES:
             raise ScenarioError(f"is larger than {MAX_BYTES // 1_000_000} MB", file=str(path),
                                 expected="a YAML file")
-        text = path.read_bytes().decode("utf-8")
+        text = raw.decode("utf-8")
     except OSError as exc:
         raise ScenarioError(f"cannot read the file: {exc.strerror}", file=str(path)) from None
     except UnicodeDecodeError as exc:
@@ -120,10 +150,15 @@ def load_yaml(path: str | Path) -> Any:
     except RecursionError:
         raise ScenarioError(f"is nested more than {MAX_DEPTH} levels deep", file=str(path),
                             expected="a scenario, track or datasheet file") from None
+    except ValueError as exc:             # an integer of more digits than Python converts
+        raise ScenarioError(f"not valid YAML: {exc}", file=str(path),
+                            hint=f"numbers of at most {len(str(MAX_INT))} digits") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else None
-        problem = str(getattr(exc, "problem", exc))
+        problem = str(getattr(exc, "problem", None) or exc)
+        if getattr(exc, "context", None):     # e.g. "found duplicate anchor 'a'; first occurrence"
+            problem = f"{problem} ({exc.context})"
         hint = ("write each key once in a mapping" if problem.startswith("duplicate key")
                 else "check indentation and the ':' after each key")
         raise ScenarioError(f"not valid YAML: {problem}", file=str(path), key=where, hint=hint) from None
@@ -147,8 +182,9 @@ def resolve_file(ref: str, *, catalog: Path, file: str | None, key: str, what: s
     (``<catalog>/<name>.yaml``); anything else is a ``.yaml``/``.yml`` path relative to the
     folder of the scenario ``file`` that must stay inside that folder (beside or below it).
 
-    Raises :class:`ScenarioError` for an absolute path, a path leaving the scenario's folder,
-    another suffix or a missing file; the file's content is never read here nor echoed.
+    ``choices``: the catalog's names for the hint, or a function returning them (called only for
+    the error). Raises :class:`ScenarioError` for an absolute path, a path leaving the scenario's
+    folder, another suffix or a missing file; the file's content is never read here nor echoed.
     """
     if "/" not in ref and "\\" not in ref and Path(ref).suffix.lower() not in (".yaml", ".yml"):
         path = catalog / f"{ref}.yaml"
@@ -156,7 +192,7 @@ def resolve_file(ref: str, *, catalog: Path, file: str | None, key: str, what: s
             return path
         raise ScenarioError(f"'{ref}' is not {what}", file=file, key=key,
                             expected=f"a name of {catalog.name}/ or a .yaml file beside the scenario",
-                            hint=close_match(ref, choices))
+                            hint=close_match(ref, choices() if callable(choices) else choices))
     base = Path(file).resolve().parent if file else Path.cwd().resolve()
     expected = "a .yaml file beside or below the scenario's folder, as a relative path"
     if Path(ref).is_absolute() or Path(ref).suffix.lower() not in (".yaml", ".yml"):
@@ -170,10 +206,47 @@ def resolve_file(ref: str, *, catalog: Path, file: str | None, key: str, what: s
     return path
 
 
-def cache_dir() -> Path:
-    """navsim's cache folder: ``$NAVSIM_CACHE``, default ``~/.cache/navsim`` (flown flights,
-    compiled kernels)."""
-    return Path(os.environ.get("NAVSIM_CACHE", Path.home() / ".cache" / "navsim"))
+#: the environment variable naming navsim's cache folder (default ``~/.cache/navsim``)
+CACHE_ENV = "NAVSIM_CACHE"
+_warned_folders: set[str] = set()
+
+
+def usable_folder(folder: Path, what: str) -> Path | None:
+    """``folder``, created, where a file can be written in it; else ``None``, with a warning
+    (logged once per folder) naming ``what`` and the system's reason."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError as exc:
+        if str(folder) not in _warned_folders:
+            _warned_folders.add(str(folder))
+            logging.getLogger(__name__).warning("%s: %s; working without the %s", folder,
+                                                exc.strerror or exc, what)
+        return None
+    return folder
+
+
+def cache_dir(sub: str = "") -> Path | None:
+    """navsim's cache folder, ``$NAVSIM_CACHE/<sub>`` (default ``~/.cache/navsim``; ``flights``:
+    flown flights, ``numba``: compiled kernels), created; ``None`` (and a warning, see
+    :func:`usable_folder`) where it cannot be created or written (a read-only or missing home, a
+    path through a file): the caller then works without that cache, never caching elsewhere.
+
+    Raises
+    ------
+    UsageError
+        Where ``NAVSIM_CACHE`` is set but empty (it would otherwise mean the current folder).
+    """
+    value = os.environ.get(CACHE_ENV)
+    if value is not None and not value.strip():
+        raise UsageError(f"{CACHE_ENV} is set but empty: unset it (the cache is then "
+                         f"~/.cache/navsim) or name a folder")
+    try:
+        base = Path(value) if value is not None else Path.home() / ".cache" / "navsim"
+    except RuntimeError as exc:                      # no home folder to be found
+        logging.getLogger(__name__).warning("%s; working without navsim's cache (set %s)", exc, CACHE_ENV)
+        return None
+    return usable_folder(base / sub if sub else base, f"{sub} cache" if sub else "cache")
 
 
 def close_match(word: str, choices) -> str | None:
@@ -212,22 +285,20 @@ class Node:
     def get(self, name: str, kind: type = float, default: Any = _MISSING, *,
             minimum: float | None = None, maximum: float | None = None,
             exclusive_minimum: float | None = None, choices=None) -> Any:
-        """Read ``name`` as ``kind`` with range checks; missing and no default is an error."""
+        """Read ``name`` as ``kind`` with range checks; missing and no default is an error.
+
+        A number is also checked against the global bounds where no bound of its own is
+        declared (:func:`check_number`: |x| <= :data:`MAX_FLOAT` or :data:`MAX_INT`, no non-zero
+        |x| below :data:`MIN_FLOAT`, no NaN, infinity or boolean)."""
         self._seen.add(name)
         if name not in self.data or self.data[name] is None:
             if default is _MISSING:
-                raise self.error("is missing", name, expected=_TYPE_NAMES.get(kind, str(kind)))
+                raise self.missing(name, _TYPE_NAMES.get(kind, str(kind)))
             return default
         value = self.data[name]
-        if kind is float:
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise self.error(f"is {_describe(value)}", name, expected="a number")
-            value = float(value)
-            if not math.isfinite(value):
-                raise self.error(f"is {value}", name, expected="a finite number")
-        elif kind is int:
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise self.error(f"is {_describe(value)}", name, expected="an integer")
+        if kind in (float, int):
+            value = check_number(value, kind, minimum=minimum, maximum=maximum,
+                                 exclusive_minimum=exclusive_minimum, error=lambda m, e: self.error(m, name, e))
         elif kind is bool:
             if not isinstance(value, bool):
                 raise self.error(f"is {_describe(value)}", name, expected="true or false")
@@ -236,35 +307,48 @@ class Node:
         if choices is not None and value not in choices:
             raise self.error(f"is '{value}'", name, expected="one of " + ", ".join(map(str, choices)),
                              hint=close_match(value, choices))
-        if minimum is not None and value < minimum:
-            raise self.error(f"is {value}", name, expected=f"a value >= {minimum}")
-        if exclusive_minimum is not None and value <= exclusive_minimum:
-            raise self.error(f"is {value}", name, expected=f"a value > {exclusive_minimum}")
-        if maximum is not None and value > maximum:
-            raise self.error(f"is {value}", name, expected=f"a value <= {maximum}")
         return value
 
-    def vector(self, name: str, default: Any = _MISSING, minimum: float = 0.0) -> list[float]:
-        """Read ``name`` as three numbers above ``minimum``: ``[x, y, z]``, or one number for all
-        three."""
+    def missing(self, name: str, expected: str | None = None) -> ScenarioError:
+        """The error for the missing key ``name``: naming an unread key of the mapping close to
+        it as its misspelling when there is one (``sigma_mp`` for ``sigma_mps``)."""
+        unread = [str(k) for k in self.data if k not in self._seen and str(k) != name]
+        typo = difflib.get_close_matches(name, unread, n=1, cutoff=TYPO_CUTOFF)
+        if typo:
+            return ScenarioError(f"'{typo[0]}' is not a known key; did you mean '{name}'?", file=self.file,
+                                 key=self.key(typo[0]), expected=f"{name}: {expected}" if expected else None)
+        return self.error("is missing", name, expected=expected)
+
+    def vector(self, name: str, default: Any = _MISSING, minimum: float = 0.0,
+               maximum: float = MAX_FLOAT) -> list[float]:
+        """Read ``name`` as three numbers above ``minimum`` and at most ``maximum``: ``[x, y, z]``,
+        or one number for all three (each within the global bounds of :func:`check_number`)."""
         self._seen.add(name)
         v = self.data.get(name)
         if v is None:
             if default is _MISSING:
-                raise self.error("is missing", name, expected="a number or [x, y, z]")
+                raise self.missing(name, "a number or [x, y, z]")
             v = default
-        ok = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > minimum
-        if ok(v):
-            return [float(v)] * 3
-        if isinstance(v, list) and len(v) == 3 and all(ok(x) for x in v):
-            return [float(x) for x in v]
+        low = None if minimum == -math.inf else minimum
+        items = v if isinstance(v, list) and len(v) == 3 else [v] if not isinstance(v, list) else None
         above = "a positive number" if minimum == 0 else f"a number above {minimum:g}"
-        raise self.error(f"is {v!r}", name, expected=f"{above} or a list of three")
+        if items is None:
+            raise self.error(f"is {_short(v)}", name, expected=f"{above} or a list of three")
+        out = []
+        for x in items:
+            out.append(check_number(x, float, exclusive_minimum=low, maximum=maximum,
+                                    error=lambda m, e: self.error(f"is {_short(v)}", name,
+                                                                  f"{above} or a list of three ({e})")))
+        return out * 3 if len(out) == 1 else out
 
     def items(self, name: str, minimum: int, expected: str, hint: str | None = None) -> list:
         """Read ``name`` as a list of at least ``minimum`` entries."""
         self._seen.add(name)
         raw = self.data.get(name)
+        if raw is None and name not in self.data:
+            err = self.missing(name, expected)
+            if err.detail != "is missing":
+                raise err
         if not isinstance(raw, list) or len(raw) < minimum:
             raise self.error("is missing or too short", name, expected=expected, hint=hint)
         return raw
@@ -284,7 +368,7 @@ class Node:
         self._seen.add(name)
         if name not in self.data or self.data[name] is None:
             if default is _MISSING:
-                raise self.error("is missing", name, expected="a mapping")
+                raise self.missing(name, "a mapping")
             return default
         return Node(self.data[name], self.key(name), self.file)
 
@@ -295,13 +379,69 @@ class Node:
                 raise self.error("is not a known key", str(name), hint=close_match(name, self._seen))
 
 
+def check_number(value: Any, kind: type = float, *, minimum: float | None = None,
+                 maximum: float | None = None, exclusive_minimum: float | None = None, error=None):
+    """``value`` as a ``kind`` (float or int) within its bounds, else ``error(message,
+    expected)`` raised (default: a :class:`ScenarioError` without a key).
+
+    Where no bound is given, the global ones hold: ``|x| <= MAX_FLOAT`` (floats) or ``MAX_INT``
+    (integers); a float's non-zero magnitude is at least :data:`MIN_FLOAT`. Booleans, NaN,
+    infinities and integers too large for a float are refused; ``-0.0`` is read as ``0.0``."""
+    error = error or (lambda m, e: ScenarioError(m, expected=e))
+    what = "a number" if kind is float else "an integer"
+    if isinstance(value, bool) or not isinstance(value, (int, float) if kind is float else int):
+        raise error(f"is {_describe(value)}", what)
+    limit = MAX_FLOAT if kind is float else MAX_INT
+    if isinstance(value, float) and not math.isfinite(value):
+        raise error(f"is {value}", "a finite number")
+    low = -limit if minimum is None and exclusive_minimum is None else minimum
+    high = limit if maximum is None else maximum
+    if abs(value) > max(abs(high), abs(low if low is not None else 0.0), limit):
+        raise error(f"is {_short(value)}", f"a value of magnitude <= {limit:g}")
+    value = float(value) + 0.0 if kind is float else value
+    if kind is float and value != 0.0 and abs(value) < MIN_FLOAT:
+        raise error(f"is {value:g}", f"0 or a magnitude >= {MIN_FLOAT:g}")
+    if low is not None and value < low:
+        raise error(f"is {_short(value)}", f"a value >= {_bound(low)}")
+    if exclusive_minimum is not None and value <= exclusive_minimum:
+        raise error(f"is {_short(value)}", f"a value > {_bound(exclusive_minimum)}")
+    if value > high:
+        raise error(f"is {_short(value)}", f"a value <= {_bound(high)}")
+    return value
+
+
+def check_numbers(value: Any, n: int, *, error, **bounds) -> list[float]:
+    """``value`` as a list of ``n`` numbers, each within ``bounds`` (as :func:`check_number`),
+    else ``error(message, expected)`` raised."""
+    if not (isinstance(value, list) and len(value) == n):
+        raise error(f"is {_describe(value) if not isinstance(value, list) else _short(value)}",
+                    f"a list of {n} numbers")
+    return [check_number(x, float, error=lambda m, e: error(f"is {_short(value)}", f"{n} numbers, each {e}"),
+                         **bounds) for x in value]
+
+
+def _bound(x: float) -> str:
+    """A bound for a message: as written (``0.0``), a large one short (``1e+12``)."""
+    return f"{x:g}" if abs(x) >= 1e6 else f"{x}"
+
+
+def _short(value: Any) -> str:
+    """``value`` for a message: a long integer by its size, not its digits."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 10**15:
+        return f"an integer of about {int(value.bit_length() * 0.30103) + 1} digits"
+    if isinstance(value, float):          # as written (-3.0), a very large or small one short
+        return repr(value) if value == 0 or 1e-4 <= abs(value) < 1e15 else f"{value:g}"
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
 def _describe(value: Any) -> str:
     if value is None:
         return "empty"
     if isinstance(value, bool):
         return f"the boolean {str(value).lower()}"
     if isinstance(value, (int, float)):
-        return f"the number {value}"
+        return f"the number {_short(value)}"
     if isinstance(value, str):
         return f"the string '{value}'"
     if isinstance(value, list):

@@ -16,9 +16,11 @@ class ScenarioError(NavsimError):
 
     exit_code = 2
 
-    def __init__(self, message: str, *, file: str | None = None, key: str | None = None,
+    def __init__(self, message: str, *, file=None, key: str | None = None,
                  expected: str | None = None, hint: str | None = None):
-        self.file, self.key, self.expected, self.hint = file, key, expected, hint
+        # ``file``: a str or a path (a Scenario's ``path``), kept as text
+        self.file = None if file is None else str(file)
+        self.key, self.expected, self.hint = key, expected, hint
         self.detail = message
         super().__init__(self._format())
 

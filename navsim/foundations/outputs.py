@@ -1,27 +1,85 @@
-"""Output folders: every file written under a temporary name and renamed, and a manifest of
-what navsim wrote, so that a rerun removes its own earlier files and nothing else.
+"""Output folders: one writer at a time, files written under a temporary name and renamed, and
+a manifest of what navsim wrote, so that a rerun removes its own earlier files and nothing else.
 
 An :class:`OutputFolder` is the folder of one command's results (``reports/<name>`` by
-default). Its manifest ``.navsim-files.json`` lists the plain file names written there; a new
-run in the same folder first removes the files the manifest lists (an earlier run's
-``metrics.json`` never stands beside a new run's chunks) and never anything else. A file
-being written is ``.<stem>.tmp<suffix>`` until it is complete, so a full disk or a kill
-leaves the earlier file or none, never a truncated one. Any :class:`OSError` becomes an
+default). Opening one takes its lock (``.navsim.lock``: ``fcntl.flock`` on a file holding the
+holder's pid, host, start time and command): a second writer, in this process or another, is
+refused at once with the holder named (:class:`~navsim.foundations.errors.UsageError`, exit 2)
+and nothing touched; a lock left by a killed process is taken over with a warning; the lock
+goes with the last :class:`OutputFolder` of this process on the folder (re-entrant), at exit,
+on an error, or with the process itself. A folder that is not empty and not navsim's (no
+manifest, no navsim ``run.json``) is refused unless ``force``.
+
+The manifest ``.navsim-files.json`` lists each file navsim wrote with its identity (size,
+``mtime_ns``, inode, device); a new run in the same folder first removes the listed files that
+are still regular files with that identity (never through a link) and nothing else; an old
+manifest (a plain list of names) is read, but nothing it lists is removed. A file being written
+is ``.<stem>.tmp<suffix>`` until it is complete, so a full disk or a kill leaves the earlier
+file or none, never a truncated one. An :class:`OSError`, or any error caused by one (zlib's
+after a full disk inside matplotlib's PDF writer), becomes an
 :class:`~navsim.foundations.errors.OutputError` (exit code 4) naming the path.
+
+Every JSON file navsim writes is strict JSON: :func:`strict_json` (NaN and infinities as null).
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+import logging
+import math
+import numbers
 import os
+import socket
+import stat
+import sys
+import time
+import weakref
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 from navsim.foundations.config import plain_name
-from navsim.foundations.errors import OutputError
+from navsim.foundations.errors import OutputError, UsageError
 
+try:
+    import fcntl
+except ImportError:                      # not POSIX: an exclusive create and a pid check instead
+    fcntl = None
+
+log = logging.getLogger(__name__)
 MANIFEST = ".navsim-files.json"
+LOCK = ".navsim.lock"
+#: the manifest's format: 2 lists each file's identity (1, a plain list of names, is only read)
+MANIFEST_FORMAT = 2
+#: the identity of a file navsim wrote, as the manifest records it
+IDENTITY = ("size", "mtime_ns", "ino", "dev")
+#: how many of a foreign folder's files a refusal names
+SHOWN_FILES = 5
+#: the most of a lock file or a run.json read to tell whose they are
+READ_LIMIT = 1 << 20
+
+
+def strict_json(obj, *, indent: int | None = 2, default=str) -> str:
+    """``obj`` as strict JSON (``allow_nan=False``): NaN and ±inf as null, NumPy numbers and
+    arrays as plain numbers and lists; ``default`` for anything else JSON lacks."""
+    return json.dumps(_finite(obj), indent=indent, default=default, allow_nan=False)
+
+
+def _finite(v):
+    if isinstance(v, dict):
+        return {k: _finite(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_finite(x) for x in v]
+    if isinstance(v, (bool, str)) or v is None:
+        return v
+    if isinstance(v, numbers.Integral):
+        return int(v)
+    if isinstance(v, numbers.Real):
+        return float(v) if math.isfinite(v) else None
+    if hasattr(v, "tolist") and hasattr(v, "dtype"):        # a NumPy array or scalar
+        return _finite(v.tolist())
+    return v
 
 
 def temporary_name(path: Path) -> Path:
@@ -29,11 +87,21 @@ def temporary_name(path: Path) -> Path:
     return path.with_name(f".{path.stem}.tmp{path.suffix}")
 
 
+def _os_cause(exc: BaseException) -> OSError | None:
+    """The :class:`OSError` behind ``exc`` (itself, or its cause or context, a few deep)."""
+    for _ in range(8):
+        if exc is None or isinstance(exc, OSError):
+            return exc
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 def write_atomic(path: Path, write: Callable[[Path], object], *, fsync: bool = False) -> Path:
     """Call ``write(tmp)`` on :func:`temporary_name` of ``path`` and rename it to ``path``;
     with ``fsync`` the file and its folder are flushed to the disk first. On an error the
-    temporary file is removed and an :class:`OutputError` raised; ``path`` keeps its old
-    content, if any."""
+    temporary file is removed; an :class:`OSError`, or an error raised because of one (the
+    ``zlib.error`` matplotlib's PDF writer raises after a full disk), becomes an
+    :class:`OutputError`; ``path`` keeps its old content, if any."""
     path = Path(path)
     tmp = temporary_name(path)
     try:
@@ -44,10 +112,13 @@ def write_atomic(path: Path, write: Callable[[Path], object], *, fsync: bool = F
         os.replace(tmp, path)
         if fsync:
             _fsync_folder(path.parent)
-    except OSError as exc:
+    except Exception as exc:
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
-        raise OutputError(path, exc) from None
+        cause = _os_cause(exc)
+        if cause is None:
+            raise
+        raise OutputError(path, cause) from None
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
@@ -66,64 +137,349 @@ def _fsync_folder(folder: Path) -> None:
         os.close(fd)
 
 
+def identity(path: Path) -> dict | None:
+    """What the manifest records of a file (:data:`IDENTITY`), or None when ``path`` is not a
+    regular file (missing, a link, a folder); links are not followed."""
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return None
+    if not stat.S_ISREG(st.st_mode):
+        return None
+    return {"size": st.st_size, "mtime_ns": st.st_mtime_ns, "ino": st.st_ino, "dev": st.st_dev}
+
+
+# --- the folder's lock --------------------------------------------------------------------------
+
+
+def _holder_text(raw: bytes) -> tuple[dict, str]:
+    """The holder a lock file names, and it in words."""
+    try:
+        h = json.loads(raw.decode(errors="replace") or "{}")
+    except ValueError:
+        h = {}
+    h = h if isinstance(h, dict) else {}
+    return h, (f"pid {h.get('pid', '?')} on {h.get('host', '?')}, started {h.get('started', '?')}"
+               f" ({h.get('command', '?')})")
+
+
+def _pid_alive(pid) -> bool:
+    if not isinstance(pid, int) or pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:                          # alive, another user's
+        return True
+    return True
+
+
+def _refuse(folder: Path, holder: str):
+    return UsageError(f"{folder}: in use by another navsim writer ({holder}); nothing was touched: "
+                      "wait for it to finish, or write elsewhere with --out")
+
+
+def _take_lock(folder: Path) -> int:
+    """Take the lock of ``folder``; returns the lock file's descriptor (kept open while held)."""
+    path = folder / LOCK
+    me = json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
+                     "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "command": " ".join(sys.argv)})
+    for _ in range(20):                      # another process removing the file between our steps
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0)
+                         | (0 if fcntl else os.O_EXCL), 0o644)
+        except FileExistsError:              # no fcntl: held, or left by a dead process
+            h, text = _holder_text(_read(path))
+            if h.get("host") == socket.gethostname() and not _pid_alive(h.get("pid")):
+                log.warning("%s: taking over the lock of %s, which is no longer running", folder, text)
+                path.unlink(missing_ok=True)
+                continue
+            raise _refuse(folder, text) from None
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                text = _holder_text(os.pread(fd, READ_LIMIT, 0))[1]
+                os.close(fd)
+                raise _refuse(folder, text) from None
+            if not _same_file(fd, path):     # removed by its holder as we opened it: again
+                os.close(fd)
+                continue
+            earlier = os.pread(fd, READ_LIMIT, 0)
+            if earlier.strip():
+                log.warning("%s: taking over the lock of %s, which is no longer running", folder,
+                            _holder_text(earlier)[1])
+            os.ftruncate(fd, 0)
+        os.pwrite(fd, me.encode(), 0)
+        return fd
+    raise OutputError(path, reason="the lock file keeps changing: another process is taking it")
+
+
+def _read(path: Path) -> bytes:
+    try:
+        with open(path, "rb") as f:
+            return f.read(READ_LIMIT)
+    except OSError:
+        return b""
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    try:
+        a, b = os.fstat(fd), os.stat(path)
+    except OSError:
+        return False
+    return (a.st_ino, a.st_dev) == (b.st_ino, b.st_dev)
+
+
+@dataclass
+class _Held:
+    """A folder this process holds: its lock, the users, the manifest's entries (name -> identity;
+    None: not verifiable), the names written by this process, the folders it created."""
+
+    fd: int
+    count: int = 1
+    entries: dict = field(default_factory=dict)
+    mine: set = field(default_factory=set)
+    legacy: list = field(default_factory=list)
+    created: list = field(default_factory=list)
+    saved: bool = False
+
+
+#: the folders this process holds, by their real path
+_HELD: dict[str, _Held] = {}
+
+
+def _forget_locks() -> None:
+    """In a forked child: the parent's locks are not the child's (the parent keeps them)."""
+    for held in _HELD.values():
+        with contextlib.suppress(OSError):
+            os.close(held.fd)
+    _HELD.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_locks)
+
+
+def _release(key: str, folder: Path) -> None:
+    """One user of ``folder`` less; the last one saves the manifest and gives the lock back."""
+    held = _HELD.get(key)
+    if held is None:
+        return
+    held.count -= 1
+    if held.count > 0:
+        return
+    try:
+        if held.mine or held.saved:
+            _save(folder, held)
+    finally:
+        del _HELD[key]
+        if _same_file(held.fd, folder / LOCK):
+            with contextlib.suppress(OSError):
+                (folder / LOCK).unlink()
+        with contextlib.suppress(OSError):
+            os.close(held.fd)
+        for made in reversed(held.created):  # folders made for a command that wrote nothing
+            with contextlib.suppress(OSError):
+                made.rmdir()
+
+
+# --- the manifest --------------------------------------------------------------------------------
+
+
+def _read_manifest(folder: Path) -> tuple[dict, list]:
+    """``(entries, legacy names)`` of the folder's manifest: format 2's ``{name: identity}``,
+    or the names of an old plain list (not verifiable: never removed)."""
+    path = folder / MANIFEST
+    if identity(path) is None:
+        return {}, []
+    try:
+        data = json.loads(_read(path).decode(errors="replace"))
+    except ValueError:
+        return {}, []
+    if isinstance(data, list):
+        return {}, [n for n in data if isinstance(n, str) and plain_name(n)]
+    files = data.get("files") if isinstance(data, dict) else None
+    if not isinstance(files, dict):
+        return {}, []
+    ok = lambda i: isinstance(i, dict) and set(i) == set(IDENTITY) and all(type(i[k]) is int for k in IDENTITY)
+    return {n: (i if ok(i) else None) for n, i in files.items() if isinstance(n, str) and plain_name(n)}, []
+
+
+def _save(folder: Path, held: _Held) -> None:
+    """Write the manifest, with the identity of each file this process wrote as it is now."""
+    for name in held.mine:
+        held.entries[name] = identity(folder / name)
+    data = {"format": MANIFEST_FORMAT, "files": dict(sorted(held.entries.items()))}
+    write_atomic(folder / MANIFEST, lambda p: p.write_text(json.dumps(data, indent=1)))
+    held.saved = True
+
+
+def _is_navsim_run(path: Path) -> bool:
+    """Whether ``path`` is a ``run.json`` navsim wrote (its ``versions`` name navsim)."""
+    if identity(path) is None:
+        return False
+    try:
+        data = json.loads(_read(path).decode(errors="replace"))
+    except ValueError:
+        return False
+    return isinstance(data, dict) and isinstance(data.get("versions"), dict) and "navsim" in data["versions"]
+
+
+def foreign_files(folder: Path) -> list[str]:
+    """The entries of an existing folder that make it not navsim's: none when it is missing,
+    empty, or holds a manifest or a navsim ``run.json``; subfolders that are navsim output
+    folders themselves (``flight/``, ``sensors/``) do not count. Folders end in ``/``."""
+    try:
+        names = sorted(os.listdir(folder))
+    except (FileNotFoundError, NotADirectoryError):
+        return []
+    except OSError as exc:
+        raise OutputError(folder, exc) from None
+    if identity(folder / MANIFEST) is not None or _is_navsim_run(folder / "run.json"):
+        return []
+    out = []
+    for name in names:
+        if name == LOCK:
+            continue
+        path = folder / name
+        if path.is_dir() and not path.is_symlink():
+            if identity(path / MANIFEST) is None:
+                out.append(name + "/")
+        else:
+            out.append(name)
+    return out
+
+
+def _refuse_foreign(folder: Path, names: list[str]) -> UsageError:
+    shown = ", ".join(names[:SHOWN_FILES]) + (f" and {len(names) - SHOWN_FILES} more"
+                                               if len(names) > SHOWN_FILES else "")
+    return UsageError(f"{folder}: not a navsim output folder (it holds {shown}); navsim writes into a new "
+                      "or empty folder or one of its own results: choose another with --out, or write "
+                      "here anyway with --force (files of the same names are then replaced)")
+
+
+def _make_folders(path: Path) -> list[Path]:
+    """Create ``path`` and its missing parents; returns those created, outermost first."""
+    missing = [p for p in [path, *path.parents] if not p.exists()][::-1]
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(exc.filename or path, exc) from None
+    return missing
+
+
 class OutputFolder:
-    """The output folder of one command.
+    """The output folder of one command, locked while it is open.
 
     Parameters
     ----------
     path : Path
         The folder; created with its parents. A path naming a file, or a folder that cannot be
         created or written, raises :class:`OutputError`.
+    force : bool
+        Write into a non-empty folder that is not navsim's (else a :class:`UsageError` naming
+        its files, before anything is touched).
+
+    The lock is taken at once: another writer holding the folder raises a :class:`UsageError`
+    naming it. It is given back by :meth:`close` (or leaving a ``with`` block, or when the
+    object is collected) of the last :class:`OutputFolder` of this process on the folder;
+    those share the manifest.
     """
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, *, force: bool = False):
         self.path = Path(path)
         if self.path.exists() and not self.path.is_dir():
             raise OutputError(self.path, reason="exists and is not a folder")
-        try:
-            self.path.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise OutputError(exc.filename or self.path, exc) from None
-        self._names = self._read_manifest()
-        self._save_manifest()            # also proves the folder writable before any work
+        key = os.path.realpath(self.path)
+        held = _HELD.get(key)
+        if held is not None:
+            held.count += 1
+        else:
+            foreign = [] if force else foreign_files(self.path)
+            if foreign:
+                raise _refuse_foreign(self.path, foreign)
+            created = _make_folders(self.path)
+            try:
+                fd = _take_lock(self.path)
+            except OSError as exc:
+                raise OutputError(exc.filename or self.path / LOCK, exc) from None
+            except BaseException:
+                for made in reversed(created):
+                    with contextlib.suppress(OSError):
+                        made.rmdir()
+                raise
+            entries, legacy = _read_manifest(self.path)
+            held = _HELD[os.path.realpath(self.path)] = _Held(fd, entries=entries, legacy=legacy, created=created)
+        self._held = held
+        self._close = weakref.finalize(self, _release, os.path.realpath(self.path), self.path)
 
-    def _read_manifest(self) -> list[str]:
-        try:
-            names = json.loads((self.path / MANIFEST).read_text())
-        except (OSError, ValueError):
-            return []
-        return [n for n in names if isinstance(n, str) and plain_name(n)] if isinstance(names, list) else []
+    def close(self) -> None:
+        """Give this user's hold on the folder back (the last one saves the manifest and
+        releases the lock); again: nothing."""
+        self._close()
+
+    def __enter__(self) -> "OutputFolder":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     def _save_manifest(self) -> None:
-        names = sorted(set(self._names))
-        write_atomic(self.path / MANIFEST, lambda p: p.write_text(json.dumps(names)))
+        _save(self.path, self._held)
 
     def clear_earlier(self) -> list[str]:
-        """Remove the files an earlier run wrote here (those the manifest lists); returns them."""
-        removed = []
-        for name in self._names:
+        """Remove the files an earlier run wrote here: those the manifest lists that are still
+        regular files with the identity recorded (never a link, never a file changed since);
+        returns them. An old manifest's files are left (they cannot be verified), with a warning."""
+        held, removed, kept = self._held, [], []
+        for name, ident in held.entries.items():
             target = self.path / name
+            if ident is None or name in held.mine:
+                kept += [name] if ident is None and identity(target) is not None else []
+                continue
+            now = identity(target)
             try:
-                temporary_name(target).unlink(missing_ok=True)     # left by a killed writer
-                if target.is_file():
+                if now == ident:
                     target.unlink()
                     removed.append(name)
+                elif now is not None or os.path.lexists(target):
+                    kept.append(name)
+                tmp = temporary_name(target)       # left by a killed writer
+                if identity(tmp) is not None:
+                    tmp.unlink()
             except OSError as exc:
                 raise OutputError(target, exc) from None
-        self._names = []
+        kept += [n for n in held.legacy if os.path.lexists(self.path / n)]
+        if kept:
+            log.warning("%s: left %s in place: changed since navsim wrote them, or listed by an old "
+                        "manifest without their identity", self.path, ", ".join(sorted(kept)))
+        held.entries = {n: i for n, i in held.entries.items() if n in held.mine}
+        held.legacy = []
         self._save_manifest()
         return removed
 
     def record(self, paths) -> None:
-        """Add files written in the folder (by their own writers) to the manifest."""
-        self._names += [Path(p).name for p in paths if Path(p).parent.resolve() == self.path.resolve()]
+        """Add files written in the folder (by their own writers) to the manifest; their
+        identity is taken when the manifest is saved (now, and when the folder is closed)."""
+        here = self.path.resolve()
+        names = [Path(p).name for p in paths if Path(p).parent.resolve() == here]
+        self._held.mine.update(names)
+        self._held.entries.update({n: None for n in names if n not in self._held.entries})
         self._save_manifest()
 
     def write(self, name: str, write: Callable[[Path], object]) -> Path:
         """Write the file ``name`` with ``write(tmp_path)`` (see :func:`write_atomic`)."""
         self.record([self.path / name])
-        return write_atomic(self.path / name, write)
+        path = write_atomic(self.path / name, write)
+        self._save_manifest()
+        return path
 
     def text(self, name: str, text: str) -> Path:
         """Write ``text`` to the file ``name``."""
         return self.write(name, lambda p: p.write_text(text))
+
+    def json(self, name: str, obj, **kw) -> Path:
+        """Write ``obj`` as strict JSON (:func:`strict_json`) to the file ``name``."""
+        return self.text(name, strict_json(obj, **kw))

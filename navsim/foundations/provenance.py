@@ -15,16 +15,20 @@ PACKAGES = ("numpy", "scipy", "numba", "jsbsim", "matplotlib", "pyyaml", "tqdm",
 
 
 def git_revision() -> str | None:
-    """The git commit of the navsim checkout (with ``-dirty`` if modified), if any."""
-    root = Path(__file__).resolve().parents[1]
+    """The git commit of the navsim checkout this package is imported from (with ``-dirty`` if
+    its tracked files are modified); ``None`` for an installed package (a wheel in
+    site-packages, even one inside some other repository or a virtual environment within the
+    checkout), where git is missing, or where it fails."""
+    root = Path(__file__).resolve().parents[2]          # the folder holding the navsim package
     try:
-        rev = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True,
-                             text=True, timeout=5)
-        if rev.returncode != 0:
+        rev = subprocess.run(["git", "-C", str(root), "rev-parse", "--show-toplevel", "HEAD"],
+                             capture_output=True, text=True, timeout=5)
+        lines = rev.stdout.split()
+        if rev.returncode != 0 or len(lines) != 2 or Path(lines[0]).resolve() != root:
             return None
         dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
                                capture_output=True, text=True, timeout=5).stdout.strip()
-        return rev.stdout.strip() + ("-dirty" if dirty else "")
+        return lines[1] + ("-dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return None
 

@@ -30,6 +30,8 @@ class Section:
     headers: list[str] = field(default_factory=list)
     rows: list[list[str]] = field(default_factory=list)
     colours: list[list[str | None]] | None = None
+    #: a line shown on its own after the table (in the report and on the terminal)
+    note: str | None = None
 
 
 def pct(fraction) -> str:
@@ -60,9 +62,21 @@ def results(metrics: RunMetrics, settle_s: float) -> Section:
         "rotation vector). NEES: average of the navigation errors' NEES and the share of epochs inside its "
         "95 % band; NIS: the same share for the measurement least often inside (which: under Consistency); "
         "converged: when "
-        "the RMS position error settles; cost: wall time per run of the batched filter.",
+        "the RMS position error settles; cost: wall time per run of the batched filter, without compiling "
+        "its kernels.",
         ["estimator", "position\nN E D, m", "velocity\nN E D, m/s", "attitude\nN E D, deg", "NEES\navg", "NEES\nin band",
-         "NIS\nin band", "converged\ns", "diverged\nruns", "cost\nms/run"], rows, colours)
+         "NIS\nin band", "converged\ns", "diverged\nruns", "cost\nms/run"], rows, colours, compile_note(metrics))
+
+
+def compile_note(metrics: RunMetrics) -> str | None:
+    """The seconds each estimator spent compiling its kernels (once per worker process; kept out
+    of the cost column), or None when none was measured."""
+    spent = {label: m.cost.compile_s for label, m in metrics.estimators.items()
+             if m.cost is not None and m.cost.compile_s is not None}
+    if not spent:
+        return None
+    return ("Compile time (numba kernels compiled or loaded from the cache, once per worker process; not in the "
+            "cost column): " + ", ".join(f"{label} {s:.2f} s" for label, s in spent.items()) + ".")
 
 
 def paper_checks(metrics: RunMetrics, reference) -> Section | None:
@@ -198,14 +212,16 @@ def sections(metrics: RunMetrics, scenario) -> list[Section]:
 def text_table(section: Section, table) -> str:
     """A section for the terminal: its title, then ``table(headers, rows)`` (header line breaks
     become spaces)."""
-    return f"{section.title}:\n" + table([h.replace("\n", " ") for h in section.headers], section.rows)
+    text = f"{section.title}:\n" + table([h.replace("\n", " ") for h in section.headers], section.rows)
+    return text + (f"\n{section.note}" if section.note else "")
 
 
 def _blocks(section: Section) -> list:
     out = [Heading(section.title)]
     if section.text:
         out.append(Paragraph(section.text, size=7.5, colour="#333333"))
-    return out + [Table(section.headers, section.rows, section.colours)]
+    out.append(Table(section.headers, section.rows, section.colours))
+    return out + ([Paragraph(section.note, size=7.5, colour="#333333")] if section.note else [])
 
 
 def run_details(scenario, record: dict) -> str:

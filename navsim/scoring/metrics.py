@@ -13,6 +13,7 @@ Units are in the names: ``_m``, ``_mps``, ``_deg``, ``_s``, ``_pct``; per-axis v
 from __future__ import annotations
 
 import dataclasses
+import math
 import types
 import typing
 from dataclasses import dataclass, field
@@ -32,9 +33,10 @@ def _plain(v):
 
 
 def _build(tp, v):
-    """``v`` (from JSON) as the annotated type ``tp``."""
+    """``v`` (from JSON) as the annotated type ``tp``; null where a number is expected is NaN
+    (strict JSON writes NaN as null)."""
     if v is None:
-        return None
+        return math.nan if tp is float else None
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin in (typing.Union, types.UnionType):
         tp = next(a for a in args if a is not type(None))
@@ -117,12 +119,15 @@ class Resets(_Record):
 
 @dataclass(frozen=True)
 class Cost(_Record):
-    """CPU time of the estimator: per run, in propagation, per epoch and run; runs per batch."""
+    """CPU time of the estimator: per run, in propagation, per epoch and run; runs per batch;
+    apart, the seconds spent compiling (or loading compiled) kernels in its calls, once per
+    worker process, which the per-run figures never count (None: not measured, older files)."""
 
     ms_per_run: float
     propagate_ms_per_run: float
     epoch_us_per_run: float
     batch_runs: float
+    compile_s: float | None = None
 
 
 @dataclass(frozen=True)

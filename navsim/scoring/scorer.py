@@ -106,12 +106,14 @@ def reset_metrics(resets: list) -> Resets:
 
 
 def cost_metrics(cost: dict | None) -> Cost | None:
-    """The CPU cost per run and per epoch of a summed :attr:`EstimatorHistory.cost`."""
+    """The CPU cost per run and per epoch of a summed :attr:`EstimatorHistory.cost`, and apart
+    the seconds compiling its kernels (never inside the per-run figures)."""
     if cost is None or not cost["runs"]:
         return None
     runs = cost["runs"]
     return Cost((cost["propagate_s"] + cost["epoch_s"]) / runs * 1e3, cost["propagate_s"] / runs * 1e3,
-                cost["epoch_s"] / max(cost["epochs"], 1) / runs * 1e6, runs / cost["batches"])
+                cost["epoch_s"] / max(cost["epochs"], 1) / runs * 1e6, runs / cost["batches"],
+                cost.get("compile_s"))
 
 
 class _Chunk:

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import lfilter
 
-from navsim.foundations.config import Node
+from navsim.foundations.config import MAX_DURATION_S, Node, check_number, check_numbers
 from navsim.foundations.errors import ScenarioError
 
 
@@ -144,6 +144,12 @@ def sampling(truth, rate_hz: float, seed: int, runs, name: str) -> Sampling:
 # --- fault windows -------------------------------------------------------------------------------
 
 FAULT_TYPES = ("outage", "bias", "degraded", "interference", "disturbance")
+#: the largest bias, radius or distance of a fault, m; the largest noise factor; the strongest
+#: disturbance field per axis, uT (the Earth's is 25-65 uT); the most points of a power line
+MAX_FAULT_M = 1e6
+MAX_FAULT_FACTOR = 1e6
+MAX_FAULT_UT = 1e4
+MAX_SOURCE_POINTS = 10_000
 
 
 @dataclass(frozen=True)
@@ -192,48 +198,60 @@ def parse_faults(data, path: str, file: str | None = None, vector: bool = False)
     for i, item in enumerate(data):
         node = Node(item, f"{path}[{i}]", file)
         kind = node.get("type", str, choices=FAULT_TYPES)
-        kw = dict(type=kind, start_s=node.get("start_s", float, 0.0, minimum=0.0),
-                  end_s=node.get("end_s", float, math.inf))
+        kw = dict(type=kind, start_s=node.get("start_s", float, 0.0, minimum=0.0, maximum=MAX_DURATION_S),
+                  end_s=node.get("end_s", float, math.inf, minimum=0.0, maximum=MAX_DURATION_S))
         if kw["end_s"] <= kw["start_s"]:
             raise node.error(f"is {kw['end_s']:g}", "end_s", expected=f"a time after start_s ({kw['start_s']:g})")
+        err = lambda key: (lambda m, e: node.error(m, key, e))
         if kind == "bias":
             if vector:
                 node._seen.add("value_m")
                 raw = node.data.get("value_m")
-                if isinstance(raw, (int, float)) and not isinstance(raw, bool):
-                    raw = [0.0, 0.0, float(raw)]
-                if not (isinstance(raw, list) and len(raw) == 3):
-                    raise node.error("is missing or not [north, east, down]", "value_m",
-                                     expected="a NED vector in metres, e.g. [0, 0, -80]")
-                kw["value"] = np.array(raw, float)
+                if raw is None:
+                    raise node.missing("value_m", "a NED vector in metres, e.g. [0, 0, -80]")
+                if not isinstance(raw, list):
+                    raw = [0.0, 0.0, check_number(raw, float, minimum=-MAX_FAULT_M, maximum=MAX_FAULT_M,
+                                                  error=err("value_m"))]
+                kw["value"] = np.array(check_numbers(raw, 3, minimum=-MAX_FAULT_M, maximum=MAX_FAULT_M,
+                                                     error=err("value_m")), float)
             else:
-                kw["value"] = node.get("value_m", float)
+                kw["value"] = node.get("value_m", float, minimum=-MAX_FAULT_M, maximum=MAX_FAULT_M)
         elif kind == "degraded":
-            kw["factor"] = node.get("factor", float, minimum=1.0)
+            kw["factor"] = node.get("factor", float, minimum=1.0, maximum=MAX_FAULT_FACTOR)
         elif kind == "disturbance":
             node._seen.add("hard_iron_uT")
             raw = node.data.get("hard_iron_uT")
-            if not (isinstance(raw, list) and len(raw) == 3 and all(
-                    isinstance(x, (int, float)) and not isinstance(x, bool) for x in raw)):
-                raise node.error("is missing or not [x, y, z]", "hard_iron_uT",
-                                 expected="a body-axes field in microtesla, e.g. [12, -8, 5]")
-            kw["value"] = np.array(raw, float) * 1e-6
-            kw["ramp_s"] = node.get("ramp_s", float, 0.0, minimum=0.0)
+            if raw is None:
+                raise node.missing("hard_iron_uT", "a body-axes field in microtesla, e.g. [12, -8, 5]")
+            kw["value"] = np.array(check_numbers(raw, 3, minimum=-MAX_FAULT_UT, maximum=MAX_FAULT_UT,
+                                                 error=err("hard_iron_uT")), float) * 1e-6
+            kw["ramp_s"] = node.get("ramp_s", float, 0.0, minimum=0.0, maximum=MAX_DURATION_S)
         elif kind == "interference":
             node._seen.add("source")
             src = node.data.get("source")
-            if not (isinstance(src, list) and src and all(isinstance(p, list) and len(p) == 3 for p in src)):
+            if not (isinstance(src, list) and src and len(src) <= MAX_SOURCE_POINTS):
                 raise node.error("is missing or malformed", "source",
-                                 expected="a list of [lat_deg, lon_deg, h_m] points (a power line)")
-            kw["source"] = tuple(tuple(float(x) for x in p) for p in src)
-            kw["radius_m"] = node.get("radius_m", float, 100.0, exclusive_minimum=0.0)
-            kw["lost_m"] = node.get("lost_m", float, 30.0, minimum=0.0)
+                                 expected=f"a list of 1 to {MAX_SOURCE_POINTS} [lat_deg, lon_deg, h_m] points (a power line)")
+            kw["source"] = tuple(_point(p, err(f"source[{j}]")) for j, p in enumerate(src))
+            kw["radius_m"] = node.get("radius_m", float, 100.0, exclusive_minimum=0.0, maximum=MAX_FAULT_M)
+            kw["lost_m"] = node.get("lost_m", float, 30.0, minimum=0.0, maximum=MAX_FAULT_M)
         node.done()
         out.append(Fault(**kw))
     return tuple(out)
 
 
+def _point(p, error) -> tuple:
+    """A ``[lat_deg, lon_deg, h_m]`` point of an interference source."""
+    lat, lon, h = check_numbers(p, 3, error=error)
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0 and abs(h) <= MAX_FAULT_M):
+        raise error(f"is {p!r}", f"[lat_deg, lon_deg, h_m]: latitude -90..90, longitude -180..180, "
+                    f"|h_m| <= {MAX_FAULT_M:g}")
+    return (lat, lon, h)
+
+
 def check_faults(faults, kind: str, duration_s: float, name: str) -> None:
+    """Each fault of sensor ``name`` (of ``kind``) is one a ``kind`` can have and starts within
+    a flight of ``duration_s`` (a window starting at or after its end would score nothing)."""
     allowed = {"gnss": ("outage", "bias", "degraded", "interference"), "radar_altimeter": ("outage", "bias", "degraded"),
                "baro": ("outage", "bias", "degraded"),
                "magnetometer": ("outage", "disturbance")}.get(kind, ("outage",))
@@ -241,9 +259,15 @@ def check_faults(faults, kind: str, duration_s: float, name: str) -> None:
         if f.type not in allowed:
             raise ScenarioError(f"a {kind} cannot have a '{f.type}' fault", key=f"sensors.{name}.faults[{i}]",
                                 expected="one of " + ", ".join(allowed))
-        if f.start_s > duration_s:
-            raise ScenarioError(f"starts at {f.start_s:g} s, after the flight ends ({duration_s:.0f} s)",
-                                key=f"sensors.{name}.faults[{i}].start_s")
+        if f.start_s >= duration_s:
+            raise ScenarioError(f"the {f.type} window {_window(f)} starts after the flight ends "
+                                f"({duration_s:.6g} s): it would change nothing",
+                                key=f"sensors.{name}.faults[{i}].start_s",
+                                expected=f"a start within the flight (0 to {duration_s:.6g} s)")
+
+
+def _window(f: Fault) -> str:
+    return f"[{f.start_s:g}, {f.end_s:g}) s" if math.isfinite(f.end_s) else f"from {f.start_s:g} s"
 
 
 def apply_outages(valid: np.ndarray, t_s: np.ndarray, faults) -> None:

@@ -13,17 +13,19 @@ file and the key path.
 from __future__ import annotations
 
 import copy
-import math
 from pathlib import Path
 
 import numpy as np
 
-from navsim.foundations.config import close_match, load_yaml, resolve_file
+from navsim.foundations.config import MAX_RATE_HZ, check_number, close_match, load_yaml, resolve_file
 from navsim.foundations.errors import ScenarioError
+from navsim.foundations.resources import data_folder
 from navsim.sensors import specs as S
-from navsim.sensors.units import UnitError, to_si
+from navsim.sensors.units import UnitError, number, to_si
 
-CATALOG_DIR = Path(__file__).resolve().parents[2] / "sensors"
+#: the catalog's datasheets: the package ``navsim.data.sensors`` (edited in the repository's
+#: ``sensors/`` folder), read through importlib.resources
+CATALOG_DIR = data_folder("sensors")
 
 # field tables: yaml key -> (spec attribute, dimension, shape); shape "3" broadcasts a scalar
 # to three axes, "1" is a scalar, "33" a 3x3 matrix, "plain" a unit-less number, "str" a string
@@ -132,7 +134,7 @@ def load_datasheet(name: str, key: str = "model", file: str | None = None) -> tu
     """The datasheet ``name`` names (a catalog entry, or a ``.yaml`` file beside or below the
     scenario ``file``, see :func:`navsim.foundations.config.resolve_file`) and its path."""
     path = resolve_file(name, catalog=CATALOG_DIR, file=file, key=key, what="in the sensor catalog",
-                        choices=available())
+                        choices=available)
     data = load_yaml(path)
     if not isinstance(data, dict) or data.get("kind") not in FIELDS:
         raise ScenarioError("needs 'kind'", file=str(path), key="kind",
@@ -192,11 +194,8 @@ def _read_fields(data: dict, table: dict, file, path, typ) -> dict:
                     raise UnitError("expected a list")
                 out[attr] = tuple(S.Vibration(**_read_fields(v, dim, file, f"{where}[{i}]", S.Vibration))
                                   for i, v in enumerate(value))
-            elif shape == "plain":
-                if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-                        0 < value < math.inf):
-                    raise UnitError(f"is {value!r}, expected a positive finite number")
-                out[attr] = float(value)
+            elif shape == "plain":            # a rate or a frequency, Hz
+                out[attr] = _plain(value, MAX_RATE_HZ)
             elif shape == "str":
                 if not isinstance(value, str):
                     raise UnitError(f"is {value!r}, expected a string")
@@ -208,11 +207,12 @@ def _read_fields(data: dict, table: dict, file, path, typ) -> dict:
                     raise UnitError(f"is {value!r}, expected true or false")
                 out[attr] = value
             elif shape == "pair":
-                if not (isinstance(value, list) and len(value) == 2
-                        and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)
-                        and 0 < value[0] < value[1] < math.inf):
+                if not (isinstance(value, list) and len(value) == 2):
                     raise UnitError(f"is {value!r}, expected [low, high] with 0 < low < high")
-                out[attr] = (float(value[0]), float(value[1]))
+                low, high = (_plain(x, MAX_RATE_HZ) for x in value)
+                if not low < high:
+                    raise UnitError(f"is {value!r}, expected [low, high] with 0 < low < high")
+                out[attr] = (low, high)
             elif shape == "landmarks":
                 out[attr] = _landmarks(value)
             else:
@@ -224,18 +224,17 @@ def _read_fields(data: dict, table: dict, file, path, typ) -> dict:
 
 def _value(value, dim, shape, key, previous):
     if shape == "33":                # a dimensionless matrix: plain numbers, no unit
-        ok = isinstance(value, list) and len(value) == 3 and all(
-            isinstance(row, list) and len(row) == 3 and all(
-                isinstance(x, (int, float)) and not isinstance(x, bool) for x in row) for row in value)
-        m = np.asarray(value, float) if ok else None
-        if m is None or not np.all(np.isfinite(m)):
+        if not (isinstance(value, list) and len(value) == 3 and all(
+                isinstance(row, list) and len(row) == 3 for row in value)):
             raise UnitError("expected a 3x3 matrix (list of three rows)")
-        return m
+        return np.array([[to_si(x, "dimensionless") for x in row] for row in value], float)
     v = to_si(value, dim)
     if shape == "1":
         if isinstance(v, np.ndarray):
             raise UnitError("expected one value, not three")
         _check_sign(key, v)
+        if key.endswith("tau") and not v > 0:
+            raise UnitError(f"is {v:g} s, expected a time constant > 0")
         return float(v)
     arr = np.broadcast_to(np.asarray(v, float), (3,)).copy()
     _check_sign(key, arr)
@@ -249,6 +248,13 @@ def _value(value, dim, shape, key, previous):
     return arr
 
 
+def _plain(value, maximum: float) -> float:
+    """A positive unit-less number (a rate or a frequency, Hz) of at most ``maximum``."""
+    def refuse(message, expected):
+        raise UnitError(f"{message}, expected {expected}")
+    return check_number(value, float, exclusive_minimum=0.0, maximum=maximum, error=refuse)
+
+
 def _check_sign(key, v):
     if key not in _NON_NEGATIVE_EXCEPT and np.any(np.asarray(v) < 0):
         raise UnitError(f"is negative ({v}), expected a value >= 0")
@@ -259,8 +265,12 @@ def _landmarks(value):
         raise UnitError("expected a list of [lat_deg, lon_deg, h_m]")
     out = []
     for i, item in enumerate(value):
-        ok = isinstance(item, list) and len(item) == 3 and all(
-            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in item)
+        ok = isinstance(item, list) and len(item) == 3
+        if ok:
+            try:
+                item = [number(x) for x in item]
+            except UnitError:
+                ok = False
         if not ok or not (-90 <= item[0] <= 90 and -180 <= item[1] <= 180):
             raise UnitError(f"landmark [{i}] is {item!r}, expected [lat_deg, lon_deg, h_m] "
                             "(finite numbers, latitude -90..90, longitude -180..180)")

@@ -14,6 +14,8 @@ import re
 
 import numpy as np
 
+from navsim.foundations.config import check_number
+
 G0_MPS2 = 9.80665          #: standard gravity, m/s^2 (for g, mg, ug)
 DEG = math.pi / 180.0
 HOUR_S = 3600.0
@@ -77,21 +79,25 @@ def _to_si(value, dimension: str):
     if isinstance(value, dict):
         if set(value) != {"value", "unit"}:
             raise UnitError("a mapping value needs exactly 'value' and 'unit'")
-        number, unit = value["value"], str(value["unit"])
-        if isinstance(number, list):
-            return np.array([_num(v) for v in number], float) * _factor(unit, dimension)
-        return _num(number) * _factor(unit, dimension)
+        given, unit = value["value"], str(value["unit"])
+        if isinstance(given, list):
+            if len(given) != 3:
+                raise UnitError(f"a list of {len(given)} values, expected three (x, y, z)")
+            return np.array([number(v) for v in given], float) * _factor(unit, dimension)
+        return number(given) * _factor(unit, dimension)
     if isinstance(value, bool):
         raise UnitError(f"is a boolean, expected a number with a unit ({_hint(dimension)})")
     if isinstance(value, (int, float)):
         if dimension == "dimensionless":
-            return float(value)
+            return number(value)
         if value == 0:
             return 0.0          # zero needs no unit
-        raise UnitError(f"{value} has no unit; write it with one of: {_hint(dimension)}")
+        raise UnitError(f"{number(value):g} has no unit; write it with one of: {_hint(dimension)}")
     if isinstance(value, list):
+        if len(value) != 3:
+            raise UnitError(f"a list of {len(value)} values, expected three (x, y, z)")
         if dimension == "dimensionless" or all(v == 0 for v in value):
-            return np.array([_num(v) for v in value], float)
+            return np.array([number(v) for v in value], float)
         raise UnitError(f"a list needs its unit after it, e.g. '[1, 1, 2] {units_of(dimension)[0]}'")
     if not isinstance(value, str):
         raise UnitError(f"expected a number with a unit ({_hint(dimension)})")
@@ -101,19 +107,25 @@ def _to_si(value, dimension: str):
         if len(parts) != 3:
             raise UnitError(f"'{value}': a vector needs three values (x, y, z)")
         unit = m.group(2) or "1"
-        return np.array([_num(p) for p in parts], float) * _factor(unit, dimension)
+        return np.array([number(p) for p in parts], float) * _factor(unit, dimension)
     m = _SCALAR.match(value)
     if not m:
         raise UnitError(f"'{value}' is not a number with a unit ({_hint(dimension)})")
     unit = m.group(2) or "1"
-    return float(m.group(1)) * _factor(unit, dimension)
+    return number(float(m.group(1))) * _factor(unit, dimension)
 
 
-def _num(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        raise UnitError(f"'{v}' is not a number") from None
+def number(v) -> float:
+    """A datasheet number (a number or its text) within the global bounds of
+    :func:`navsim.foundations.config.check_number` (no NaN, infinity, boolean, 1e308 or 1e-308)."""
+    if isinstance(v, str):
+        try:
+            v = float(v)
+        except ValueError:
+            raise UnitError(f"'{v}' is not a number") from None
+    def refuse(message, expected):
+        raise UnitError(f"{message}, expected {expected}")
+    return check_number(v, float, error=refuse)
 
 
 def _factor(unit: str, dimension: str) -> float:

@@ -242,7 +242,7 @@ CASES = [
      VALIDATE, 2, ["nested more than"]),
     ("attitude-sigma-zero", {S: (Path(__file__).parents[2] / "scenarios" / "p4_static.yaml").read_text()
                              .replace("mag_uT: 0.5", "mag_uT: 0")}, VALIDATE, 2, ["sigma.mag_uT", "> 0.0"]),
-    ("resume-index-not-object", {S: scenario(), "out/chunks/index.json": "[1, 2]"},
+    ("resume-index-not-object", {S: scenario(), "out/.navsim-files.json": "[]", "out/chunks/index.json": "[1, 2]"},
      RUN + ["--out", "case/out", "--resume"], 2, ["not a chunk index"]),
     ("resume-nothing", {S: scenario()}, RUN + ["--out", "case/empty", "--resume"], 2, ["nothing to resume"]),
 ]

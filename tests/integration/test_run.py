@@ -219,7 +219,8 @@ def test_malformed_scenario_corpus(i, tmp_path, capsys):
 def test_malformed_scenario_exits_2_from_run_without_traceback(tmp_path):
     path = tmp_path / "bad.yaml"
     path.write_text(BASE.replace("type: eskf", "type: ekf"))
-    proc = subprocess.run([sys.executable, "-m", "navsim", "run", str(path)], capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-m", "navsim", "run", str(path)], capture_output=True, text=True,
+                          cwd=tmp_path)          # its default output folder, reports/, under tmp_path
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert "estimators[1].type" in proc.stderr and "hint: did you mean 'eskf'?" in proc.stderr
 
@@ -255,5 +256,5 @@ metric: rms.pos_m
         [f"point {n}/4" for n in range(1, 5)]
     bad = tmp_path / "bad.yaml"
     bad.write_text(f"scenario: {short.name}\ngrid:\n  estimators[5].type: [sins]\n")
-    assert main(["sweep", str(bad)]) == 2
+    assert main(["sweep", str(bad), "--out", str(tmp_path / "bad_out")]) == 2
     assert "estimators[5]" in capsys.readouterr().err

@@ -13,9 +13,14 @@ from navsim.experiment.chunkstore import ChunkStore, part_arrays, part_from_arra
 from navsim.experiment.records import ChunkPart, EstimatorHistory, merge_parts
 
 
-def need_distributed():
-    """Skip without Dask distributed, except in CI (``NAVSIM_REQUIRE_DASK=1``), where it fails."""
+@pytest.fixture(autouse=True)
+def need_distributed(request):
+    """A test marked ``dask`` (it needs Dask distributed: the README's ``.[test]`` install lacks
+    it) is skipped without it, except in CI (``NAVSIM_REQUIRE_DASK=1``), where it fails;
+    ``.ci/run`` runs the marked tests again with the ``dask`` extra (``-m dask``)."""
     import os
+    if request.node.get_closest_marker("dask") is None:
+        return
     try:
         import distributed  # noqa: F401
     except ImportError:
@@ -125,8 +130,8 @@ def test_resume_refuses_another_run(short, tmp_path, capsys):
     assert "seed 4 there, 5 now" in capsys.readouterr().err
 
 
+@pytest.mark.dask
 def test_dask_local_cluster_gives_the_local_numbers(short, tmp_path, monkeypatch):
-    need_distributed()
     assert run(short, tmp_path / "local", "--chunk-runs", "2", "--workers", "1") == 0
     assert run(short, tmp_path / "dask", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
     (a, _), (b, mb) = numbers(tmp_path / "local"), numbers(tmp_path / "dask")
@@ -135,8 +140,8 @@ def test_dask_local_cluster_gives_the_local_numbers(short, tmp_path, monkeypatch
     assert json.loads((tmp_path / "dask" / "run.json").read_text())["executor"] == "dask"
 
 
+@pytest.mark.dask
 def test_dask_retries_a_chunk_once_and_flags_one_that_fails_twice(short, tmp_path, monkeypatch):
-    need_distributed()
     import navsim.experiment.runner
     real, marker = navsim.experiment.runner._chunk, tmp_path / "failed_once"
 
@@ -163,6 +168,7 @@ def test_closed_loop_refuses_dask(repo_root, tmp_path, capsys):
     assert "local executor only" in capsys.readouterr().err
 
 
+@pytest.mark.dask
 @pytest.mark.filterwarnings("ignore:No artists with labels")   # the stub returns no runs
 def test_sweep_passes_the_executor_to_every_point(short, tmp_path, monkeypatch):
     import navsim.api
@@ -202,10 +208,10 @@ def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short, tmp_pat
     assert got["KF"]["runs_counted"] == 6
 
 
+@pytest.mark.dask
 def test_dask_retries_a_chunk_whose_worker_dies_and_flags_one_that_kills_it_twice(short, tmp_path, monkeypatch):
     """A worker process killed under a chunk (os._exit, as the OOM killer would): the chunk runs
     again on a restarted worker; a chunk that kills its worker twice is flagged, the others complete."""
-    need_distributed()
     import os
 
     import navsim.experiment.runner
@@ -256,10 +262,10 @@ def test_a_run_killed_by_sigkill_resumes_to_the_uninterrupted_metrics(short, tmp
     assert a == b and mb["runs_done"] == 6
 
 
+@pytest.mark.dask
 def test_dask_on_a_running_scheduler_gives_the_local_numbers(short, tmp_path):
     """``--scheduler ADDRESS``: the truth is scattered to the cluster's workers (no flight cache
     needed there) and the numbers equal the local executor's."""
-    need_distributed()
     import distributed
     assert run(short, tmp_path / "local", "--chunk-runs", "3", "--workers", "1") == 0
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster:

@@ -15,6 +15,8 @@ import navsim
 from navsim.cli import main
 from navsim.navigation.estimators import available, get
 
+pytestmark = pytest.mark.plugin      # .ci/run runs these with the plug-in installed
+
 
 @pytest.fixture(scope="module")
 def plugin():

@@ -10,9 +10,9 @@ import navsim
 PACKAGE = Path(navsim.__file__).resolve().parent
 #: the layers of the package in the order of the data flow: a module imports only from its own
 #: layer and the layers before it (the longest prefix of a module's name gives its layer)
-LAYERS = ("navsim.version", "navsim.foundations", "navsim.flight", "navsim.sensors", "navsim.navigation",
-          "navsim.experiment", "navsim.scoring", "navsim.replay", "navsim.report", "navsim.api", "navsim.cli",
-          "navsim.__main__", "navsim")
+LAYERS = ("navsim.data", "navsim.version", "navsim.foundations", "navsim.flight", "navsim.sensors",
+          "navsim.navigation", "navsim.experiment", "navsim.scoring", "navsim.replay", "navsim.report", "navsim.api",
+          "navsim.cli", "navsim.__main__", "navsim")
 #: the longest a function of the package may be, in lines (its decorators and docstring included)
 LONGEST = 80
 

@@ -1,7 +1,9 @@
 """The report's pages to PNGs and one PDF: a forked child draws the PNGs while the parent draws
 the PDF (navsim.report.pages._render); a failure in either is reported as the OutputError it is."""
 
+import contextlib
 import errno
+import os
 
 import matplotlib
 import matplotlib.figure
@@ -55,13 +57,23 @@ def test_a_png_that_cannot_be_written_is_reported_with_its_path_and_hint(tmp_pat
 
 
 def test_a_fork_that_fails_falls_back_to_drawing_in_turn(tmp_path, monkeypatch):
-    import os
     monkeypatch.setattr(report, "_can_fork", lambda: True)
 
     def no_fork():
         raise OSError(11, "Resource temporarily unavailable")
     monkeypatch.setattr(os, "fork", no_fork)
-    before = len(os.listdir("/proc/self/fd"))
+    before = _pipes()
     files = report._render(OutputFolder(tmp_path / "out"), pages(), ["pdf", "png"], "t")
     assert sorted(p.name for p in files) == ["a.png", "b.png", "c.png", "report.pdf"]
-    assert len(os.listdir("/proc/self/fd")) == before                 # the pipe closed again
+    assert _pipes() == before                                          # the pipe closed again
+
+
+def _pipes() -> set:
+    """This process's open pipes (not the font files matplotlib opens once, nor folder locks)."""
+    out = set()
+    for fd in os.listdir("/proc/self/fd"):
+        with contextlib.suppress(OSError):
+            target = os.readlink(f"/proc/self/fd/{fd}")
+            if target.startswith("pipe:"):
+                out.add(target)
+    return out

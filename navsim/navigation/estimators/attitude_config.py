@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from navsim.foundations.config import Node, close_match
+from navsim.foundations.config import MAX_DURATION_S, Node, check_numbers, close_match
 from navsim.foundations.jsonschema import POS, obj
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.specs import ImuSpec
@@ -90,13 +90,12 @@ def attitude_params(node: Node, kind: str, sensors: dict) -> dict:
     """Validated parameters of a ``cpf`` / ``cpf_ekf`` entry (plain data)."""
     p = {"mag": _sensor(node, "mag", sensors, True), "gnss": _sensor(node, "gnss", sensors, False),
          "baro": _sensor(node, "baro", sensors, False),
-         "period_s": node.get("period_s", float, 0.1, exclusive_minimum=0.0)}
+         "period_s": node.get("period_s", float, 0.1, exclusive_minimum=0.0, maximum=MAX_DURATION_S)}
     field = node.data.get("field_uT")
     node._seen.add("field_uT")
     if field is not None:
-        if not (isinstance(field, list) and len(field) == 3 and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in field)):
-            raise node.error(f"is {field!r}", "field_uT", expected="[north, east, down] in microtesla")
+        field = check_numbers(field, 3, error=lambda m, e: node.error(
+            m, "field_uT", expected=f"[north, east, down] in microtesla ({e})"))
         if not any(field):
             raise node.error(f"is {field!r}", "field_uT", expected="a non-zero field [north, east, down] in microtesla")
         p["field_n_T"] = [float(v) * 1e-6 for v in field]

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from navsim.foundations.config import Node, close_match
+from navsim.foundations.config import MAX_DURATION_S, MAX_TIME_CONSTANT_S, Node, close_match
 from navsim.foundations.jsonschema import MEASUREMENT, POS, obj
 from navsim.foundations.transform import rotation
 from navsim.navigation.estimators import kalman
@@ -331,7 +331,7 @@ def filter_params(node: Node) -> dict:
     the measurements)."""
     blocks = _states(node)
     params = {"states": blocks,
-              "period_s": node.get("period_s", float, 1.0, exclusive_minimum=0.0),
+              "period_s": node.get("period_s", float, 1.0, exclusive_minimum=0.0, maximum=MAX_DURATION_S),
               "discretization": node.get("discretization", str, "series", choices=("series", "van_loan")),
               "series_order": node.get("series_order", int, 6, minimum=1, maximum=12),
               "latest_sample": node.get("latest_sample", bool, False)}
@@ -347,7 +347,7 @@ def filter_params(node: Node) -> dict:
     params["baro"] = {"sigma_m": 0.0, "tau_s": 300.0}
     if baro is not None:
         params["baro"] = {"sigma_m": baro.get("sigma_m", float, exclusive_minimum=0.0),
-                          "tau_s": baro.get("tau_s", float, 300.0, exclusive_minimum=0.0)}
+                          "tau_s": baro.get("tau_s", float, 300.0, exclusive_minimum=0.0, maximum=MAX_TIME_CONSTANT_S)}
         baro.done()
     if "baro" in blocks and params["baro"]["sigma_m"] == 0.0:
         raise node.error("the 'baro' state needs its model", "baro", expected="{sigma_m: ..., tau_s: ...}")

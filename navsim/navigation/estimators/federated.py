@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
-from navsim.foundations.config import Node
+from navsim.foundations.config import MAX_WINDOW, Node
 from navsim.foundations.jsonschema import MEASUREMENT, NUM, POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
@@ -105,7 +105,7 @@ class FederatedKF(ErrorStateKF):
         iso = node.child("isolation", None)
         isolation = None
         if iso is not None:
-            isolation = {"window": iso.get("window", float, 5.0, minimum=1.0),
+            isolation = {"window": iso.get("window", float, 5.0, minimum=1.0, maximum=MAX_WINDOW),
                          "p": iso.get("p", float, 0.999, exclusive_minimum=0.5, maximum=0.999999)}
             iso.done()
         params["federated"] = {"locals": locals_, "master_beta": master, "reset": node.get("reset", bool, True),

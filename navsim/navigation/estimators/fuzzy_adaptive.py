@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from navsim.foundations.config import Node
+from navsim.foundations.config import MAX_RULES, MAX_WINDOW, Node, check_numbers
 from navsim.foundations.jsonschema import POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import register
@@ -85,7 +85,7 @@ class FuzzyAdaptiveKF(ErrorStateKF):
         """The ES-KF's keys plus ``fuzzy: {window: 3, rules: [[1, 1], [2, 4], ...], sensors: [...]}``
         (optional; ``sensors``: the sensors whose R is adapted, default all)."""
         def read(sub: Node) -> dict:
-            out = {"window": sub.get("window", float, 3.0, minimum=1.0), "sensors": sensor_names(sub, "sensors", sensors)}
+            out = {"window": sub.get("window", float, 3.0, minimum=1.0, maximum=MAX_WINDOW), "sensors": sensor_names(sub, "sensors", sensors)}
             rules = _rules(sub)
             return out if rules is None else {**out, "rules": rules}
         return {**super().parse(node, sensors), "adaptive": node.section("fuzzy", read)}
@@ -123,10 +123,9 @@ def _rules(node: Node) -> list | None:
     rules = node.data.get("rules")
     if rules is None:
         return None
-    ok = (isinstance(rules, list) and rules and all(
-        isinstance(r, list) and len(r) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in r)
-        for r in rules))
-    arr = np.asarray(rules, float) if ok else None
+    ok = isinstance(rules, list) and 0 < len(rules) <= MAX_RULES and all(isinstance(r, list) for r in rules)
+    err = lambda m, e: node.error(f"is {rules!r}", "rules", expected=f"a list of [r, s] pairs ({e})")
+    arr = np.array([check_numbers(r, 2, error=err) for r in rules], float) if ok else None
     if not ok or np.any(np.diff(arr[:, 0]) <= 0) or np.any(arr[:, 1] <= 0):
         raise node.error(f"is {rules!r}", "rules", expected="a list of [r, s] pairs with r increasing and s > 0",
                          hint="e.g. [[1, 1], [2, 4], [3, 9], [5, 25], [10, 100]]")

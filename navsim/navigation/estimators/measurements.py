@@ -46,7 +46,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.foundations import atmosphere, earth
-from navsim.foundations.config import Node, close_match
+from navsim.flight.environment import MAX_WIND_MPS
+from navsim.foundations.config import Node, check_numbers, close_match
 from navsim.foundations.jsonschema import NUM, POS, VEC3, merge_properties
 from navsim.foundations.transform import skew
 from navsim.navigation import magcal
@@ -324,9 +325,8 @@ class AirVelocity:
                              "angle_sigma_deg", expected="a number > 0 (about 4 deg at a cruise angle of attack)")
         wind = node.data.get("wind_n_mps", [0.0, 0.0, 0.0])
         node._seen.add("wind_n_mps")
-        if not (isinstance(wind, list) and len(wind) == 3
-                and all(isinstance(w, (int, float)) and not isinstance(w, bool) and math.isfinite(w) for w in wind)):
-            raise node.error(f"is {wind!r}", "wind_n_mps", expected="[north, east, down] in m/s")
+        wind = check_numbers(wind, 3, minimum=-MAX_WIND_MPS, maximum=MAX_WIND_MPS, error=lambda m, e: node.error(
+            m, "wind_n_mps", expected=f"[north, east, down] in m/s ({e})"))
         return {"model": name, "override": override.data if override else None, "angle_sigma_deg": angle,
                 "wind_n_mps": [float(w) for w in wind]}
 

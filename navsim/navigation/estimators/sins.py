@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from navsim.foundations.config import Node
+from navsim.foundations.config import MAX_DURATION_S, Node
 from navsim.foundations.jsonschema import POS
 from navsim.navigation.estimators.base import Innovation, Solution, register
 from navsim.navigation.strapdown import BlockStrapdown, NavState
@@ -24,7 +24,7 @@ class FreeInertial:
     @classmethod
     def parse(cls, node: Node, sensors: dict) -> dict:
         """``period_s`` (1 s): how often its solution is recorded."""
-        return {"period_s": node.get("period_s", float, 1.0, exclusive_minimum=0.0)}
+        return {"period_s": node.get("period_s", float, 1.0, exclusive_minimum=0.0, maximum=MAX_DURATION_S)}
 
     def initialize(self, nav0: NavState, sigma0: dict | None = None) -> None:
         self.sd = BlockStrapdown(nav0.copy())

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from navsim.foundations.config import Node
+from navsim.foundations.config import MAX_WINDOW, Node
 from navsim.foundations.jsonschema import POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import Innovation, Solution, register
@@ -75,7 +75,7 @@ class TwoStageAdaptiveKF(ErrorStateKF):
         params["adaptive"] = {"adaptive": True, "window": 30, "floor": 1.0}
         if ad is not None:
             params["adaptive"] = {"adaptive": ad.get("enabled", bool, True),
-                                  "window": ad.get("window", int, 30, minimum=1),
+                                  "window": ad.get("window", int, 30, minimum=1, maximum=MAX_WINDOW),
                                   "floor": ad.get("floor", float, 1.0, exclusive_minimum=0.0)}
             ad.done()
         if params["adaptive"]["adaptive"]:

@@ -1,0 +1,13 @@
+"""navsim's shipped data, installed as packages: ``navsim.data.aircraft`` (the JSBSim aircraft,
+edited in the repository's top-level ``aircraft/``) and ``navsim.data.sensors`` (the sensor
+catalog, edited in ``sensors/``); pyproject.toml maps the two folders here. Read them with
+:func:`navsim.foundations.resources.data_folder`.
+
+In a checkout imported without installing (``PYTHONPATH``), the two folders are found beside the
+``navsim`` package."""
+
+from pathlib import Path
+
+_CHECKOUT = Path(__file__).resolve().parents[2]
+if (_CHECKOUT / "pyproject.toml").is_file() and (_CHECKOUT / "aircraft" / "__init__.py").is_file():
+    __path__.append(str(_CHECKOUT))       # noqa: F821 (a package's __path__)

@@ -1,0 +1,390 @@
+"""Output folders kept safe: the executor is reached before anything is deleted, one writer per
+folder (a lock, taken over from a killed holder), folders that are not navsim's refused, only
+files navsim wrote (and that did not change since) removed, SIGTERM handled as Ctrl-C with
+the workers ending with their parent, a full disk reported as such, strict JSON."""
+
+import dataclasses
+import json
+import math
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+import navsim
+from navsim.cli import main
+from navsim.foundations.outputs import MANIFEST, OutputFolder
+
+TINY = """
+name: tiny_safety
+description: a 60 s P0-like flight for the output-safety tests
+aircraft: survey10
+track:
+  start: {lat_deg: 30.0, lon_deg: 122.5, alt_m: 150, speed_mps: 15, heading_deg: 0}
+  segments:
+    - {type: straight, time_s: 30}
+    - {type: turn, by_deg: 90, bank_deg: 20}
+    - {type: straight, time_s: 20}
+sensors:
+  imu: {model: p0_imu}
+  bd: {model: p0_bd2}
+  ads: {model: p0_ads}
+estimators:
+  - {label: free SINS, type: sins}
+  - label: KF
+    type: eskf
+    states: p0_16
+    period_s: 1.0
+    noise: {imu: p0_imu}
+    baro: {sigma_m: 3.0, tau_s: 600}
+    measurements:
+      - {type: gnss_position, sensor: bd, sigma_m: [8, 8, 8]}
+      - {type: velocity, sensor: ads, sigma_mps: [1.0, 1.0, 1.5]}
+      - {type: height, sensor: ads, field: h_pressure_m, sigma_m: 1.0, baro_state: true}
+initial_errors: {pos_m: [5, 5, 10], vel_mps: 0.1, att_arcsec: [20, 20, 50]}
+montecarlo: {runs: 2, seed: 1, workers: 1}
+metrics:
+  settle_s: 10
+report: {formats: [pdf]}
+"""
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    """The tiny scenario's file and a finished run of it (``(scenario, folder)``)."""
+    root = tmp_path_factory.mktemp("tiny")
+    os.environ.setdefault("NAVSIM_CACHE", str(root / "cache"))
+    path = root / "tiny.yaml"
+    path.write_text(TINY)
+    assert main(["run", str(path), "--out", str(root / "done")]) == 0
+    return path, root / "done"
+
+
+def finished_copy(tiny, dest: Path) -> Path:
+    shutil.copytree(tiny[1], dest)
+    return dest
+
+
+def listing(folder: Path) -> dict:
+    return {str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns)
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def release(folder: OutputFolder, clear: bool = False):
+    """``folder.clear_earlier()`` if ``clear``, then its lock given back; returns what was cleared."""
+    removed = folder.clear_earlier() if clear else None
+    getattr(folder, "close", lambda: None)()
+    return removed
+
+
+def need_distributed():
+    pytest.importorskip("distributed")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+# --- 1. the executor before anything is deleted ---------------------------------------------------
+
+
+def test_an_unreachable_scheduler_deletes_nothing(tiny, tmp_path, monkeypatch, capsys):
+    need_distributed()
+    from navsim.experiment import executors
+    monkeypatch.setattr(executors, "CONNECT_TIMEOUT_S", 2, raising=False)
+    out = finished_copy(tiny, tmp_path / "out")
+    before = listing(out)
+    code = main(["run", str(tiny[0]), "--out", str(out), "--executor", "dask",
+                 "--scheduler", f"tcp://127.0.0.1:{free_port()}"])
+    assert code == 2, capsys.readouterr().err
+    assert "cannot reach the Dask scheduler" in capsys.readouterr().err
+    assert listing(out) == before                   # the finished run, untouched
+
+
+def test_a_server_that_is_not_dask_is_refused(tiny, tmp_path, capsys):
+    need_distributed()
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+    server.settimeout(20)
+
+    def serve():                               # garbage for each connection, then closed
+        for _ in range(4):
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            with conn:
+                conn.sendall(b"\xff" * 64 + b"HTTP/1.0 200 OK\r\n\r\nnot dask\n" * 8)
+                time.sleep(0.3)
+    threading.Thread(target=serve, daemon=True).start()
+    try:
+        code = main(["run", str(tiny[0]), "--out", str(tmp_path / "out"), "--executor", "dask",
+                     "--scheduler", f"tcp://127.0.0.1:{server.getsockname()[1]}"])
+    finally:
+        server.close()
+    err = capsys.readouterr().err
+    assert code == 2 and "is not a Dask scheduler" in err and "Traceback" not in err, err
+
+
+# --- 2. one writer per folder ---------------------------------------------------------------------
+
+HOLD = ("import sys, time; from navsim.foundations.outputs import OutputFolder; "
+        "f = OutputFolder(sys.argv[1]); print('held', flush=True); time.sleep(60)")
+
+
+def test_a_second_writer_is_refused_at_once(tiny, tmp_path, capsys):
+    out = finished_copy(tiny, tmp_path / "out")
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, str(out)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        before = listing(out)
+        t0 = time.perf_counter()
+        code = main(["run", str(tiny[0]), "--out", str(out), "--seed", "778"])
+        err = capsys.readouterr().err
+        assert code == 2 and f"pid {holder.pid}" in err and "started" in err and "in use" in err, err
+        assert time.perf_counter() - t0 < 5                   # at once: nothing flown or run
+        assert listing(out) == before                          # nothing touched
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_a_lock_left_by_a_killed_writer_is_taken_over(tiny, tmp_path, caplog):
+    out = finished_copy(tiny, tmp_path / "out")
+    dead = subprocess.Popen([sys.executable, "-c", HOLD, str(out)], stdout=subprocess.PIPE, text=True)
+    assert dead.stdout.readline().strip() == "held"
+    dead.kill()                                                # SIGKILL: the lock file stays
+    dead.wait()
+    assert (out / ".navsim.lock").is_file()
+    with caplog.at_level("WARNING"):
+        folder = OutputFolder(out)
+        folder.text("note.txt", "x")
+        release(folder)
+    assert f"pid {dead.pid}" in caplog.text and "taking over" in caplog.text
+    assert not (out / ".navsim.lock").exists()                 # given back
+
+
+def test_the_api_holds_the_folder_while_it_runs(tiny, tmp_path):
+    out = tmp_path / "api"
+    tries = []
+
+    def progress(n):
+        if not tries:
+            tries.append(subprocess.run([sys.executable, "-c", HOLD.replace("time.sleep(60)", "pass"), str(out)],
+                                        capture_output=True, text=True, timeout=60))
+    navsim.run(tiny[0], runs=2, out=out, progress=progress)
+    assert tries and tries[0].returncode != 0 and "in use by another navsim writer" in tries[0].stderr
+    assert f"pid {os.getpid()}" in tries[0].stderr
+    outer = OutputFolder(out)                                  # given back, and re-entrant
+    release(OutputFolder(out))
+    release(outer)
+
+
+# --- 3. folders that are not navsim's ------------------------------------------------------------
+
+
+def test_a_folder_that_is_not_navsims_is_refused_unless_forced(tiny, tmp_path, capsys):
+    mine = tmp_path / "mine"
+    (mine / "chunks").mkdir(parents=True)
+    (mine / "metrics.json").write_text('{"mine": true}')
+    (mine / "chunks" / "data.bin").write_bytes(b"1")
+    names = [f"note{i}.txt" for i in range(6)]
+    for name in names:
+        (mine / name).write_text("x")
+    before = listing(mine)
+    assert main(["run", str(tiny[0]), "--out", str(mine)]) == 2
+    err = capsys.readouterr().err
+    assert "not a navsim output folder" in err and "metrics.json" in err and "chunks/" in err, err
+    assert "and 3 more" in err and "--force" in err
+    assert listing(mine) == before and sorted(os.listdir(mine)) == sorted(["chunks", "metrics.json", *names])
+    assert main(["run", str(tiny[0]), "--out", str(mine), "--force"]) == 0
+    assert json.loads((mine / "metrics.json").read_text())["runs"] == 2
+
+
+def test_empty_missing_and_navsim_folders_are_written(tmp_path):
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "parent" / "flight").mkdir(parents=True)
+    (tmp_path / "parent" / "flight" / MANIFEST).write_text('{"format": 2, "files": {}}')
+    for path in (tmp_path / "empty", tmp_path / "new" / "deeper", tmp_path / "parent"):
+        folder = OutputFolder(path)
+        folder.text("a.txt", "a")
+        release(folder)
+
+
+# --- 4. only the files navsim wrote, unchanged, are removed --------------------------------------
+
+
+def test_a_planted_manifest_deletes_nothing(tmp_path, caplog):
+    folder = tmp_path / "out"
+    folder.mkdir()
+    (folder / "thesis.tex").write_text("years of work")
+    (folder / MANIFEST).write_text(json.dumps(["thesis.tex"]))        # an old-style manifest
+    with caplog.at_level("WARNING"):
+        release(OutputFolder(folder), clear=True)
+    assert (folder / "thesis.tex").read_text() == "years of work"
+    assert "thesis.tex" in caplog.text
+
+
+def test_a_file_changed_since_navsim_wrote_it_is_kept(tmp_path):
+    folder = tmp_path / "out"
+    out = OutputFolder(folder)
+    out.text("metrics.json", "{}")
+    out.text("run.json", "{}")
+    release(out)
+    (folder / "metrics.json").unlink()
+    (folder / "metrics.json").write_text("the user's own, under the same name")
+    target = tmp_path / "victim.txt"
+    target.write_text("elsewhere")
+    (folder / "run.json").unlink()
+    (folder / "run.json").symlink_to(target)
+    release(OutputFolder(folder), clear=True)
+    assert (folder / "metrics.json").read_text() == "the user's own, under the same name"
+    assert (folder / "run.json").is_symlink() and target.read_text() == "elsewhere"
+    out = OutputFolder(folder)                                         # what navsim wrote goes
+    out.text("report.txt", "r")
+    release(out)
+    assert release(OutputFolder(folder), clear=True) == ["report.txt"]
+
+
+# --- 5. SIGTERM, SIGKILL and the workers ----------------------------------------------------------
+
+
+def children(pid: int) -> set:
+    """The pids of the processes whose parent is ``pid`` (Linux /proc)."""
+    out = set()
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                stat = Path(f"/proc/{entry}/stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.add(int(entry))
+    return out
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def start_long_run(scenario, out):
+    proc = subprocess.Popen([sys.executable, "-m", "navsim", "run", str(scenario), "--out", str(out),
+                             "--runs", "400", "--chunk-runs", "2", "--workers", "2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        index = out / "chunks" / "index.json"
+        try:
+            if json.loads(index.read_text()).get("chunks"):
+                workers = children(proc.pid)
+                if len(workers) >= 2:
+                    return proc, workers
+        except (OSError, ValueError):
+            pass
+        if proc.poll() is not None:
+            pytest.fail(f"the run ended early: {proc.communicate()}")
+        time.sleep(0.05)
+    proc.kill()
+    pytest.fail("no chunk finished in 120 s")
+
+
+def wait_gone(pids, seconds: float) -> set:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and any(alive(p) for p in pids):
+        time.sleep(0.1)
+    return {p for p in pids if alive(p)}
+
+
+def kill_all(pids):
+    for p in pids:
+        if alive(p):
+            os.kill(p, signal.SIGKILL)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
+def test_sigterm_keeps_the_finished_chunks_and_ends_the_workers(tiny, tmp_path):
+    out = tmp_path / "out"
+    proc, workers = start_long_run(tiny[0], out)
+    try:
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 143, err
+        assert "terminated" in err and "Traceback" not in err, err
+        index = json.loads((out / "chunks" / "index.json").read_text())
+        assert index["chunks"] and all((out / "chunks" / f).is_file() for f in index["chunks"].values())
+        assert json.loads((out / "metrics.json").read_text())["interrupted"] is True
+        assert not wait_gone(workers, 5)
+    finally:
+        proc.kill()
+        kill_all(workers)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
+def test_sigkill_ends_the_workers_and_resume_completes(tiny, tmp_path):
+    out = tmp_path / "out"
+    proc, workers = start_long_run(tiny[0], out)
+    try:
+        proc.kill()
+        proc.communicate(timeout=30)
+        assert not wait_gone(workers, 5), "worker processes outlived their killed parent"
+    finally:
+        kill_all(workers)
+    r = subprocess.run([sys.executable, "-m", "navsim", "run", str(tiny[0]), "--out", str(out), "--runs", "400",
+                        "--chunk-runs", "2", "--workers", "2", "--resume"], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "taking over the lock" in r.stderr
+    assert json.loads((out / "metrics.json").read_text())["runs_done"] == 400
+
+
+# --- 6. a full disk while the report is written ---------------------------------------------------
+
+
+def test_a_full_disk_in_report_pdf_is_exit_4(tiny, tmp_path, monkeypatch, capsys):
+    from navsim.report import pages
+    write_pdf = pages._write_pdf
+
+    def onto_a_full_disk(path, pages_, title):   # PdfPages opens a file whose writes meet ENOSPC
+        write_pdf("/dev/full", pages_, title)
+    monkeypatch.setattr(pages, "_write_pdf", onto_a_full_disk)
+    code = main(["run", str(tiny[0]), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 4 and "report.pdf" in err and "No space left on device" in err, err
+    assert not (tmp_path / "out" / "report.pdf").exists()
+
+
+# --- 7. strict JSON -------------------------------------------------------------------------------
+
+
+def strict(text: str):
+    def refuse(name):
+        raise ValueError(f"{name} is not JSON")
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_metrics_json_is_strict_and_reads_back_nan(tiny, tmp_path):
+    result = navsim.run(tiny[0], runs=2)
+    kf = result.metrics.estimators["KF"]
+    result.metrics.estimators["KF"] = dataclasses.replace(
+        kf, rms=dataclasses.replace(kf.rms, pos_m=[math.nan, 1.0, math.inf]))
+    result.record["wall_s"] = math.nan
+    navsim.write_report(result, tmp_path / "out")
+    metrics = strict((tmp_path / "out" / "metrics.json").read_text())
+    assert metrics["estimators"]["KF"]["rms"]["pos_m"] == [None, 1.0, None]
+    assert strict((tmp_path / "out" / "run.json").read_text())["wall_s"] is None
+    back = navsim.open_result(tmp_path / "out").metrics.estimators["KF"].rms.pos_m
+    assert math.isnan(back[0]) and back[1] == 1.0 and math.isnan(back[2])

@@ -1,0 +1,212 @@
+"""Issue 31's validation items: numbers at their limits, windows inside the flight, a misspelt
+key named, sensor rates, bounded reads, a flight-only scenario, the memory a run needs."""
+
+from __future__ import annotations
+
+import copy
+import os
+from pathlib import Path
+
+import pytest
+import yaml
+
+from navsim import api, cli
+from navsim.experiment.scenario import load_scenario, parse_scenario
+from navsim.foundations.config import MAX_BYTES, load_yaml
+from navsim.foundations.errors import NavsimError, ScenarioError
+
+ROOT = Path(__file__).resolve().parents[2]
+P0 = load_yaml(ROOT / "scenarios" / "p0_bd_sins_ads.yaml")
+FILE = str(ROOT / "scenarios" / "p0_bd_sins_ads.yaml")
+#: a short flight (60 s) with a GNSS, for windows and memory
+SHORT = {"name": "short", "track": {"start": {"lat_deg": 37.0, "lon_deg": 117.0, "alt_m": 300, "speed_mps": 14.0},
+                                    "segments": [{"type": "straight", "time_s": 60}]},
+         "sensors": {"imu": {"model": "p0_imu"}, "gps": {"model": "p3_gps"}},
+         "estimators": [{"label": "kf", "type": "eskf", "noise": {"imu": "p0_imu"},
+                         "measurements": [{"type": "gnss_position", "sensor": "gps", "sigma_m": 3}]}]}
+
+
+@pytest.fixture
+def no_flight(monkeypatch):
+    """Every way to fly fails the test: the checks come before anything is flown."""
+    def flown(*args, **kwargs):
+        pytest.fail("a flight was flown")
+    for name in ("navsim.experiment.runner.cached_flight", "navsim.api.cached_flight", "navsim.cli.cached_flight",
+                 "navsim.cli._fly_or_save", "navsim.cli.fly", "navsim.flight.simulator.fly",
+                 "navsim.experiment.runner.fly"):
+        monkeypatch.setattr(name, flown, raising=False)
+
+
+def _set(data, path, value):
+    out = copy.deepcopy(data)
+    node = out
+    for k in path[:-1]:
+        node = node[k]
+    node[path[-1]] = value
+    return out
+
+
+def _refused(data, match=None, file=FILE):
+    with pytest.raises(ScenarioError, match=match) as exc:
+        parse_scenario(data, file)
+    assert exc.value.exit_code == 2
+    return str(exc.value)
+
+
+KF = ("estimators", 1)
+
+
+@pytest.mark.parametrize("path, value", [
+    (KF + ("period_s",), 1e308),                        # OverflowError in the period check
+    (KF + ("period_s",), 10**400),
+    (KF + ("baro", "tau_s"), 1e308),
+    (KF + ("measurements", 0, "sigma_m"), [8, 8, 1e-308]),
+    (KF + ("measurements", 0, "sigma_m"), [8, 8, 10**400]),
+    (KF + ("measurements", 1, "sigma_mps"), 1e300),
+    (KF + ("measurements", 2, "sigma_m"), 1e-300),
+    (("montecarlo", "runs"), 10**12),
+    (("montecarlo", "runs"), 2**64),
+    (("initial_errors", "pos_m"), 1e9),                 # accepted unflagged
+    (("initial_errors", "att_arcsec"), [20, 20, 10**60]),
+    (("initial_errors", "vel_mps"), 1e6),
+    (("reference", "claims", 3, "at_most"), [8, 8, 10**60]),
+    (("sensors", "bd", "override"), {"rate_hz": 10**400}),
+    (("sensors", "bd", "override"), {"position_sigma": "1e308 m"}),
+    (("sensors", "bd", "override"), {"markov_tau": "0 s"}),
+    (("sensors", "bd", "override"), {"position_sigma": []}),
+    (("environment",), {"turbulence": {"seed": 2**40}}),
+    (("track",), {"start": {"lat_deg": 37.0, "lon_deg": 117.0, "alt_m": 300, "speed_mps": 14.0},
+                  "segments": [{"type": "straight", "time_s": 1e308}]}),
+])
+def test_a_number_beyond_its_range_is_refused(path, value):
+    message = _refused(_set(P0, path, value))
+    assert "Traceback" not in message and len(message) < 600
+
+
+@pytest.mark.parametrize("path, value", [
+    (KF + ("period_s",), 1e-308), (KF + ("period_s",), -0.0), (KF + ("period_s",), float("nan")),
+    (KF + ("period_s",), float("inf")), (KF + ("period_s",), True), (("metrics", "windows", 0, "end_s"), 1e308)])
+def test_a_number_refused_already_stays_refused(path, value):
+    """Regression guards (today's code refuses these too, by the period and window checks)."""
+    _refused(_set(P0, path, value))
+
+
+def test_huge_integers_in_yaml_text_are_refused(tmp_path):
+    path = tmp_path / "big.yaml"
+    text = (ROOT / "scenarios" / "p0_bd_sins_ads.yaml").read_text().replace("period_s: 1.0", "period_s: 1" + "0" * 400)
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match="period_s"):
+        load_scenario(path)
+    path.write_text(text.replace("period_s: 1" + "0" * 400, "period_s: 1" + "0" * 5000))   # past int's digit limit
+    with pytest.raises(ScenarioError):
+        load_scenario(path)
+
+
+# --- 2. windows inside the flight -------------------------------------------------------------
+
+
+@pytest.mark.parametrize("path, value, key", [
+    (("sensors", "gps", "faults"), [{"type": "outage", "start_s": 60.0}], "sensors.gps.faults[0].start_s"),
+    (("sensors", "gps", "faults"), [{"type": "outage", "start_s": 70, "end_s": 90}], "sensors.gps.faults[0].start_s"),   # guard
+    (("metrics",), {"windows": [{"name": "late", "start_s": 61, "end_s": 62}]}, "metrics.windows[0].start_s"),
+    (("metrics",), {"windows": [{"name": "late", "start_s": 10, "end_s": 62}]}, "metrics.windows[0].end_s"),   # guard
+])
+def test_a_window_outside_the_flight_is_refused(path, value, key):
+    message = _refused(_set(SHORT, path, value), file="short.yaml")
+    assert key in message and "60 s" in message and "flight" in message
+
+
+def test_a_closed_loop_window_after_the_track_is_refused():
+    data = load_yaml(ROOT / "scenarios" / "p1_return_to_land.yaml")
+    late = _set(data, ("sensors", "gps", "faults", 0, "start_s"), 1000.0)     # the track lasts 652 s
+    message = _refused(late, file="rtl.yaml")
+    assert "sensors.gps.faults[0].start_s" in message and "652" in message
+    parse_scenario(data, "rtl.yaml")
+
+
+# --- 3. a misspelt key ------------------------------------------------------------------------
+
+
+def test_a_misspelt_required_key_is_named_with_its_close_match():
+    m = P0["estimators"][1]["measurements"][1]
+    bad = _set(P0, KF + ("measurements", 1), {"type": "velocity", "sensor": "ads", "sigma_mp": m["sigma_mps"]})
+    message = _refused(bad)
+    assert "'sigma_mp' is not a known key; did you mean 'sigma_mps'?" in message
+    assert "estimators[1].measurements[1].sigma_mp" in message
+
+
+# --- 4. a sensor faster than the truth --------------------------------------------------------
+
+
+@pytest.mark.parametrize("rate", [200, 30])
+def test_a_sensor_rate_the_truth_cannot_give_is_refused(rate):
+    message = _refused(_set(P0, ("sensors", "bd", "override"), {"rate_hz": rate}))
+    assert "sensors.bd.rate_hz" in message and str(rate) in message and "100 Hz" in message
+
+
+# --- 5. bounded reads -------------------------------------------------------------------------
+
+
+def test_an_endless_file_is_refused_after_a_bounded_read():
+    if not os.path.exists("/dev/zero"):
+        pytest.skip("no /dev/zero")
+    with pytest.raises(ScenarioError, match="larger than"):
+        load_yaml("/dev/zero")
+
+
+def test_a_large_file_is_refused(tmp_path):
+    path = tmp_path / "big.yaml"
+    path.write_text("a: 1\n" + "#" * MAX_BYTES)
+    with pytest.raises(ScenarioError, match="larger than"):
+        load_yaml(path)
+
+
+# --- 6. a flight-only scenario ----------------------------------------------------------------
+
+
+def test_a_scenario_without_estimators_is_refused_before_flying(tmp_path, no_flight, capsys):
+    scenario = ROOT / "scenarios" / "p0_flight.yaml"
+    with pytest.raises(ScenarioError, match="has no estimators") as exc:
+        api.run(scenario)
+    assert str(scenario) in str(exc.value)
+    code = cli.main(["run", str(scenario), "--runs", "2", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and "has no estimators" in err and "navsim fly" in err and "Traceback" not in err
+
+
+def test_scenario_error_takes_a_path():
+    assert "x/y.yaml: a: bad" in str(ScenarioError("bad", file=Path("x/y.yaml"), key="a"))
+
+
+# --- 7. the memory a run needs ----------------------------------------------------------------
+
+
+def test_a_flight_too_large_for_memory_is_refused_before_flying(tmp_path, monkeypatch, no_flight, capsys):
+    monkeypatch.setattr("navsim.experiment.resources.available_memory", lambda: 2**30, raising=False)   # 1 GiB
+    long = _set(SHORT, ("track", "segments", 0, "time_s"), 500_000.0)    # 5e7 samples at 100 Hz
+    path = tmp_path / "long.yaml"
+    path.write_text(yaml.safe_dump(long))
+    for command in (["run", str(path)], ["fly", str(path)], ["sensors", str(path)]):
+        code = cli.main(command + ["--out", str(tmp_path / "out")])
+        err = capsys.readouterr().err
+        assert code == 2 and "GiB" in err and "memory" in err and "Traceback" not in err, (command, err)
+    with pytest.raises(NavsimError, match="memory"):
+        api.run(path)
+
+
+def test_too_many_runs_are_refused(tmp_path, no_flight, capsys):
+    path = tmp_path / "short.yaml"
+    path.write_text(yaml.safe_dump(SHORT))
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["run", str(path), "--runs", "1000000000000"])
+    assert exc.value.code == 2
+    with pytest.raises(NavsimError, match="runs"):
+        api.run(path, runs=10**12)
+
+
+def test_chunks_larger_than_the_disk_are_refused(tmp_path, monkeypatch, no_flight):
+    monkeypatch.setattr("navsim.experiment.resources._free_disk", lambda out: 1000, raising=False)
+    path = tmp_path / "short.yaml"
+    path.write_text(yaml.safe_dump(SHORT))
+    with pytest.raises(NavsimError, match="on disk"):
+        api.run(path, runs=10, out=tmp_path / "out")
