@@ -181,12 +181,8 @@ def run(scenario, runs: int | None = None, seed: int | None = None, workers: int
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
-    if not scenario.estimators:
-        raise ScenarioError("has no estimators to run", file=scenario.path, key="estimators",
-                            expected="a list of estimators", hint="'navsim fly' flies a track alone")
     runs = scenario.runs if runs is None else runs
-    if flight is None:                    # the memory and disk it needs, before cached_flight flies
-        resources.check_run(scenario, runs, chunk_runs, out)
+    resources.check_run(scenario, runs, chunk_runs, out)   # estimators, memory and disk, before flying
     seed = scenario.seed if seed is None else seed
     workers = scenario.workers if workers is None else workers
     if resume and out is None:

@@ -53,6 +53,7 @@ from navsim.navigation.estimators import base, measurement_types
 from navsim.navigation.estimators.error_model import PRESETS, Layout
 from navsim.navigation.estimators.measurements import measurement_class
 from navsim.replay import load_ulog, replay, replay_metrics
+from navsim.replay.run import IMU_RATE_HZ
 from navsim.report.replay import difference_table, write_replay_report
 from navsim.report.summary import sections as summary_sections, text_table
 from navsim.report.sweep import short_key, write_sweep_figure
@@ -248,7 +249,7 @@ def cmd_sensors(args) -> int:
         print(f"error: {args.scenario} has no 'sensors'", file=sys.stderr)
         return 2
     runs = scenario.runs if args.runs is None else args.runs
-    resources.check_flight(scenario)
+    resources.check_sensors(scenario, runs)
     seed = scenario.seed if args.seed is None else args.seed
     folder = _open_folder(args, Path("reports") / scenario.name / "sensors")
     out = folder.path
@@ -518,7 +519,7 @@ def _replay_parser(sub) -> None:
                    help="seconds left out of the metrics while the estimator converges (default 10)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="estimator parameter (YAML value), repeatable: --set period_s=0.02")
-    p.add_argument("--imu-rate", type=_number(float, exclusive_minimum=0.0, maximum=10000.0),
+    p.add_argument("--imu-rate", type=_number(float, minimum=IMU_RATE_HZ[0], maximum=IMU_RATE_HZ[1]),
                    help="IMU grid rate, Hz (default: the log's, 250 Hz for PX4's sensor_combined)")
     p.add_argument("--align", type=_number(float, exclusive_minimum=0.0), default=1.0,
                    help="coarse-alignment window from the first sample, s (default 1)")

@@ -2,7 +2,7 @@
 
 A flight records every truth sample (the raw JSBSim properties, then the truth's arrays); a
 chunk of Monte Carlo runs records each estimator's history at its epochs; the chunks go to
-disk. :func:`check_run` and :func:`check_flight` refuse, with the figure and the limit, a run
+disk. :func:`check_run`, :func:`check_flight` and :func:`check_sensors` refuse, with the figure and the limit, a run
 that cannot fit, instead of a ``MemoryError`` after minutes of flying.
 """
 
@@ -15,10 +15,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from navsim.experiment.records import ARRAYS
+from navsim.experiment.runner import CHUNK_RUNS
 from navsim.flight import properties as P
 from navsim.flight.track import nominal_duration_s
 from navsim.foundations.config import MAX_RUNS
 from navsim.foundations.errors import ScenarioError, UsageError
+from navsim.sensors import output_fields
 
 #: the float64 values of one truth sample: the truth's arrays (time, position 3, velocity 3,
 #: quaternion 4, Euler 3, rates 3, specific force 3, air data 5, heights 2, wind 3, angles 2,
@@ -26,14 +28,13 @@ from navsim.foundations.errors import ScenarioError, UsageError
 TRUTH_FLOATS = 33
 #: the share of the available memory a run may plan to use
 MEMORY_SHARE = 0.8
-#: the runs per chunk when none is given (navsim.experiment.runner.CHUNK_RUNS)
-DEFAULT_CHUNK_RUNS = 250
 _SIZES = {"axis": 3, "state": 9}
 
 
 @dataclass(frozen=True)
 class Needs:
-    """Bytes a run needs: its flight in memory, one chunk in memory, all chunks on disk."""
+    """Bytes a run needs: its flight in memory, one chunk in memory, all chunks on disk (or in
+    memory, for a run without an output folder)."""
 
     flight: int
     chunk: int
@@ -78,7 +79,7 @@ def needs(scenario, runs: int, chunk_runs: int | None = None) -> Needs:
         period = est.params.get("period_s") or 1.0 / scenario.flight.rate_hz
         nis = len(est.params.get("measurements", ()))
         per_run += (duration / period + 1) * (_recorded_per_epoch() + nis) * 8
-    chunk = min(runs, chunk_runs or DEFAULT_CHUNK_RUNS)
+    chunk = min(runs, chunk_runs or CHUNK_RUNS)
     return Needs(flight_bytes(scenario), int(chunk * per_run), int(runs * per_run))
 
 
@@ -115,11 +116,34 @@ def check_run(scenario, runs: int, chunk_runs: int | None = None, out=None) -> N
         raise UsageError(f"{runs} runs: expected 1 to {MAX_RUNS}")
     check_flight(scenario)
     n, have = needs(scenario, runs, chunk_runs), available_memory()
+    if out is None and n.flight + n.disk > MEMORY_SHARE * have:     # every run held in memory
+        raise UsageError(f"the {runs} runs held in memory need about {_gib(n.disk)} beside the flight's "
+                         f"{_gib(n.flight)}, more than {MEMORY_SHARE:.0%} of the {_gib(have)} available; "
+                         "write them to a folder (out=...), where they stream chunk by chunk, or run fewer")
     if n.flight + n.chunk > MEMORY_SHARE * have:
-        raise UsageError(f"a chunk of {min(runs, chunk_runs or DEFAULT_CHUNK_RUNS)} runs needs about {_gib(n.chunk)} "
+        raise UsageError(f"a chunk of {min(runs, chunk_runs or CHUNK_RUNS)} runs needs about {_gib(n.chunk)} "
                          f"of memory beside the flight's {_gib(n.flight)}, more than {MEMORY_SHARE:.0%} of the "
                          f"{_gib(have)} available; use a smaller --chunk-runs")
     free = _free_disk(out) if out is not None else None
     if free is not None and n.disk > free:
         raise UsageError(f"the {runs} runs' chunks need about {_gib(n.disk)} on disk, more than the "
                          f"{_gib(free)} free under {out}; use fewer --runs or write elsewhere with --out")
+
+
+def sensor_bytes(scenario, runs: int) -> int:
+    """The memory of ``runs`` runs of every sensor of the scenario, emulated at once (``navsim
+    sensors``): samples x (outputs + validity) x 8 per run."""
+    duration = nominal_duration_s(scenario.flight.track)
+    per_run = sum((duration * min(c.spec.rate_hz, scenario.flight.rate_hz) + 1) * (3 * len(output_fields(c.spec)) + 1)
+                  for c in scenario.sensors)
+    return int(runs * per_run * 8)
+
+
+def check_sensors(scenario, runs: int) -> None:
+    """Refuse (:class:`UsageError`) ``navsim sensors`` runs whose emulated samples, with the
+    flight, cannot fit in memory."""
+    check_flight(scenario)
+    need, have = sensor_bytes(scenario, runs) + flight_bytes(scenario), available_memory()
+    if need > MEMORY_SHARE * have:
+        raise UsageError(f"{runs} runs of the sensors need about {_gib(need)} of memory with the flight, more "
+                         f"than {MEMORY_SHARE:.0%} of the {_gib(have)} available; use fewer --runs")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,10 +24,12 @@ import numpy as np
 
 from navsim.experiment.runner import cached_flight
 from navsim.experiment.scenario import check_metric_path, check_scenario, parse_scenario
-from navsim.foundations.config import Node, load_yaml
+from navsim.foundations.config import MAX_RUNS, Node, load_yaml
 from navsim.foundations.errors import ScenarioError
 
 _INDEX = re.compile(r"^(.*)\[(\d+)\]$")
+#: the most points a sweep may have (each is a Monte Carlo of its own)
+MAX_POINTS = 10_000
 
 
 def set_path(data, path: str, value, file=None, where="grid"):
@@ -64,7 +67,7 @@ def parse_sweep(path: str | Path):
             or not base_path.is_file():
         raise node.error(f"'{scenario}' not found next to the sweep file", "scenario",
                          expected="a scenario YAML path relative to the sweep file")
-    runs = node.get("runs", int, None, minimum=1)
+    runs = node.get("runs", int, None, minimum=1, maximum=MAX_RUNS)
     metric = node.get("metric", str, "rms.pos_m")
     check_metric_path(metric, [(w, 0, 0) for w in _window_names(base_path)], file=str(path), key="metric")
     grid = node.child("grid", None)
@@ -78,10 +81,16 @@ def parse_sweep(path: str | Path):
             grid._seen.add(k)
             if not isinstance(grid.data[k], list) or not grid.data[k]:
                 raise grid.error("is not a non-empty list of values", str(k))
+        size = math.prod(len(grid.data[k]) for k in keys)
+        if size > MAX_POINTS:             # counted before the product is built
+            raise grid.error(f"has {size:g} points", expected=f"at most {MAX_POINTS} points (the product of "
+                             "the lists' lengths)", hint="sweep fewer values, or split the sweep")
         points = [dict(zip(keys, combo)) for combo in itertools.product(*(grid.data[k] for k in keys))]
         grid.done()
     elif not (isinstance(points, list) and points and all(isinstance(p, dict) for p in points)):
         raise node.error("is not a list of mappings", "points")
+    elif len(points) > MAX_POINTS:
+        raise node.error(f"has {len(points)} points", "points", expected=f"at most {MAX_POINTS} points")
     node.done()
     return base_path, runs, metric, points
 

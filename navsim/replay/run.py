@@ -25,6 +25,8 @@ from navsim.replay.ulog import ReplayLog
 from navsim.sensors.base import SensorData
 
 ALIGN_S = 1.0                     #: default length of the coarse-alignment window
+#: the IMU grid rates a replay takes, Hz (a strapdown below 10 Hz follows no vehicle's rotation)
+IMU_RATE_HZ = (10.0, 10_000.0)
 RECORD_S = 0.02                   #: the solution is compared with PX4's at 50 Hz
 #: without GNSS, an attitude EKF that takes it levels on a zero horizontal velocity of this sigma
 NO_GNSS_SIGMA_MPS = 1.0
@@ -251,6 +253,18 @@ def px4_euler_at(log: ReplayLog, t_s: np.ndarray) -> np.ndarray:
     return out
 
 
+def check_options(log: ReplayLog, rate_hz: float, settle_s: float, align_s: float) -> None:
+    """Refuse (:class:`UsageError`) an IMU grid rate outside :data:`IMU_RATE_HZ`, and a settling
+    time or an alignment window that does not end inside the log."""
+    if not IMU_RATE_HZ[0] <= rate_hz <= IMU_RATE_HZ[1]:
+        raise UsageError(f"the IMU grid rate {rate_hz:g} Hz is outside {IMU_RATE_HZ[0]:g}-{IMU_RATE_HZ[1]:g} Hz "
+                         f"(--imu-rate; the log's is {log.imu_rate_hz:.0f} Hz)")
+    end = log.duration_s
+    for what, value in (("the settling time (--settle)", settle_s), ("the alignment window (--align)", align_s)):
+        if not (math.isfinite(value) and 0 <= value < end):
+            raise UsageError(f"{what} is {value:g} s, not before the end of the log ({end:.1f} s)")
+
+
 def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_rate_hz: float | None = None,
            settle_s: float = 10.0, align_s: float = ALIGN_S, record_s: float = RECORD_S,
            progress=None) -> ReplayResult:
@@ -280,6 +294,7 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_ra
         ``progress(t_s, duration_s)`` now and then.
     """
     rate = float(imu_rate_hz or round(log.imu_rate_hz))
+    check_options(log, rate, settle_s, align_s)
     grid, dth, dv = imu_increments(log.imu_t_s, log.omega_ib_b_rps, log.f_ib_b_mps2, rate)
     sensors = sensor_streams(log, grid)
     align = coarse_alignment(log, align_s)

@@ -1,6 +1,7 @@
 """``navsim replay`` on the shipped real PX4 log (tests/data/px4_quad_real_69s.ulg.gz): loading,
 alignment, an end-to-end free-inertial replay, the estimator interface, the errors."""
 
+import contextlib
 import gzip
 import json
 import math
@@ -210,3 +211,23 @@ def test_the_replay_defaults_go_where_the_estimator_reads_them():
     ekf, entry = build_estimator("cpf_ekf", {"sigma": {"mag_uT": 1.0}}, defaults, kinds)
     assert ekf.baro == "baro" and ekf.no_gnss_sigma_mps == 1.0 and ekf.mag_sigma_uT == 1.0   # the mapping completed
     assert np.allclose(ekf.field_n_T, [21.4e-6, 0.0, 43.0e-6])
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--settle", "1e308"], ["--settle", "1e+308 s", "end of the log (68.9 s)"]),
+    (["--settle", "70"], ["--settle", "70 s"]),
+    (["--align", "100"], ["--align", "100 s", "end of the log"]),
+    (["--imu-rate", "0.001"], ["--imu-rate", "below 10"]),
+])
+def test_replay_windows_and_rates_outside_the_log_exit_2(log_path, tmp_path, capsys, args, words):
+    """A settling time or an alignment window that does not end inside the 68.9 s log, or an
+    IMU grid too coarse to integrate, is refused before anything runs (today: exit 0 with
+    nothing scored, or a traceback for the rate); the folder is left as it was (not created)."""
+    out = tmp_path / "o"
+    with pytest.raises(SystemExit) if args[0] == "--imu-rate" else contextlib.nullcontext() as stop:
+        code = main(["replay", str(log_path), "--estimator", "sins", "--out", str(out)] + args)
+    code = stop.value.code if args[0] == "--imu-rate" else code
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert all(w in err for w in words), err
+    assert "Traceback" not in err and not out.exists()

@@ -210,3 +210,38 @@ def test_chunks_larger_than_the_disk_are_refused(tmp_path, monkeypatch, no_fligh
     path.write_text(yaml.safe_dump(SHORT))
     with pytest.raises(NavsimError, match="on disk"):
         api.run(path, runs=10, out=tmp_path / "out")
+
+
+def test_runs_held_in_memory_or_emulated_at_once_are_planned(tmp_path, monkeypatch, no_flight, capsys):
+    """100,000 runs of the 60 s flight without an output folder hold every history in memory
+    (about 0.5 GB per 1000 runs here), and ``navsim sensors`` emulates all its runs at once:
+    both are refused against 1 GiB before flying; the same runs streamed to a folder are not
+    refused for memory (one chunk at a time)."""
+    monkeypatch.setattr("navsim.experiment.resources.available_memory", lambda: 2**30, raising=False)
+    path = tmp_path / "short.yaml"
+    path.write_text(yaml.safe_dump(SHORT))
+    with pytest.raises(NavsimError, match="held in memory"):
+        api.run(path, runs=100_000)
+    from navsim.experiment import resources
+    resources.check_run(load_scenario(path), 100_000, None, tmp_path / "out")       # streamed: fits
+    code = cli.main(["sensors", str(path), "--runs", "1000000", "--out", str(tmp_path / "s")])
+    err = capsys.readouterr().err
+    assert code == 2 and "sensors need about" in err and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("body, words", [
+    ("grid:\n" + "".join(f"  estimators[0].measurements[0].sigma_m{'' if i == 0 else f'_{i}'}: [{', '.join(['1'] * 10)}]\n"
+                         for i in range(6)), ["has 1e+06 points", "at most 10000"]),
+    ("points: [" + ", ".join(["{montecarlo.seed: 1}"] * 10_001) + "]\n", ["has 10001 points"]),
+    ("runs: 10000000000\npoints: [{montecarlo.seed: 1}]\n", ["runs", "<= 1e+06"]),
+], ids=["grid-of-a-million", "10001-points", "1e10-runs"])
+def test_a_sweep_too_large_is_refused_before_its_points_are_built(tmp_path, body, words):
+    """A grid whose product has a million points is refused from the lists' lengths alone
+    (today: every point is built and parsed, hours), as are 10,001 listed points and 1e10 runs
+    per point."""
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(SHORT))
+    (tmp_path / "sweep.yaml").write_text("scenario: s.yaml\n" + body)
+    from navsim.experiment.sweep import parse_sweep
+    with pytest.raises(ScenarioError) as exc:
+        parse_sweep(tmp_path / "sweep.yaml")
+    assert all(w in str(exc.value) for w in words), str(exc.value)
