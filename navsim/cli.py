@@ -183,7 +183,8 @@ def _fly_or_save(scenario, scenario_file, out: OutputFolder):
 def cmd_run(args) -> int:
     scenario = load_scenario(args.scenario)
     runs = scenario.runs if args.runs is None else args.runs
-    resources.check_run(scenario, runs, args.chunk_runs, Path(args.out) if args.out else Path("reports"))
+    resources.check_run(scenario, runs, args.chunk_runs, Path(args.out) if args.out else Path("reports"),
+                        args.workers)
     folder = _open_folder(args, Path("reports") / scenario.name)
     todo, desc, flight = runs, f"{runs} runs", None
     if scenario.closed_loop is not None:
@@ -620,8 +621,11 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    with stop_on_sigterm() as stop:
-        code = _run_command(args)
+    try:
+        with stop_on_sigterm() as stop:
+            code = _run_command(args)
+    except Terminated:                        # a SIGTERM while the command's folders were closed
+        code = TERMINATED_EXIT
     if stop.terminated and code in (130, TERMINATED_EXIT):
         print("terminated (SIGTERM): what finished is kept", file=sys.stderr)
         return TERMINATED_EXIT

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from navsim.experiment.records import ARRAY_FIELDS, ChunkPart, EstimatorHistory, sum_cost
+from navsim.foundations.config import MAX_RUNS
 from navsim.foundations.errors import OutputError, UsageError
 from navsim.foundations.outputs import temporary_name, write_atomic
 
@@ -114,6 +115,7 @@ def part_from_arrays(data) -> ChunkPart:
 
 
 _CHUNK_FILE = re.compile(r"^chunk_\d+-\d+\.npz$")
+_CHUNK_NAME = re.compile(r"^\d{1,12}-\d{1,12}$")
 
 
 def chunk_runs(name: str) -> range:
@@ -129,16 +131,27 @@ def listed_runs(folder: Path) -> list:
         index = ChunkStore.read_index(folder) or {}
     except ResumeError:
         return []
-    return [r for n in sorted(_chunk_files(index), key=lambda n: chunk_runs(n)[0]) for r in chunk_runs(n)]
+    names = sorted(_chunk_files(index), key=lambda n: chunk_runs(n)[0])
+    if sum(len(chunk_runs(n)) for n in names) > MAX_RUNS:     # counted before any list is built
+        raise ResumeError(f"{folder / INDEX}: lists more than {MAX_RUNS} runs; the folder was altered: "
+                          "run again without --resume")
+    return [r for n in names for r in chunk_runs(n)]
 
 
 def _chunk_files(index: dict) -> dict:
-    """Chunk name -> file name of the chunks an index lists (plain chunk file names only)."""
+    """Chunk name -> file name of the chunks an index lists (plain chunk file names only, of
+    runs ``first <= last`` below :data:`~navsim.foundations.config.MAX_RUNS`)."""
     chunks = index.get("chunks") if isinstance(index, dict) else None
     if not isinstance(chunks, dict):
         return {}
     return {n: f for n, f in chunks.items()
-            if isinstance(f, str) and _CHUNK_FILE.fullmatch(f) and f == f"chunk_{n}.npz"}
+            if isinstance(f, str) and _CHUNK_FILE.fullmatch(f) and f == f"chunk_{n}.npz" and _plain_span(n)}
+
+
+def _plain_span(name: str) -> bool:
+    """Whether a chunk name ``"<first>-<last>"`` is a span of runs a job can have."""
+    first, last = (int(x) for x in name.split("-"))
+    return first <= last < MAX_RUNS
 
 
 def _readable(path: Path) -> bool:
@@ -168,14 +181,19 @@ def check_index(index, path: Path) -> dict:
         value = index[key]
         bad = not isinstance(value, tp) or isinstance(value, bool)
         if not bad and tp is int:
-            bad = value < (1 if key == "chunk_runs" else 0)
+            bad = not (1 if key == "chunk_runs" else 0) <= value <= MAX_RUNS
         if not bad and tp is dict:
             bad = not all(isinstance(k, str) and isinstance(v, str) for k, v in value.items())
         if bad:
-            what = {str: "text", int: "a whole number" + (" >= 1" if key == "chunk_runs" else " >= 0"),
+            what = {str: "text", int: f"a whole number {1 if key == 'chunk_runs' else 0}-{MAX_RUNS}",
                     dict: "a mapping of chunk names to text"}[tp]
             raise ResumeError(f"{path}: {key} is {value!r} (expected {what}); the folder was not written by "
                               "this navsim: run without --resume into a fresh folder")
+    for name in index.get("chunks") or {}:
+        if not (_CHUNK_NAME.fullmatch(name) and _plain_span(name)):
+            raise ResumeError(f"{path}: lists chunk {name!r}, which is no span of runs (expected "
+                              f"'<first>-<last>', first <= last < {MAX_RUNS}); the folder was altered: run "
+                              "again without --resume")
     return index
 
 
@@ -298,8 +316,8 @@ class ChunkStore:
 
     def _check_data(self, file: str, data) -> None:
         """A :class:`ResumeError` naming ``file`` unless the chunk's runs are those of its name and
-        its identity (:data:`IDENT`) matches the store's key. A read-only store accepts a chunk
-        without an identity (written by an older navsim) with a warning."""
+        its identity (:data:`IDENT`) matches the store's key. A chunk without an identity (written
+        by an older navsim, whose index the store's key was checked against) is taken with a warning."""
         path = self.folder / file
         named = list(chunk_runs(file[len("chunk_"):-len(".npz")]))
         try:
@@ -310,12 +328,10 @@ class ChunkStore:
         if held != named:
             raise ResumeError(f"{path}: holds runs {_span(held)} but its name says {_span(named)}; the folder "
                               "was altered: run again without --resume")
-        if ident is None or not isinstance(ident, dict):
-            if self.read_only:
-                log.warning("%s: carries no identity (written by an older navsim); not checked", path)
-                return
-            raise ResumeError(f"{path}: carries no identity (scenario hash, seed, runs); it was not written by "
-                              "this navsim for this run: run again without --resume")
+        if ident is None or not isinstance(ident, dict):   # an older navsim's: a campaign goes on after an upgrade
+            log.warning("%s: carries no identity (written by an older navsim): its runs checked against its "
+                        "name, its run against the index only", path)
+            return
         want = {**self.key, "chunk": [named[0], named[-1]]}
         diff = [f"{k} {ident.get(k)!r} in the chunk, {v!r} in the index" for k, v in want.items()
                 if ident.get(k) != v]

@@ -39,6 +39,10 @@ TERMINATED_EXIT = 128 + signal.SIGTERM
 #: how often a worker without ``prctl`` looks whether its parent is still there, s
 PARENT_POLL_S = 1.0
 _PR_SET_PDEATHSIG = 1
+#: how the local pool starts its workers: forked where the system can (the die-with-parent hook
+#: runs at fork; Python 3.14 makes forkserver Linux's default), else the system's default
+POOL_CONTEXT = (multiprocessing.get_context("fork") if "fork" in multiprocessing.get_all_start_methods()
+                else None)
 
 
 class ExecutorError(UsageError):

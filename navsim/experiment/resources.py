@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from navsim.experiment.records import ARRAYS
-from navsim.experiment.runner import CHUNK_RUNS
+from navsim.experiment.runner import CHUNK_RUNS, CLOSED_CHUNK_RUNS
 from navsim.flight import properties as P
 from navsim.flight.track import nominal_duration_s
 from navsim.foundations.config import MAX_RUNS
@@ -71,16 +71,30 @@ def _recorded_per_epoch() -> int:
     return n
 
 
-def needs(scenario, runs: int, chunk_runs: int | None = None) -> Needs:
-    """The bytes a run of ``runs`` (in chunks of ``chunk_runs``) needs."""
-    duration = nominal_duration_s(scenario.flight.track)
+def _chunk_size(scenario, chunk_runs: int | None) -> int:
+    """The runs of one chunk: ``chunk_runs``, or the default of open or closed loop."""
+    return chunk_runs or (CLOSED_CHUNK_RUNS if scenario.closed_loop is not None else CHUNK_RUNS)
+
+
+def _duration_s(scenario) -> float:
+    """The longest the scenario flies: its track, or a closed loop's time limit."""
+    nominal = nominal_duration_s(scenario.flight.track)
+    return max(nominal, scenario.closed_loop.time_limit_s) if scenario.closed_loop is not None else nominal
+
+
+def needs(scenario, runs: int, chunk_runs: int | None = None, workers: int = 1) -> Needs:
+    """The bytes a run of ``runs`` (in chunks of ``chunk_runs``, on ``workers`` processes) needs:
+    in memory, the parent's flight and each busy worker's flight and chunk."""
+    duration = _duration_s(scenario)
     per_run = 0.0
     for est in scenario.estimators:
         period = est.params.get("period_s") or 1.0 / scenario.flight.rate_hz
         nis = len(est.params.get("measurements", ()))
         per_run += (duration / period + 1) * (_recorded_per_epoch() + nis) * 8
-    chunk = min(runs, chunk_runs or CHUNK_RUNS)
-    return Needs(flight_bytes(scenario), int(chunk * per_run), int(runs * per_run))
+    chunk = min(runs, _chunk_size(scenario, chunk_runs))
+    busy = min(max(workers, 1), math.ceil(runs / chunk)) if workers > 1 else 0
+    flight = flight_bytes(scenario, duration)
+    return Needs(flight * (1 + busy), int(chunk * per_run) * max(busy, 1), int(runs * per_run))
 
 
 def _free_disk(out) -> int | None:
@@ -105,25 +119,28 @@ def check_flight(scenario) -> None:
                             file=scenario.path, key="track", expected="a shorter track or a lower flight.rate_hz")
 
 
-def check_run(scenario, runs: int, chunk_runs: int | None = None, out=None) -> None:
+def check_run(scenario, runs: int, chunk_runs: int | None = None, out=None, workers: int | None = None) -> None:
     """Refuse a Monte Carlo run that cannot be served before anything is flown: a scenario
     without estimators, more than :data:`~navsim.foundations.config.MAX_RUNS` runs, a flight or
-    a chunk too large for the memory available, chunks too large for the disk under ``out``."""
+    the chunks in work (one per worker, ``workers`` default the scenario's) too large for the
+    memory available, chunks too large for the disk under ``out``."""
     if not scenario.estimators:
         raise ScenarioError("has no estimators to run", file=scenario.path, key="estimators",
                             expected="a list of estimators", hint="'navsim fly' flies a track alone")
     if not 1 <= runs <= MAX_RUNS:
         raise UsageError(f"{runs} runs: expected 1 to {MAX_RUNS}")
     check_flight(scenario)
-    n, have = needs(scenario, runs, chunk_runs), available_memory()
+    workers = scenario.workers if workers is None else workers
+    n, have = needs(scenario, runs, chunk_runs, workers), available_memory()
     if out is None and n.flight + n.disk > MEMORY_SHARE * have:     # every run held in memory
         raise UsageError(f"the {runs} runs held in memory need about {_gib(n.disk)} beside the flight's "
                          f"{_gib(n.flight)}, more than {MEMORY_SHARE:.0%} of the {_gib(have)} available; "
                          "write them to a folder (out=...), where they stream chunk by chunk, or run fewer")
     if n.flight + n.chunk > MEMORY_SHARE * have:
-        raise UsageError(f"a chunk of {min(runs, chunk_runs or CHUNK_RUNS)} runs needs about {_gib(n.chunk)} "
-                         f"of memory beside the flight's {_gib(n.flight)}, more than {MEMORY_SHARE:.0%} of the "
-                         f"{_gib(have)} available; use a smaller --chunk-runs")
+        raise UsageError(f"the chunks in work ({min(runs, _chunk_size(scenario, chunk_runs))} runs each, on {workers} "
+                         f"worker(s)) need about {_gib(n.chunk)} of memory beside the flights' {_gib(n.flight)}, "
+                         f"more than {MEMORY_SHARE:.0%} of the {_gib(have)} available; use a smaller --chunk-runs "
+                         "or fewer --workers")
     free = _free_disk(out) if out is not None else None
     if free is not None and n.disk > free:
         raise UsageError(f"the {runs} runs' chunks need about {_gib(n.disk)} on disk, more than the "

@@ -48,9 +48,11 @@ MAX_BYTES = 4_000_000
 #: the largest magnitude of a number a configuration takes where its key declares no bound of its
 #: own: far above any physical quantity in a scenario's units, far below a float's overflow
 MAX_FLOAT = 1e12
-#: the smallest magnitude of a non-zero number (smaller ones are refused: a 1e-308 sigma or period
-#: only ends in a division by almost zero)
-MIN_FLOAT = 1e-12
+#: the smallest magnitude of a non-zero number: its square is still a normal float (a 1e-308 sigma
+#: squares to zero, a 1e-308 period divides to infinity); far below any physical quantity in SI
+#: (a navigation-grade gyro's bias walk is about 1e-13 rad/s/sqrt(s), a wind north component
+#: written as 5 cos(90 deg) is 3e-16 m/s)
+MIN_FLOAT = 1e-150
 #: the largest magnitude of an integer where its key declares no bound of its own (a float holds
 #: every integer up to it exactly)
 MAX_INT = 2**53
@@ -62,8 +64,6 @@ MAX_TIME_CONSTANT_S = 1e10
 MAX_RATE_HZ = 1000.0
 #: the most Monte Carlo runs of a scenario or a command line
 MAX_RUNS = 1_000_000
-#: the shortest period or time constant, s (a thousandth of the fastest step)
-MIN_DURATION_S = 1e-3 / MAX_RATE_HZ
 #: the longest averaging window of an adaptive filter, epochs; the most rules of a fuzzy one
 MAX_WINDOW = 1_000_000
 MAX_RULES = 1_000

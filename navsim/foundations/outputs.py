@@ -25,6 +25,7 @@ Every JSON file navsim writes is strict JSON: :func:`strict_json` (NaN and infin
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import logging
 import math
@@ -33,6 +34,7 @@ import os
 import socket
 import stat
 import sys
+import threading
 import time
 import weakref
 from dataclasses import dataclass, field
@@ -180,29 +182,45 @@ def _refuse(folder: Path, holder: str):
                       "wait for it to finish, or write elsewhere with --out")
 
 
-def _take_lock(folder: Path) -> int:
-    """Take the lock of ``folder``; returns the lock file's descriptor (kept open while held)."""
+#: what flock raises on a file system without it (Lustre mounted without -o flock, some CIFS)
+NO_FLOCK = {errno.ENOSYS, errno.ENOLCK, errno.EOPNOTSUPP, getattr(errno, "ENOTSUP", errno.EOPNOTSUPP)}
+
+
+def _take_lock(folder: Path, flock: bool = fcntl is not None) -> int:
+    """Take the lock of ``folder``; returns the lock file's descriptor (kept open while held).
+    With ``flock``: ``fcntl.flock`` on the lock file (falling back, with a warning, where the file
+    system has none); without: an exclusive create and the holder's pid checked."""
     path = folder / LOCK
     me = json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
                      "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "command": " ".join(sys.argv)})
     for _ in range(20):                      # another process removing the file between our steps
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0)
-                         | (0 if fcntl else os.O_EXCL), 0o644)
-        except FileExistsError:              # no fcntl: held, or left by a dead process
+                         | (0 if flock else os.O_EXCL), 0o644)
+        except FileExistsError:              # no flock: held, or left by a dead process
             h, text = _holder_text(_read(path))
             if h.get("host") == socket.gethostname() and not _pid_alive(h.get("pid")):
                 log.warning("%s: taking over the lock of %s, which is no longer running", folder, text)
                 path.unlink(missing_ok=True)
                 continue
             raise _refuse(folder, text) from None
-        if fcntl is not None:
+        if flock:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 text = _holder_text(os.pread(fd, READ_LIMIT, 0))[1]
                 os.close(fd)
                 raise _refuse(folder, text) from None
+            except OSError as exc:
+                empty = not os.pread(fd, 1, 0)
+                os.close(fd)
+                if exc.errno not in NO_FLOCK:
+                    raise
+                log.warning("%s: the file system has no flock (%s); locking by an exclusive create instead",
+                            folder, exc.strerror)
+                if empty:                    # the file this call created, no holder's
+                    path.unlink(missing_ok=True)
+                return _take_lock(folder, flock=False)
             if not _same_file(fd, path):     # removed by its holder as we opened it: again
                 os.close(fd)
                 continue
@@ -244,6 +262,9 @@ class _Held:
     legacy: list = field(default_factory=list)
     created: list = field(default_factory=list)
     saved: bool = False
+    #: the thread that holds it: another thread of this process is refused as another process is
+    thread: int = field(default_factory=threading.get_ident)
+    thread_name: str = field(default_factory=lambda: threading.current_thread().name)
 
 
 #: the folders this process holds, by their real path
@@ -394,6 +415,8 @@ class OutputFolder:
             raise OutputError(self.path, reason="exists and is not a folder")
         key = os.path.realpath(self.path)
         held = _HELD.get(key)
+        if held is not None and held.thread != threading.get_ident():
+            raise _refuse(self.path, f"pid {os.getpid()} (this process), its thread {held.thread_name}")
         if held is not None:
             held.count += 1
         else:
@@ -403,17 +426,20 @@ class OutputFolder:
             created = _make_folders(self.path)
             try:
                 fd = _take_lock(self.path)
-            except OSError as exc:
-                raise OutputError(exc.filename or self.path / LOCK, exc) from None
-            except BaseException:
+            except BaseException as exc:     # the folders made for it go again, whatever failed
+                if created:
+                    with contextlib.suppress(OSError):
+                        (self.path / LOCK).unlink(missing_ok=True)
                 for made in reversed(created):
                     with contextlib.suppress(OSError):
                         made.rmdir()
+                if isinstance(exc, OSError):
+                    raise OutputError(exc.filename or self.path / LOCK, exc) from None
                 raise
             entries, legacy = _read_manifest(self.path)
             held = _HELD[os.path.realpath(self.path)] = _Held(fd, entries=entries, legacy=legacy, created=created)
         self._held = held
-        self._close = weakref.finalize(self, _release, os.path.realpath(self.path), self.path)
+        self._close = weakref.finalize(self, _release, key, Path(key))   # absolute: a later chdir does not move it
 
     def close(self) -> None:
         """Give this user's hold on the folder back (the last one saves the manifest and

@@ -144,7 +144,8 @@ def test_a_chunk_with_another_epoch_count_is_refused_by_merged(tmp_path):
 
 
 @pytest.mark.parametrize("change, words", [
-    (lambda i: i.update(chunk_runs="2"), "chunk_runs is '2' (expected a whole number >= 1)"),
+    (lambda i: i.update(chunk_runs="2"), "chunk_runs is '2' (expected a whole number 1-1000000)"),
+    (lambda i: i.update(runs=10**12), "runs is 1000000000000"),
     (lambda i: i.update(chunk_runs=None), "chunk_runs is None"),
     (lambda i: i.update(chunk_runs=0), "chunk_runs is 0"),
     (lambda i: i.update(chunks=["chunk_0-1.npz"]), "chunks is ['chunk_0-1.npz'] (expected a mapping"),
@@ -160,6 +161,20 @@ def test_an_index_of_wrong_types_is_refused_cleanly(tiny, copy_of, change, words
     with pytest.raises(UsageError) as exc:
         resume(path, out)
     assert "index.json" in str(exc.value) and words in str(exc.value), str(exc.value)
+
+
+@pytest.mark.parametrize("name", ["5-3", "0-9999999999"])
+def test_an_index_listing_an_impossible_chunk_is_refused_through_the_cli(tiny, copy_of, capsys, name):
+    """A chunk name whose runs run backwards (an IndexError traceback in the resume count) or
+    span ten billion runs (a list of every run: MemoryError) is no chunk of the run: exit 2."""
+    path, _ = tiny
+    out = copy_of("out")
+    index = json.loads((out / "chunks" / "index.json").read_text())
+    index["chunks"][name] = f"chunk_{name}.npz"
+    (out / "chunks" / "index.json").write_text(json.dumps(index))
+    code = main(["run", str(path), "--out", str(out), "--resume"])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err, err
 
 
 def test_an_index_that_is_not_a_mapping_is_refused(tiny, copy_of):

@@ -4,6 +4,7 @@ key named, sensor rates, bounded reads, a flight-only scenario, the memory a run
 from __future__ import annotations
 
 import copy
+import math
 import os
 from pathlib import Path
 
@@ -91,6 +92,18 @@ def test_a_number_refused_already_stays_refused(path, value):
     _refused(_set(P0, path, value))
 
 
+@pytest.mark.parametrize("path, value", [
+    (("environment",), {"wind": {"north_mps": 5 * math.cos(math.pi / 2), "east_mps": 5.0}}),   # 3.06e-16
+    (("sensors", "imu", "override"), {"gyro": {"bias_sigma": "5e-13 rad/s"}}),
+])
+def test_tiny_legitimate_numbers_are_taken(path, value):
+    """The floor of non-zero magnitudes refuses only what squares to zero (1e-308), not a
+    rounding residue of a computed wind (3e-16 m/s) nor a bias written in SI (5e-13 rad/s, a
+    strategic-grade gyro's 1e-7 deg/h): the review found both refused at a 1e-12 floor."""
+    data = _set(P0, path, value) if path[-1] != "override" else _set(P0, path, {**P0["sensors"]["imu"].get("override", {}), **value})
+    parse_scenario(data, FILE)
+
+
 def test_huge_integers_in_yaml_text_are_refused(tmp_path):
     path = tmp_path / "big.yaml"
     text = (ROOT / "scenarios" / "p0_bd_sins_ads.yaml").read_text().replace("period_s: 1.0", "period_s: 1" + "0" * 400)
@@ -116,11 +129,15 @@ def test_a_window_outside_the_flight_is_refused(path, value, key):
     assert key in message and "60 s" in message and "flight" in message
 
 
-def test_a_closed_loop_window_after_the_track_is_refused():
+def test_a_closed_loop_window_after_the_time_limit_is_refused():
     data = load_yaml(ROOT / "scenarios" / "p1_return_to_land.yaml")
-    late = _set(data, ("sensors", "gps", "faults", 0, "start_s"), 1000.0)     # the track lasts 652 s
+    """A closed-loop flight may outlast its track (652 s) up to its time limit (1400 s): a fault
+    starting at 1000 s is taken (a return leg flown on), one at 1500 s is refused, naming 1400."""
+    late = _set(data, ("sensors", "gps", "faults", 0), {"type": "outage", "start_s": 1500.0, "end_s": 1600.0})
     message = _refused(late, file="rtl.yaml")
-    assert "sensors.gps.faults[0].start_s" in message and "652" in message
+    assert "sensors.gps.faults[0].start_s" in message and "1400" in message
+    parse_scenario(_set(data, ("sensors", "gps", "faults", 0), {"type": "outage", "start_s": 1000.0,
+                                                                "end_s": 1400.0}), "rtl.yaml")
     parse_scenario(data, "rtl.yaml")
 
 
@@ -245,3 +262,16 @@ def test_a_sweep_too_large_is_refused_before_its_points_are_built(tmp_path, body
     with pytest.raises(ScenarioError) as exc:
         parse_sweep(tmp_path / "sweep.yaml")
     assert all(w in str(exc.value) for w in words), str(exc.value)
+
+
+def test_the_memory_plan_counts_each_workers_flight_and_chunk():
+    """Each busy worker holds a flight and a chunk of its own (the review found one of each
+    counted whatever --workers); a closed loop plans its own chunk size (25) and its time limit."""
+    from navsim.experiment import resources
+    sc = parse_scenario(SHORT, FILE)
+    one, two = resources.needs(sc, 1000, 250, 1), resources.needs(sc, 1000, 250, 2)
+    assert two.chunk == 2 * one.chunk and two.flight == 3 * one.flight and two.disk == one.disk
+    assert resources.needs(sc, 100, 250, 4).chunk == one.chunk * 100 // 250     # one chunk: one busy worker
+    rtl = load_scenario(ROOT / "scenarios" / "p1_return_to_land.yaml")
+    assert resources.needs(rtl, 100).chunk == 25 * resources.needs(rtl, 1).chunk
+    assert resources.needs(rtl, 1).flight == resources.flight_bytes(rtl, 1400.0)

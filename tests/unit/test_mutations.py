@@ -23,6 +23,7 @@ from hypothesis import HealthCheck, Phase, given, settings, strategies as st
 from hypothesis.configuration import set_hypothesis_home_dir
 
 from navsim import cli
+from navsim.experiment import resources
 from navsim.experiment.scenario import load_scenario, parse_scenario
 from navsim.foundations.config import load_yaml
 from navsim.foundations.errors import NavsimError
@@ -86,11 +87,27 @@ def _no_flight(*args, **kwargs):
     raise AssertionError("a flight was flown while validating")
 
 
+#: every name a flight can be flown through (each module's own binding)
+FLY_BINDINGS = ("navsim.flight.simulator.fly", "navsim.cli.fly", "navsim.experiment.runner.fly",
+                "navsim.experiment.runner.cached_flight", "navsim.api.cached_flight", "navsim.cli.cached_flight",
+                "navsim.cli._fly_or_save")
+
+
 @contextlib.contextmanager
 def _nothing_flown():
-    with mock.patch("navsim.flight.simulator.fly", _no_flight), mock.patch("navsim.cli.fly", _no_flight), \
-            mock.patch("navsim.experiment.runner.cached_flight", _no_flight):
+    with contextlib.ExitStack() as stack:
+        for name in FLY_BINDINGS:
+            stack.enter_context(mock.patch(name, _no_flight))
         yield
+
+
+def _parse_and_plan(data, file):
+    """What ``navsim run`` does before it flies: parse (with the check at the nominal duration),
+    then plan the run's memory and disk (:func:`navsim.experiment.resources.check_run`) for a
+    scenario with estimators, so a number that only overflows later is caught here too."""
+    scenario = parse_scenario(data, file)
+    if scenario.estimators:
+        resources.check_run(scenario, scenario.runs, None, None, scenario.workers)
 
 
 MUTATION = st.tuples(st.sampled_from(sorted(DATA)), st.integers(0, 10**6),
@@ -105,7 +122,7 @@ def test_a_mutated_scenario_parses_or_is_refused(mutation):
     path = paths[i % len(paths)]
     data = _mutate(DATA[name], path, how, value)
     with _nothing_flown():
-        _check(lambda: parse_scenario(data, f"scenarios/{name}"))
+        _check(lambda: _parse_and_plan(data, f"scenarios/{name}"))
 
 
 def _one_line(node):
