@@ -85,7 +85,7 @@ def sum_cost(costs):
     return {"propagate_s": sum(c["propagate_s"] for c in costs), "epoch_s": sum(c["epoch_s"] for c in costs),
             "runs": sum(c["runs"] for c in costs), "epochs": costs[0]["epochs"],
             "batches": sum(c["batches"] for c in costs),
-            "compile_s": None if any("compile_s" not in c for c in costs) else sum(c["compile_s"] for c in costs)}
+            "compile_s": None if any(c.get("compile_s") is None for c in costs) else sum(c["compile_s"] for c in costs)}
 
 
 class _CompileTimer(numba_event.Listener):

@@ -253,8 +253,9 @@ def _check_start(track, environment, file) -> None:
 def check_scenario(scenario: Scenario, duration_s: float) -> None:
     """The checks that need the whole scenario and its flight's duration: every time window
     (sensor faults, ``metrics.settle_s``, the metric windows) within the flight (a closed-loop
-    metric window may end up to ``closed_loop.time_limit_s``), each estimator's period a whole
-    number of IMU steps, each measurement's ``field`` one its sensor produces.
+    flight's: up to ``closed_loop.time_limit_s``, where its navigation may take it), each
+    estimator's period a whole number of IMU steps, each measurement's ``field`` one its sensor
+    produces.
 
     :func:`parse_scenario` runs it with the track's nominal duration (closed loop too);
     ``navsim run`` runs it
@@ -262,19 +263,19 @@ def check_scenario(scenario: Scenario, duration_s: float) -> None:
     :class:`ScenarioError` naming the scenario file and the key.
     """
     file = str(scenario.path) if scenario.path else None
+    # a closed-loop flight ends where its navigation takes it, at the latest at its time limit
+    last_s = max(scenario.closed_loop.time_limit_s, duration_s) if scenario.closed_loop is not None else duration_s
     for cfg in scenario.sensors:
         try:
-            check_faults(cfg.faults, cfg.kind, duration_s, cfg.name)
+            check_faults(cfg.faults, cfg.kind, last_s, cfg.name)
         except ScenarioError as exc:
             raise exc.with_file(file or "<scenario>") from None
-    if scenario.settle_s >= duration_s:
-        raise ScenarioError(f"is {scenario.settle_s:g} s, not before the end of the flight ({duration_s:.0f} s)",
+    if scenario.settle_s >= last_s:
+        raise ScenarioError(f"is {scenario.settle_s:g} s, not before the end of the flight ({last_s:.0f} s)",
                             file=file, key="metrics.settle_s",
-                            expected=f"a time within the flight (0-{duration_s:.0f} s)")
-    # a closed-loop flight ends where its navigation takes it, at the latest at its time limit
-    last_s = scenario.closed_loop.time_limit_s if scenario.closed_loop is not None else duration_s
+                            expected=f"a time within the flight (0-{last_s:.0f} s)")
     for i, (name, a, b) in enumerate(scenario.windows):
-        for key, t, end in (("start_s", a, duration_s), ("end_s", b, last_s + 1e-6)):
+        for key, t, end in (("start_s", a, last_s), ("end_s", b, last_s + 1e-6)):
             if t >= end:
                 raise ScenarioError(f"window '{name}' [{a:g}, {b:g}] s {'starts' if key == 'start_s' else 'ends'} "
                                     f"after the end of the flight ({end:.6g} s)", file=file,
