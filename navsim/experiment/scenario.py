@@ -47,7 +47,7 @@ from navsim.foundations.config import (
 from navsim.foundations.errors import ScenarioError
 from navsim.navigation.estimators.factory import parse_estimators
 from navsim.navigation.estimators.measurements import measurement_class
-from navsim.sensors import HEIGHT_FIELDS, VELOCITY_FIELDS, output_fields, parse_sensors
+from navsim.sensors import height_fields, output_fields, parse_sensors, velocity_fields
 from navsim.sensors.base import check_faults, decimation
 
 
@@ -309,10 +309,10 @@ def _measurement_entries(params: dict, path: str):
 def _check_field(m: dict, produced: tuple, file, key: str) -> None:
     if "field" not in m:
         return
-    family = VELOCITY_FIELDS if m["type"] == "velocity" else HEIGHT_FIELDS
+    family = velocity_fields() if m["type"] == "velocity" else height_fields()
     usable = [f for f in produced if f in family]
     if m["field"] not in usable:
-        raise ScenarioError(f"'{m['field']}' is not a {'velocity' if family is VELOCITY_FIELDS else 'height'} "
+        raise ScenarioError(f"'{m['field']}' is not a {'velocity' if m['type'] == 'velocity' else 'height'} "
                             f"that sensor '{m['sensor']}' produces", file=file, key=f"{key}.field",
                             expected="one of " + ", ".join(usable) if usable else "another sensor",
                             hint=close_match(m["field"], usable) if usable else None)

@@ -18,12 +18,49 @@ formulas (``H_p = 145442 (1 - (Ps/29.9213)^0.19026)`` ft and ``V = sqrt(2 q / rh
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from navsim.foundations import atmosphere as atm
 from navsim.foundations.transform import dcm_from_quat
 from navsim.sensors.base import SensorData, apply_outages, gauss_markov, normals, sampling
-from navsim.sensors.specs import AdsSpec, BaroSpec
+from navsim.sensors.registry import ErrorTerm, Field, Output, SensorKind, register
+
+
+@dataclass(frozen=True)
+class BaroSpec:
+    """Barometric altimeter: ISA pressure at the true height, plus a weather offset, a first-order
+    Markov altitude error (P0) and white noise."""
+
+    rate_hz: float = 10.0
+    offset: float = 0.0                       #: fixed altitude offset (weather / QNH), m
+    offset_sigma: float = 0.0                 #: random altitude offset per run, m
+    markov_sigma: float = 0.0                 #: Markov altitude error std, m
+    markov_tau_s: float = 300.0
+    noise: float = 0.0                        #: white altitude noise std, m
+
+
+@dataclass(frozen=True)
+class AdsSpec:
+    """Air data system (P0): static and total pressure and temperature sensors.
+
+    ``pitot: absolute`` measures the total pressure with its own absolute sensor (its error and
+    the static sensor's both enter the dynamic pressure); ``differential`` measures the dynamic
+    pressure ``pt - ps`` with a differential sensor, ``total_*`` then being that sensor's noise
+    and bias. ``velocity_axis: body_x`` gives P0's ground velocity (airspeed along the body x
+    axis); ``air`` uses angle-of-attack and sideslip vanes (``vane_noise``) for the direction."""
+
+    rate_hz: float = 10.0
+    static_noise: float = 0.0                 #: Pa
+    static_bias_sigma: float = 0.0            #: Pa, per run
+    total_noise: float = 0.0                  #: Pa
+    total_bias_sigma: float = 0.0             #: Pa, per run
+    temperature_noise: float = 0.0            #: K
+    formula: str = "isa"                      #: "isa" (exact) or "p0" (P0's printed formulas)
+    pitot: str = "absolute"                   #: "absolute" or "differential"
+    velocity_axis: str = "body_x"             #: "body_x" (P0) or "air" (alpha/beta vanes)
+    vane_noise: float = 0.0                   #: rad, alpha and beta vanes
 
 
 def emulate_baro(truth, spec: BaroSpec, seed: int, runs, faults=(), name: str = "baro") -> SensorData:
@@ -99,3 +136,35 @@ def emulate_ads(truth, spec: AdsSpec, seed: int, runs, faults=(), name: str = "a
                       errors={"h_error_m": h_p - truth.h_m[::step], "tas_error_mps": tas - truth.tas_mps[::step],
                               "vel_error_n_mps": vel - truth.vel_n_mps[::step]},
                       meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed, "formula": spec.formula})
+
+
+BARO = register(SensorKind(
+    name="baro", spec=BaroSpec, description="barometric altimeter",
+    fields={"rate_hz": Field("rate_hz", None, "plain"), "offset": Field("offset", "length", "1", signed=True),
+            "offset_sigma": Field("offset_sigma", "length", "1"), "markov_sigma": Field("markov_sigma", "length", "1"),
+            "markov_tau": Field("markov_tau_s", "time", "1"), "noise": Field("noise", "length", "1")},
+    outputs=(Output("h_baro_m", "m", role="height", truth="h_m", label="baro height"), Output("p_static_pa", "Pa")),
+    errors=tuple(ErrorTerm(n) for n in ("offset", "offset_sigma", "markov_sigma", "noise")),
+    emulate=emulate_baro, faults=("outage", "bias", "degraded")))
+
+_AXES = ("north", "east", "down")
+ADS = register(SensorKind(
+    name="ads", spec=AdsSpec, description="air data system: static, total pressure, temperature (P0)",
+    fields={"rate_hz": Field("rate_hz", None, "plain"), "static_noise": Field("static_noise", "pressure", "1"),
+            "static_bias_sigma": Field("static_bias_sigma", "pressure", "1"),
+            "total_noise": Field("total_noise", "pressure", "1"),
+            "total_bias_sigma": Field("total_bias_sigma", "pressure", "1"),
+            "temperature_noise": Field("temperature_noise", "temperature", "1"),
+            "formula": Field("formula", ("isa", "p0"), "str"),
+            "pitot": Field("pitot", ("absolute", "differential"), "str"),
+            "velocity_axis": Field("velocity_axis", ("body_x", "air"), "str"),
+            "vane_noise": Field("vane_noise", "angle", "1")},
+    outputs=(Output("p_static_pa", "Pa", truth="p_static_pa", label="static pressure"), Output("p_total_pa", "Pa"),
+             Output("temp_k", "K"), Output("h_pressure_m", "m", role="height", truth="h_m", label="pressure altitude"),
+             Output("cas_mps", "m/s"), Output("tas_mps", "m/s", truth="tas_mps", label="true airspeed"),
+             Output("vel_n_mps", "m/s", role="velocity", truth="vel_n_mps", label="ground velocity", axes=_AXES),
+             Output("alpha_rad", "rad", when=lambda spec: spec.velocity_axis == "air"),
+             Output("beta_rad", "rad", when=lambda spec: spec.velocity_axis == "air")),
+    errors=tuple(ErrorTerm(n) for n in ("static_noise", "static_bias_sigma", "total_noise", "total_bias_sigma",
+                                        "temperature_noise", "vane_noise")),
+    emulate=emulate_ads))

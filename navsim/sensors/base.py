@@ -1,5 +1,6 @@
 """What every sensor shares: the data container, per-run random streams, Gauss-Markov
-processes, fault windows and sampling on the truth grid."""
+processes, fault windows (each kind's allowed ones declared in its
+:class:`~navsim.sensors.registry.SensorKind`) and sampling on the truth grid."""
 
 from __future__ import annotations
 
@@ -12,15 +13,16 @@ from scipy.signal import lfilter
 
 from navsim.foundations.config import MAX_DURATION_S, Node, check_number, check_numbers
 from navsim.foundations.errors import ScenarioError
+from navsim.sensors.registry import FAULT_TYPES, get as get_kind
 
 
 @dataclass(frozen=True)
 class Measurements:
     """What an estimator sees of a sensor: its samples, never their true errors.
 
-    ``t_s`` ``(M,)`` the sample times; ``values[key]`` ``(B, M, ...)`` in SI (each kind's keys:
-    :data:`navsim.sensors.OUTPUTS`); ``valid`` ``(B, M)`` False where the sensor gave no output;
-    ``meta`` what is known on board (rates, the landmarks' coordinates, the date)."""
+    ``t_s`` ``(M,)`` the sample times; ``values[key]`` ``(B, M, ...)`` in SI (the outputs its kind
+    declares: :func:`navsim.sensors.output_fields`); ``valid`` ``(B, M)`` False where the sensor
+    gave no output; ``meta`` what is known on board (rates, the landmarks' coordinates, the date)."""
 
     name: str
     kind: str
@@ -62,6 +64,16 @@ class SensorData:
         return SensorData(self.name, self.kind, self.t_s, {k: pick(v) for k, v in self.values.items()},
                           self.valid[i:i + 1], {k: pick(v) for k, v in self.errors.items()},
                           dict(self.meta))
+
+
+def zeros3():
+    """A spec dataclass field defaulting to ``np.zeros(3)`` (a three-axis error that is off)."""
+    return field(default_factory=lambda: np.zeros(3))
+
+
+def truth_step(data: "SensorData", truth) -> slice:
+    """The truth samples at ``data``'s sample times (every ``step``-th), for plots."""
+    return slice(None, None, round(len(truth.t_s) / len(data.t_s))) if len(data.t_s) else slice(None)
 
 
 def stream_id(name: str) -> int:
@@ -143,7 +155,6 @@ def sampling(truth, rate_hz: float, seed: int, runs, name: str) -> Sampling:
 
 # --- fault windows -------------------------------------------------------------------------------
 
-FAULT_TYPES = ("outage", "bias", "degraded", "interference", "disturbance")
 #: the largest bias, radius or distance of a fault, m; the largest noise factor; the strongest
 #: disturbance field per axis, uT (the Earth's is 25-65 uT); the most points of a power line
 MAX_FAULT_M = 1e6
@@ -252,13 +263,11 @@ def _point(p, error) -> tuple:
 def check_faults(faults, kind: str, duration_s: float, name: str) -> None:
     """Each fault of sensor ``name`` (of ``kind``) is one a ``kind`` can have and starts within
     a flight of ``duration_s`` (a window starting at or after its end would score nothing)."""
-    allowed = {"gnss": ("outage", "bias", "degraded", "interference"), "radar_altimeter": ("outage", "bias", "degraded"),
-               "baro": ("outage", "bias", "degraded"),
-               "magnetometer": ("outage", "disturbance")}.get(kind, ("outage",))
+    allowed = get_kind(kind).faults
     for i, f in enumerate(faults):
         if f.type not in allowed:
             raise ScenarioError(f"a {kind} cannot have a '{f.type}' fault", key=f"sensors.{name}.faults[{i}]",
-                                expected="one of " + ", ".join(allowed))
+                                expected="one of " + ", ".join(allowed) if allowed else "no fault windows")
         if f.start_s >= duration_s:
             raise ScenarioError(f"the {f.type} window {_window(f)} starts after the flight ends "
                                 f"({duration_s:.6g} s): it would change nothing",

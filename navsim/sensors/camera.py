@@ -11,12 +11,28 @@ the landmark seen (NaN when none); ``meta['landmarks']`` the anchors' coordinate
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
 from navsim.foundations import earth
 from navsim.foundations.transform import dcm_from_quat
 from navsim.sensors.base import SensorData, apply_outages, normals, sampling
-from navsim.sensors.specs import CameraSpec
+from navsim.sensors.gnss import position_channels
+from navsim.sensors.registry import ErrorTerm, Field, Output, SensorKind, register
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """Landmark camera (P1): a downward camera sees anchor points of known position."""
+
+    rate_hz: float = 1.0
+    half_fov: float = math.radians(30.0)      #: rad
+    max_range: float = 1500.0                 #: m
+    noise: float = 2.0                        #: position-fix std at 0 m, m
+    noise_ratio: float = 0.01                 #: extra std per metre of range
+    landmarks: tuple[tuple[float, float, float], ...] = ()   #: (lat_deg, lon_deg, h_m)
 
 
 def emulate_camera(truth, spec: CameraSpec, seed: int, runs, faults=(), name: str = "camera") -> SensorData:
@@ -50,3 +66,14 @@ def emulate_camera(truth, spec: CameraSpec, seed: int, runs, faults=(), name: st
                                            "range_m": np.where(landmark >= 0, best_range, np.nan)},
                       meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed,
                             "landmarks": [tuple(map(float, lm)) for lm in spec.landmarks]})
+
+
+KIND = register(SensorKind(
+    name="camera", spec=CameraSpec, description="downward landmark camera: position fixes (P1)",
+    fields={"rate_hz": Field("rate_hz", None, "plain"), "half_fov": Field("half_fov", "angle", "1"),
+            "max_range": Field("max_range", "length", "1"), "noise": Field("noise", "length", "1"),
+            "noise_ratio": Field("noise_ratio", "ratio", "1"), "landmarks": Field("landmarks", None, "landmarks")},
+    outputs=(Output("lat_rad", "rad"), Output("lon_rad", "rad"), Output("h_m", "m", role="height"),
+             Output("landmark", "1")),
+    errors=(ErrorTerm("noise"), ErrorTerm("noise_ratio")),
+    emulate=emulate_camera, channels=position_channels))

@@ -1,8 +1,9 @@
 """The sensor catalog: ``sensors/*.yaml`` datasheets in datasheet units, read into SI specs.
 
-A datasheet names its ``kind`` (imu, gnss, baro, ads, radar_altimeter, magnetometer, camera),
-says where its numbers come from (``source``) and gives its fields with units (see
-:mod:`navsim.sensors.units`). A scenario names an entry and may override any field::
+A datasheet names its ``kind`` (a registered sensor kind: imu, gnss, baro, ads, radar_altimeter,
+magnetometer, camera, or one a user's module registers), says where its numbers come from
+(``source``) and gives its fields with units (see :mod:`navsim.sensors.units`); each kind's
+fields are declared with the kind (:class:`navsim.sensors.registry.SensorKind`, ``fields``). A scenario names an entry and may override any field::
 
     imu: {model: p0_imu, override: {gyro: {bias_sigma: 0.5 deg/h}}, off: [accel.noise_density]}
 
@@ -20,87 +21,13 @@ import numpy as np
 from navsim.foundations.config import MAX_RATE_HZ, check_number, close_match, load_yaml, resolve_file
 from navsim.foundations.errors import ScenarioError
 from navsim.foundations.resources import data_folder
-from navsim.sensors import specs as S
+from navsim.sensors import registry
 from navsim.sensors.units import UnitError, number, to_si
 
 #: the catalog's datasheets: the package ``navsim.data.sensors`` (edited in the repository's
 #: ``sensors/`` folder), read through importlib.resources
 CATALOG_DIR = data_folder("sensors")
 
-# field tables: yaml key -> (spec attribute, dimension, shape); shape "3" broadcasts a scalar
-# to three axes, "1" is a scalar, "33" a 3x3 matrix, "plain" a unit-less number, "str" a string
-_GYRO = {
-    "bias": ("bias", "angular_rate", "3"),
-    "bias_sigma": ("bias_sigma", "angular_rate", "3"),
-    "bias_instability": ("bias_instability", "angular_rate", "3"),
-    "bias_instability_tau": ("bias_instability_tau_s", "time", "1"),
-    "markov_sigma": ("markov_sigma", "angular_rate", "3"),
-    "markov_tau": ("markov_tau_s", "time", "1"),
-    "noise_density": ("noise_density", "angle_random_walk", "3"),
-    "random_walk": ("random_walk", "rate_random_walk", "3"),
-    "scale_factor": ("scale_factor", "ratio", "3"),
-    "scale_factor_sigma": ("scale_factor_sigma", "ratio", "3"),
-    "misalignment_sigma": ("misalignment_sigma", "angle", "1"),
-    "quantization": ("quantization", "angular_rate", "1"),
-    "range": ("range", "angular_rate", "1"),
-}
-_ACCEL = {k: (a, {"angular_rate": "acceleration", "angle_random_walk": "velocity_random_walk",
-                  "rate_random_walk": "acceleration_random_walk"}.get(d, d), s)
-          for k, (a, d, s) in _GYRO.items()}
-_VIBRATION = {
-    "type": ("type", None, "str"),
-    "amplitude": ("amplitude", "acceleration", "3"),
-    "gyro_amplitude": ("gyro_amplitude", "angular_rate", "3"),
-    "frequency_hz": ("frequency_hz", None, "plain"),
-    "band_hz": ("band_hz", None, "pair"),
-}
-FIELDS: dict[str, dict] = {
-    "imu": {"rate_hz": ("rate_hz", None, "plain"), "gyro": ("gyro", _GYRO, "group"),
-            "accel": ("accel", _ACCEL, "group"), "vibration": ("vibration", _VIBRATION, "list")},
-    "gnss": {"rate_hz": ("rate_hz", None, "plain"),
-             "position_sigma": ("position_sigma", "length", "3"),
-             "horizontal_sigma": ("position_sigma", "length", "h"),
-             "vertical_sigma": ("position_sigma", "length", "v"),
-             "velocity_sigma": ("velocity_sigma", "speed", "3"),
-             "markov_sigma": ("markov_sigma", "length", "3"),
-             "markov_tau": ("markov_tau_s", "time", "1"),
-             "latency": ("latency_s", "time", "1"),
-             "lever_arm": ("lever_arm_b", "length", "3"),
-             "velocity_output": ("velocity_output", None, "bool")},
-    "baro": {"rate_hz": ("rate_hz", None, "plain"), "offset": ("offset", "length", "1"),
-             "offset_sigma": ("offset_sigma", "length", "1"),
-             "markov_sigma": ("markov_sigma", "length", "1"),
-             "markov_tau": ("markov_tau_s", "time", "1"), "noise": ("noise", "length", "1")},
-    "ads": {"rate_hz": ("rate_hz", None, "plain"),
-            "static_noise": ("static_noise", "pressure", "1"),
-            "static_bias_sigma": ("static_bias_sigma", "pressure", "1"),
-            "total_noise": ("total_noise", "pressure", "1"),
-            "total_bias_sigma": ("total_bias_sigma", "pressure", "1"),
-            "temperature_noise": ("temperature_noise", "temperature", "1"),
-            "formula": ("formula", None, "str"), "pitot": ("pitot", None, "str"),
-            "velocity_axis": ("velocity_axis", None, "str"),
-            "vane_noise": ("vane_noise", "angle", "1")},
-    "radar_altimeter": {"rate_hz": ("rate_hz", None, "plain"), "noise": ("noise", "length", "1"),
-                        "noise_ratio": ("noise_ratio", "ratio", "1"),
-                        "min_range": ("min_range", "length", "1"),
-                        "max_range": ("max_range", "length", "1"),
-                        "beam_half_width": ("beam_half_width", "angle", "1"),
-                        "tilt_noise_gain": ("tilt_noise_gain", "dimensionless", "1"),
-                        "wave_height": ("wave_height", "length", "1")},
-    "magnetometer": {"rate_hz": ("rate_hz", None, "plain"),
-                     "hard_iron": ("hard_iron", "magnetic_field", "3"),
-                     "hard_iron_sigma": ("hard_iron_sigma", "magnetic_field", "3"),
-                     "soft_iron": ("soft_iron", "dimensionless", "33"),
-                     "soft_iron_sigma": ("soft_iron_sigma", "dimensionless", "1"),
-                     "noise": ("noise", "magnetic_field", "3"), "date": ("date", None, "str")},
-    "camera": {"rate_hz": ("rate_hz", None, "plain"), "half_fov": ("half_fov", "angle", "1"),
-               "max_range": ("max_range", "length", "1"), "noise": ("noise", "length", "1"),
-               "noise_ratio": ("noise_ratio", "ratio", "1"),
-               "landmarks": ("landmarks", None, "landmarks")},
-}
-_CHOICES = {"type": ("sine", "random"), "formula": ("isa", "p0"),
-            "pitot": ("absolute", "differential"), "velocity_axis": ("body_x", "air")}
-_NON_NEGATIVE_EXCEPT = {"bias", "offset", "scale_factor", "hard_iron", "lever_arm", "soft_iron"}
 META_KEYS = {"kind", "description", "source", "name"}
 
 
@@ -136,21 +63,24 @@ def load_datasheet(name: str, key: str = "model", file: str | None = None) -> tu
     path = resolve_file(name, catalog=CATALOG_DIR, file=file, key=key, what="in the sensor catalog",
                         choices=available)
     data = load_yaml(path)
-    if not isinstance(data, dict) or data.get("kind") not in FIELDS:
+    if not isinstance(data, dict) or data.get("kind") not in registry.available():
         raise ScenarioError("needs 'kind'", file=str(path), key="kind",
-                            expected="one of " + ", ".join(FIELDS))
+                            expected="one of " + ", ".join(registry.available()),
+                            hint=close_match(str(data.get("kind")), registry.available())
+                            if isinstance(data, dict) and "kind" in data else None)
     return data, path
 
 
 def spec_from_datasheet(data: dict, file: str | None = None, path: str = ""):
     """Build the SI spec of a datasheet mapping (catalog entry, possibly with overrides)."""
     kind = data.get("kind")
-    if kind not in FIELDS:
+    if kind not in registry.available():
         raise ScenarioError(f"is '{kind}'", file=file, key=_join(path, "kind"),
-                            expected="one of " + ", ".join(FIELDS), hint=close_match(str(kind), FIELDS))
-    values = _read_fields({k: v for k, v in data.items() if k not in META_KEYS}, FIELDS[kind],
-                          file, path, S.SPEC_TYPES[kind])
-    return S.SPEC_TYPES[kind](**values)
+                            expected="one of " + ", ".join(registry.available()),
+                            hint=close_match(str(kind), registry.available()))
+    declared = registry.get(kind)
+    values = _read_fields({k: v for k, v in data.items() if k not in META_KEYS}, declared.fields, file, path)
+    return declared.spec(**values)
 
 
 def load_spec(name: str, override: dict | None = None, off=(), file: str | None = None,
@@ -161,22 +91,25 @@ def load_spec(name: str, override: dict | None = None, off=(), file: str | None 
     data = merge(sheet, override or {})
     spec = spec_from_datasheet(data, file if override else str(sheet_path),
                                _join(key, "override") if override else "")
+    kind = registry.get(data["kind"])
     if off == "all":
-        return S.ideal(spec)
-    known = S.ERROR_FIELDS[data["kind"]]
+        return kind.ideal(spec)
+    known = kind.error_names()
     for item in off:
         if item not in known:
             raise ScenarioError(f"'{item}' is not an error source of a {data['kind']}", file=file,
                                 key=_join(key, "off"), expected="one of " + ", ".join(known),
                                 hint=close_match(item, known))
-    return S.disable(spec, list(off))
+    return kind.disable(spec, list(off))
 
 
 def _join(path: str, key: str) -> str:
     return f"{path}.{key}" if path else key
 
 
-def _read_fields(data: dict, table: dict, file, path, typ) -> dict:
+def _read_fields(data: dict, table: dict, file, path) -> dict:
+    """The spec attributes of a datasheet mapping ``data`` read by the field ``table``
+    (:class:`~navsim.sensors.registry.Field` per key), in SI."""
     if not isinstance(data, dict):
         raise ScenarioError("is not a mapping", file=file, key=path or None, expected="a mapping")
     out: dict = {}
@@ -185,44 +118,49 @@ def _read_fields(data: dict, table: dict, file, path, typ) -> dict:
         if key not in table:
             raise ScenarioError("is not a known field", file=file, key=where,
                                 hint=close_match(str(key), table))
-        attr, dim, shape = table[key]
+        f = table[key]
         try:
-            if shape == "group":
-                out[attr] = S.AxisErrors(**_read_fields(value, dim, file, where, S.AxisErrors))
-            elif shape == "list":
-                if not isinstance(value, list):
-                    raise UnitError("expected a list")
-                out[attr] = tuple(S.Vibration(**_read_fields(v, dim, file, f"{where}[{i}]", S.Vibration))
-                                  for i, v in enumerate(value))
-            elif shape == "plain":            # a rate or a frequency, Hz
-                out[attr] = _plain(value, MAX_RATE_HZ)
-            elif shape == "str":
-                if not isinstance(value, str):
-                    raise UnitError(f"is {value!r}, expected a string")
-                if key in _CHOICES and value not in _CHOICES[key]:
-                    raise UnitError(f"is '{value}', expected one of {', '.join(_CHOICES[key])}")
-                out[attr] = value
-            elif shape == "bool":
-                if not isinstance(value, bool):
-                    raise UnitError(f"is {value!r}, expected true or false")
-                out[attr] = value
-            elif shape == "pair":
-                if not (isinstance(value, list) and len(value) == 2):
-                    raise UnitError(f"is {value!r}, expected [low, high] with 0 < low < high")
-                low, high = (_plain(x, MAX_RATE_HZ) for x in value)
-                if not low < high:
-                    raise UnitError(f"is {value!r}, expected [low, high] with 0 < low < high")
-                out[attr] = (low, high)
-            elif shape == "landmarks":
-                out[attr] = _landmarks(value)
-            else:
-                out[attr] = _value(value, dim, shape, key, out.get(attr))
+            out[f.attr] = _field(f, value, key, file, where, out.get(f.attr))
         except UnitError as exc:
             raise ScenarioError(str(exc), file=file, key=where) from None
     return out
 
 
-def _value(value, dim, shape, key, previous):
+def _field(f, value, key: str, file, where: str, previous):
+    """One datasheet value read as its :class:`~navsim.sensors.registry.Field` says."""
+    if f.shape == "group":
+        return f.dim.cls(**_read_fields(value, f.dim.table, file, where))
+    if f.shape == "list":
+        if not isinstance(value, list):
+            raise UnitError("expected a list")
+        return tuple(f.dim.cls(**_read_fields(v, f.dim.table, file, f"{where}[{i}]")) for i, v in enumerate(value))
+    if f.shape == "plain":            # a rate or a frequency, Hz
+        return _plain(value, MAX_RATE_HZ)
+    if f.shape == "str":
+        if not isinstance(value, str):
+            raise UnitError(f"is {value!r}, expected a string")
+        if f.dim and value not in f.dim:
+            raise UnitError(f"is '{value}', expected one of {', '.join(f.dim)}")
+        return value
+    if f.shape == "bool":
+        if not isinstance(value, bool):
+            raise UnitError(f"is {value!r}, expected true or false")
+        return value
+    if f.shape == "pair":
+        if not (isinstance(value, list) and len(value) == 2):
+            raise UnitError(f"is {value!r}, expected [low, high] with 0 < low < high")
+        low, high = (_plain(x, MAX_RATE_HZ) for x in value)
+        if not low < high:
+            raise UnitError(f"is {value!r}, expected [low, high] with 0 < low < high")
+        return (low, high)
+    if f.shape == "landmarks":
+        return _landmarks(value)
+    return _value(value, f, key, previous)
+
+
+def _value(value, f, key, previous):
+    """A value with a unit (``f.dim``) of shape ``1``, ``3``, ``h``, ``v`` or ``33``."""
+    dim, shape = f.dim, f.shape
     if shape == "33":                # a dimensionless matrix: plain numbers, no unit
         if not (isinstance(value, list) and len(value) == 3 and all(
                 isinstance(row, list) and len(row) == 3 for row in value)):
@@ -232,12 +170,12 @@ def _value(value, dim, shape, key, previous):
     if shape == "1":
         if isinstance(v, np.ndarray):
             raise UnitError("expected one value, not three")
-        _check_sign(key, v)
+        _check_sign(f, v)
         if key.endswith("tau") and not v > 0:
             raise UnitError(f"is {v:g} s, expected a time constant > 0")
         return float(v)
     arr = np.broadcast_to(np.asarray(v, float), (3,)).copy()
-    _check_sign(key, arr)
+    _check_sign(f, arr)
     if shape in ("h", "v"):       # horizontal / vertical sigma into the NED triple
         base = np.zeros(3) if previous is None else previous.copy()
         if shape == "h":
@@ -255,8 +193,8 @@ def _plain(value, maximum: float) -> float:
     return check_number(value, float, exclusive_minimum=0.0, maximum=maximum, error=refuse)
 
 
-def _check_sign(key, v):
-    if key not in _NON_NEGATIVE_EXCEPT and np.any(np.asarray(v) < 0):
+def _check_sign(f, v):
+    if not f.signed and np.any(np.asarray(v) < 0):
         raise UnitError(f"is negative ({v}), expected a value >= 0")
 
 

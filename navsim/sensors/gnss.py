@@ -10,12 +10,28 @@ and ``vel_error_n_mps``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from navsim.foundations import earth
 from navsim.foundations.transform import dcm_from_quat
-from navsim.sensors.base import SensorData, apply_outages, gauss_markov, normals, sampling
-from navsim.sensors.specs import GnssSpec
+from navsim.sensors.base import SensorData, apply_outages, gauss_markov, normals, sampling, truth_step, zeros3
+from navsim.sensors.registry import ErrorTerm, Field, Output, SensorKind, register
+
+
+@dataclass(frozen=True)
+class GnssSpec:
+    """GNSS receiver. Position errors NED (m), velocity errors NED (m/s)."""
+
+    rate_hz: float = 1.0
+    position_sigma: np.ndarray = zeros3()
+    velocity_sigma: np.ndarray = zeros3()
+    markov_sigma: np.ndarray = zeros3()       #: Gauss-Markov position error, m
+    markov_tau_s: float = 300.0
+    latency_s: float = 0.0
+    lever_arm_b: np.ndarray = zeros3()        #: antenna position from the CG, body axes, m
+    velocity_output: bool = True              #: False: a position-only receiver (P0's BD-2)
 
 
 def _interp(t_query, t, x):
@@ -111,3 +127,36 @@ def emulate_gnss(truth, spec: GnssSpec, seed: int, runs, faults=(), name: str = 
     if spec.velocity_output:
         data.values["vel_n_mps"] = truth.vel_n_mps[::step] + vel_err
     return data
+
+
+def position_channels(data: SensorData, truth, run: int = 0) -> list:
+    """The plot's channels of a position fix (GNSS, the landmark camera): north and east from
+    the track's start and the height, m, and the NED velocity where there is one."""
+    s, v, t = truth_step(data, truth), data.values, data.t_s
+    lat0, lon0 = truth.lat_rad[0], truth.lon_rad[0]
+    n_m, e_m = earth.local_ne(v["lat_rad"][run], v["lon_rad"][run], lat0, lon0)
+    n_t, e_t = earth.local_ne(truth.lat_rad[s], truth.lon_rad[s], lat0, lon0)
+    out = [("north", "m", t, n_m, n_t), ("east", "m", t, e_m, e_t), ("height", "m", t, v["h_m"][run], truth.h_m[s])]
+    if "vel_n_mps" in v:
+        out += [(f"velocity {a}", "m/s", t, v["vel_n_mps"][run, :, j], truth.vel_n_mps[s, j])
+                for j, a in enumerate(("north", "east", "down"))]
+    return out
+
+
+KIND = register(SensorKind(
+    name="gnss", spec=GnssSpec, description="GNSS / BeiDou receiver: position and velocity fixes",
+    fields={"rate_hz": Field("rate_hz", None, "plain"), "position_sigma": Field("position_sigma", "length", "3"),
+            "horizontal_sigma": Field("position_sigma", "length", "h"),
+            "vertical_sigma": Field("position_sigma", "length", "v"),
+            "velocity_sigma": Field("velocity_sigma", "speed", "3"),
+            "markov_sigma": Field("markov_sigma", "length", "3"), "markov_tau": Field("markov_tau_s", "time", "1"),
+            "latency": Field("latency_s", "time", "1"), "lever_arm": Field("lever_arm_b", "length", "3", signed=True),
+            "velocity_output": Field("velocity_output", None, "bool")},
+    outputs=(Output("lat_rad", "rad"), Output("lon_rad", "rad"), Output("h_m", "m", role="height"),
+             Output("fix_type", "1"), Output("h_acc_m", "m"), Output("v_acc_m", "m"), Output("s_acc_mps", "m/s"),
+             Output("vel_n_mps", "m/s", role="velocity", when=lambda spec: spec.velocity_output,
+                    axes=("north", "east", "down"))),
+    errors=tuple(ErrorTerm(n) for n in ("position_sigma", "velocity_sigma", "markov_sigma", "latency_s",
+                                        "lever_arm_b")),
+    emulate=emulate_gnss, faults=("outage", "bias", "degraded", "interference"), channels=position_channels,
+    vector_bias=True))

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import copy
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 from numba.typed import List
@@ -37,8 +38,53 @@ from scipy.signal import butter, sosfilt
 from navsim.foundations.errors import ScenarioError
 from navsim.foundations.transform import cross, rotation
 from navsim.sensors import kernels
-from navsim.sensors.base import SensorData, decimation, normals, run_generators
-from navsim.sensors.specs import AxisErrors, ImuSpec
+from navsim.sensors.base import SensorData, decimation, normals, run_generators, zeros3
+from navsim.sensors.registry import ErrorTerm, Field, Group, Output, SensorKind, register
+
+
+@dataclass(frozen=True)
+class AxisErrors:
+    """Errors of a triad (gyros or accelerometers). Units: rad/s (gyro) or m/s^2 (accel)."""
+
+    bias: np.ndarray = zeros3()               #: fixed constant bias
+    bias_sigma: np.ndarray = zeros3()         #: random constant, drawn per run and axis
+    bias_instability: np.ndarray = zeros3()   #: Allan-deviation floor B (flicker convention)
+    bias_instability_tau_s: float = 100.0     #: correlation time of its Gauss-Markov model
+    markov_sigma: np.ndarray = zeros3()       #: first-order Gauss-Markov bias, std
+    markov_tau_s: float = 3600.0              #: its correlation time
+    noise_density: np.ndarray = zeros3()      #: white noise: ARW rad/s/rtHz, VRW m/s^2/rtHz
+    random_walk: np.ndarray = zeros3()        #: rate / acceleration random walk, per rt(s)
+    scale_factor: np.ndarray = zeros3()       #: fixed scale-factor error (ratio)
+    scale_factor_sigma: np.ndarray = zeros3() #: random scale-factor error per run (ratio)
+    misalignment_sigma: float = 0.0           #: random axis misalignment per run, rad
+    quantization: float = 0.0                 #: LSB of the output, 0: none
+    range: float = math.inf                   #: saturation, +/-
+
+
+@dataclass(frozen=True)
+class Vibration:
+    """Vibration seen by the accelerometers (and, if ``gyro_amplitude``, the gyros).
+
+    ``type: sine``: ``amplitude`` (peak, m/s^2 per axis) at ``frequency_hz``, random phase per run.
+    ``type: random``: band-limited Gaussian noise in ``band_hz`` whose peak (3 sigma) is
+    ``amplitude``.
+    """
+
+    type: str = "sine"
+    amplitude: np.ndarray = zeros3()
+    gyro_amplitude: np.ndarray = zeros3()
+    frequency_hz: float = 30.0
+    band_hz: tuple[float, float] = (10.0, 40.0)
+
+
+@dataclass(frozen=True)
+class ImuSpec:
+    """Strapdown IMU: the gyro and accelerometer triads' errors and the vibration."""
+
+    rate_hz: float = 100.0
+    gyro: AxisErrors = field(default_factory=AxisErrors)
+    accel: AxisErrors = field(default_factory=AxisErrors)
+    vibration: tuple[Vibration, ...] = ()
 
 #: Allan-deviation peak of a first-order Gauss-Markov process, in units of its std
 #: (max over T of sigma_A(T) / sigma); bias instability B is modelled by a Gauss-Markov process
@@ -524,3 +570,65 @@ def quantize_increment(incr: np.ndarray, e: AxisErrors, dt: float) -> np.ndarray
         return incr
     q = e.quantization * dt
     return np.round(incr / q) * q
+
+
+# --- the kind's declaration ----------------------------------------------------------------------
+
+#: a gyro triad's datasheet keys
+_GYRO = {
+    "bias": Field("bias", "angular_rate", "3", signed=True),
+    "bias_sigma": Field("bias_sigma", "angular_rate", "3"),
+    "bias_instability": Field("bias_instability", "angular_rate", "3"),
+    "bias_instability_tau": Field("bias_instability_tau_s", "time", "1"),
+    "markov_sigma": Field("markov_sigma", "angular_rate", "3"),
+    "markov_tau": Field("markov_tau_s", "time", "1"),
+    "noise_density": Field("noise_density", "angle_random_walk", "3"),
+    "random_walk": Field("random_walk", "rate_random_walk", "3"),
+    "scale_factor": Field("scale_factor", "ratio", "3", signed=True),
+    "scale_factor_sigma": Field("scale_factor_sigma", "ratio", "3"),
+    "misalignment_sigma": Field("misalignment_sigma", "angle", "1"),
+    "quantization": Field("quantization", "angular_rate", "1"),
+    "range": Field("range", "angular_rate", "1"),
+}
+#: an accelerometer triad's: the gyro's keys in the accelerometer's dimensions
+_ACCEL = {k: f._replace(dim={"angular_rate": "acceleration", "angle_random_walk": "velocity_random_walk",
+                             "rate_random_walk": "acceleration_random_walk"}.get(f.dim, f.dim))
+          for k, f in _GYRO.items()}
+_VIBRATION = {
+    "type": Field("type", ("sine", "random"), "str"),
+    "amplitude": Field("amplitude", "acceleration", "3"),
+    "gyro_amplitude": Field("gyro_amplitude", "angular_rate", "3"),
+    "frequency_hz": Field("frequency_hz", None, "plain"),
+    "band_hz": Field("band_hz", None, "pair"),
+}
+#: a triad's error sources (``off: [gyro.noise_density]``), ``range`` off: no saturation
+_TRIAD_ERRORS = ("bias", "bias_sigma", "bias_instability", "markov_sigma", "noise_density", "random_walk",
+                 "scale_factor", "scale_factor_sigma", "misalignment_sigma", "quantization", "range")
+
+
+def _emulate(truth, spec: ImuSpec, seed: int, runs, faults=(), name: str = "imu") -> SensorData:
+    """:func:`emulate_imu` as every kind's emulator is called (an IMU has no fault windows)."""
+    return emulate_imu(truth, spec, seed, runs, name=name)
+
+
+def imu_channels(data: SensorData, truth, run: int = 0) -> list:
+    """The plot's channels: each gyro (deg/s) and accelerometer (m/s²) axis against the truth."""
+    v, t = data.values, data.t_s
+    k = max(1, round(truth.meta.get("rate_hz", 100.0) / data.meta["rate_hz"]))
+    out = [(f"gyro {axis}", "deg/s", t, np.degrees(v["omega_ib_b_rps"][run, :, j]),
+            np.degrees(truth.omega_ib_b_rps[::k, j])) for j, axis in enumerate("xyz")]
+    return out + [(f"accel {axis}", "m/s²", t, v["f_b_mps2"][run, :, j], truth.f_b_mps2[::k, j])
+                  for j, axis in enumerate("xyz")]
+
+
+KIND = register(SensorKind(
+    name="imu", spec=ImuSpec, description="strapdown gyro and accelerometer triads",
+    fields={"rate_hz": Field("rate_hz", None, "plain"), "gyro": Field("gyro", Group(_GYRO, AxisErrors), "group"),
+            "accel": Field("accel", Group(_ACCEL, AxisErrors), "group"),
+            "vibration": Field("vibration", Group(_VIBRATION, Vibration), "list")},
+    outputs=(Output("omega_ib_b_rps", "rad/s", truth="omega_ib_b_rps", axes=("x", "y", "z")),
+             Output("f_b_mps2", "m/s^2", truth="f_b_mps2", axes=("x", "y", "z")),
+             Output("dtheta_b_rad", "rad", axes=("x", "y", "z")), Output("dv_b_mps", "m/s", axes=("x", "y", "z"))),
+    errors=tuple(ErrorTerm(f"{g}.{f}", math.inf if f == "range" else None)
+                 for g in ("gyro", "accel") for f in _TRIAD_ERRORS) + (ErrorTerm("vibration"),),
+    emulate=_emulate, faults=(), channels=imu_channels))

@@ -11,13 +11,27 @@ field of ``disturbance`` faults (P4's magnetic disturbance).
 from __future__ import annotations
 
 import datetime
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
 
 from navsim.foundations.transform import dcm_from_quat
-from navsim.sensors.base import SensorData, apply_outages, normals, sampling
-from navsim.sensors.specs import MagnetometerSpec
+from navsim.sensors.base import SensorData, apply_outages, normals, sampling, truth_step, zeros3
+from navsim.sensors.registry import ErrorTerm, Field, Output, SensorKind, register
+
+
+@dataclass(frozen=True)
+class MagnetometerSpec:
+    """Magnetometer: WMM Earth field, hard-iron offset, soft-iron matrix, white noise (tesla)."""
+
+    rate_hz: float = 10.0
+    hard_iron: np.ndarray = zeros3()          #: fixed offset, T
+    hard_iron_sigma: np.ndarray = zeros3()    #: random offset per run, T
+    soft_iron: np.ndarray = field(default_factory=lambda: np.eye(3))   #: fixed matrix
+    soft_iron_sigma: float = 0.0              #: random deviation of the matrix per run
+    noise: np.ndarray = zeros3()              #: white noise std, T
+    date: str = "2025-01-01"                  #: epoch of the WMM field
 
 WMM_SPACING_S = 10.0      #: the field is evaluated this often along the track and interpolated
 
@@ -71,3 +85,24 @@ def emulate_magnetometer(truth, spec: MagnetometerSpec, seed: int, runs, faults=
                       errors={"hard_iron_T": hard, "soft_iron": soft, "field_n_T": m_n,
                               "disturbance_T": disturbance},
                       meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed, "date": spec.date})
+
+
+def magnetometer_channels(data: SensorData, truth, run: int = 0) -> list:
+    """The plot's channels: each axis's field (µT) against the Earth's field in body axes."""
+    s = truth_step(data, truth)
+    clean = np.einsum("nji,nj->ni", dcm_from_quat(truth.quat_nb[s]), data.errors["field_n_T"]) * 1e6
+    return [(f"field {axis}", "µT", data.t_s, data.values["mag_b_T"][run, :, j] * 1e6, clean[:, j])
+            for j, axis in enumerate("xyz")]
+
+
+KIND = register(SensorKind(
+    name="magnetometer", spec=MagnetometerSpec, description="three-axis magnetometer (WMM field, hard and soft iron)",
+    fields={"rate_hz": Field("rate_hz", None, "plain"),
+            "hard_iron": Field("hard_iron", "magnetic_field", "3", signed=True),
+            "hard_iron_sigma": Field("hard_iron_sigma", "magnetic_field", "3"),
+            "soft_iron": Field("soft_iron", "dimensionless", "33", signed=True),
+            "soft_iron_sigma": Field("soft_iron_sigma", "dimensionless", "1"),
+            "noise": Field("noise", "magnetic_field", "3"), "date": Field("date", None, "str")},
+    outputs=(Output("mag_b_T", "T", axes=("x", "y", "z")),),
+    errors=tuple(ErrorTerm(n) for n in ("hard_iron", "hard_iron_sigma", "soft_iron", "soft_iron_sigma", "noise")),
+    emulate=emulate_magnetometer, faults=("outage", "disturbance"), channels=magnetometer_channels))

@@ -1,4 +1,6 @@
-"""Pictures of the sensors: each sensor's output against the truth and its error over a flight."""
+"""Pictures of the sensors: each sensor's output against the truth and its error over a flight
+(the channels each kind declares, :class:`navsim.sensors.registry.SensorKind`), and an IMU's
+Allan deviation against its datasheet."""
 
 from __future__ import annotations
 
@@ -8,50 +10,31 @@ import allantools
 import numpy as np
 
 from navsim.flight.truth import Truth
-from navsim.foundations import earth
 from navsim.foundations.outputs import write_atomic
-from navsim.foundations.transform import dcm_from_quat
-from navsim.sensors.base import SensorData
+from navsim.sensors import registry
+from navsim.sensors.base import SensorData, truth_step
 from navsim.sensors.imu import FLICKER_FLOOR, emulate_imu
 
 
 def channels(data: SensorData, truth, run: int = 0):
-    """``(label, unit, t, measured, true)`` series to plot for ``data`` (run ``run``)."""
-    s = slice(None, None, round(len(truth.t_s) / len(data.t_s))) if len(data.t_s) else slice(None)
-    v = data.values
-    t = data.t_s
+    """``(label, unit, t, measured, true)`` series to plot for ``data`` (run ``run``): its kind's
+    ``channels``, or else each of its outputs that names a ``truth`` field against that field
+    (:class:`~navsim.sensors.registry.Output`)."""
+    kind = registry.get(data.kind)
+    if kind.channels is not None:
+        return kind.channels(data, truth, run)
+    s = truth_step(data, truth)
     out = []
-    if data.kind == "imu":
-        k = max(1, round(truth.meta.get("rate_hz", 100.0) / data.meta["rate_hz"]))
-        for j, axis in enumerate("xyz"):
-            out.append((f"gyro {axis}", "deg/s", t, np.degrees(v["omega_ib_b_rps"][run, :, j]),
-                        np.degrees(truth.omega_ib_b_rps[::k, j])))
-        for j, axis in enumerate("xyz"):
-            out.append((f"accel {axis}", "m/s²", t, v["f_b_mps2"][run, :, j], truth.f_b_mps2[::k, j]))
-    elif data.kind in ("gnss", "camera"):
-        lat0, lon0 = truth.lat_rad[0], truth.lon_rad[0]
-        n_m, e_m = earth.local_ne(v["lat_rad"][run], v["lon_rad"][run], lat0, lon0)
-        n_t, e_t = earth.local_ne(truth.lat_rad[s], truth.lon_rad[s], lat0, lon0)
-        out += [("north", "m", t, n_m, n_t), ("east", "m", t, e_m, e_t),
-                ("height", "m", t, v["h_m"][run], truth.h_m[s])]
-        if "vel_n_mps" in v:
-            out += [(f"velocity {a}", "m/s", t, v["vel_n_mps"][run, :, j], truth.vel_n_mps[s, j])
-                    for j, a in enumerate(("north", "east", "down"))]
-    elif data.kind == "baro":
-        out.append(("baro height", "m", t, v["h_baro_m"][run], truth.h_m[s]))
-    elif data.kind == "ads":
-        out += [("static pressure", "Pa", t, v["p_static_pa"][run], truth.p_static_pa[s]),
-                ("pressure altitude", "m", t, v["h_pressure_m"][run], truth.h_m[s]),
-                ("true airspeed", "m/s", t, v["tas_mps"][run], truth.tas_mps[s])]
-        out += [(f"ground velocity {a}", "m/s", t, v["vel_n_mps"][run, :, j], truth.vel_n_mps[s, j])
-                for j, a in enumerate(("north", "east", "down"))]
-    elif data.kind == "radar_altimeter":
-        out.append(("height above surface", "m", t, v["h_agl_m"][run], truth.h_agl_m[s]))
-    elif data.kind == "magnetometer":
-        m_n = data.errors["field_n_T"]
-        clean = np.einsum("nji,nj->ni", dcm_from_quat(truth.quat_nb[s]), m_n) * 1e6
-        for j, axis in enumerate("xyz"):
-            out.append((f"field {axis}", "µT", t, v["mag_b_T"][run, :, j] * 1e6, clean[:, j]))
+    for o in kind.outputs:
+        if o.truth is None or o.name not in data.values:
+            continue
+        meas, true = data.values[o.name][run], getattr(truth, o.truth)[s]
+        label = o.label or o.name
+        if meas.ndim == 1:
+            out.append((label, o.unit, data.t_s, meas, true))
+        else:
+            axes = o.axes or tuple(str(j) for j in range(meas.shape[-1]))
+            out += [(f"{label} {a}", o.unit, data.t_s, meas[:, j], true[:, j]) for j, a in enumerate(axes)]
     return out
 
 

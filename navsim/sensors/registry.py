@@ -1,0 +1,295 @@
+"""The sensor kinds, registered by name: everything navsim knows of a kind, declared once.
+
+A sensor kind is one :class:`SensorKind` object, built and passed to :func:`register` by the
+module that emulates it (``navsim/sensors/imu.py``, ``gnss.py``, ``airdata.py`` (``baro`` and
+``ads``), ``radar.py``, ``magnetometer.py``, ``camera.py``). It names
+
+* the kind (a catalog entry's ``kind:``) and its spec dataclass (the truth model, SI);
+* the catalog's field table: each datasheet key, the spec attribute it fills, its unit dimension
+  (:mod:`navsim.sensors.units`) and shape (:class:`Field`);
+* its outputs (``SensorData.values`` keys) with their units, which of them a ``height`` or a
+  ``velocity`` measurement may read (``role``) and which truth field each one measures
+  (:class:`Output`);
+* its error terms, each a named source a scenario's ``off:`` switches off (:class:`ErrorTerm`);
+* the fault windows it can have (:data:`FAULT_TYPES`);
+* its emulator and, where the default (each output with a ``truth`` against that truth field)
+  does not do, its plot channels.
+
+The catalog (:mod:`navsim.sensors.catalog`), :func:`navsim.sensors.emulate`, the fault checks
+(:func:`navsim.sensors.base.check_faults`), the scenario's field checks and ``navsim sensors``'
+plots all read the registry; there is no other table of sensor kinds. Every module of the
+package is imported by ``navsim/sensors/__init__.py``, so a new built-in kind is one new module
+(and its catalog datasheets); a user's module registers its own kind the same way, and a
+package registers one through the ``navsim.sensors`` entry-point group (``name =
+"package.module:KIND"``, the object a :class:`SensorKind` named ``name``). ``docs/sensors.md``
+is the worked example.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from importlib import metadata
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+from navsim.foundations.config import close_match, plain_name
+from navsim.foundations.errors import UsageError
+
+ENTRY_POINT_GROUP = "navsim.sensors"
+#: the fault windows a scenario may give a sensor (:class:`navsim.sensors.base.Fault`); each kind
+#: names those it can have
+FAULT_TYPES = ("outage", "bias", "degraded", "interference", "disturbance")
+#: the shapes of a catalog field (see :class:`Field`)
+SHAPES = ("1", "3", "h", "v", "33", "plain", "str", "bool", "pair", "landmarks", "group", "list")
+#: what an output may be read as by a measurement (``height``, ``velocity``), besides by name
+ROLES = ("height", "velocity")
+
+_REGISTRY: dict[str, "SensorKind"] = {}
+_ENTRY_POINTS_READ: list[bool] = []          #: non-empty once the entry points were read
+
+
+class Group(NamedTuple):
+    """A nested datasheet mapping (``shape`` ``group``) or list of them (``list``): its field
+    table and the dataclass it is read into."""
+
+    table: dict
+    cls: type
+
+
+class Field(NamedTuple):
+    """One datasheet key of a catalog entry.
+
+    ``attr`` the spec attribute it fills; ``dim`` the unit dimension of its value
+    (:mod:`navsim.sensors.units`; None for unit-less shapes), a :class:`Group` for ``group`` and
+    ``list``, or the allowed strings for ``str``; ``shape``: ``1`` one value, ``3`` three axes (a
+    scalar broadcast), ``h`` / ``v`` the horizontal / vertical part of a NED triple, ``33`` a
+    dimensionless 3x3 matrix, ``plain`` a positive unit-less number (a rate, Hz), ``str``,
+    ``bool``, ``pair`` ``[low, high]`` Hz, ``landmarks`` ``[lat_deg, lon_deg, h_m]`` points;
+    ``signed``: a negative value is allowed (else refused)."""
+
+    attr: str
+    dim: object = None
+    shape: str = "1"
+    signed: bool = False
+
+
+@dataclass(frozen=True)
+class Output:
+    """One ``SensorData.values`` key of a kind.
+
+    ``unit`` its SI unit; ``role`` ``height`` or ``velocity`` if a measurement of that type may
+    read it (``field:``); ``when(spec)`` true when the spec makes the emulator produce it (None:
+    always); ``truth`` the :class:`~navsim.flight.truth.Truth` field it measures (the default
+    plot draws the output against it), ``label`` the plot's name of it, ``axes`` the names of
+    its components (a vector output)."""
+
+    name: str
+    unit: str
+    role: str | None = None
+    when: Callable | None = None
+    truth: str | None = None
+    label: str | None = None
+    axes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class ErrorTerm:
+    """One error source of a kind: the dotted path of the spec attribute that sets it (its name,
+    as ``off:`` lists it) and the value that switches it off (None: the zero of its type, the
+    identity for a 3x3 matrix, no entries for a tuple)."""
+
+    name: str
+    off: object = None
+
+
+@dataclass(frozen=True)
+class SensorKind:
+    """Everything navsim knows of one sensor kind (see the module docstring).
+
+    ``emulate(truth, spec, seed, runs, faults=(), name=...) -> SensorData``;
+    ``channels(data, truth, run) -> [(label, unit, t, measured, true), ...]`` (None: each output
+    with a ``truth`` against it); ``vector_bias``: a ``bias`` fault is a NED vector (``value_m:
+    [n, e, d]``)."""
+
+    name: str
+    spec: type
+    fields: dict
+    outputs: tuple[Output, ...]
+    errors: tuple[ErrorTerm, ...]
+    emulate: Callable
+    faults: tuple[str, ...] = ("outage",)
+    channels: Callable | None = None
+    vector_bias: bool = False
+    description: str = ""
+
+    def output_fields(self, spec) -> tuple[str, ...]:
+        """The ``values`` keys the emulator produces for ``spec``, in declared order."""
+        return tuple(o.name for o in self.outputs if o.when is None or o.when(spec))
+
+    def output(self, name: str) -> Output:
+        """The declared output ``name``."""
+        return next(o for o in self.outputs if o.name == name)
+
+    def error_names(self) -> list[str]:
+        """The names of the kind's error sources (what ``off:`` may list)."""
+        return [e.name for e in self.errors]
+
+    def disable(self, spec, names):
+        """A copy of ``spec`` with the error sources ``names`` switched off."""
+        terms = {e.name: e for e in self.errors}
+        for name in names:
+            spec = _set_off(spec, name.split("."), terms[name].off)
+        return spec
+
+    def ideal(self, spec):
+        """``spec`` with every error source off: the sensor reproduces the truth."""
+        return self.disable(spec, self.error_names())
+
+
+def _set_off(spec, path: list, off):
+    """``spec`` with the attribute at ``path`` set to ``off`` (None: its type's zero)."""
+    head = path[0]
+    current = getattr(spec, head)
+    if len(path) > 1:
+        return dataclasses.replace(spec, **{head: _set_off(current, path[1:], off)})
+    return dataclasses.replace(spec, **{head: _zero_of(current) if off is None else off})
+
+
+def _zero_of(current):
+    """The value that switches off an error source now at ``current``."""
+    if isinstance(current, tuple):
+        return ()
+    if isinstance(current, np.ndarray):
+        return np.eye(3) if current.shape == (3, 3) else np.zeros_like(current)
+    if isinstance(current, float) and math.isinf(current):
+        return math.inf
+    return 0.0
+
+
+def register(kind: SensorKind, replace: bool = False) -> SensorKind:
+    """Make ``kind`` known by its name (its declaration checked: a plain name, a spec
+    dataclass whose attributes its fields, outputs' roles, error terms and faults name).
+    Returns ``kind``. ``replace``: a kind of that name may be registered again (a reloaded
+    module)."""
+    problems = _problems(kind)
+    if problems:
+        raise TypeError(f"sensor kind '{kind.name}': " + "; ".join(problems))
+    if kind.name in _REGISTRY and not replace and _REGISTRY[kind.name] is not kind:
+        raise TypeError(f"sensor kind '{kind.name}' is registered already "
+                        f"(by {_REGISTRY[kind.name].emulate.__module__})")
+    _REGISTRY[kind.name] = kind
+    return kind
+
+
+def unregister(name: str) -> None:
+    """Forget the kind ``name`` (a test's toy kind)."""
+    _REGISTRY.pop(name, None)
+
+
+def _problems(kind: SensorKind) -> list[str]:
+    """What is wrong with a kind's declaration (empty: nothing)."""
+    out = []
+    if not (isinstance(kind.name, str) and plain_name(kind.name)):
+        out.append("its name is not a plain name")
+    if not dataclasses.is_dataclass(kind.spec):
+        return out + [f"its spec {kind.spec!r} is not a dataclass"]
+    attrs = {f.name for f in dataclasses.fields(kind.spec)}
+    out += [f"field '{k}' fills '{f.attr}', not an attribute of {kind.spec.__name__}"
+            for k, f in kind.fields.items() if f.attr not in attrs]
+    out += [f"field '{k}' has the shape '{f.shape}'" for k, f in kind.fields.items() if f.shape not in SHAPES]
+    out += [f"error term '{e.name}' is not an attribute of {kind.spec.__name__}"
+            for e in kind.errors if e.name.split(".")[0] not in attrs]
+    out += [f"output '{o.name}' has the role '{o.role}'" for o in kind.outputs if o.role not in (None, *ROLES)]
+    out += [f"fault '{f}' is not one of {', '.join(FAULT_TYPES)}" for f in kind.faults if f not in FAULT_TYPES]
+    if "rate_hz" not in attrs:
+        out.append(f"{kind.spec.__name__} has no rate_hz")
+    if not callable(kind.emulate):
+        out.append("its emulator is not callable")
+    return out
+
+
+def get(name: str) -> SensorKind:
+    """The kind registered as ``name`` (built-in, a user's module's, or an entry point's)."""
+    if name not in _REGISTRY:
+        _load_entry_points()
+    if name not in _REGISTRY:
+        raise KeyError(f"no sensor kind '{name}' ({close_match(name, _REGISTRY) or 'none registered'})")
+    return _REGISTRY[name]
+
+
+def available() -> list[str]:
+    """The registered kinds' names, sorted."""
+    _load_entry_points()
+    return sorted(_REGISTRY)
+
+
+def kinds() -> list[SensorKind]:
+    """The registered kinds."""
+    return [_REGISTRY[n] for n in available()]
+
+
+def kind_of(spec) -> str:
+    """The name of the kind whose spec ``spec`` is."""
+    for kind in kinds():
+        if isinstance(spec, kind.spec):
+            return kind.name
+    raise TypeError(type(spec))
+
+
+def of(spec) -> SensorKind:
+    """The kind whose spec ``spec`` is."""
+    return get(kind_of(spec))
+
+
+def fields_of_role(role: str) -> tuple[str, ...]:
+    """Every registered kind's outputs of ``role`` (``height``, ``velocity``), each once."""
+    return tuple(dict.fromkeys(o.name for k in kinds() for o in k.outputs if o.role == role))
+
+
+def default_output(kind: str, role: str) -> str | None:
+    """The first output of ``role`` kind ``kind`` declares (what a measurement of that type reads
+    without a ``field``), None without one."""
+    return next((o.name for o in get(kind).outputs if o.role == role), None)
+
+
+class View(Mapping):
+    """A read-only mapping kind name -> ``pick(kind)`` over the registered kinds, always current
+    (``OUTPUTS``, ``ERROR_FIELDS``: the registry seen as the tables it replaced)."""
+
+    def __init__(self, pick: Callable):
+        self._pick = pick
+
+    def __getitem__(self, name):
+        if name not in _REGISTRY:
+            raise KeyError(name)
+        return self._pick(_REGISTRY[name])
+
+    def __iter__(self):
+        return iter(available())
+
+    def __len__(self):
+        return len(available())
+
+
+def _load_entry_points() -> None:
+    """Register each ``navsim.sensors`` entry point's :class:`SensorKind` (named as its entry
+    point), once per process."""
+    if _ENTRY_POINTS_READ:
+        return
+    _ENTRY_POINTS_READ.append(True)
+    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
+        if ep.name in _REGISTRY:
+            continue
+        kind = ep.load()
+        if not isinstance(kind, SensorKind) or kind.name != ep.name:
+            raise UsageError(f"the entry point {ep.name} = {ep.value!r} of the group '{ENTRY_POINT_GROUP}' "
+                             f"is not a SensorKind named '{ep.name}'")
+        try:
+            register(kind)
+        except TypeError as exc:
+            raise UsageError(f"the entry point {ep.name} = {ep.value!r} of the group "
+                             f"'{ENTRY_POINT_GROUP}': {exc}") from exc
