@@ -21,7 +21,7 @@ import json
 import logging
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +79,9 @@ class Result:
         How the run was made, as ``run.json`` holds it (seed, runs, workers, versions, git).
     folder : Path or None
         Where it was written (None: held in memory only).
+
+    Every field of :class:`~navsim.experiment.runner.RunResult` (``runs``, ``histories``,
+    ``failed``, ...) is one of its own, of the same name: :meth:`from_run` copies them all.
     """
 
     scenario: Scenario
@@ -92,13 +95,21 @@ class Result:
     calibration: dict = field(default_factory=dict)
     failed: dict = field(default_factory=dict)
     interrupted: bool = False
-    loop: dict | None = None
+    loop: runner.LoopRuns | None = None
     reference: object = None
     sightings: list = field(default_factory=list)
     #: the chunk store every finished run is in (a run written to a folder), or None
     store: object = None
     #: the runs ``histories`` hold when fewer than ``runs`` (the first chunks); None: all
     history_runs: np.ndarray | None = None
+
+    @classmethod
+    def from_run(cls, scenario: Scenario, rr: runner.RunResult, record: dict, **rest) -> "Result":
+        """The (unscored) result of the runner's ``rr``: every field of
+        :class:`~navsim.experiment.runner.RunResult`, by name, and ``rest`` (``truth``, ``loop``,
+        ``reference``, ...)."""
+        return cls(scenario=scenario, metrics=None, record=record,
+                   **{f.name: getattr(rr, f.name) for f in fields(rr)}, **rest)
 
     def to_dict(self) -> dict:
         """The scores as ``metrics.json`` holds them."""
@@ -182,7 +193,7 @@ def run(scenario, runs: int | None = None, seed: int | None = None, workers: int
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     runs = scenario.runs if runs is None else runs
-    resources.check_run(scenario, runs, chunk_runs, out)   # estimators, memory and disk, before flying
+    resources.check_run(scenario, runs, chunk_runs, out, workers)   # estimators, memory, disk: before flying
     seed = scenario.seed if seed is None else seed
     workers = scenario.workers if workers is None else workers
     if resume and out is None:
@@ -233,9 +244,7 @@ def _closed_loop(scenario, how: _How, folder) -> Result:
         rr, loop, reference = run_closed_loop(scenario, how.runs, how.seed, how.workers, progress=how.progress)
     record = {"flight_cached": False, "flight_key": flight_key(scenario.flight), "executor": how.executor,
               "scheduler": None, "resumed": False}
-    return Result(scenario, rr.runs, rr.histories, None, record, truth=reference.truth,
-                  truth_bias=rr.truth_bias, calibration=rr.calibration, failed=rr.failed,
-                  interrupted=rr.interrupted, loop=loop, reference=reference)
+    return Result.from_run(scenario, rr, record, truth=reference.truth, loop=loop, reference=reference)
 
 
 def _open_loop(scenario, how: _How, folder) -> Result:
@@ -256,9 +265,7 @@ def _open_loop(scenario, how: _How, folder) -> Result:
               "scheduler": how.scheduler, "resumed": bool(how.resume), "chunk_runs": size}
     if store is not None:
         record.update(failed_chunks=store.failed, per_run_data="chunks/")
-    return Result(scenario, rr.runs, rr.histories, None, record, truth=truth, truth_bias=rr.truth_bias,
-                  calibration=rr.calibration, failed=rr.failed, interrupted=rr.interrupted, store=rr.store,
-                  history_runs=rr.history_runs)
+    return Result.from_run(scenario, rr, record, truth=truth)
 
 
 def _open_store(out: Path, scenario, how: _How) -> ChunkStore:
@@ -286,7 +293,7 @@ def _score(result: Result, wall_s: float) -> None:
         parts = lambda: iter([held] if result.histories else [])
     estimators, calibration = score_run(parts, sc.settle_s, sc.windows, result.sightings)
     closed = None
-    if result.loop is not None:
+    if sc.closed_loop is not None:
         closed = closed_loop_metrics(result.loop, result.reference, sc.closed_loop, result.histories)
     result.metrics = RunMetrics(sc.name, result.record["runs"], int(len(result.runs)), result.record["seed"],
                                 {str(k): v for k, v in result.failed.items()}, result.interrupted, estimators,
@@ -312,8 +319,9 @@ def _write_run(result: Result, folder: OutputFolder, record: dict | None = None)
             key = npz_key(label)
             arrays.update({f"{key}.{name}": getattr(h, name) for name in ARRAY_FIELDS
                            if getattr(h, name) is not None})
-        if result.loop:
-            arrays.update({f"closed_loop.{k}": np.asarray(v) for k, v in result.loop.items()})
+        if result.loop is not None:
+            arrays.update({f"closed_loop.{f.name}": np.asarray(getattr(result.loop, f.name))
+                           for f in fields(result.loop)})
         # uncompressed: deflate saved 8 % of 1000 P0 runs (160 MB) and cost 7.6 of the 30 s
         folder.write("runs.npz", lambda p: np.savez(p, **arrays))
 

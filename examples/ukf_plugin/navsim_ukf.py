@@ -140,25 +140,26 @@ class ErrorStateUKF(ErrorStateKF):
         out.lat_rad, out.lon_rad, out.h_m = nav.lat_rad - p[:, 0], nav.lon_rad - p[:, 1], nav.h_m - p[:, 2]
         return out
 
-    def _predicted(self, model, data, j: int, z: np.ndarray, H: np.ndarray, X: np.ndarray) -> np.ndarray:
-        """``(2n + 1, B, m)``: what each sigma point predicts the model measures."""
+    def _predicted(self, model, data, j: int, lin, X: np.ndarray) -> np.ndarray:
+        """``(2n + 1, B, m)``: what each sigma point predicts the model measures (``lin``: the
+        model at the estimate, a :class:`~navsim.navigation.estimators.Linearised`)."""
         if not _stateless(model):
-            return np.einsum("bmn,sbn->sbm", H, X)
+            return np.einsum("bmn,sbn->sbm", lin.H, X)
         nav, other = self.sd.state, self.other_idx
-        Z = np.stack([z - model.model(self._hypothesis(nav, Xi), self.layout, data, j)[0] for Xi in X])
-        return Z + np.einsum("bmk,sbk->sbm", H[:, :, other], X[:, :, other])
+        Z = np.stack([lin.z - model.model(self._hypothesis(nav, Xi), self.layout, data, j).z for Xi in X])
+        return Z + np.einsum("bmk,sbk->sbm", lin.H[:, :, other], X[:, :, other])
 
     def correct(self, model, data, j: int, t: float) -> Innovation:
-        z, H, R, valid = model.model(self.sd.state, self.layout, data, j)
+        lin = model.model(self.sd.state, self.layout, data, j)           # z, H, R, valid at the estimate
         X = sigma_points(self.x, self.P, self.layout.n + self.lam)
-        Z = self._predicted(model, data, j, z, H, X)
+        Z = self._predicted(model, data, j, lin, X)
         z_hat = np.einsum("s,sbm->bm", self.wm, Z)
         dZ, dX = Z - z_hat, X - self.x
-        S = symmetrize(np.einsum("s,sbm,sbk->bmk", self.wc, dZ, dZ) + R)
+        S = symmetrize(np.einsum("s,sbm,sbk->bmk", self.wc, dZ, dZ) + lin.R)
         C = np.einsum("s,sbn,sbm->bnm", self.wc, dX, dZ)
         K = np.swapaxes(solve(S, np.swapaxes(C, 1, 2)), 1, 2)          # C S^-1
-        y = z - z_hat
-        ok = np.asarray(valid, bool)
+        y = lin.z - z_hat
+        ok = np.asarray(lin.valid, bool)
         x_new = self.x + np.einsum("bnm,bm->bn", K, y)
         P_new = symmetrize(self.P - K @ S @ np.swapaxes(K, 1, 2))
         self.x = np.where(ok[:, None], x_new, self.x)

@@ -26,7 +26,7 @@ import numpy as np
 from navsim.experiment.chunkstore import chunk_name, job_chunks
 from navsim.experiment.closed_loop import end_records, fly_batch
 from navsim.experiment.driver import run_batch
-from navsim.experiment.executors import run_chunks_dask
+from navsim.experiment.executors import POOL_CONTEXT, run_chunks_dask
 from navsim.experiment.records import EPOCH_ARRAYS, ChunkPart, merge_parts
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import fly
@@ -141,6 +141,9 @@ def _read_cached(path: Path, key: str) -> Truth | None:
 
 @dataclass
 class RunResult:
+    """What the runner returns of a scenario's runs (open loop or closed): every field is also
+    one of :class:`navsim.api.Result`'s, of the same name, copied by ``Result.from_run``."""
+
     histories: dict                      #: label -> EstimatorHistory over the finished runs
     runs: np.ndarray                     #: run indices finished
     failed: dict = field(default_factory=dict)   #: run -> error message
@@ -230,7 +233,7 @@ def run_chunks(fn, chunks, make_args, workers: int, progress=None, on_part=None)
                 if progress:
                     progress(len(ch))
         else:
-            with ProcessPoolExecutor(max_workers=workers) as pool:
+            with ProcessPoolExecutor(max_workers=workers, mp_context=POOL_CONTEXT) as pool:
                 futures = {pool.submit(fn, make_args(ch, True)): ch for ch in chunks}
                 try:
                     for fut in as_completed(futures):
@@ -318,13 +321,48 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: i
 CLOSED_CHUNK_RUNS = 25
 
 
+@dataclass(frozen=True, eq=False)
+class LoopRuns:
+    """The per-run outcome of closed-loop runs, ``R`` runs in order (their indices ``runs``, and
+    the fields of the same names of :class:`~navsim.experiment.closed_loop.LoopBatch` over every
+    chunk): what
+    :func:`run_closed_loop` returns, ``Result.loop``, scored by
+    :func:`navsim.scoring.closed_loop.closed_loop_metrics`, ``closed_loop.<field>`` in ``runs.npz``."""
+
+    outcome: np.ndarray          #: (R,) str: landed, completed, failed, time limit
+    abort_t_s: np.ndarray        #: (R,) time the mission was abandoned (NaN: never)
+    land_t_s: np.ndarray         #: (R,) time the parachute opened (NaN: never)
+    fail_t_s: np.ndarray         #: (R,) time the flight failed (NaN: never)
+    end_t_s: np.ndarray          #: (R,) time the run ended (NaN: time limit)
+    miss_m: np.ndarray           #: (R,) true horizontal distance of the landing to the point
+    miss_est_m: np.ndarray       #: (R,) the same, of the navigation solution
+    landing_n_m: np.ndarray      #: (R, 2) true north, east of the landing from the track start
+    path_n_m: np.ndarray         #: (R, E, 3) true north, east, height from the track start
+    path_t_s: np.ndarray         #: (E,) times of the paths (the estimators' epochs)
+    runs: np.ndarray             #: (R,) int: the run indices
+
+    @classmethod
+    def of_batch(cls, b, runs) -> "LoopRuns":
+        """The outcome of the runs ``runs`` flown as the LoopBatch ``b``."""
+        kept = {f.name: getattr(b, f.name) for f in dataclasses.fields(cls) if f.name not in ("outcome", "runs")}
+        return cls(outcome=np.array(b.outcome), runs=np.asarray(runs, int), **kept)
+
+    @classmethod
+    def concatenate(cls, parts: list, path_t_s: np.ndarray, runs: np.ndarray) -> "LoopRuns":
+        """The chunks ``parts`` (in run order, their paths on ``path_t_s``) of the runs ``runs``
+        as one: every other field concatenated."""
+        joined = {f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                  for f in dataclasses.fields(cls) if f.name not in ("path_t_s", "runs")}
+        return cls(**joined, path_t_s=path_t_s, runs=runs)
+
+
 @dataclass
 class LoopChunk:
     """What a chunk of closed-loop runs returns: its records, the per-run outcomes (miss
     distances, abort and landing times, true paths) and the runs that failed (run -> error)."""
 
     part: ChunkPart
-    loop: dict
+    loop: LoopRuns
     failed: dict
 
 
@@ -333,10 +371,7 @@ def _closed_chunk(args) -> LoopChunk:
     scenario, seed, runs = args
     b = fly_batch(scenario, seed, runs)
     end_records(b, 1.0 / scenario.flight.rate_hz)
-    loop = {"outcome": np.array(b.outcome), "abort_t_s": b.abort_t_s, "land_t_s": b.land_t_s,
-            "fail_t_s": b.fail_t_s, "end_t_s": b.end_t_s, "miss_m": b.miss_m, "miss_est_m": b.miss_est_m,
-            "landing_n_m": b.landing_n_m, "path_t_s": b.path_t_s, "path_n_m": b.path_n_m}
-    return LoopChunk(ChunkPart(list(runs), b.histories, b.truth_bias), loop, b.failed)
+    return LoopChunk(ChunkPart(list(runs), b.histories, b.truth_bias), LoopRuns.of_batch(b, runs), b.failed)
 
 
 def _pad(a, E: int, axis: int = 1):
@@ -356,31 +391,31 @@ def _pad_part(chunk: LoopChunk, t_full, path_t_full) -> LoopChunk:
         h.nis = {k: _pad(v, E) for k, v in h.nis.items()}
         h.t_s = t_full
     bias = {k: _pad(v, E) for k, v in chunk.part.truth_bias.items()}
-    loop = dict(chunk.loop, path_n_m=_pad(chunk.loop["path_n_m"], len(path_t_full)), path_t_s=path_t_full)
+    loop = replace(chunk.loop, path_n_m=_pad(chunk.loop.path_n_m, len(path_t_full)), path_t_s=path_t_full)
     return LoopChunk(replace(chunk.part, truth_bias=bias), loop, chunk.failed)
 
 
 def run_closed_loop(scenario, runs: int, seed: int, workers: int, progress=None):
     """All runs of a closed-loop scenario in chunks of :data:`CLOSED_CHUNK_RUNS`, and the same
-    flight guided on the truth; returns ``(RunResult, loop, reference)``: ``loop`` holds the
-    per-run outcome, abort and landing times, miss distances and true paths (runs in order),
-    ``reference`` the :class:`~navsim.experiment.closed_loop.LoopBatch` of the truth-guided flight."""
+    flight guided on the truth; returns ``(RunResult, loop, reference)``: ``loop`` the
+    :class:`LoopRuns` (per-run outcome, abort and landing times, miss distances and true paths,
+    runs in order; None when no run finished), ``reference`` the
+    :class:`~navsim.experiment.closed_loop.LoopBatch` of the truth-guided flight."""
     reference = fly_batch(scenario, seed, [0], on_truth=True, keep_truth=True)
     end_records(reference, 1.0 / scenario.flight.rate_hz)
     chunks = chunk_ranges(runs, CLOSED_CHUNK_RUNS)
     parts, failed, interrupted = run_chunks(_closed_chunk, chunks, lambda ch, remote: (scenario, seed, ch),
                                             workers, progress)
     if not parts:
-        return RunResult({}, np.array([], int), failed, interrupted), {}, reference
+        return RunResult({}, np.array([], int), failed, interrupted), None, reference
     t_of = lambda c: next(iter(c.part.histories.values())).t_s
     longest = max(parts, key=lambda c: len(t_of(c)))
-    path_t_s = longest.loop["path_t_s"]
+    path_t_s = longest.loop.path_t_s
     parts = [_pad_part(c, t_of(longest), path_t_s) for c in parts]
     for c in parts:
         failed.update(c.failed)
     merged = merge_parts([c.part for c in parts])
     order = sorted(parts, key=lambda c: c.part.runs[0])
-    loop = {k: np.concatenate([c.loop[k] for c in order]) for k in order[0].loop if k != "path_t_s"}
     done = np.asarray(merged.runs, int)
-    loop.update(path_t_s=path_t_s, runs=done)
+    loop = LoopRuns.concatenate([c.loop for c in order], path_t_s, done)
     return RunResult(merged.histories, done, failed, interrupted, merged.truth_bias), loop, reference

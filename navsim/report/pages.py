@@ -77,23 +77,23 @@ def landmark_figure(histories: dict, metrics: RunMetrics, sightings, runs_plotte
     return [("landmarks", fig)]
 
 
-def closed_loop_figures(loop: dict, reference, scenario):
+def closed_loop_figures(loop, reference, scenario):
     """Plan view of every run's true path with the landings and CEP circles, and the miss
     distances' distribution against the truth-guided flight."""
     plt = pyplot()
     rtl = scenario.closed_loop.return_to_land
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11.5, 5.2), gridspec_kw={"width_ratios": [1.3, 1]})
-    paths = loop["path_n_m"]
+    paths = loop.path_n_m
     for p in paths:
         ax.plot(p[:, 1], p[:, 0], lw=0.5, color="tab:blue", alpha=0.35)
     ref = reference.path_n_m[0]
     ax.plot(ref[:, 1], ref[:, 0], lw=1.5, color="k", label="guided on the truth")
     if rtl is not None and reference.point_n_m is not None:
         pn, pe = reference.point_n_m
-        land = loop["landing_n_m"]
+        land = loop.landing_n_m
         ax.plot(land[:, 1], land[:, 0], "x", color="tab:red", ms=4, label="parachute (truth)")
         ax.plot([pe], [pn], "*", color="tab:green", ms=12, label="recovery point")
-        miss = np.asarray(loop["miss_m"], float)
+        miss = np.asarray(loop.miss_m, float)
         th = np.linspace(0, 2 * np.pi, 200)
         for q, ls in ((50, "--"), (95, ":")):
             if np.isfinite(miss).any():
@@ -578,7 +578,7 @@ def calibration_figures(calibration: dict, histories: dict, metrics: RunMetrics,
     return figs
 
 
-def report_pages(scenario, truth, result, metrics: RunMetrics, record: dict, loop: dict | None = None,
+def report_pages(scenario, truth, result, metrics: RunMetrics, record: dict, loop=None,
                  reference=None, sightings=()) -> list:
     """The report's pages ``[(name, figure), ...]`` in order (see :func:`write_report`)."""
     runs_plotted = scenario.report.get("runs_plotted", 5)
@@ -593,7 +593,7 @@ def report_pages(scenario, truth, result, metrics: RunMetrics, record: dict, loo
               for i, f in enumerate(layout(f"{scenario.name}: the scenario as run", [monospace_block(text)]))]
     if truth is not None:
         pages += [(f"flight_{n}", f) for n, f in flight_figures(truth)]
-    if loop:
+    if loop is not None:
         pages += closed_loop_figures(loop, reference, scenario)
     if result.histories:
         spans = tuple(scenario.windows) + tuple(sightings)

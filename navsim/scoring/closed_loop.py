@@ -39,30 +39,31 @@ def landing_consistency(h, land_t_s) -> dict:
             "horizontal_error_rms_m": float(np.sqrt(np.mean(np.sum(e ** 2, axis=-1))))}
 
 
-def closed_loop_metrics(loop: dict, reference, config, histories: dict | None = None) -> dict:
-    """Outcome of navigation-in-the-loop runs (``loop``: the per-run arrays of
-    :func:`navsim.experiment.runner.run_closed_loop`) and the truth-guided ``reference`` flight: how many
+def closed_loop_metrics(loop, reference, config, histories: dict | None = None) -> dict:
+    """Outcome of navigation-in-the-loop runs (``loop``: the
+    :class:`~navsim.experiment.runner.LoopRuns` of :func:`navsim.experiment.runner.run_closed_loop`,
+    None when no run finished) and the truth-guided ``reference`` flight: how many
     runs landed, reached the recovery area, failed; CEP50/CEP95 of the true miss distance (and
     of the navigation solution's own, which the guidance closed), against the reference."""
     out = {"fly_on": config.fly_on, "time_limit_s": config.time_limit_s}
-    if not loop:
+    if loop is None:
         return out
-    outcome = [str(o) for o in loop["outcome"]]
+    outcome = [str(o) for o in loop.outcome]
     out["outcomes"] = {k: outcome.count(k) for k in sorted(set(outcome))}
     rtl = config.return_to_land
     if rtl is not None:
-        miss = np.asarray(loop["miss_m"], float)
+        miss = np.asarray(loop.miss_m, float)
         out["return_to_land"] = {
             "area_m": rtl.area_m, "landed": int(np.isfinite(miss).sum()),
             "reached_area": int((miss <= rtl.area_m).sum()),
-            "miss": cep(miss), "miss_estimate": cep(loop["miss_est_m"]),
-            "abort_t_s": _finite_stats(loop["abort_t_s"]), "land_t_s": _finite_stats(loop["land_t_s"]),
+            "miss": cep(miss), "miss_estimate": cep(loop.miss_est_m),
+            "abort_t_s": _finite_stats(loop.abort_t_s), "land_t_s": _finite_stats(loop.land_t_s),
             "truth_guided": {"miss_m": float(reference.miss_m[0]) if np.isfinite(reference.miss_m[0]) else None,
                              "land_t_s": float(reference.land_t_s[0]) if np.isfinite(reference.land_t_s[0]) else None,
                              "outcome": reference.outcome[0]}}
         h = (histories or {}).get(config.fly_on)
         if h is not None:
-            out["return_to_land"]["consistency"] = landing_consistency(h, loop["land_t_s"])
+            out["return_to_land"]["consistency"] = landing_consistency(h, loop.land_t_s)
     return out
 
 

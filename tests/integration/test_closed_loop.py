@@ -153,11 +153,11 @@ def test_return_to_land_acceptance_over_100_runs(repo_root):
     from navsim.scoring.closed_loop import cep, landing_consistency
     scenario = load_scenario(repo_root / "scenarios" / "p1_return_to_land.yaml")
     result, loop, ref = run_closed_loop(scenario, 100, 1, 2)
-    assert not result.failed and set(loop["outcome"]) == {"landed"}
-    assert np.all(loop["miss_m"] <= scenario.closed_loop.return_to_land.area_m)
-    c = cep(loop["miss_m"])
+    assert not result.failed and set(loop.outcome) == {"landed"}
+    assert np.all(loop.miss_m <= scenario.closed_loop.return_to_land.area_m)
+    c = cep(loop.miss_m)
     assert ref.miss_m[0] < 1.0 < c["cep50_m"] < c["cep95_m"]
-    k = landing_consistency(result.histories[scenario.closed_loop.fly_on], loop["land_t_s"])
+    k = landing_consistency(result.histories[scenario.closed_loop.fly_on], loop.land_t_s)
     assert k["band"][0] < k["normalised_error"] < k["band"][1], k
 
 

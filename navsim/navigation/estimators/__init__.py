@@ -15,6 +15,7 @@ import pkgutil
 
 from navsim.navigation.estimators.base import Estimator, Innovation, Solution, available, get, register
 from navsim.navigation.estimators.measurements import (
+    Linearised,
     build_measurements,
     measurement,
     measurement_types,
@@ -24,5 +25,5 @@ from navsim.navigation.estimators.measurements import (
 for _module in pkgutil.iter_modules(__path__):       # every built-in registers itself on import
     importlib.import_module(f"{__name__}.{_module.name}")
 
-__all__ = ["Estimator", "Innovation", "Solution", "available", "build_measurements", "get", "measurement",
+__all__ = ["Estimator", "Innovation", "Linearised", "Solution", "available", "build_measurements", "get", "measurement",
            "measurement_types", "parse_measurements", "register"]

@@ -251,16 +251,18 @@ class ErrorStateKF:
         self._reset_accumulators()
 
     def correct(self, model, data, j: int, t: float) -> Innovation:
-        z, H, R, valid = model.model(self.sd.state, self.layout, data, j)
-        R = self.measurement_noise(model, z, H, R, valid)
-        self.x, self.P, y, S, nis = kalman.update(self.x, self.P, z, H, R, valid)
+        lin = model.model(self.sd.state, self.layout, data, j)
+        R = self.measurement_noise(model, lin.z, lin.H, lin.R, lin.valid)
+        self.x, self.P, y, S, nis = kalman.update(self.x, self.P, lin.z, lin.H, R, lin.valid)
         bad = ~np.all(np.isfinite(self.P), axis=(1, 2)) | (np.diagonal(self.P, axis1=1, axis2=2) < 0).any(-1)
         self.diverged |= bad
         return Innovation(model.name, model.sensor, t, y, S, nis)
 
     def measurement_noise(self, model, z, H, R, valid):
         """The R used for this update: the model's own here; adaptive filters override it
-        (``z, H`` are the model's, ``valid`` the runs that have a sample)."""
+        (``z, H, R, valid`` the fields of the model's
+        :class:`~navsim.navigation.estimators.measurements.Linearised`: ``valid`` the runs that
+        have a sample)."""
         return R
 
     def feedback(self) -> None:

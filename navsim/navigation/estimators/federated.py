@@ -153,8 +153,9 @@ class FederatedKF(ErrorStateKF):
                 data, j = sample(sensors, m.sensor, t, since)
                 if j is None:
                     continue
-                z, H, R, valid = m.model(self.sd.state, self.layout, data, j)
-                self.xl[i], self.Pl[i], y, S, nis = kalman.update(self.xl[i], self.Pl[i], z, H, R, valid)
+                lin = m.model(self.sd.state, self.layout, data, j)
+                self.xl[i], self.Pl[i], y, S, nis = kalman.update(self.xl[i], self.Pl[i], lin.z, lin.H, lin.R,
+                                                                  lin.valid)
                 out.append(Innovation(m.name, m.sensor, t, y, S, nis))
                 ok = np.isfinite(nis)
                 nis_sum += np.where(ok, nis, 0.0)

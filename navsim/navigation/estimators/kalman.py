@@ -128,16 +128,19 @@ class Updates:
 
 
 def update_in_place(x, P, measurements) -> Updates:
-    """Joseph-form updates with each measurement ``(z, H, R, valid)`` in turn (``valid``: the
-    runs that have a sample, or None for all), as :func:`update` applied one after the other,
-    in one compiled call (:func:`navsim.navigation.kernels.joseph_update`). ``x`` ``(B, n)`` and ``P``
-    ``(B, n, n)`` are contiguous float arrays, changed in place."""
+    """Joseph-form updates with each measurement in turn, as :func:`update` applied one after
+    the other, in one compiled call (:func:`navsim.navigation.kernels.joseph_update`). Each
+    measurement is a model's :class:`~navsim.navigation.estimators.measurements.Linearised`, or
+    the plain arrays ``(z, H, R, valid)`` as a tuple (``valid``: the runs that have a sample, or
+    None for all). ``x`` ``(B, n)`` and ``P`` ``(B, n, n)`` are contiguous float arrays, changed
+    in place."""
     B, n = x.shape
-    ends = np.cumsum([0] + [np.shape(H)[-2] for _, H, _, _ in measurements])
-    M, G = int(ends[-1]), len(measurements)
+    models = [m if isinstance(m, tuple) else (m.z, m.H, m.R, m.valid) for m in measurements]
+    ends = np.cumsum([0] + [np.shape(H)[-2] for _, H, _, _ in models])
+    M, G = int(ends[-1]), len(models)
     z_all, H_all = np.empty((B, M)), np.empty((B, M, n))
     R_all, valid_all = np.zeros((B, M, M)), np.empty((B, G), bool)
-    for g, (z, H, R, valid) in enumerate(measurements):
+    for g, (z, H, R, valid) in enumerate(models):
         r = slice(ends[g], ends[g + 1])
         z_all[:, r], H_all[:, r], R_all[:, r, r] = z, H, R
         valid_all[:, g] = True if valid is None else valid

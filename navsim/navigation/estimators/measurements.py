@@ -1,5 +1,5 @@
-"""Measurement models, registered by name: each returns the batched linearised model
-``z, H, R, valid`` of one sensor sample for the error-state filter.
+"""Measurement models, registered by name: each returns the batched linearised model of one
+sensor sample for the error-state filter, a :class:`Linearised` (``z``, ``H``, ``R``, ``valid``).
 
 ``z`` is the measured error, *INS minus sensor*, so that ``z = H dx + v`` with ``dx`` the error
 state (estimate minus truth) and ``v ~ N(0, R)``. Each model knows which sensor it reads
@@ -29,7 +29,8 @@ own the same way::
             return cls(entry["sensor"], entry["sigma_m"])
 
         def model(self, nav, layout, data, j):
-            ...   # z (B, m), H (B, m, n), R (B, m, m), valid (B,)
+            ...
+            return Linearised(z, H, R, data.valid[:, j])    # (B, m), (B, m, n), (B, m, m), (B,)
 
 Optional: a classmethod ``reads(entry)`` naming the sensor values the model reads (checked
 against what its sensor produces before anything runs), and a ``state_sigma`` mapping of the
@@ -40,7 +41,9 @@ initial std of a sensor-error state block the model observes (``air_velocity``'s
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,14 +61,76 @@ from navsim.sensors.specs import AdsSpec
 
 _MEASUREMENTS: dict[str, type] = {}
 
+#: the fields of :class:`Linearised`, in the order of the former ``(z, H, R, valid)`` tuple
+LINEARISED_FIELDS = ("z", "H", "R", "valid")
+
+
+@dataclass(frozen=True, eq=False)
+class Linearised:
+    """The batched linearised model of one sensor sample, what a measurement model's ``model``
+    returns: ``z = H dx + v``, ``dx`` the error state (estimate minus truth), ``v ~ N(0, R)``.
+
+    Attributes
+    ----------
+    z : ndarray, (B, m)
+        The measured error, *INS minus sensor*.
+    H : ndarray, (B, m, n)
+        Its rows in the error state (``n = layout.n``).
+    R : ndarray, (B, m, m)
+        The noise covariance the model assumes.
+    valid : ndarray of bool, (B,), or None
+        The runs that have a usable sample (None: all of them).
+
+    Unpacking it (``z, H, R, valid = m.model(...)``) or indexing it (``[0]`` for ``z``), as
+    for the tuple models returned before, still works but is deprecated (a
+    ``DeprecationWarning``): read the attributes.
+    """
+
+    z: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+    valid: np.ndarray | None
+
+    def _deprecated(self) -> tuple:
+        warnings.warn("a measurement model's result is a Linearised: read .z, .H, .R, .valid "
+                      "(unpacking or indexing it as a tuple is deprecated)", DeprecationWarning, stacklevel=3)
+        return tuple(getattr(self, f) for f in LINEARISED_FIELDS)
+
+    def __iter__(self):
+        return iter(self._deprecated())
+
+    def __getitem__(self, i):
+        return self._deprecated()[i]
+
+
+def _returns_linearised(name: str, model):
+    """``model`` whose result is a :class:`Linearised`: a plug-in's model that returns the former
+    ``(z, H, R, valid)`` tuple gets it wrapped (with a ``DeprecationWarning``), anything else is a
+    ``TypeError`` naming the type."""
+    @functools.wraps(model)
+    def wrapped(self, nav, layout, data, j):
+        out = model(self, nav, layout, data, j)
+        if isinstance(out, Linearised):
+            return out
+        if isinstance(out, tuple) and len(out) == len(LINEARISED_FIELDS):
+            warnings.warn(f"measurement '{name}': model() returns a tuple; return a Linearised(z, H, R, valid) "
+                          "(navsim.navigation.estimators.Linearised)", DeprecationWarning, stacklevel=2)
+            return Linearised(*out)
+        raise TypeError(f"measurement '{name}': model() returned {type(out).__name__}, expected a Linearised")
+    wrapped.returns_linearised = True
+    return wrapped
+
 
 def measurement(name: str):
     """Class decorator: register a measurement model type as ``name`` (the ``type`` of its
-    scenario entries; also the model's ``name``, the first part of its NIS key)."""
+    scenario entries; also the model's ``name``, the first part of its NIS key). Its ``model``
+    returns a :class:`Linearised` (a former tuple is wrapped, deprecated)."""
     def deco(cls):
         for attr in ("parse", "from_entry", "model"):
             if not callable(getattr(cls, attr, None)):
                 raise TypeError(f"measurement '{name}': {cls.__name__} has no {attr}()")
+        if not getattr(cls.model, "returns_linearised", False):
+            cls.model = _returns_linearised(name, cls.model)
         cls.name = name
         _MEASUREMENTS[name] = cls
         return cls
@@ -171,7 +236,7 @@ class GnssPosition:
         H = np.zeros((B, 3, layout.n))
         p = layout.slice("pos").start
         H[:, 0, p], H[:, 1, p + 1], H[:, 2, p + 2] = k_n, k_e, -1.0
-        return z, H, _diag(np.asarray(self.sigma_m, float) ** 2, B), data.valid[:, j]
+        return Linearised(z, H, _diag(np.asarray(self.sigma_m, float) ** 2, B), data.valid[:, j])
 
 
 @measurement("velocity")
@@ -198,7 +263,7 @@ class Velocity:
         H = np.zeros((B, 3, layout.n))
         s = layout.slice("vel").start
         H[:, [0, 1, 2], [s, s + 1, s + 2]] = 1.0
-        return z, H, _diag(np.asarray(self.sigma_mps, float) ** 2, B), data.valid[:, j]
+        return Linearised(z, H, _diag(np.asarray(self.sigma_mps, float) ** 2, B), data.valid[:, j])
 
 
 @measurement("height")
@@ -236,7 +301,7 @@ class Height:
         H[:, 0, layout.slice("pos").start + 2] = 1.0
         if self.use_baro_state and layout.has("baro"):
             H[:, 0, layout.slice("baro").start] = -1.0
-        return z, H, np.full((B, 1, 1), float(self.sigma_m) ** 2), data.valid[:, j]
+        return Linearised(z, H, np.full((B, 1, 1), float(self.sigma_m) ** 2), data.valid[:, j])
 
 
 @measurement("zero_velocity")
@@ -270,7 +335,7 @@ class ZeroVelocity:
         s = layout.slice("vel").start
         H[:, np.arange(m), s + np.arange(m)] = 1.0
         sig2 = np.asarray(self.sigma_mps, float)[:m] ** 2
-        return nav.vel_n_mps[:, :m].copy(), H, _diag(sig2, B), data.valid[:, j]
+        return Linearised(nav.vel_n_mps[:, :m].copy(), H, _diag(sig2, B), data.valid[:, j])
 
 
 @measurement("air_velocity")
@@ -398,7 +463,7 @@ class AirVelocity:
         R_b = (sv[:, None, None] ** 2 * np.einsum("bi,bj->bij", u, u)
                + s_across[:, None, None] ** 2 * (np.einsum("bi,bj->bij", e_b, e_b) + np.einsum("bi,bj->bij", e_a, e_a)))
         R = nav.C_nb @ R_b @ np.swapaxes(nav.C_nb, 1, 2)
-        return z, H, R, data.valid[:, j]
+        return Linearised(z, H, R, data.valid[:, j])
 
 
 def check_observed_states(node: Node, blocks, entries: list) -> None:
@@ -454,8 +519,8 @@ class GnssHorizontal:
         return cls(entry["sensor"], np.array(entry["sigma_m"]))
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
-        z, H, R, valid = GnssPosition(self.sensor, np.r_[self.sigma_m, 1.0]).model(nav, layout, data, j)
-        return z[:, :2], H[:, :2], R[:, :2, :2], valid
+        full = GnssPosition(self.sensor, np.r_[self.sigma_m, 1.0]).model(nav, layout, data, j)
+        return Linearised(full.z[:, :2], full.H[:, :2], full.R[:, :2, :2], full.valid)
 
 
 @measurement("landmark")
@@ -483,7 +548,7 @@ class LandmarkFix:
         return cls(entry["sensor"], entry["sigma_m"], entry["ratio"])
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
-        z, H, _, valid = GnssPosition(self.sensor, np.ones(3)).model(nav, layout, data, j)
+        fix = GnssPosition(self.sensor, np.ones(3)).model(nav, layout, data, j)
         idx = data.values["landmark"][:, j]
         anchors = np.asarray(data.meta.get("landmarks") or [(0.0, 0.0, 0.0)], float)
         a = anchors[np.clip(idx, 0, len(anchors) - 1)]
@@ -493,7 +558,7 @@ class LandmarkFix:
                       nav.h_m - a[:, 2]], -1)
         sigma = self.sigma_m + self.ratio * np.linalg.norm(d, axis=-1)
         R = sigma[:, None, None] ** 2 * np.eye(3)
-        return z, H, R, valid & (idx >= 0)
+        return Linearised(fix.z, fix.H, R, fix.valid & (idx >= 0))
 
 
 @measurement("mag_heading")
@@ -591,7 +656,7 @@ class MagneticHeading:
         valid = data.valid[:, j] & ok & np.isfinite(z)
         H = np.zeros((B, 1, layout.n))
         H[:, 0, layout.slice("att")] = h_att
-        return (np.where(valid, z, 0.0)[:, None], H, np.full((B, 1, 1), float(self.sigma_rad) ** 2), valid)
+        return Linearised(np.where(valid, z, 0.0)[:, None], H, np.full((B, 1, 1), float(self.sigma_rad) ** 2), valid)
 
 
 def magnetic_heading(C_nb: np.ndarray, mag_cal_b: np.ndarray, field_n: np.ndarray):

@@ -126,7 +126,8 @@ class TwoStageAdaptiveKF(ErrorStateKF):
         self._reset_accumulators()
 
     def correct(self, model, data, j: int, t: float) -> Innovation:
-        z, H, R, valid = model.model(self.sd.state, self.layout, data, j)
+        lin = model.model(self.sd.state, self.layout, data, j)
+        z, H, R, valid = lin.z, lin.H, lin.R, lin.valid
         xi, bi = self.xidx, self.bidx
         Hx, C = H[:, :, xi], H[:, :, bi]
         Sens = Hx @ self.V + C
