@@ -72,6 +72,19 @@ def repo_root() -> Path:
     return Path(__file__).resolve().parents[1]
 
 
+#: the scenarios shipped in scenarios/ (P0-P4): a test over them finds at least these many
+SHIPPED_SCENARIOS = 17
+
+
+@pytest.fixture(scope="session")
+def shipped_scenarios(repo_root) -> list:
+    """The paths of the shipped scenarios, sorted; at least :data:`SHIPPED_SCENARIOS` of them
+    (a test looping over them must not pass on an empty folder)."""
+    paths = sorted((repo_root / "scenarios").glob("*.yaml"))
+    assert len(paths) >= SHIPPED_SCENARIOS, f"found {len(paths)} scenarios in {repo_root / 'scenarios'}"
+    return paths
+
+
 @pytest.fixture(scope="session")
 def shipped_flight(repo_root, tmp_path_factory):
     """``get(name)`` -> (scenario, truth, truth path) of a shipped scenario; flights are cached

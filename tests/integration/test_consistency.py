@@ -22,6 +22,8 @@ def test_a_matched_filter_is_consistent(name):
     assert result.record["runs"] == 200
     assert m.nees.fraction_inside >= 0.9, m.nees
     # each navigation error: 200 runs put a consistent filter's mean within about +-0.2 of 1
+    assert len(m.nees.per_state) == 9, m.nees.per_state      # att, vel, pos; N, E, D
     assert all(0.8 <= v <= 1.25 for v in m.nees.per_state), m.nees.per_state
+    assert m.nis, "no NIS scored"
     for key, nis in m.nis.items():
         assert nis.fraction_inside >= 0.9, (key, nis)

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from model_result import unpack
 
 from navsim.experiment.driver import perturbed_start
 from navsim.experiment.scenario import parse_scenario
@@ -22,7 +23,7 @@ def test_landmark_fix_is_linear_in_the_position_error_with_range_dependent_noise
     errors[:, 6:] = [[3.0, -2.0, 1.5], [-0.5, 4.0, -2.0]]          # NED position errors, m
     nav = perturbed_start(truth, errors)
     layout = Layout(PRESETS["p0_16"])
-    z, H, R, valid = LandmarkFix("camera", 3.0, 0.01).model(nav, layout, cam, 0)
+    z, H, R, valid = unpack(LandmarkFix("camera", 3.0, 0.01).model(nav, layout, cam, 0))
     dx = np.zeros((2, layout.n))
     dx[:, 6] = nav.lat_rad - truth.lat_rad[0]
     dx[:, 7] = nav.lon_rad - truth.lon_rad[0]
@@ -95,9 +96,10 @@ def test_p1_gnss_denied_acceptance_over_100_runs(repo_root):
     m = sighting_metrics(h, sighting_spans(truth, scenario))
     assert m.count == 40 and m.fraction_within_3sigma > 0.999 and m.max_ratio < 4.5, m
     after_turn = {13, 26}                                   # the first anchors of legs 2 and 3
-    for i, s in enumerate(m["sightings"]):
+    assert len(m.sightings) == m.count
+    for i, s in enumerate(m.sightings):
         if i not in after_turn:
-            assert s["max_ratio"] < 3.0, s
+            assert s.max_ratio < 3.0, s
     baro = next(c for c in scenario.sensors if c.kind == "baro").spec
     assert np.abs(h.pos_err_m[..., 2]).max() < 3.0 * np.hypot(baro.markov_sigma, baro.noise)
 

@@ -29,7 +29,7 @@ def test_static_attitude_reaches_p4s_accuracy(static):
     # against the truth the calibration residuals add a constant per run: tilt b/g (0.5 mg ->
     # 0.029 deg, 1 sigma) and misalignment (0.1 mrad -> 0.006 deg): below 3 sigma of that floor
     assert np.all(np.array(a.p95_deg[:2]) < 3 * (0.029 + 0.006) + 0.03)
-    assert not any(h.resets), "a static vehicle with a calibrated magnetometer must not be reset"
+    assert len(h.resets) == 4 and not any(h.resets), "a static vehicle with a calibrated magnetometer must not be reset"
 
 
 def test_without_gnss_a_zero_velocity_levels_the_eskf_to_the_accelerometer_floor(static):
@@ -46,7 +46,9 @@ def test_without_gnss_a_zero_velocity_levels_the_eskf_to_the_accelerometer_floor
     assert a.p95_deg[2] < 3 * 0.12 + 0.2, a.p95_deg
     late = h.t_s > scenario.settle_s
     assert np.sqrt(np.mean(h.vel_err_mps[:, late] ** 2)) < 0.05
-    assert all(d is None for d in h.divergence or [])
+    # one entry per run, each None: no run flagged diverged
+    assert h.divergence is not None and len(h.divergence) == h.pos_err_m.shape[0] == 4, h.divergence
+    assert all(d is None for d in h.divergence) and not h.diverged.any(), h.divergence
 
 
 def test_the_complementary_filter_alone_is_coarser(static):
@@ -68,12 +70,13 @@ def test_the_ekf_alone_diverges_under_the_magnetic_disturbance(divergence):
     yaw = np.degrees(np.abs(h.euler_err_rad[..., 2]))
     assert np.all(yaw[:, (h.t_s > 60) & (h.t_s < 320)].max(axis=1) < 1.0)      # fine before
     assert np.all(yaw[:, h.t_s > 320].max(axis=1) > 10.0)                         # P4: diverged
-    assert not any(h.resets)
+    assert len(h.resets) == 2 and not any(h.resets)
 
 
 def test_the_cpf_ekf_is_reset_and_tracks_again(divergence):
     res, _ = divergence
     h = res.histories["CPF-EKF"]
+    assert len(h.resets) == 2, h.resets
     for run in h.resets:
         assert run, "every run is reset"
         t, cause = run[0]

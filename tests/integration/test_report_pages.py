@@ -81,6 +81,7 @@ def report(request, repo_root, shipped_flight):
 
 def test_no_text_outside_its_page_and_no_tick_labels_overprinted(report):
     name, _, pages = report
+    assert pages, f"{name}: no pages"
     problems = []
     for page, fig in pages:
         fig.set_dpi(PNG_DPI)
@@ -95,7 +96,7 @@ def test_every_page_written_as_a_png_and_the_verdicts_on_the_first(report, tmp_p
     name, result, pages = report
     files = navsim.write_report(result, tmp_path / name)
     pngs = sorted(p.stem for p in files if p.suffix == ".png")
-    assert pngs == sorted(page for page, _ in pages) and all(p.stat().st_size > 20_000 for p in files)
+    assert pages and pngs == sorted(page for page, _ in pages) and all(p.stat().st_size > 20_000 for p in files)
     first = pages[0][1]
     texts = [t for t in first.findobj(Text) if t.get_text() in ("pass", "FAIL")]
     headed = any("Paper against ours" in t.get_text() for t in first.findobj(Text))

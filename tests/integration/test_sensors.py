@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from model_result import unpack
 
 from navsim.flight import fly, parse_track
 from navsim.foundations import atmosphere, earth
@@ -267,7 +268,7 @@ def test_air_velocity_R_describes_the_ads_error(truth, pitot):
             nav = NavState(np.full(B, truth.lat_rad[k]), np.full(B, truth.lon_rad[k]), np.full(B, truth.h_m[k]),
                            np.broadcast_to(truth.vel_n_mps[k], (B, 3)).copy(),
                            np.broadcast_to(dcm_from_quat(truth.quat_nb[k]), (B, 3, 3)).copy())
-            z, H, R, _ = model.model(nav, layout, data, j)
+            z, H, R, _ = unpack(model.model(nav, layout, data, j))
             if layout.has("pitot_bias"):
                 z = z - H[:, :, layout.slice("pitot_bias").start] * bias_pa[:, None]
             nis.append(np.einsum("bi,bij,bj->b", z, np.linalg.inv(R), z))

@@ -64,6 +64,7 @@ def test_a_part_round_trips_every_field(same_history, tmp_path):
     assert back.runs == [4, 5]
     same_history(h, back.histories["CPF-EKF"])
     assert np.array_equal(back.truth_bias["gyro_bias"], part.truth_bias["gyro_bias"])
+    assert back.calibration["mag"].keys() == part.calibration["mag"].keys()
     assert all(np.array_equal(back.calibration["mag"][k], v) for k, v in part.calibration["mag"].items())
 
 
@@ -76,6 +77,7 @@ def test_the_merged_store_equals_the_in_memory_merge(same_history, tmp_path):
     assert list(a.runs) == list(b.runs) == [0, 1, 2, 3]
     same_history(a.histories["CPF-EKF"], b.histories["CPF-EKF"])
     assert np.array_equal(a.truth_bias["gyro_bias"], b.truth_bias["gyro_bias"])
+    assert a.calibration["mag"].keys() == b.calibration["mag"].keys() == {"t_s", "turns", "hard_iron_err"}
     assert all(np.array_equal(a.calibration["mag"][k], v) for k, v in b.calibration["mag"].items())
 
 
@@ -91,8 +93,10 @@ def test_stored_chunks_equal_the_in_memory_histories(same_history, short, tmp_pa
     assert sorted(p.name for p in (tmp_path / "chunks").iterdir()) == [
         "chunk_0-1.npz", "chunk_2-3.npz", "chunk_4-4.npz", "index.json"]
     assert list(stored.runs) == list(memory.runs) == [0, 1, 2, 3, 4]
+    assert memory.histories and memory.histories.keys() == stored.histories.keys()
     for label in memory.histories:
         same_history(memory.histories[label], stored.histories[label], timed=False)
+    assert memory.truth_bias and memory.truth_bias.keys() == stored.truth_bias.keys()
     assert all(np.array_equal(memory.truth_bias[k], stored.truth_bias[k]) for k in memory.truth_bias)
     index = json.loads((tmp_path / "chunks" / "index.json").read_text())
     assert index["chunks"]["2-3"] == "chunk_2-3.npz" and index["failed"] == {} and index["seed"] == 4

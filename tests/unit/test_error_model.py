@@ -1,25 +1,26 @@
-"""The analytic error model against finite differences of the nonlinear SINS equations."""
+"""The analytic error model against finite differences of the nonlinear SINS equations, and
+every registered measurement type's H against finite differences of its ``z``."""
 
 import dataclasses
 
 import numpy as np
 import pytest
+from model_result import unpack
 
 from navsim.foundations import earth
+from navsim.foundations.atmosphere import R_AIR
+from navsim.foundations.config import Node
 from navsim.foundations.transform import rotation, skew
 from navsim.navigation.estimators import kalman
-from navsim.navigation.estimators.error_model import PRESETS, Layout, system_matrix
+from navsim.navigation.estimators.error_model import BLOCK_SIZES, PRESETS, Layout, system_matrix
 from navsim.navigation.estimators.eskf import _covariance_series_fits
 from navsim.navigation.estimators.measurements import (
-    AirVelocity,
-    GnssPosition,
-    Height,
-    MagneticHeading,
-    Velocity,
-    ZeroVelocity,
+    build_measurements,
+    measurement_class,
+    measurement_types,
+    parse_measurements,
 )
 from navsim.navigation.strapdown import NavState, rates_n
-from navsim.sensors import load_spec
 
 LAYOUT = Layout(PRESETS["p3_15"])
 
@@ -76,11 +77,10 @@ def nav(lat, lon, h, v, C):
 
 
 class FakeData:
-    def __init__(self, values):
-        self.values = {k: np.asarray(val)[None, None] if np.ndim(val) == 0 else np.asarray(val)[None, None]
-                       for k, val in values.items()}
+    def __init__(self, values, meta=None):
+        self.values = {k: np.asarray(val)[None, None] for k, val in values.items()}
         self.valid = np.ones((1, 1), bool)
-        self.meta = {}
+        self.meta = dict(meta or {})
 
 
 #: an Earth field (NED, tesla) with a declination and an inclination
@@ -95,48 +95,121 @@ def _air_data(v, C):
             "p_static_pa": 97000.0, "temp_k": 286.0}
 
 
-VANES = AirVelocity("a", dataclasses.replace(load_spec("p0_ads"), velocity_axis="air", vane_noise=0.01))
-
-
-@pytest.mark.parametrize("model", [GnssPosition("g", np.ones(3)), Velocity("g", np.ones(3)),
-                                   Height("b", 1.0, field="h_m"), ZeroVelocity("m", np.ones(3)),
-                                   ZeroVelocity("m", np.ones(3), vertical=True),
-                                   MagneticHeading("m", 0.01, 0.0, field_n_T=FIELD_N_T, online=False), VANES],
-                         ids=["gnss_position", "velocity", "height", "zero_velocity", "zero_velocity_ned",
-                              "mag_heading", "air_velocity"])
-def test_H_matches_finite_differences(model):
+def sensor_values():
+    """Every sensor value the cases read, agreeing with the nominal state (the linearisation
+    point of a closed-loop filter), and the sensors' meta (the camera's anchor)."""
     lat, lon, h, v, C, _, _ = nominal()
-    # the sensor agrees with the nominal state: the linearisation point of a closed-loop filter
-    data = FakeData({"lat_rad": lat, "lon_rad": lon, "h_m": h, "vel_n_mps": v, "mag_b_T": C.T @ FIELD_N_T,
-                     **_air_data(v, C)})
+    values = {"lat_rad": lat, "lon_rad": lon, "h_m": h, "vel_n_mps": v, "h_baro_m": h,
+              "h_agl_m": h + 20.0,            # over a surface 20 m up: offset_m -20
+              "mag_b_T": C.T @ FIELD_N_T, "landmark": 0, **_air_data(v, C)}
+    meta = {"landmarks": [(np.degrees(lat) + 0.002, np.degrees(lon) - 0.003, 30.0)]}
+    return values, meta
+
+
+def _baro_error(values, b):
+    """The barometer reading with an error ``b`` (sensor minus truth), m."""
+    return {**values, "h_baro_m": values["h_baro_m"] + b}
+
+
+def _pitot_bias(values, b):
+    """The ADS's airspeed with a dynamic-pressure bias ``b``, Pa: moved by ``b / (rho V)``."""
+    rho_v = values["p_static_pa"] / (R_AIR * values["temp_k"]) * values["tas_mps"]
+    return {**values, "tas_mps": values["tas_mps"] + b / rho_v}
+
+
+@dataclasses.dataclass(frozen=True)
+class FdCase:
+    """One finite-difference case of a measurement type: a small valid scenario entry (its
+    ``type`` aside), the filter's state blocks, and the sensor-error states the model observes,
+    block -> how an error ``b`` of that state moves the sensor values (their columns are checked
+    by perturbing the data; the navigation blocks by perturbing the INS state)."""
+
+    id: str
+    entry: dict
+    blocks: tuple = PRESETS["p3_15"]
+    sensor_errors: dict = dataclasses.field(default_factory=dict)
+
+
+#: the scenario's sensors the cases name (name -> kind, what ``parse`` checks the entries against)
+FD_SENSORS = {"gps": "gnss", "baro": "baro", "radar": "radar_altimeter", "ads": "ads", "camera": "camera",
+              "mag": "magnetometer"}
+_VANES = {"sensor": "ads", "model": "p0_ads", "override": {"velocity_axis": "air", "vane_noise": "0.6 deg"}}
+#: every registered measurement type's cases; a type without one fails
+#: :func:`test_H_matches_finite_differences`. ``mag_heading`` is tested with ``calibration: none``:
+#: the online calibration (tested in test_magcal.py) only changes the sample its H is taken of,
+#: and needs a calibration manoeuvre before it is valid.
+FD_CASES = {
+    "air_velocity": [FdCase("vanes", _VANES),
+                     FdCase("no_vanes", {"sensor": "ads", "model": "p0_ads", "angle_sigma_deg": 4.0}),
+                     FdCase("pitot_bias", _VANES, PRESETS["p3_15"] + ("pitot_bias",), {"pitot_bias": _pitot_bias})],
+    "gnss_horizontal": [FdCase("", {"sensor": "gps", "sigma_m": [1.0, 2.0, 3.0]})],
+    "gnss_position": [FdCase("", {"sensor": "gps", "sigma_m": [1.0, 2.0, 3.0]})],
+    "height": [FdCase("baro", {"sensor": "baro", "sigma_m": 1.0}),
+               FdCase("baro_state", {"sensor": "baro", "sigma_m": 1.0, "baro_state": True}, PRESETS["p0_16"],
+                      {"baro": _baro_error}),
+               FdCase("radar_offset", {"sensor": "radar", "sigma_m": 0.3, "offset_m": -20.0})],
+    "landmark": [FdCase("", {"sensor": "camera", "sigma_m": 3.0, "ratio": 0.01})],
+    "mag_heading": [FdCase("", {"sensor": "mag", "sigma_deg": 1.0, "calibration": "none",
+                                "field_uT": [float(x) for x in FIELD_N_T * 1e6]})],
+    "velocity": [FdCase("", {"sensor": "gps", "sigma_mps": [0.1, 0.1, 0.2]})],
+    "zero_velocity": [FdCase("horizontal", {"sensor": "gps", "sigma_mps": [0.05, 0.05, 0.1]}),
+                      FdCase("ned", {"sensor": "gps", "sigma_mps": [0.05, 0.05, 0.1], "axes": "ned"})],
+}
+#: the finite-difference step of each state block's components
+FD_STEPS = {"att": [1e-6] * 3, "vel": [1e-3] * 3, "pos": [1e-8, 1e-8, 1e-2], "baro": [1e-2], "pitot_bias": [0.5]}
+
+
+def _fd_params():
+    out = []
+    for mtype in measurement_types():
+        cases = FD_CASES.get(mtype) or [None]
+        out += [pytest.param(mtype, c, id=mtype if c is None or not c.id else f"{mtype}-{c.id}") for c in cases]
+    return out
+
+
+def _model_of(mtype: str, case: FdCase):
+    """The model of ``case``'s entry, read and built as a scenario's (``parse``, ``from_entry``)."""
+    node = Node({"measurements": [{"type": mtype, **case.entry}]}, "estimators[0]", "fd_case.yaml")
+    entries = parse_measurements(node, FD_SENSORS)
+    return entries[0], build_measurements(entries)[0]
+
+
+@pytest.mark.parametrize("mtype, case", _fd_params())
+def test_H_matches_finite_differences(mtype, case):
+    """Every registered measurement type's H against central differences of its ``z``: the
+    navigation blocks by moving the INS state, the sensor-error blocks by moving the sensor
+    values, every other column zero."""
+    if case is None:
+        pytest.fail(f"no finite-difference case for measurement type '{mtype}': add one to FD_CASES "
+                    "in tests/unit/test_error_model.py")
+    lat, lon, h, v, C, _, _ = nominal()
+    values, meta = sensor_values()
+    entry, model = _model_of(mtype, case)
+    reads = getattr(measurement_class(mtype), "reads", None)
+    assert reads is None or set(reads(entry)) <= set(values), reads(entry)
+    layout = Layout(case.blocks)
+    steps = np.concatenate([FD_STEPS.get(b, [1e-6] * BLOCK_SIZES[b]) for b in layout.blocks])
 
     def z_of(dx):
-        dp, dv = dx[6:9], dx[3:6]
-        return model.model(nav(lat + dp[0], lon + dp[1], h + dp[2], v + dv, rotation(-dx[:3]) @ C),
-                           LAYOUT, data, 0)[0][0]
+        att, dv, dp = (dx[layout.slice(b)] for b in ("att", "vel", "pos"))
+        moved = values
+        for block, move in case.sensor_errors.items():
+            moved = move(moved, dx[layout.slice(block)][0])
+        state = nav(lat + dp[0], lon + dp[1], h + dp[2], v + dv, rotation(-att) @ C)
+        return unpack(model.model(state, layout, FakeData(moved, meta), 0))[0][0]
 
-    _, H, R, valid = model.model(nav(lat, lon, h, v, C), LAYOUT, data, 0)
-    steps = np.array([1e-6] * 3 + [1e-3] * 3 + [1e-8, 1e-8, 1e-2] + [1e-6] * 6)
-    J = np.column_stack([(z_of(s * e) - z_of(-s * e)) / (2 * s) for s, e in zip(steps, np.eye(15))])
-    np.testing.assert_allclose(H[0], J, rtol=1e-5, atol=1e-6)
-    assert valid.all() and R.shape == (1, H.shape[1], H.shape[1])
+    _, H, R, valid = unpack(model.model(nav(lat, lon, h, v, C), layout, FakeData(values, meta), 0))
+    assert H.shape[0] == 1 and H.shape[2] == layout.n, H.shape
+    J = np.column_stack([(z_of(s * e) - z_of(-s * e)) / (2 * s) for s, e in zip(steps, np.eye(layout.n))])
+    for j, label in enumerate(layout.labels()):
+        np.testing.assert_allclose(H[0][:, j], J[:, j], rtol=1e-5, atol=1e-6, err_msg=f"{mtype}: column {label}")
+    m = H.shape[1]
+    assert (valid is None or np.all(valid)) and R.shape == (1, m, m)
+    assert np.allclose(R[0], R[0].T) and np.all(np.linalg.eigvalsh(R[0]) > 0), R[0]
 
 
-def test_pitot_bias_column_matches_finite_differences():
-    """``air_velocity``'s ``pitot_bias`` column: the change of ``z`` with a dynamic-pressure bias
-    ``b`` in the data, which moves the airspeed by ``b / (rho V)``."""
-    from navsim.foundations.atmosphere import R_AIR
-    lat, lon, h, v, C, _, _ = nominal()
-    layout = Layout(PRESETS["p3_15"] + ("pitot_bias",))
-    air = _air_data(v, C)
-    rho_v = air["p_static_pa"] / (R_AIR * air["temp_k"]) * air["tas_mps"]
-
-    def z_of(b):
-        data = FakeData({**air, "tas_mps": air["tas_mps"] + b / rho_v})
-        return VANES.model(nav(lat, lon, h, v, C), layout, data, 0)[0][0]
-
-    H = VANES.model(nav(lat, lon, h, v, C), layout, FakeData(air), 0)[1][0]
-    np.testing.assert_allclose(H[:, layout.slice("pitot_bias").start], (z_of(0.5) - z_of(-0.5)) / 1.0, rtol=1e-9)
+def test_every_finite_difference_case_is_a_registered_type():
+    assert set(FD_CASES) <= set(measurement_types()), set(FD_CASES) - set(measurement_types())
 
 
 def test_series_and_van_loan_agree():

@@ -6,7 +6,7 @@ import pytest
 from navsim.foundations.errors import ScenarioError
 from navsim.sensors import parse_sensors
 from navsim.sensors.catalog import available, load_spec
-from navsim.sensors.specs import ERROR_FIELDS, ImuSpec, ideal
+from navsim.sensors.specs import ERROR_FIELDS, ImuSpec, ideal, kind_of
 from navsim.sensors.units import UnitError, to_si
 
 DEG = math.pi / 180
@@ -52,8 +52,10 @@ def test_every_catalog_entry_loads_with_its_kind():
     assert {"p0_imu", "p0_bd2", "p0_baro", "p0_ads", "p2_imu", "p2_gps", "p2_radar", "p2_baro",
             "p3_imu", "p3_gps", "mpu6050", "lsm303d", "neo_m8n", "consumer_mems_imu",
             "industrial_mems_imu", "tactical_imu", "p1_camera"} <= set(entries)
-    for name in entries:
-        load_spec(name)
+    for name, kind in entries.items():
+        spec = load_spec(name)
+        assert kind_of(spec) == kind, f"{name}: listed as a {kind}, loads as a {type(spec).__name__}"
+        ideal(spec)                             # the kind's error sources are the spec's fields
 
 
 def test_paper_numbers_reach_the_specs_in_si():
