@@ -56,6 +56,7 @@ from navsim.foundations.transform import skew
 from navsim.navigation import magcal
 from navsim.navigation.estimators.error_model import Layout
 from navsim.navigation.strapdown import NavState
+from navsim.sensors import registry
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.specs import AdsSpec
 
@@ -208,6 +209,12 @@ def _diag(sig2: np.ndarray, B: int) -> np.ndarray:
     return np.broadcast_to(np.diag(sig2), (B, sig2.size, sig2.size)).copy()
 
 
+def _height_output(kind: str) -> str:
+    """The output a ``height`` measurement of a sensor of ``kind`` reads without a ``field``: the
+    first the kind declares with the role ``height`` (:mod:`navsim.sensors.registry`), else ``h_m``."""
+    return registry.default_output(kind, "height") or "h_m"
+
+
 @measurement("gnss_position")
 @dataclass
 class GnssPosition:
@@ -280,13 +287,11 @@ class Height:
     use_baro_state: bool = False
     offset_m: float = 0.0
     SCHEMA = {"sigma_m": VEC3, "field": {"type": "string"}, "baro_state": {"type": "boolean"}, "offset_m": NUM}
-    #: the default ``field`` by the sensor's kind
-    FIELDS = {"radar_altimeter": "h_agl_m", "baro": "h_baro_m", "ads": "h_pressure_m"}
 
     @classmethod
     def parse(cls, node: Node, sensors: dict) -> dict:
         return {"sigma_m": node.get("sigma_m", float, exclusive_minimum=0.0),
-                "field": node.get("field", str, cls.FIELDS.get(sensors[node.data["sensor"]], "h_m")),
+                "field": node.get("field", str, _height_output(sensors[node.data["sensor"]])),
                 "baro_state": node.get("baro_state", bool, False), "offset_m": node.get("offset_m", float, 0.0)}
 
     @classmethod
