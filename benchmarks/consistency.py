@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 import navsim
-from navsim.experiment.records import SIGMA_STATES
+from navsim.records.states import SIGMA_STATES
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -13,7 +13,8 @@ import time
 
 import numpy as np
 
-from navsim.experiment.records import ChunkPart, EstimatorHistory
+from navsim.records.chunk import ChunkPart
+from navsim.records.history import EstimatorHistory
 from navsim.scoring.scorer import score, score_run
 
 EPOCHS = 501

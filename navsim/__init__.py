@@ -27,7 +27,8 @@ The Python API (:mod:`navsim.api`): :func:`load_scenario`, :func:`run` (a :class
 The subpackages follow the data flow; each imports only from those before it:
 :mod:`navsim.foundations` (Earth, rotations, atmosphere, YAML, errors, output folders) ->
 :mod:`navsim.flight` (JSBSim, tracks, autopilot, truth) -> :mod:`navsim.sensors` (emulators) ->
-:mod:`navsim.navigation` (strapdown, kernels, estimators) -> :mod:`navsim.experiment` (scenario,
+:mod:`navsim.navigation` (strapdown, kernels, estimators) -> :mod:`navsim.records` (what the driver
+records and the scorer reads, the metric vocabulary) -> :mod:`navsim.experiment` (scenario,
 driver, chunks, executors, closed loop, sweep) -> :mod:`navsim.scoring` (typed metrics) and
 :mod:`navsim.replay` (PX4 logs) -> :mod:`navsim.report` -> :mod:`navsim.api` -> :mod:`navsim.cli`.
 """

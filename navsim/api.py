@@ -30,14 +30,6 @@ import yaml
 from navsim.experiment import runner
 from navsim.experiment.chunkstore import ChunkStore
 from navsim.experiment.executors import children_die_with_parent, lend_client
-from navsim.experiment.records import (
-    ARRAY_FIELDS,
-    ARRAYS,
-    EPOCH_ARRAYS,
-    SIGMA_STATES,
-    ChunkPart,
-    EstimatorHistory,
-)
 from navsim.experiment.runner import (
     cached_flight,
     chunk_ranges,
@@ -52,6 +44,9 @@ from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.provenance import provenance
+from navsim.records.chunk import ChunkPart
+from navsim.records.history import ARRAYS, ARRAY_FIELDS, EPOCH_ARRAYS, EstimatorHistory
+from navsim.records.states import SIGMA_STATES
 from navsim.report.pages import report_pages as _report_pages, write_report as _write_report
 from navsim.scoring.closed_loop import closed_loop_metrics
 from navsim.scoring.landmarks import sighting_spans
@@ -71,7 +66,7 @@ class Result:
     runs : (R,) int array
         The indices of the runs that completed.
     histories : dict
-        Estimator label -> :class:`~navsim.experiment.records.EstimatorHistory` (``(R, E, ...)`` arrays;
+        Estimator label -> :class:`~navsim.records.history.EstimatorHistory` (``(R, E, ...)`` arrays;
         above :data:`navsim.experiment.runner.REPORT_RUNS` runs read from a folder, the first chunks only).
     metrics : RunMetrics
         The scores (:mod:`navsim.scoring.metrics`); ``metrics.to_dict()`` is ``metrics.json``.

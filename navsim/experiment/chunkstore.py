@@ -6,8 +6,8 @@ belongs to (scenario content hash, seed, runs, chunk size), the chunks done and 
 failed with their error. Chunk files and the index are written to a temporary name and renamed,
 so a run killed at any moment leaves a consistent folder that ``navsim run --resume`` completes.
 
-A chunk is the worker's :class:`~navsim.experiment.records.ChunkPart`; every field of
-:class:`~navsim.experiment.records.EstimatorHistory` round-trips exactly: arrays are stored as they are
+A chunk is the worker's :class:`~navsim.records.chunk.ChunkPart`; every field of
+:class:`~navsim.records.history.EstimatorHistory` round-trips exactly: arrays are stored as they are
 (no pickle), the per-run reset events, the NIS names and dimensions and the cost go to a JSON
 string inside the same file.
 
@@ -32,10 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
-from navsim.experiment.records import ARRAY_FIELDS, ChunkPart, EstimatorHistory, sum_cost
 from navsim.foundations.config import MAX_RUNS
 from navsim.foundations.errors import OutputError, UsageError
 from navsim.foundations.outputs import temporary_name, write_atomic
+from navsim.records.chunk import ChunkPart
+from navsim.records.cost import sum_cost
+from navsim.records.history import ARRAY_FIELDS, EstimatorHistory
 
 log = logging.getLogger(__name__)
 INDEX = "index.json"
@@ -409,7 +411,7 @@ class ChunkStore:
         return [self.done[n] for n in self._names()]
 
     def parts(self):
-        """The stored :class:`~navsim.experiment.records.ChunkPart` one at a time,
+        """The stored :class:`~navsim.records.chunk.ChunkPart` one at a time,
         in run order (one chunk in memory at a time)."""
         for file in self._files():
             with np.load(self.folder / file, allow_pickle=False) as data:
@@ -451,7 +453,7 @@ class ChunkStore:
         return n
 
     def merged(self, limit: int | None = None) -> ChunkPart | None:
-        """The stored chunks as one :class:`~navsim.experiment.records.ChunkPart`, or None:
+        """The stored chunks as one :class:`~navsim.records.chunk.ChunkPart`, or None:
         all of them, or the first chunks (in run order) that hold ``limit`` runs.
 
         The chunk files are read one at a time into arrays allocated once for all the runs, so

@@ -46,7 +46,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.experiment.driver import Driver, perturbed_start
-from navsim.experiment.records import EPOCH_ARRAYS
 from navsim.flight import properties as P
 from navsim.flight.segments import State
 from navsim.flight.simulator import Aircraft, Watchdog
@@ -57,6 +56,7 @@ from navsim.foundations.config import MAX_DURATION_S, Node, close_match
 from navsim.foundations.errors import FlightError, ScenarioError
 from navsim.foundations.transform import quat_from_euler
 from navsim.navigation.estimators import factory
+from navsim.records.history import EPOCH_ARRAYS
 from navsim.sensors import emulate
 from navsim.sensors.imu import OnlineIncrements, error_increments, quantize_increment
 

@@ -22,11 +22,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from navsim.experiment.records import EstimatorHistory, compile_seconds, compute_clock
 from navsim.foundations import earth
 from navsim.foundations.transform import rotation
 from navsim.navigation import kernels
 from navsim.navigation.strapdown import NavState, state_from_truth
+from navsim.records.cost import compile_seconds, compute_clock
+from navsim.records.history import EPOCH_ARRAYS, EstimatorHistory, epoch_shape
+from navsim.records.states import ATT, POS, VEL
 from navsim.sensors.base import Measurements, run_generators
 
 log = logging.getLogger(__name__)
@@ -53,7 +55,8 @@ class InitialErrors:
     fixed: bool = False
 
     def draw(self, seed: int, runs) -> np.ndarray:
-        """``(B, 9)`` errors [att, vel, pos NED m] of the runs."""
+        """``(B, 9)`` errors of the runs, in the order of
+        :data:`~navsim.records.states.SIGMA_STATES` (att rad, vel m/s, pos NED m)."""
         sig = np.concatenate([self.att_rad, self.vel_mps, self.pos_m])
         if self.fixed:
             return np.broadcast_to(sig, (len(list(runs)), 9)).copy()
@@ -70,12 +73,13 @@ def perturbed_start(truth, errors: np.ndarray, k: int = 0) -> NavState:
     """The true state at sample ``k`` with the drawn errors (estimate minus truth) applied."""
     B = errors.shape[0]
     nav = state_from_truth(truth, k, B)
-    nav.C_nb = rotation(-errors[:, :3]) @ nav.C_nb           # C_est = (I - [phi x]) C
-    nav.vel_n_mps = nav.vel_n_mps + errors[:, 3:6]
+    nav.C_nb = rotation(-errors[:, ATT]) @ nav.C_nb           # C_est = (I - [phi x]) C
+    nav.vel_n_mps = nav.vel_n_mps + errors[:, VEL]
+    pos = errors[:, POS]                                       # N, E, D (m)
     r_m, r_n = earth.radii(nav.lat_rad)
-    nav.lat_rad = nav.lat_rad + errors[:, 6] / (r_m + nav.h_m)
-    nav.lon_rad = nav.lon_rad + errors[:, 7] / ((r_n + nav.h_m) * np.cos(nav.lat_rad))
-    nav.h_m = nav.h_m - errors[:, 8]
+    nav.lat_rad = nav.lat_rad + pos[:, 0] / (r_m + nav.h_m)
+    nav.lon_rad = nav.lon_rad + pos[:, 1] / ((r_n + nav.h_m) * np.cos(nav.lat_rad))
+    nav.h_m = nav.h_m - pos[:, 2]
     return nav
 
 
@@ -90,6 +94,9 @@ def nav_errors(nav: NavState, truth, k: int):
 
 #: the columns of :func:`navsim.navigation.kernels.nav_errors`' output
 _PHI, _DV, _POS_FILTER, _POS_M, _EULER = (slice(i, i + 3) for i in range(0, 15, 3))
+#: the errors recorded at every epoch: the :class:`EstimatorHistory` array each fills, and its
+#: columns of :func:`navsim.navigation.kernels.nav_errors`' output
+_RECORDED = {"att_err_rad": _PHI, "vel_err_mps": _DV, "pos_err_m": _POS_M, "euler_err_rad": _EULER}
 
 
 def _errors(nav: NavState, truth, k: int):
@@ -311,9 +318,10 @@ class _Recorder:
 
     def __init__(self, label, runs: int | None = None):
         self.label = label
-        self.t, self.att, self.vel, self.pos, self.sig, self.nees = [], [], [], [], [], []
-        self.euler = []
-        self.bg, self.ba, self.bsig = [], [], []
+        self.t: list = []
+        #: per epoch array of the history (:data:`~navsim.records.history.EPOCH_ARRAYS`), its
+        #: ``(B, ...)`` records, one per epoch (none: the estimator has no such array)
+        self.records: dict = {name: [] for name in EPOCH_ARRAYS}
         self.nis: dict = {}
         self.nis_dim: dict = {}
         self.propagate_s = self.epoch_s = self.compile_s = 0.0
@@ -328,7 +336,7 @@ class _Recorder:
         """Record the estimator's solution against truth sample ``k`` at time ``t`` (s)."""
         sol = est.solution()
         err, rows = _errors(sol.nav, truth, k)
-        phi, dv, pos_m, euler = err[:, _PHI], err[:, _DV], err[:, _POS_M], err[:, _EULER]
+        row = {name: err[:, c] for name, c in _RECORDED.items()}
         B = err.shape[0]
         code, nees, sig = np.zeros(B, np.int64), None, None
         if sol.P_nav is not None:
@@ -339,20 +347,16 @@ class _Recorder:
         nis = [(f"{inn.measurement}:{inn.sensor}", inn.nis, inn.y.shape[-1]) for inn in innovations]
         self._check(t, sol, code)
         self.t.append(t)
-        self.att.append(phi)
-        self.euler.append(euler)
-        self.vel.append(dv)
-        self.pos.append(pos_m)
         if sol.gyro_bias is not None:
-            self.bg.append(sol.gyro_bias.copy())
-            self.ba.append(sol.accel_bias.copy())
+            row.update(gyro_bias=sol.gyro_bias.copy(), accel_bias=sol.accel_bias.copy())
         if sol.gyro_bias_sigma is not None or sol.accel_bias_sigma is not None:
-            nan = np.full((len(phi), 3), np.nan)
-            self.bsig.append(np.concatenate([nan if s is None else s for s in (sol.gyro_bias_sigma,
-                                                                                   sol.accel_bias_sigma)], -1))
+            row.update({name: np.full(epoch_shape(name, B), np.nan) if s is None else np.array(s, dtype=np.float64)
+                        for name, s in (("gyro_bias_sigma", sol.gyro_bias_sigma),
+                                        ("accel_bias_sigma", sol.accel_bias_sigma))})
         if nees is not None:
-            self.nees.append(nees)
-            self.sig.append(sig)
+            row.update(nees=nees, sigma=sig)
+        for name, v in row.items():
+            self.records[name].append(v)
         for key, v, dim in nis:
             self.nis.setdefault(key, []).append((len(self.t) - 1, v))
             self.nis_dim[key] = dim
@@ -395,15 +399,10 @@ class _Recorder:
 
     def add_nan(self, t) -> None:
         """A record of NaN errors at ``t`` (s), for an estimator that has stopped."""
-        nan = np.full((self.runs, 3), np.nan)
         self.t.append(t)
-        for xs in (self.att, self.euler, self.vel, self.pos) + ((self.bg, self.ba) if self.bg else ()):
-            xs.append(nan)
-        if self.bsig:
-            self.bsig.append(np.full((self.runs, 6), np.nan))
-        if self.sig:
-            self.sig.append(np.full((self.runs, self.sig[0].shape[-1]), np.nan))
-            self.nees.append(np.full(self.runs, np.nan))
+        for name, xs in self.records.items():
+            if xs or name in _RECORDED:          # the errors always, the others if recorded
+                xs.append(np.full(epoch_shape(name, self.runs), np.nan))
 
     def history(self, est) -> EstimatorHistory:
         E = len(self.t)
@@ -420,22 +419,16 @@ class _Recorder:
                 extra = est.solution().extra
             except Exception as exc:  # one estimator's failure must not stop the others
                 self.fail(self.t[-1], exc)
-        diverged = np.asarray(extra.get("diverged", False)) | ~np.all(np.isfinite(stack(self.pos)), axis=(1, 2))
+        arrays = {name: stack(xs) if xs else None for name, xs in self.records.items()}
+        diverged = np.asarray(extra.get("diverged", False)) | ~np.all(np.isfinite(arrays["pos_err_m"]), axis=(1, 2))
         self._flag(self.t[-1], ["flagged by the estimator" if d else None
                                 for d in np.broadcast_to(diverged, (self.runs,))])
         return EstimatorHistory(
-            label=self.label, t_s=np.array(self.t), att_err_rad=stack(self.att),
-            vel_err_mps=stack(self.vel), pos_err_m=stack(self.pos),
-            sigma=stack(self.sig) if self.sig else None,
-            nees=np.stack(self.nees, axis=1) if self.nees else None, nis=nis, nis_dim=self.nis_dim,
+            label=self.label, t_s=np.array(self.t), **arrays, nis=nis, nis_dim=self.nis_dim,
             diverged=diverged | self.flagged,
-            gyro_bias=stack(self.bg) if self.bg else None, accel_bias=stack(self.ba) if self.ba else None,
-            gyro_bias_sigma=stack(self.bsig)[..., :3] if self.bsig else None,
-            accel_bias_sigma=stack(self.bsig)[..., 3:] if self.bsig else None,
-            cost={"propagate_s": self.propagate_s, "epoch_s": self.epoch_s, "runs": len(self.pos[0]),
+            cost={"propagate_s": self.propagate_s, "epoch_s": self.epoch_s, "runs": len(arrays["pos_err_m"]),
                   "epochs": E - 1, "batches": 1, "compile_s": self.compile_s},
-            euler_err_rad=stack(self.euler), resets=_copy_resets(extra.get("resets")),
-            divergence=list(self.why))
+            resets=_copy_resets(extra.get("resets")), divergence=list(self.why))
 
 
 def _copy_resets(resets):

@@ -1,16 +1,13 @@
-"""A scenario's ``reference:``: the published results it reproduces, each a check with a rule.
+"""A scenario's ``reference:`` read: the published results it reproduces, each a check with a rule
+(:class:`~navsim.records.reference.PaperCheck`, :data:`~navsim.records.reference.RULES`).
 
 A paper gives numbers (P2's Table 1, P4's accuracy bounds) or only claims (P0: "free SINS
 diverges; the integrated filter converges fast and does not diverge"). Both become a
 :class:`PaperCheck` on one metric of one estimator (a dotted path of its ``metrics.json``
-entry, as :meth:`navsim.scoring.metrics.EstimatorMetrics.get` reads it), judged by a rule:
+entry, :mod:`navsim.records.vocabulary`), judged by a rule (``at_most``, ``at_least``, ``close``,
+``none``: :mod:`navsim.records.reference`).
 
-- ``at_most``: ours ``<=`` the bound (an accuracy the paper claims: "within 1 m");
-- ``at_least``: ours ``>=`` the bound (free SINS "diverges": its error grows past a bound);
-- ``close``: ``|ours - paper| <= tolerance * |paper|`` (a number to reproduce);
-- ``none``: shown beside ours without a verdict.
-
-A vector (``[N, E, D]``, roll/pitch/yaw) passes when every component does. The scenario's form::
+The scenario's form::
 
     reference:
       source: P3, simulation results
@@ -31,34 +28,8 @@ metric times the factor.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 from navsim.foundations.config import Node, check_number, check_numbers, close_match
-
-RULES = ("at_most", "at_least", "close", "none")
-DEFAULT_TOLERANCE = 0.25
-
-
-@dataclass(frozen=True)
-class PaperCheck:
-    """One published number or claim on one estimator's metric."""
-
-    estimator: str                 #: the estimator's label
-    metric: str                    #: dotted path of its metrics, e.g. ``p99.pos_m``
-    rule: str                      #: one of :data:`RULES`
-    bound: float | list            #: the paper's number, or the claim's threshold
-    tolerance: float = DEFAULT_TOLERANCE   #: ``close``: relative to the paper's number
-    claim: str | None = None       #: the claim's words; None for a published number
-    of: str | None = None          #: a claim relative to this estimator: ``bound`` is the factor
-
-
-@dataclass(frozen=True)
-class Reference:
-    """The published results a scenario reproduces."""
-
-    source: str
-    note: str
-    checks: tuple[PaperCheck, ...]
+from navsim.records.reference import DEFAULT_TOLERANCE, RULES, PaperCheck, Reference
 
 
 def _value(node: Node, key: str):

@@ -14,12 +14,12 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
-from navsim.experiment.records import ARRAYS
 from navsim.experiment.runner import CHUNK_RUNS, CLOSED_CHUNK_RUNS
 from navsim.flight import properties as P
 from navsim.flight.track import nominal_duration_s
 from navsim.foundations.config import MAX_RUNS
 from navsim.foundations.errors import ScenarioError, UsageError
+from navsim.records.history import ARRAYS
 from navsim.sensors import output_fields
 
 #: the float64 values of one truth sample: the truth's arrays (time, position 3, velocity 3,

@@ -27,7 +27,6 @@ from navsim.experiment.chunkstore import chunk_name, job_chunks
 from navsim.experiment.closed_loop import end_records, fly_batch
 from navsim.experiment.driver import run_batch
 from navsim.experiment.executors import POOL_CONTEXT, run_chunks_dask
-from navsim.experiment.records import EPOCH_ARRAYS, ChunkPart, merge_parts
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import fly
 from navsim.flight.truth import Truth
@@ -35,6 +34,8 @@ from navsim.foundations.config import cache_dir
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.navigation.estimators import factory
 from navsim.navigation.magcal import calibration_history
+from navsim.records.chunk import ChunkPart, merge_parts
+from navsim.records.history import EPOCH_ARRAYS
 from navsim.sensors import emulate
 from navsim.sensors.imu import ImuStream, emulate_imu, seen_bias
 from navsim.version import __version__

@@ -28,7 +28,7 @@ import numpy as np
 
 from navsim.experiment.closed_loop import parse_closed_loop
 from navsim.experiment.driver import InitialErrors
-from navsim.experiment.reference import Reference, parse_reference
+from navsim.experiment.reference import parse_reference
 from navsim.flight.environment import parse_environment
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import FlightConfig
@@ -47,6 +47,8 @@ from navsim.foundations.config import (
 from navsim.foundations.errors import ScenarioError
 from navsim.navigation.estimators.factory import parse_estimators
 from navsim.navigation.estimators.measurements import measurement_class
+from navsim.records.reference import Reference
+from navsim.records.vocabulary import check_metric_path
 from navsim.sensors import height_fields, output_fields, parse_sensors, velocity_fields
 from navsim.sensors.base import check_faults, decimation
 
@@ -384,35 +386,6 @@ def _windows(node):
         w.done()
         out.append((name, a, b))
     return tuple(out)
-
-
-#: the first part of a metric path (``rms.pos_m``, ``windows.<name>.pos_m.rms``) in metrics.json
-METRIC_HEADS = ("rms", "final", "max_abs", "p99", "windows", "attitude", "resets", "nees", "nis", "cost")
-#: the metrics of an estimator that are one number (no dotted rest)
-SCALAR_METRICS = ("runs_counted", "diverged_runs", "convergence_s")
-_QUANTITIES = {head: ("pos_m", "vel_mps", "att_deg") for head in ("rms", "final", "max_abs", "p99")}
-
-
-def check_metric_path(path: str, windows, *, file: str | None, key: str) -> None:
-    """Raise :class:`ScenarioError` unless ``path`` names a metric of an estimator's
-    metrics.json (:data:`METRIC_HEADS`; ``windows.<name>`` a window of ``windows``)."""
-    head, _, rest = path.partition(".")
-    if head in SCALAR_METRICS and not rest:
-        return
-    if head not in METRIC_HEADS or not rest:
-        raise ScenarioError(f"'{path}' is not a metric", file=file, key=key,
-                            expected=" or ".join([f"{h}.*" for h in METRIC_HEADS] + list(SCALAR_METRICS)),
-                            hint=close_match(head, METRIC_HEADS + SCALAR_METRICS))
-    quantity = rest.split(".")[0]
-    if head in _QUANTITIES and quantity not in _QUANTITIES[head]:
-        raise ScenarioError(f"'{path}' is not a metric", file=file, key=key,
-                            expected=" or ".join(f"{head}.{q}" for q in _QUANTITIES[head]),
-                            hint=close_match(quantity, _QUANTITIES[head]))
-    if head == "windows":
-        name = rest.split(".")[0]
-        if name not in [w[0] for w in windows]:
-            raise ScenarioError(f"window '{name}' is not defined under metrics.windows", file=file, key=key,
-                                hint=close_match(name, [w[0] for w in windows]))
 
 
 def load_scenario(path: str | Path) -> Scenario:

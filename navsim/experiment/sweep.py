@@ -23,9 +23,10 @@ from pathlib import Path
 import numpy as np
 
 from navsim.experiment.runner import cached_flight
-from navsim.experiment.scenario import check_metric_path, check_scenario, parse_scenario
+from navsim.experiment.scenario import check_scenario, parse_scenario
 from navsim.foundations.config import MAX_RUNS, Node, load_yaml
 from navsim.foundations.errors import ScenarioError
+from navsim.records.vocabulary import check_metric_path
 
 _INDEX = re.compile(r"^(.*)\[(\d+)\]$")
 #: the most points a sweep may have (each is a Monte Carlo of its own)

@@ -15,6 +15,7 @@ import yaml
 from navsim.flight.plots import flight_figures
 from navsim.foundations.errors import OutputError
 from navsim.foundations.outputs import OutputFolder, write_atomic
+from navsim.records.states import BLOCKS
 from navsim.report.summary import summary_pages
 from navsim.report.tables import PNG_DPI, layout, monospace_block
 from navsim.scoring.metrics import EULER_AXES, RunMetrics
@@ -177,7 +178,8 @@ def _envelopes(h, key: str):
     err = {"pos": h.pos_err_m, "vel": h.vel_err_mps, "att": np.degrees(h.att_err_rad)}[key][good]
     sig = None
     if h.sigma is not None:
-        s = {"pos": h.sigma[..., 6:9], "vel": h.sigma[..., 3:6], "att": np.degrees(h.sigma[..., 0:3])}[key]
+        s = h.sigma[..., BLOCKS[key]]
+        s = np.degrees(s) if key == "att" else s
         sig = np.sqrt(_nanmean(s[good] ** 2))
     return np.sqrt(_nanmean(err ** 2)), sig, err, h.t_s
 

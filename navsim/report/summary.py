@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from navsim.experiment.records import SIGMA_STATES
+from navsim.records.states import SIGMA_STATES
 from navsim.report.tables import FAIL, PASS, WARN, Heading, Paragraph, Table, layout
 from navsim.scoring.metrics import RunMetrics
 from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary

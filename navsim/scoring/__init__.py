@@ -1,6 +1,7 @@
 """Scoring: the estimators' errors over the Monte Carlo runs turned into typed metrics.
 
-:mod:`~navsim.experiment.records` holds what the driver records (``EstimatorHistory``, ``ChunkPart``),
+:mod:`navsim.records` holds what the driver records (``EstimatorHistory``, ``ChunkPart``; scoring
+imports nothing of :mod:`navsim.experiment`),
 :mod:`~navsim.scoring.scorer` the one scorer (chunk by chunk; in memory is one chunk),
 :mod:`~navsim.scoring.metrics` the typed results and their ``metrics.json`` mapping,
 :mod:`~navsim.scoring.stats` the streaming statistics and chi-square bands, and
@@ -9,7 +10,8 @@
 navigation in the loop.
 """
 
-from navsim.experiment.records import ChunkPart, EstimatorHistory
+from navsim.records.chunk import ChunkPart
+from navsim.records.history import EstimatorHistory
 from navsim.scoring.metrics import CalibrationScore, EstimatorMetrics, RunMetrics
 from navsim.scoring.scorer import EstimatorScore, score, score_run
 

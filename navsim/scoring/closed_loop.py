@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.records.states import POS_NE
 from navsim.scoring.stats import chi2_band
 
 
@@ -31,7 +32,7 @@ def landing_consistency(h, land_t_s) -> dict:
     k = np.clip(np.searchsorted(h.t_s, land[ok] + 1e-9) - 1, 0, len(h.t_s) - 1)
     rows = np.flatnonzero(ok)
     e = h.pos_err_m[rows, k, :2]
-    sd = h.sigma[rows, k, 6:8]
+    sd = h.sigma[rows, k, POS_NE]
     q = np.sum((e / sd) ** 2, axis=-1)
     lo, hi = chi2_band(2, int(ok.sum()))
     return {"normalised_error": float(np.mean(q)), "band": [lo, hi], "dim": 2,

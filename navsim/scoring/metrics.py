@@ -186,7 +186,7 @@ class Nees(_Record):
     dim: int
     average_from_start: float    #: over every epoch after the first
     #: the mean of (error / sigma)^2 of each navigation error from the settling time on, over
-    #: runs and epochs, in the order of :data:`~navsim.experiment.records.SIGMA_STATES`
+    #: runs and epochs, in the order of :data:`~navsim.records.states.SIGMA_STATES`
     #: (att, vel, pos; N, E, D): 1 where the sigma describes the error
     per_state: list[float] | None = None
 
@@ -321,7 +321,7 @@ class CalibrationScore(_Record):
 
 @dataclass(frozen=True)
 class Verdict(_Record):
-    """A published number or claim (:class:`navsim.experiment.reference.PaperCheck`) against
+    """A published number or claim (:class:`navsim.records.reference.PaperCheck`) against
     ours: ``passed`` is None where there is no verdict (rule ``none``, or no number of ours)."""
 
     estimator: str

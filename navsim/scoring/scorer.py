@@ -19,7 +19,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from navsim.experiment.records import CALIBRATION_SHARED, EstimatorHistory, sum_cost
+from navsim.records.chunk import CALIBRATION_SHARED
+from navsim.records.cost import sum_cost
+from navsim.records.history import BLOCK_ERRORS, EstimatorHistory
+from navsim.records.states import BLOCKS
 from navsim.scoring.calibration import calibration_score, thin_calibration
 from navsim.scoring.landmarks import SightingEpochs, sighting_metrics, thin_for_sightings
 from navsim.scoring.metrics import (
@@ -58,7 +61,7 @@ NEES_DIM = 9
 class DivergenceLog:
     """The runs of an estimator left out of its statistics, fed one history at a time: their
     count, the count per cause, and the first :data:`DIVERGENCE_LISTED` with when and why
-    (:attr:`~navsim.experiment.records.EstimatorHistory.divergence`; ``"not recorded"`` where the
+    (:attr:`~navsim.records.history.EstimatorHistory.divergence`; ``"not recorded"`` where the
     history has no record)."""
 
     def __init__(self):
@@ -217,7 +220,7 @@ class EstimatorScore:
         self.costs.append(h.cost)
         self._window_sums(c)
         if h.sigma is not None:
-            e = np.concatenate([h.att_err_rad, h.vel_err_mps, h.pos_err_m], -1)[good][:, c.after]
+            e = np.concatenate([getattr(h, BLOCK_ERRORS[block]) for block in BLOCKS], -1)[good][:, c.after]
             with np.errstate(invalid="ignore", divide="ignore"):
                 self._a("nsq", Sum).add((e / h.sigma[good][:, c.after]) ** 2, (0, 1))
         if h.nees is not None:
@@ -339,7 +342,7 @@ def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> tuple[d
     Parameters
     ----------
     parts : callable
-        ``parts()`` yields the :class:`~navsim.experiment.records.ChunkPart` in run order; called
+        ``parts()`` yields the :class:`~navsim.records.chunk.ChunkPart` in run order; called
         twice.
     settle_s, windows
         As :class:`EstimatorScore`.

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from navsim.experiment.reference import Reference
+from navsim.records.reference import Reference
 from navsim.scoring.metrics import EstimatorMetrics, Verdict
 
 #: the mark of each verdict, in the terminal and on the report's first page: a check with a rule

@@ -7,9 +7,9 @@ import pytest
 from reference_strapdown import Strapdown
 
 from navsim.experiment.driver import run_batch
-from navsim.experiment.records import ARRAY_FIELDS
 from navsim.navigation.estimators.factory import build
 from navsim.navigation.estimators.sins import FreeInertial
+from navsim.records.history import ARRAY_FIELDS
 from navsim.sensors import emulate
 from navsim.sensors.imu import emulate_imu
 

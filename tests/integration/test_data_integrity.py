@@ -16,12 +16,14 @@ import pytest
 import navsim
 from navsim import api
 from navsim.cli import main
-from navsim.experiment import records, runner
+from navsim.experiment import runner
 from navsim.experiment.chunkstore import ChunkStore, ResumeError
-from navsim.experiment.records import ChunkPart, EstimatorHistory
 from navsim.flight.truth import Truth
 from navsim.foundations.errors import UsageError
 from navsim.foundations.outputs import OutputFolder
+from navsim.records import cost as run_cost
+from navsim.records.chunk import ChunkPart
+from navsim.records.history import EstimatorHistory
 
 TINY = """
 name: tiny
@@ -356,12 +358,12 @@ def test_compile_time_is_kept_apart_in_the_bookkeeping():
     @numba.njit
     def fresh(x):                       # compiled at its first call, in this test
         return np.sqrt(x * x + 1.0)
-    k0, c0, t0 = records.compile_seconds(), records.compute_clock(), time.perf_counter()
+    k0, c0, t0 = run_cost.compile_seconds(), run_cost.compute_clock(), time.perf_counter()
     fresh(2.0)
-    compiled, computed, wall = records.compile_seconds() - k0, records.compute_clock() - c0, time.perf_counter() - t0
+    compiled, computed, wall = run_cost.compile_seconds() - k0, run_cost.compute_clock() - c0, time.perf_counter() - t0
     assert compiled > 0.01 and computed < 0.2 * wall, (compiled, computed, wall)
     one = {"propagate_s": 0.1, "epoch_s": 0.1, "runs": 2, "epochs": 5, "batches": 1, "compile_s": 3.0}
-    total = records.sum_cost([one, dict(one, compile_s=0.5)])
+    total = run_cost.sum_cost([one, dict(one, compile_s=0.5)])
     assert total["compile_s"] == 3.5
     cost = cost_metrics(total)
     assert cost.ms_per_run == pytest.approx(100.0) and cost.compile_s == 3.5

@@ -12,12 +12,13 @@ import yaml
 import navsim.navigation.estimators.factory
 from navsim.experiment.chunkstore import ChunkStore, part_arrays, part_from_arrays
 from navsim.experiment.driver import NEES_BOUND, PSD_TOL, SYMMETRY_TOL, covariance_faults
-from navsim.experiment.records import ChunkPart, EstimatorHistory, merge_parts
 from navsim.experiment.runner import run_monte_carlo
 from navsim.experiment.scenario import load_scenario
 from navsim.foundations import earth
 from navsim.navigation import kernels
 from navsim.navigation.estimators import kalman
+from navsim.records.chunk import ChunkPart, merge_parts
+from navsim.records.history import EstimatorHistory
 from navsim.scoring.scorer import DIVERGENCE_LISTED, score, score_parts, score_run
 
 P0 = "p0_bd_sins_ads"

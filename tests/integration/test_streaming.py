@@ -10,7 +10,8 @@ from test_run import run, short  # noqa: F401 (short is the fixture)
 import navsim
 from navsim.cli import main
 from navsim.experiment.chunkstore import ChunkStore, part_arrays, part_from_arrays
-from navsim.experiment.records import ChunkPart, EstimatorHistory, merge_parts
+from navsim.records.chunk import ChunkPart, merge_parts
+from navsim.records.history import EstimatorHistory
 
 
 @pytest.fixture(autouse=True)

@@ -11,8 +11,11 @@ PACKAGE = Path(navsim.__file__).resolve().parent
 #: the layers of the package in the order of the data flow: a module imports only from its own
 #: layer and the layers before it (the longest prefix of a module's name gives its layer)
 LAYERS = ("navsim.data", "navsim.version", "navsim.foundations", "navsim.flight", "navsim.sensors",
-          "navsim.navigation", "navsim.experiment", "navsim.scoring", "navsim.replay", "navsim.report", "navsim.api",
+          "navsim.navigation", "navsim.records", "navsim.experiment", "navsim.scoring", "navsim.replay", "navsim.report", "navsim.api",
           "navsim.cli", "navsim.__main__", "navsim")
+#: layers that must not import each other although the order would let them: the scoring reads
+#: the records (navsim.records), never the experiment that made them
+APART = {"navsim.scoring": ("navsim.experiment",)}
 #: the longest a function of the package may be, in lines (its decorators and docstring included)
 LONGEST = 80
 
@@ -119,6 +122,19 @@ def test_imports_point_down_the_data_flow():
     assert absolute("navsim.sensors.imu", PACKAGE / "sensors" / "imu.py", node) == "navsim.experiment"
     # the check sees an upward import
     assert upward({"navsim.sensors.imu": {"navsim.experiment.runner"}}) == [("navsim.sensors.imu", "navsim.experiment.runner")]
+
+
+def crossing(graph: dict) -> list:
+    """The imports ``(module, imported)`` from a layer into one :data:`APART` keeps it from."""
+    return sorted((m, t) for m, ts in graph.items() for t in ts for a, bs in APART.items()
+                  if layer(m) == LAYERS.index(a) and any(layer(t) == LAYERS.index(b) for b in bs))
+
+
+def test_the_scoring_imports_nothing_of_the_experiment():
+    assert crossing(import_graph()) == []
+    # the check sees one
+    assert crossing({"navsim.scoring.scorer": {"navsim.experiment.runner", "navsim.records.history"}}) == [
+        ("navsim.scoring.scorer", "navsim.experiment.runner")]
 
 
 def long_functions(path: Path, limit: int) -> list:

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from navsim.experiment.records import EstimatorHistory
+from navsim.records.history import EstimatorHistory
 from navsim.scoring.metrics import EstimatorMetrics, lookup
 from navsim.scoring.scorer import score
 from navsim.scoring.stats import chi2_band, convergence_time

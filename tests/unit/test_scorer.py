@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from navsim.experiment.records import ChunkPart, EstimatorHistory, merge_parts
+from navsim.records.chunk import ChunkPart, merge_parts
+from navsim.records.history import EstimatorHistory
 from navsim.scoring.calibration import calibration_score
 from navsim.scoring.landmarks import sighting_metrics
 from navsim.scoring.scorer import score, score_parts, score_run

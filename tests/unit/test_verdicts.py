@@ -1,12 +1,13 @@
 """A scenario's ``reference``: published numbers and claims read with their rules, and judged
-against metrics (:mod:`navsim.experiment.reference`, :mod:`navsim.scoring.verdicts`)."""
+against metrics (:mod:`navsim.experiment.reference`, :mod:`navsim.records.reference`,
+:mod:`navsim.scoring.verdicts`)."""
 
 import pytest
 
 from navsim.experiment.reference import parse_reference
-from navsim.experiment.scenario import check_metric_path
 from navsim.foundations.config import Node
 from navsim.foundations.errors import ScenarioError
+from navsim.records.vocabulary import check_metric_path
 from navsim.scoring.metrics import EstimatorMetrics, RunMetrics
 from navsim.scoring.verdicts import judge, verdict_rows, verdict_summary
 
