@@ -388,9 +388,9 @@ def _write_report_into(folder: OutputFolder, result: Result) -> list[Path]:
 
 
 def report_figures(result: Result) -> list:
-    """The report's pages as matplotlib figures, ``[(name, Figure), ...]`` in the report's
-    order (``name`` is the PNG's stem), for a notebook; nothing is written. Close them with
-    ``matplotlib.pyplot.close(fig)`` when done."""
+    """The report's pages in order, for a notebook: :class:`navsim.report.figures.Page` objects
+    (``name``: the PNG's stem, ``title``: its line in the contents, ``figure``: the matplotlib
+    figure); nothing is written. Close them with ``matplotlib.pyplot.close(page.figure)``."""
     return _report_pages(result.scenario, _truth(result), result, result.metrics, result.record, result.loop,
                          result.reference, result.sightings)
 

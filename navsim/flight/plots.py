@@ -28,11 +28,31 @@ def segment_names(truth: Truth) -> list[str]:
     return [f"{j + 1} {name}" for j, (_, name, _, _) in enumerate(truth.segment_spans())]
 
 
+def label_points(east: np.ndarray, north: np.ndarray, t_s: np.ndarray, spans) -> list[tuple[float, float]]:
+    """Where each segment's number goes on the ground track: the point of its middle 80 % farthest
+    from the numbers placed before it and from the start (segments that start where another
+    ends, or a circle flown over its own entry, keep their numbers apart)."""
+    placed = [(float(east[0]), float(north[0]))]
+    out = []
+    for _, _, a, b in spans:
+        k = np.flatnonzero((t_s >= a + 0.1 * (b - a)) & (t_s <= b - 0.1 * (b - a)))
+        if not k.size:
+            k = np.array([min(int(np.searchsorted(t_s, a)), len(east) - 1)])
+        k = k[:: max(1, k.size // 60)]
+        cand = np.column_stack([east[k], north[k]])
+        gap = np.min(np.linalg.norm(cand[:, None, :] - np.asarray(placed)[None], axis=-1), axis=1)
+        best = cand[int(np.argmax(gap))]
+        out.append((float(best[0]), float(best[1])))
+        placed.append(out[-1])
+    return out
+
+
 def _number_segments(ax, east, north, truth: Truth) -> None:
-    """The segment's number where it starts on the ground track (colour is not the only cue)."""
-    for j, (_, _, a, _) in enumerate(truth.segment_spans()):
-        k = min(int(np.searchsorted(truth.t_s, a)), len(east) - 1)
-        ax.text(east[k], north[k], str(j + 1), fontsize=7, ha="center", va="center", color="0.15")
+    """Each segment's number on its own stretch of the ground track (colour is not the only
+    cue), boxed so the track under it stays readable."""
+    for j, (x, y) in enumerate(label_points(east, north, truth.t_s, truth.segment_spans())):
+        ax.text(x, y, str(j + 1), fontsize=7, ha="center", va="center", color="0.1",
+                bbox={"boxstyle": "round,pad=0.15", "facecolor": "white", "alpha": 0.8, "lw": 0})
 
 
 def plot_flight(truth: Truth, out_dir: str | Path, prefix: str = "flight") -> list[Path]:
@@ -48,8 +68,10 @@ def plot_flight(truth: Truth, out_dir: str | Path, prefix: str = "flight") -> li
     return files
 
 
-def flight_figures(truth: Truth) -> list:
-    """``(name, figure)`` of the 3-D track, the ground track and the time histories."""
+def flight_figures(truth: Truth, figsize=None, footer_in: float = 0.0) -> list:
+    """``(name, figure)`` of the 3-D track, the ground track and the time histories; ``figsize``
+    (inches) gives every figure one size (a report's page), ``footer_in`` a strip kept free at
+    the foot."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -62,7 +84,7 @@ def flight_figures(truth: Truth) -> list:
     figs = []
 
     names = segment_names(truth)
-    fig = plt.figure(figsize=(8, 6.5))
+    fig = plt.figure(figsize=figsize or (8, 6.5))
     ax = fig.add_subplot(projection="3d")
     for j, (_, _, a, b) in enumerate(spans):
         m = (truth.t_s >= a) & (truth.t_s <= b)
@@ -81,7 +103,7 @@ def flight_figures(truth: Truth) -> list:
     ax.legend(fontsize=6, loc="upper left", ncol=2)
     figs.append(("3d", fig))
 
-    fig, ax = plt.subplots(figsize=(7.5, 7))
+    fig, ax = plt.subplots(figsize=figsize or (7.5, 7))
     for j, (_, _, a, b) in enumerate(spans):
         m = (truth.t_s >= a) & (truth.t_s <= b)
         ax.plot(east[m], north[m], color=colors[j], lw=1.5, label=names[j])
@@ -95,12 +117,19 @@ def flight_figures(truth: Truth) -> list:
     ax.set_title(f"{truth.meta.get('track', '')}: ground track "
                  f"(origin {np.degrees(truth.lat_rad[0]):.4f}°N, {np.degrees(truth.lon_rad[0]):.4f}°E)")
     ax.legend(fontsize=7, loc="best", ncol=2)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, footer_in / fig.get_figheight(), 1, 1))
     figs.append(("ground", fig))
 
-    fig, axs = plt.subplots(4, 1, figsize=(10, 10), sharex=True)
+    figs.append(("time", _time_figure(truth, names, figsize, footer_in)))
+    return figs
+
+
+def _time_figure(truth: Truth, names: list[str], figsize, footer_in: float):
+    """Height, speeds, bank and pitch, heading against time, the segments shaded and numbered."""
+    import matplotlib.pyplot as plt
+    fig, axs = plt.subplots(4, 1, figsize=figsize or (10, 10), sharex=True)
     t = truth.t_s
-    axs[0].plot(t, h, label="height (ellipsoid)")
+    axs[0].plot(t, truth.h_m, label="height (ellipsoid)")
     axs[0].plot(t, truth.h_agl_m, "--", lw=0.8, label="above surface")
     axs[0].set_ylabel("height, m")
     axs[0].legend(fontsize=7, loc="best")
@@ -119,9 +148,11 @@ def flight_figures(truth: Truth) -> list:
     for j, ax in enumerate(axs):
         _segments(truth, ax, label=(j == 0))
         ax.grid(alpha=0.3)
-    fig.suptitle(f"{truth.meta.get('track', '')}: flight against time", fontsize=11, y=0.995)
+    fig.suptitle(f"{truth.meta.get('track', '')}: flight against time", fontsize=11, y=1 - 0.1 / fig.get_figheight())
     listed = "segments (numbered on top): " + ", ".join(names[:16]) + (", ..." if len(names) > 16 else "")
-    fig.text(0.5, 0.965, "\n".join(textwrap.wrap(listed, 130)), ha="center", va="top", fontsize=7.5)
-    fig.tight_layout(rect=(0, 0, 1, 0.94))
-    figs.append(("time", fig))
-    return figs
+    height_in = fig.get_figheight()
+    wrap = int(130 * fig.get_figwidth() / 10)
+    lines = textwrap.wrap(listed, wrap)
+    fig.text(0.5, 1 - 0.35 / height_in, "\n".join(lines), ha="center", va="top", fontsize=7.5)
+    fig.tight_layout(rect=(0, footer_in / height_in, 1, 1 - (0.45 + 0.14 * len(lines)) / height_in))
+    return fig

@@ -9,7 +9,7 @@ import numpy as np
 from navsim.foundations.outputs import write_atomic
 from navsim.replay.metrics import AXES
 from navsim.replay.run import ReplayResult
-from navsim.report.pages import pyplot
+from navsim.report.figures import pyplot
 from navsim.report.tables import Heading, Paragraph, Table, layout
 
 

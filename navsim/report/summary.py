@@ -4,7 +4,7 @@ Each builder returns a :class:`Section` (a title, the sentences that say how to 
 table) or None where there is nothing to show: the results per estimator, the paper checks, the
 consistency findings, the diverged runs, the attitude estimators, the landmark sightings, the
 closed loop and the metrics windows. :func:`text_table` prints a section in the terminal;
-:func:`summary_pages` typesets them (:mod:`navsim.report.tables`).
+:func:`summary_figures` and :func:`window_figures` typeset them (:mod:`navsim.report.tables`).
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from navsim.records.states import SIGMA_STATES
 from navsim.report.tables import FAIL, PASS, WARN, Heading, Paragraph, Table, layout
 from navsim.scoring.metrics import RunMetrics
+from navsim.scoring.scorer import NORM_QUANTITIES
 from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary
 
 #: below this share of epochs inside its 95 % band a NEES or NIS is called out
@@ -60,7 +61,8 @@ def results(metrics: RunMetrics, settle_s: float) -> Section:
         f"Results over {metrics.runs_done} runs",
         f"RMS of the errors after {settle_s:g} s, over every counted run and epoch (N, E, D; attitude as a "
         "rotation vector). NEES: average of the navigation errors' NEES and the share of epochs inside its "
-        "95 % band; NIS: the same share for the measurement least often inside (which: under Consistency); "
+        f"95 % band, also from {settle_s:g} s on; NIS: the same share for the measurement least often inside "
+        "(which: under Consistency); "
         "converged: when "
         "the RMS position error settles; cost: wall time per run of the batched filter, without compiling "
         "its kernels.",
@@ -193,11 +195,12 @@ def windows(metrics: RunMetrics, spans=()) -> list[Section]:
                 continue
             nees = "" if w.nees is None else f"NEES {num(w.nees.average)}, {pct(w.nees.fraction_inside)} in band"
             for j, (q, v) in enumerate(w.quantities.items()):
-                rows.append([label if j == 0 else "", q, num(v.max_pos), num(v.max_neg), num(v.std), num(v.rms),
-                             nees if j == 0 else ""])
+                norm = q in NORM_QUANTITIES
+                rows.append([label if j == 0 else "", q + (" (norm)" if norm else ""), num(v.max_pos),
+                             "-" if norm else num(v.max_neg), num(v.std), num(v.rms), nees if j == 0 else ""])
         span = f" ({times[name][0]:g}-{times[name][1]:g} s)" if name in times else ""
         out.append(Section(f"Window '{name}'{span}", "Errors over the window, every run: largest positive and "
-                           "negative, standard deviation and RMS.",
+                           "negative (a norm has no negative side), standard deviation and RMS.",
                            ["estimator", "quantity", "max +", "max -", "std", "RMS", "consistency"], rows))
     return out
 
@@ -235,17 +238,16 @@ def run_details(scenario, record: dict) -> str:
             + ", ".join(f"{k} {v}" for k, v in record["versions"].items()) + ".")
 
 
-def summary_pages(scenario, record: dict, metrics: RunMetrics) -> list:
-    """``[("summary", fig), ...]``: the description, the sections and the run's details, then
-    the metrics windows on pages of their own."""
+def summary_figures(scenario, record: dict, metrics: RunMetrics) -> list:
+    """The summary's figures: the description, the sections and the run's details."""
     blocks = [Paragraph(scenario.description.strip() or "(no description)", size=8.5)]
     for s in sections(metrics, scenario):
         blocks += _blocks(s)
     blocks += [Heading("Run"), Paragraph(run_details(scenario, record), size=7, colour="#333333")]
-    figs = layout(f"navsim report: {scenario.name}", blocks)
-    pages = [("summary" if i == 0 else f"summary_{i + 1}", f) for i, f in enumerate(figs)]
+    return layout(f"navsim report: {scenario.name}", blocks)
+
+
+def window_figures(scenario, metrics: RunMetrics) -> list:
+    """The metrics windows' tables, on pages of their own (none without windows)."""
     win = [b for s in windows(metrics, scenario.windows) for b in _blocks(s)]
-    if win:
-        figs = layout(f"{scenario.name}: metrics windows", win)
-        pages += [("windows" if i == 0 else f"windows_{i + 1}", f) for i, f in enumerate(figs)]
-    return pages
+    return layout(f"{scenario.name}: metrics windows", win) if win else []

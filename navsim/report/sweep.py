@@ -14,7 +14,7 @@ import numpy as np
 
 from navsim.experiment.sweep import SweepResult
 from navsim.foundations.outputs import OutputFolder
-from navsim.report.pages import pyplot
+from navsim.report.figures import pyplot
 from navsim.scoring.verdicts import num
 
 

@@ -89,6 +89,10 @@ class DivergenceLog:
         return Divergence(self.count, dict(self.causes), list(self.listed))
 
 
+#: the windows' quantities that are norms (never negative: no "largest negative" to show)
+NORM_QUANTITIES = frozenset({"speed_mps"})
+
+
 def window_quantities(h, good) -> dict:
     """The windows' quantities of the runs ``good`` of history ``h``, ``(R, E)`` each."""
     pos = h.pos_err_m[good]

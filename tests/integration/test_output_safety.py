@@ -409,12 +409,12 @@ def test_sigkill_ends_the_workers_and_resume_completes(tiny, tmp_path):
 
 
 def test_a_full_disk_in_report_pdf_is_exit_4(tiny, tmp_path, monkeypatch, capsys):
-    from navsim.report import pages
-    write_pdf = pages._write_pdf
+    from navsim.report import render
+    write_pdf = render._write_pdf
 
     def onto_a_full_disk(path, pages_, title):   # PdfPages opens a file whose writes meet ENOSPC
         write_pdf("/dev/full", pages_, title)
-    monkeypatch.setattr(pages, "_write_pdf", onto_a_full_disk)
+    monkeypatch.setattr(render, "_write_pdf", onto_a_full_disk)
     code = main(["run", str(tiny[0]), "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert code == 4 and "report.pdf" in err and "No space left on device" in err, err

@@ -75,20 +75,21 @@ def report(request, repo_root, shipped_flight):
     result = navsim.run(scenario, runs=1, seed=1, workers=1)      # the pages, not the statistics
     pages = navsim.report_figures(result)
     yield request.param, result, pages
-    for _, fig in pages:
-        plt.close(fig)
+    for page in pages:
+        plt.close(page.figure)
 
 
 def test_no_text_outside_its_page_and_no_tick_labels_overprinted(report):
     name, _, pages = report
     assert pages, f"{name}: no pages"
     problems = []
-    for page, fig in pages:
+    for page in pages:
+        fig = page.figure
         fig.set_dpi(PNG_DPI)
         fig.canvas.draw()
         renderer = fig.canvas.get_renderer()
-        problems += [f"{name}/{page}: outside: {p}" for p in text_outside(fig, renderer)]
-        problems += [f"{name}/{page}: overprinted: {p}" for p in overprinted_ticks(fig, renderer)]
+        problems += [f"{name}/{page.name}: outside: {p}" for p in text_outside(fig, renderer)]
+        problems += [f"{name}/{page.name}: overprinted: {p}" for p in overprinted_ticks(fig, renderer)]
     assert not problems, "\n".join(problems)
 
 
@@ -96,8 +97,8 @@ def test_every_page_written_as_a_png_and_the_verdicts_on_the_first(report, tmp_p
     name, result, pages = report
     files = navsim.write_report(result, tmp_path / name)
     pngs = sorted(p.stem for p in files if p.suffix == ".png")
-    assert pages and pngs == sorted(page for page, _ in pages) and all(p.stat().st_size > 20_000 for p in files)
-    first = pages[0][1]
+    assert pages and pngs == sorted(page.name for page in pages) and all(p.stat().st_size > 20_000 for p in files)
+    first = next(page.figure for page in pages if page.name == "summary")
     texts = [t for t in first.findobj(Text) if t.get_text() in ("pass", "FAIL")]
     headed = any("Paper against ours" in t.get_text() for t in first.findobj(Text))
     if result.scenario.reference is None:                   # no paper numbers: no block
@@ -136,10 +137,10 @@ def test_estimators_at_different_periods_share_the_pages(repo_root, shipped_flig
     assert len(h["free SINS"].t_s) != len(h["BD/SINS/ADS ES-KF 16"].t_s)
     pages = navsim.report_figures(result)
     try:
-        for name, fig in pages:
-            fig.set_dpi(PNG_DPI)
-            fig.canvas.draw()
-            assert not text_outside(fig, fig.canvas.get_renderer()), name
+        for page in pages:
+            page.figure.set_dpi(PNG_DPI)
+            page.figure.canvas.draw()
+            assert not text_outside(page.figure, page.figure.canvas.get_renderer()), page.name
     finally:
-        for _, fig in pages:
-            plt.close(fig)
+        for page in pages:
+            plt.close(page.figure)

@@ -1,5 +1,5 @@
 """The report's pages to PNGs and one PDF: a forked child draws the PNGs while the parent draws
-the PDF (navsim.report.pages._render); a failure in either is reported as the OutputError it is."""
+the PDF (navsim.report.render.render); a failure in either is reported as the OutputError it is."""
 
 import contextlib
 import errno
@@ -11,7 +11,8 @@ import pytest
 
 from navsim.foundations.errors import OutputError
 from navsim.foundations.outputs import OutputFolder
-from navsim.report import pages as report
+from navsim.report import render as report
+from navsim.report.figures import Page
 
 matplotlib.use("Agg")
 
@@ -21,7 +22,7 @@ def pages():
     for name in ("a", "b", "c"):
         fig = matplotlib.figure.Figure(figsize=(3, 2))
         fig.add_subplot().plot([0, 1], [0, len(name)])
-        out.append((name, fig))
+        out.append(Page(name, name, fig))
     return out
 
 
@@ -29,7 +30,7 @@ def pages():
 def test_every_page_to_a_png_and_the_pdf(tmp_path, monkeypatch, fork):
     monkeypatch.setattr(report, "_can_fork", lambda: fork)
     folder = OutputFolder(tmp_path / "out")
-    files = report._render(folder, pages(), ["pdf", "png"], "t")
+    files = report.render(folder, pages(), ["pdf", "png"], "t")
     assert sorted(p.name for p in files) == ["a.png", "b.png", "c.png", "report.pdf"]
     assert all(p.stat().st_size > 1000 for p in files)
     pdf = (tmp_path / "out" / "report.pdf").read_bytes()
@@ -49,7 +50,7 @@ def test_a_png_that_cannot_be_written_is_reported_with_its_path_and_hint(tmp_pat
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", full)
     folder = OutputFolder(tmp_path / "out")
     with pytest.raises(OutputError) as err:
-        report._render(folder, pages(), ["pdf", "png"], "t")
+        report.render(folder, pages(), ["pdf", "png"], "t")
     assert err.value.path.endswith("b.png") and "No space left on device" in str(err.value)
     assert "free some space" in str(err.value) and err.value.errno == errno.ENOSPC
     assert (tmp_path / "out" / "a.png").exists() and not (tmp_path / "out" / "b.png").exists()
@@ -63,7 +64,7 @@ def test_a_fork_that_fails_falls_back_to_drawing_in_turn(tmp_path, monkeypatch):
         raise OSError(11, "Resource temporarily unavailable")
     monkeypatch.setattr(os, "fork", no_fork)
     before = _pipes()
-    files = report._render(OutputFolder(tmp_path / "out"), pages(), ["pdf", "png"], "t")
+    files = report.render(OutputFolder(tmp_path / "out"), pages(), ["pdf", "png"], "t")
     assert sorted(p.name for p in files) == ["a.png", "b.png", "c.png", "report.pdf"]
     assert _pipes() == before                                          # the pipe closed again
 

@@ -1,0 +1,136 @@
+"""What every report figure shares: pyplot on the Agg backend, one page size, the estimators'
+colours, the shading of metric windows and landmark sightings, the mean over runs that a
+landed closed-loop run leaves NaN."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from navsim.report.tables import PAGE_IN
+from navsim.scoring.metrics import RunMetrics
+
+#: every page of a report: A4 portrait (the text pages' size), inches
+FIGURE_IN = PAGE_IN
+#: the strip kept free at the foot of every page for its number, inches
+FOOTER_IN = 0.4
+
+
+@dataclass(frozen=True)
+class Page:
+    """One page of a report: ``name`` the stem of its PNG, ``title`` its line in the contents."""
+
+    name: str
+    title: str
+    figure: Figure = field(repr=False)
+
+
+@dataclass(frozen=True)
+class ReportInput:
+    """What a page source reads: the scenario, the flight (``truth``, None where none is drawn),
+    the run's histories and records (``result``: a :class:`navsim.api.Result` or anything with
+    ``histories``, ``truth_bias`` and ``calibration``), the scorer's numbers (``metrics``: every
+    statistic a page prints comes from there), the run's record, and for a closed loop its
+    per-run outcomes and truth-guided flight; ``sightings`` the landmark sightings
+    ``(name, start_s, end_s, sigma_m)``."""
+
+    scenario: object
+    truth: object
+    result: object
+    metrics: RunMetrics
+    record: dict
+    loop: object = None
+    reference: object = None
+    sightings: tuple = ()
+
+    @property
+    def histories(self) -> dict:
+        return self.result.histories
+
+    @property
+    def runs_plotted(self) -> int:
+        return self.scenario.report.get("runs_plotted", 5)
+
+    @property
+    def spans(self) -> tuple:
+        """The metric windows and the landmark sightings, shaded on the time plots."""
+        return tuple(self.scenario.windows) + tuple(self.sightings)
+
+
+def pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def page_figure(rows: int = 1, cols: int = 1, **kw):
+    """``(figure, axes)`` of one report page (:data:`FIGURE_IN`): ``plt.subplots`` on a page."""
+    return pyplot().subplots(rows, cols, figsize=FIGURE_IN, **kw)
+
+
+def fit(fig, top: float = 1.0) -> None:
+    """``tight_layout`` above the page's foot (:data:`FOOTER_IN`) and below ``top`` (a share of
+    the height: room for a title and legend drawn on the figure)."""
+    fig.tight_layout(rect=(0, FOOTER_IN / fig.get_figheight(), 1, top))
+
+
+def titled(fig, name: str, title: str) -> Page:
+    """The page ``name`` of ``fig`` under ``title`` (also its line in the contents), fitted."""
+    fig.suptitle(title, fontsize=11)
+    fit(fig)
+    return Page(name, title, fig)
+
+
+def head(fig, title: str, handles: list, ncol: int, size: float = 11.0) -> None:
+    """``title`` and a legend of ``handles`` in ``ncol`` columns across the top of the page, the
+    axes fitted under them and above the foot."""
+    height = fig.get_figheight()
+    fig.suptitle(title, fontsize=size, y=1 - 0.25 / height, va="top")
+    rows = -(-len(handles) // max(ncol, 1))
+    fig.legend(handles=handles, loc="upper center", ncol=ncol, fontsize=7.5, frameon=False,
+               bbox_to_anchor=(0.5, 1 - 0.5 / height))
+    fit(fig, 1 - (0.45 + 0.15 * rows) / height)
+
+
+def nanmean(x):
+    """Mean over the runs (axis 0) of what they have: a closed-loop run's records end at its
+    landing (NaN after it)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmean(x, axis=0)
+
+
+def shade(ax, spans, label: bool = False):
+    """Shade the metric windows ``(name, start_s, end_s)`` (fault, interference) in orange and
+    landmark sightings ``(name, start_s, end_s, sigma_m)`` in green; ``label``: each window's
+    name at the top of its span."""
+    for span in spans:
+        name, a, b = span[:3]
+        if len(span) > 3:
+            ax.axvspan(a, b, color="tab:green", alpha=0.25, lw=0)
+            continue
+        ax.axvspan(a, b, color="tab:orange", alpha=0.12, lw=0)
+        if label:
+            ax.text((a + b) / 2, 0.97, name, transform=ax.get_xaxis_transform(), fontsize=6.5, ha="center",
+                    va="top", color="0.3", clip_on=True)
+
+
+def estimator_colours(labels) -> dict:
+    """A colour per estimator, distinct up to 20 (tab10, or tab20 beyond ten)."""
+    labels = list(labels)
+    cmap = pyplot().cm.tab10 if len(labels) <= 10 else pyplot().cm.tab20
+    return {k: cmap(i % cmap.N) for i, k in enumerate(labels)}
+
+
+def legend_columns(labels) -> int:
+    """Legend columns that keep a row of long labels inside the figure."""
+    longest = max((len(str(lb)) for lb in labels), default=0)
+    return 4 if longest <= 28 else 2 if longest <= 60 else 1
+
+
+def slug(label: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in label).strip("_").lower()
