@@ -47,6 +47,7 @@ from navsim.foundations.provenance import provenance
 from navsim.records.chunk import ChunkPart
 from navsim.records.history import ARRAYS, ARRAY_FIELDS, EPOCH_ARRAYS, EstimatorHistory
 from navsim.records.states import SIGMA_STATES
+from navsim.records.truth import CalibrationHistory, TruthBias
 from navsim.report.pages import report_pages as _report_pages, write_report as _write_report
 from navsim.scoring.closed_loop import closed_loop_metrics
 from navsim.scoring.landmarks import sighting_spans
@@ -74,6 +75,12 @@ class Result:
         How the run was made, as ``run.json`` holds it (seed, runs, workers, versions, git).
     folder : Path or None
         Where it was written (None: held in memory only).
+    truth_bias : TruthBias or None
+        The IMU's true biases at the first estimator's epochs over the runs ``histories`` hold
+        (:class:`~navsim.records.truth.TruthBias`); None: none recorded.
+    calibration : dict
+        Magnetometer name -> its online calibration over those runs
+        (:class:`~navsim.records.truth.CalibrationHistory`); empty: none calibrated online.
 
     Every field of :class:`~navsim.experiment.runner.RunResult` (``runs``, ``histories``,
     ``failed``, ...) is one of its own, of the same name: :meth:`from_run` copies them all.
@@ -86,8 +93,8 @@ class Result:
     record: dict
     folder: Path | None = None
     truth: object = None
-    truth_bias: dict = field(default_factory=dict)
-    calibration: dict = field(default_factory=dict)
+    truth_bias: TruthBias | None = None
+    calibration: dict[str, CalibrationHistory] = field(default_factory=dict)
     failed: dict = field(default_factory=dict)
     interrupted: bool = False
     loop: runner.LoopRuns | None = None
@@ -419,7 +426,7 @@ def open_result(folder) -> Result:
     except ScenarioError as exc:
         raise UsageError(f"{folder}: its scenario.resolved.yaml does not parse any more ({exc})") from None
     store = ChunkStore.open(folder / "chunks") if (folder / "chunks" / "index.json").is_file() else None
-    histories, runs, bias, calib = {}, np.array([], int), {}, {}
+    histories, runs, bias, calib = {}, np.array([], int), None, {}
     merged = store.merged(runner.REPORT_RUNS) if store is not None else None
     if merged is not None:
         runs, histories, bias, calib = np.asarray(merged.runs, int), merged.histories, merged.truth_bias, merged.calibration

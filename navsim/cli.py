@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import io
 import logging
 import math
@@ -362,18 +363,17 @@ def cmd_replay(args) -> int:
         bar.close()
     folder.clear_earlier()
     out = folder.path
-    metrics = replay_metrics(result)
     record = provenance()
-    metrics.update(wall_s=time.perf_counter() - t0, provenance=record)
-    folder.json("metrics.json", metrics)
+    metrics = dataclasses.replace(replay_metrics(result), wall_s=time.perf_counter() - t0, provenance=record)
+    folder.json("metrics.json", metrics.to_dict())
     folder.record(write_replay_report(out, result, metrics, record))
     print(f"{name} against PX4's vehicle_attitude, after {args.settle:g} s:")
     print(_table(*difference_table(metrics)))
-    for reset in metrics["resets"]:
-        print(f"reset at {reset['t_s']:.2f} s: {reset['cause']}")
-    c = metrics["cost"]
-    print(f"\n{log.duration_s:.1f} s of log replayed {c['real_time_factor']:.0f}x faster than real time "
-          f"({c['us_per_imu_cycle']:.0f} us per IMU cycle); wrote {out}/ "
+    for reset in metrics.resets:
+        print(f"reset at {reset.t_s:.2f} s: {reset.cause}")
+    c = metrics.cost
+    print(f"\n{log.duration_s:.1f} s of log replayed {c.real_time_factor:.0f}x faster than real time "
+          f"({c.us_per_imu_cycle:.0f} us per IMU cycle); wrote {out}/ "
           "(metrics.json, attitude.png, replay.pdf)")
     return 0
 

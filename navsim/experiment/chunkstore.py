@@ -7,8 +7,10 @@ failed with their error. Chunk files and the index are written to a temporary na
 so a run killed at any moment leaves a consistent folder that ``navsim run --resume`` completes.
 
 A chunk is the worker's :class:`~navsim.records.chunk.ChunkPart`; every field of
-:class:`~navsim.records.history.EstimatorHistory` round-trips exactly: arrays are stored as they are
-(no pickle), the per-run reset events, the NIS names and dimensions and the cost go to a JSON
+:class:`~navsim.records.history.EstimatorHistory`, :class:`~navsim.records.truth.TruthBias` and
+:class:`~navsim.records.truth.CalibrationHistory` round-trips exactly: arrays are stored as they are
+(no pickle; ``h<i>.<field>``, ``bias.<field>``, ``c<i>.<field>``), the per-run reset events, the NIS
+names and dimensions, the cost and the names of the bias and calibration arrays held go to a JSON
 string inside the same file.
 
 Each chunk file also carries its identity (``ident``: the store's key, i.e. the scenario hash,
@@ -37,7 +39,8 @@ from navsim.foundations.errors import OutputError, UsageError
 from navsim.foundations.outputs import temporary_name, write_atomic
 from navsim.records.chunk import ChunkPart
 from navsim.records.cost import sum_cost
-from navsim.records.history import ARRAY_FIELDS, EstimatorHistory
+from navsim.records.history import ARRAY_FIELDS, ARRAYS, EstimatorHistory
+from navsim.records.truth import CALIBRATION_SHARED, CalibrationHistory, TruthBias
 
 log = logging.getLogger(__name__)
 INDEX = "index.json"
@@ -46,6 +49,8 @@ _ARRAYS = ARRAY_FIELDS
 IDENT = "ident"
 #: the entries of a chunk file that are not arrays over its runs
 _META_ENTRIES = ("meta", IDENT)
+#: the history arrays (``h<i>.<name>``) without a run axis, the same in every chunk
+_HISTORY_SHARED = tuple(name for name in _ARRAYS if "run" not in ARRAYS[name][0])
 #: the index's entries -> the JSON type they must have (the key's and the chunk lists)
 INDEX_TYPES = {"scenario_hash": str, "seed": int, "runs": int, "chunk_runs": int, "chunks": dict, "failed": dict}
 
@@ -74,7 +79,8 @@ def job_chunks(runs: int, size: int) -> list[range]:
 def part_arrays(part: ChunkPart, ident: dict | None = None) -> dict:
     """The arrays of a chunk part for :func:`numpy.savez`, with a JSON ``meta`` entry and, with
     ``ident`` (the store's key), the JSON identity entry :data:`IDENT`."""
-    runs, hist, bias, calib = part.runs, part.histories, part.truth_bias, part.calibration
+    runs, hist, calib = part.runs, part.histories, part.calibration
+    bias = part.truth_bias.arrays() if part.truth_bias is not None else {}
     arrays = {"runs": np.asarray(list(runs), dtype=np.int64)}
     meta = {"labels": list(hist), "bias": list(bias), "calibration": {}, "histories": []}
     for i, (label, h) in enumerate(hist.items()):
@@ -86,8 +92,8 @@ def part_arrays(part: ChunkPart, ident: dict | None = None) -> dict:
             "resets": h.resets, "divergence": getattr(h, "divergence", None)})
     arrays.update({f"bias.{k}": np.asarray(v) for k, v in bias.items()})
     for i, (name, c) in enumerate(calib.items()):
-        meta["calibration"][name] = list(c)
-        arrays.update({f"c{i}.{k}": np.asarray(v) for k, v in c.items()})
+        meta["calibration"][name] = list(c.arrays())
+        arrays.update({f"c{i}.{k}": np.asarray(v) for k, v in c.arrays().items()})
     arrays["meta"] = np.array(json.dumps(meta, default=float))
     if ident is not None:
         runs = list(part.runs)
@@ -110,8 +116,8 @@ def part_from_arrays(data) -> ChunkPart:
             resets=None if resets is None else [[tuple(e) for e in run] for run in resets],
             divergence=None if divergence is None else [None if r is None else (float(r[0]), str(r[1]))
                                                         for r in divergence])
-    bias = {k: data[f"bias.{k}"] for k in meta["bias"]}
-    calib = {name: {k: data[f"c{i}.{k}"] for k in keys}
+    bias = TruthBias.from_arrays({k: data[f"bias.{k}"] for k in meta["bias"]})
+    calib = {name: CalibrationHistory.from_arrays({k: data[f"c{i}.{k}"] for k in keys})
              for i, (name, keys) in enumerate(meta["calibration"].items())}
     return ChunkPart(list(data["runs"].tolist()), hist, bias, calib)
 
@@ -167,8 +173,15 @@ def _readable(path: Path) -> bool:
 
 
 def _shared(key: str) -> bool:
-    """Whether an array of a stored part is the same for every chunk (no leading run axis)."""
-    return key in _META_ENTRIES or key.endswith((".t_s", ".turns"))
+    """Whether an array of a stored part is the same for every chunk (no leading run axis): the
+    JSON entries, a history's arrays declared without a run axis (``h<i>.t_s``) and a calibration
+    history's (``c<i>.t_s``, ``c<i>.turns``)."""
+    group, _, name = key.partition(".")
+    if key in _META_ENTRIES:
+        return True
+    if re.fullmatch(r"h\d+", group):
+        return name in _HISTORY_SHARED
+    return bool(re.fullmatch(r"c\d+", group)) and name in CALIBRATION_SHARED
 
 
 def check_index(index, path: Path) -> dict:

@@ -57,6 +57,7 @@ from navsim.foundations.errors import FlightError, ScenarioError
 from navsim.foundations.transform import quat_from_euler
 from navsim.navigation.estimators import factory
 from navsim.records.history import EPOCH_ARRAYS
+from navsim.records.truth import TruthBias
 from navsim.sensors import emulate
 from navsim.sensors.imu import OnlineIncrements, error_increments, quantize_increment
 
@@ -169,7 +170,7 @@ class LoopBatch:
     path_t_s: np.ndarray         #: (E,) times of the recorded paths (the estimators' epochs)
     path_n_m: np.ndarray         #: (B, E, 3) true north, east, height from the track start
     point_n_m: tuple | None      #: the recovery point, north/east from the track start
-    truth_bias: dict             #: gyro_bias/accel_bias (B, E, 3) at the epochs
+    truth_bias: TruthBias        #: gyro_bias/accel_bias (B, E, 3) at the epochs
     truth: Truth | None = None   #: the whole truth of the first run (``keep_truth``)
 
 
@@ -428,14 +429,14 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
     return _batch(scenario.flight, fleet, tally, loop.histories())
 
 
-def _truth_bias(imu_err: dict, histories: dict, dt: float, B: int) -> dict:
+def _truth_bias(imu_err: dict, histories: dict, dt: float, B: int) -> TruthBias:
     """The IMU's true gyro and accelerometer biases ``(B, E, 3)`` at the estimators' epochs."""
     ks = np.round(next(iter(histories.values())).t_s / dt).astype(int)
     bias = {}
     for key in ("gyro_bias", "accel_bias"):
         v = np.broadcast_to(imu_err[key], (B, imu_err[key].shape[1], 3))
         bias[key] = v[:, ks] if v.shape[1] > 1 else np.repeat(v, len(ks), axis=1)
-    return bias
+    return TruthBias(**bias)
 
 
 def _batch(fc, fleet: _Fleet, tally: _Tally, histories: dict) -> LoopBatch:

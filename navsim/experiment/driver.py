@@ -28,7 +28,7 @@ from navsim.navigation import kernels
 from navsim.navigation.strapdown import NavState, state_from_truth
 from navsim.records.cost import compile_seconds, compute_clock
 from navsim.records.history import EPOCH_ARRAYS, EstimatorHistory, epoch_shape
-from navsim.records.states import ATT, POS, VEL
+from navsim.records.states import ATT, BLOCKS, POS, SIGMA_STATES, VEL
 from navsim.sensors.base import Measurements, run_generators
 
 log = logging.getLogger(__name__)
@@ -41,6 +41,10 @@ SYMMETRY_TOL = 1e-6
 #: the scaled covariance plus this times the identity must have a Cholesky factorisation
 #: (positive semi-definite up to rounding: a zero initial uncertainty is not a divergence)
 PSD_TOL = 1e-9
+
+
+#: the field of :class:`InitialErrors` that holds each block of the states
+_DRAWN = {"att": "att_rad", "vel": "vel_mps", "pos": "pos_m"}
 
 
 @dataclass(frozen=True)
@@ -57,16 +61,21 @@ class InitialErrors:
     def draw(self, seed: int, runs) -> np.ndarray:
         """``(B, 9)`` errors of the runs, in the order of
         :data:`~navsim.records.states.SIGMA_STATES` (att rad, vel m/s, pos NED m)."""
-        sig = np.concatenate([self.att_rad, self.vel_mps, self.pos_m])
+        sig = np.empty(len(SIGMA_STATES))
+        for name, block in BLOCKS.items():
+            sig[block] = getattr(self, _DRAWN[name])
         if self.fixed:
-            return np.broadcast_to(sig, (len(list(runs)), 9)).copy()
-        return np.stack([g.standard_normal(9) for g in run_generators(seed, runs, "initial")]) * sig
+            return np.broadcast_to(sig, (len(list(runs)), sig.size)).copy()
+        return np.stack([g.standard_normal(sig.size) for g in run_generators(seed, runs, "initial")]) * sig
 
     def sigma_blocks(self, lat_rad: float, h_m: float) -> dict:
+        """The 1-sigma of each block of :data:`~navsim.records.states.BLOCKS` for a filter's
+        initial covariance: attitude (rad), velocity (m/s), position as latitude and longitude
+        (rad) and height (m) at ``lat_rad``, ``h_m``."""
         r_m, r_n = earth.radii(lat_rad)
         pos = np.array([self.pos_m[0] / (r_m + h_m), self.pos_m[1] / ((r_n + h_m) * math.cos(lat_rad)),
                         self.pos_m[2]])
-        return {"att": self.att_rad, "vel": self.vel_mps, "pos": pos}
+        return {name: pos if name == "pos" else getattr(self, field) for name, field in _DRAWN.items()}
 
 
 def perturbed_start(truth, errors: np.ndarray, k: int = 0) -> NavState:

@@ -36,6 +36,7 @@ from navsim.navigation.estimators import factory
 from navsim.navigation.magcal import calibration_history
 from navsim.records.chunk import ChunkPart, merge_parts
 from navsim.records.history import EPOCH_ARRAYS
+from navsim.records.truth import CalibrationHistory, TruthBias
 from navsim.sensors import emulate
 from navsim.sensors.imu import ImuStream, emulate_imu, seen_bias
 from navsim.version import __version__
@@ -149,9 +150,9 @@ class RunResult:
     runs: np.ndarray                     #: run indices finished
     failed: dict = field(default_factory=dict)   #: run -> error message
     interrupted: bool = False
-    truth_bias: dict = field(default_factory=dict)   #: gyro/accel true bias at epochs (B, E, 3)
+    truth_bias: TruthBias | None = None   #: gyro/accel true bias at epochs (B, E, 3); None: none
     #: magnetometer name -> its online calibration scored against the truth (navsim.navigation.magcal)
-    calibration: dict = field(default_factory=dict)
+    calibration: dict[str, CalibrationHistory] = field(default_factory=dict)
     #: the chunk store every finished run is in (streamed runs), or None (all runs in memory)
     store: object = None
     #: the runs ``histories``, ``truth_bias`` and ``calibration`` hold (streamed: the first
@@ -188,7 +189,7 @@ def _chunk_work(truth_or_path, scenario, seed, runs):
     first = next(iter(hist.values()))
     idx = np.searchsorted(imu.t_s, first.t_s - 1e-9)
     if isinstance(imu, ImuStream):
-        bias = imu.bias(idx)
+        bias = TruthBias(**imu.bias(idx))
     else:
         bias = {k: np.broadcast_to(imu.errors[k], (len(runs), max(imu.errors[k].shape[1], 1), 3))
                 for k in ("gyro_bias", "accel_bias")}
@@ -197,7 +198,8 @@ def _chunk_work(truth_or_path, scenario, seed, runs):
         for key, x in (("gyro", truth.omega_ib_b_rps), ("accel", truth.f_b_mps2)):
             if f"{key}_matrix" in imu.errors:
                 bias[f"{key}_bias_seen"] = seen_bias(bias[f"{key}_bias"], imu.errors[f"{key}_matrix"], x[at])
-    calib = {name: calibration_history(truth, others[name], s["noise_uT"] * 1e-6, s["forgetting"])
+        bias = TruthBias(**bias)
+    calib = {name: CalibrationHistory(**calibration_history(truth, others[name], s["noise_uT"] * 1e-6, s["forgetting"]))
              for name, s in calibrated.items()}
     return ChunkPart(list(runs), hist, bias, calib)
 
@@ -391,7 +393,8 @@ def _pad_part(chunk: LoopChunk, t_full, path_t_full) -> LoopChunk:
             setattr(h, name, _pad(getattr(h, name), E))
         h.nis = {k: _pad(v, E) for k, v in h.nis.items()}
         h.t_s = t_full
-    bias = {k: _pad(v, E) for k, v in chunk.part.truth_bias.items()}
+    bias = chunk.part.truth_bias
+    bias = bias if bias is None else TruthBias.from_arrays({k: _pad(v, E) for k, v in bias.arrays().items()})
     loop = replace(chunk.loop, path_n_m=_pad(chunk.loop.path_n_m, len(path_t_full)), path_t_s=path_t_full)
     return LoopChunk(replace(chunk.part, truth_bias=bias), loop, chunk.failed)
 

@@ -1,25 +1,51 @@
 """The metric vocabulary: the dotted paths of an estimator's ``metrics.json`` entry that a
 scenario's ``reference:`` and a sweep's ``metric`` may name (``rms.pos_m``,
-``windows.<name>.pos_m.rms``, ``diverged_runs``), checked by :func:`check_metric_path`."""
+``windows.<name>.height_m.rms``, ``nis.<measurement>.fraction_inside``, ``diverged_runs``),
+derived from the fields of :class:`~navsim.records.metrics.EstimatorMetrics` and checked by
+:func:`check_metric_path`."""
 
 from __future__ import annotations
 
+import dataclasses
+import types
+import typing
+
 from navsim.foundations.config import close_match
 from navsim.foundations.errors import ScenarioError
+from navsim.records.metrics import EstimatorMetrics
 
-#: the first part of a metric path (``rms.pos_m``, ``windows.<name>.pos_m.rms``) in metrics.json
-METRIC_HEADS = ("rms", "final", "max_abs", "p99", "windows", "attitude", "resets", "nees", "nis", "cost")
+
+def _plain_type(tp):
+    """``X`` of ``X | None``."""
+    if typing.get_origin(tp) in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        return args[0] if len(args) == 1 else tp
+    return tp
+
+
+def _field_types(cls) -> dict:
+    """Field name -> its type (``None`` removed) of the dataclass ``cls``."""
+    hints = typing.get_type_hints(cls)
+    return {f.name: _plain_type(hints[f.name]) for f in dataclasses.fields(cls)}
+
+
+_ESTIMATOR = _field_types(EstimatorMetrics)
+#: the first part of a metric path with a rest (``rms.pos_m``, ``windows.<name>.height_m.rms``):
+#: the sections of :class:`EstimatorMetrics`
+METRIC_HEADS = tuple(k for k, t in _ESTIMATOR.items() if dataclasses.is_dataclass(t) or typing.get_origin(t) is dict)
 #: the metrics of an estimator that are one number (no dotted rest)
-SCALAR_METRICS = ("runs_counted", "diverged_runs", "convergence_s")
-#: the error statistics, each per quantity
-ERROR_QUANTITIES = ("pos_m", "vel_mps", "att_deg")
-_QUANTITIES = {head: ERROR_QUANTITIES for head in ("rms", "final", "max_abs", "p99")}
+SCALAR_METRICS = tuple(k for k, t in _ESTIMATOR.items() if t in (int, float))
+#: a section's fields, which the second part of its paths must name (sections keyed by a name,
+#: ``windows`` and ``nis``, are checked by the name: a window of the scenario, any measurement)
+SECTION_FIELDS = {k: tuple(_field_types(t)) for k, t in _ESTIMATOR.items() if dataclasses.is_dataclass(t)}
+#: the error statistics, each per quantity (:class:`~navsim.records.metrics.ErrorStats`)
+ERROR_QUANTITIES = SECTION_FIELDS["rms"]
 
 
 def check_metric_path(path: str, windows, *, file: str | None, key: str) -> None:
     """Raise :class:`ScenarioError` unless ``path`` names a metric of an estimator's
-    metrics.json (:data:`METRIC_HEADS`; ``windows.<name>`` a window of ``windows``, each
-    ``(name, start_s, end_s)``)."""
+    metrics.json (:data:`METRIC_HEADS`, :data:`SECTION_FIELDS`; ``windows.<name>`` a window of
+    ``windows``, each ``(name, start_s, end_s)``)."""
     head, _, rest = path.partition(".")
     if head in SCALAR_METRICS and not rest:
         return
@@ -27,13 +53,11 @@ def check_metric_path(path: str, windows, *, file: str | None, key: str) -> None
         raise ScenarioError(f"'{path}' is not a metric", file=file, key=key,
                             expected=" or ".join([f"{h}.*" for h in METRIC_HEADS] + list(SCALAR_METRICS)),
                             hint=close_match(head, METRIC_HEADS + SCALAR_METRICS))
-    quantity = rest.split(".")[0]
-    if head in _QUANTITIES and quantity not in _QUANTITIES[head]:
+    part = rest.split(".")[0]
+    if head in SECTION_FIELDS and part not in SECTION_FIELDS[head]:
         raise ScenarioError(f"'{path}' is not a metric", file=file, key=key,
-                            expected=" or ".join(f"{head}.{q}" for q in _QUANTITIES[head]),
-                            hint=close_match(quantity, _QUANTITIES[head]))
-    if head == "windows":
-        name = rest.split(".")[0]
-        if name not in [w[0] for w in windows]:
-            raise ScenarioError(f"window '{name}' is not defined under metrics.windows", file=file, key=key,
-                                hint=close_match(name, [w[0] for w in windows]))
+                            expected=" or ".join(f"{head}.{q}" for q in SECTION_FIELDS[head]),
+                            hint=close_match(part, SECTION_FIELDS[head]))
+    if head == "windows" and part not in [w[0] for w in windows]:
+        raise ScenarioError(f"window '{part}' is not defined under metrics.windows", file=file, key=key,
+                            hint=close_match(part, [w[0] for w in windows]))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.records.truth import TruthBias
 from navsim.report.figures import Page, ReportInput, head, page_figure, pyplot, slug
 
 #: a bias whose 1-sigma ends above this share of its initial value was not observed
@@ -17,23 +18,23 @@ _BIAS_UNITS = {"gyro_bias": ("gyro", 180 / np.pi * 3600, "deg/h"), "accel_bias":
 _BIAS_LARGE = {"gyro_bias": (180 / np.pi, "deg/s"), "accel_bias": (1e3 / 9.80665, "mg")}
 
 
-def _bias_unit(key: str, truth_bias: dict) -> tuple[float, str]:
+def _bias_unit(key: str, truth_bias: TruthBias) -> tuple[float, str]:
     """The scale and unit of ``key``'s plots: deg/h or deg/s, µg or mg, by the truth's size."""
     _, scale, unit = _BIAS_UNITS[key]
-    truth = truth_bias.get(f"{key}_seen", truth_bias.get(key))
-    if truth is not None and np.nanmax(np.abs(truth)) * scale > 1000:
+    if np.nanmax(np.abs(truth_bias.seen(key))) * scale > 1000:
         return _BIAS_LARGE[key]
     return scale, unit
 
 
-def _seen_differs(truth_bias: dict) -> bool:
+def _seen_differs(truth_bias: TruthBias) -> bool:
     """Whether the bias a state sees differs from the additive bias (scale factors or
     misalignments in the truth model)."""
-    return any(f"{k}_seen" in truth_bias and k in truth_bias and np.nanmax(np.abs(truth_bias[f"{k}_seen"]
-               - truth_bias[k])) * _BIAS_UNITS[k][1] > 1e-3 for k in _BIAS_UNITS)
+    return any(getattr(truth_bias, f"{k}_seen") is not None
+               and np.nanmax(np.abs(truth_bias.seen(k) - getattr(truth_bias, k))) * _BIAS_UNITS[k][1] > 1e-3
+               for k in _BIAS_UNITS)
 
 
-def _bias_axis(ax, h, key: str, j: int, truth_bias: dict, runs: int, colours, truth_t) -> None:
+def _bias_axis(ax, h, key: str, j: int, truth_bias: TruthBias, runs: int, colours, truth_t) -> None:
     """One bias axis of one estimator: per run (its own colour) the estimate (solid) with its
     ±1 sigma band, the bias its state can see (dashed) and the additive bias alone (dotted)
     where they differ (``truth_t``: their times, the first estimator's epochs); the title says
@@ -41,7 +42,7 @@ def _bias_axis(ax, h, key: str, j: int, truth_bias: dict, runs: int, colours, tr
     name = _BIAS_UNITS[key][0]
     scale, unit = _bias_unit(key, truth_bias)
     est, sig = getattr(h, key), getattr(h, f"{key}_sigma")
-    seen, additive = truth_bias.get(f"{key}_seen"), truth_bias.get(key)
+    truth, additive = truth_bias.seen(key), getattr(truth_bias, key)
     differs = _seen_differs(truth_bias)
     for r in range(min(runs, est.shape[0])):
         c = colours[r]
@@ -49,9 +50,7 @@ def _bias_axis(ax, h, key: str, j: int, truth_bias: dict, runs: int, colours, tr
         if sig is not None and np.isfinite(sig[r, :, j]).any():
             ax.fill_between(h.t_s, (est[r, :, j] - sig[r, :, j]) * scale, (est[r, :, j] + sig[r, :, j]) * scale,
                             color=c, alpha=0.15, lw=0)
-        truth = seen if seen is not None else additive
-        if truth is not None:
-            ax.plot(truth_t, truth[r, :, j] * scale, color=c, lw=1.0, ls="--")
+        ax.plot(truth_t, truth[r, :, j] * scale, color=c, lw=1.0, ls="--")
         if differs:
             ax.plot(truth_t, additive[r, :, j] * scale, color=c, lw=0.8, ls=":")
     ax.set_ylabel(f"{name} {'xyz'[j]}, {unit}", fontsize=8)
@@ -84,7 +83,7 @@ def pages(inp: ReportInput) -> list[Page]:
     from matplotlib.lines import Line2D
     histories, truth_bias = inp.histories, inp.result.truth_bias
     filters = [(k, h) for k, h in histories.items() if h.gyro_bias is not None][:MAX_BIAS_PAGES]
-    if not filters or not truth_bias:
+    if not filters or truth_bias is None:
         return []
     colours = pyplot().cm.tab10(np.arange(10))
     truth_t = next(iter(histories.values())).t_s          # the truth is recorded at the first estimator's epochs

@@ -22,12 +22,12 @@ def pages(inp: ReportInput) -> list[Page]:
     out = []
     for name, cal in inp.result.calibration.items():
         fig, axs = page_figure(3, 1, sharex=True)
-        t = cal["t_s"]
-        mark = np.flatnonzero(cal["turns"] >= 2.0)
+        t = cal.t_s
+        mark = np.flatnonzero(cal.turns >= 2.0)
         t2 = t[mark[0]] if mark.size else None
-        for ax, key, title in ((axs[0], "hard_iron_err", "hard-iron error, % of |m|"),
-                               (axs[1], "soft_iron_err", "soft-iron error, % (Frobenius)")):
-            e = 100.0 * cal[key]
+        for ax, err, title in ((axs[0], cal.hard_iron_err, "hard-iron error, % of |m|"),
+                               (axs[1], cal.soft_iron_err, "soft-iron error, % (Frobenius)")):
+            e = 100.0 * err
             for r in range(min(runs_plotted, e.shape[0])):
                 ax.plot(t, e[r], color="0.6", lw=0.5)
             with warnings.catch_warnings():          # epochs where no run has an ellipsoid yet
@@ -40,7 +40,7 @@ def pages(inp: ReportInput) -> list[Page]:
             ax.set_ylabel(title, fontsize=8)
             ax.grid(alpha=0.3, which="both")
             ax2 = ax.twinx()
-            ax2.plot(t, cal["turns"], color="tab:green", lw=0.8)
+            ax2.plot(t, cal.turns, color="tab:green", lw=0.8)
             ax2.set_ylabel("full turns (true heading)", fontsize=7, color="tab:green")
         score = (metrics.calibration or {}).get(name)
         if score and score.after_turns:

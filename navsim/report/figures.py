@@ -80,8 +80,8 @@ def fit(fig, top: float = 1.0) -> None:
 
 def titled(fig, name: str, title: str) -> Page:
     """The page ``name`` of ``fig`` under ``title`` (also its line in the contents), fitted."""
-    fig.suptitle(title, fontsize=11)
-    fit(fig)
+    fig.suptitle(title, fontsize=11, y=1 - 0.25 / fig.get_figheight(), va="top")
+    fit(fig, 1 - 0.5 / fig.get_figheight())
     return Page(name, title, fig)
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from navsim.foundations.outputs import write_atomic
-from navsim.replay.metrics import AXES
+from navsim.replay.metrics import AXES, ReplayMetrics
 from navsim.replay.run import ReplayResult
 from navsim.report.figures import pyplot
 from navsim.report.tables import Heading, Paragraph, Table, layout
@@ -44,48 +44,47 @@ def attitude_figure(result: ReplayResult):
     return fig
 
 
-def summary_blocks(metrics: dict, record: dict) -> list:
+def summary_blocks(metrics: ReplayMetrics, record: dict) -> list:
     """The summary page's blocks: the differences to PX4, the replay's setup, the cost, the
-    resets and the log's notes."""
-    log, a = metrics["log"], metrics["alignment"]
+    resets and the log's notes. ``record``: the replay's provenance."""
+    m, log, a = metrics, metrics.log, metrics.alignment
     deg = lambda v: " / ".join(f"{x:.2f}" for x in v)
-    setup = [["log", f"{log['file']} ({log['duration_s']:.1f} s, {log.get('ver_hw')}, PX4 {str(log.get('ver_sw'))[:10]})"],
-             ["rates", f"IMU {log['imu_rate_hz']:.1f} Hz (grid {metrics['imu_grid_hz']:g} Hz), magnetometer "
-                       f"{log['mag_rate_hz']:.1f} Hz, baro {log['baro_rate_hz']:.1f} Hz, PX4 attitude "
-                       f"{log['px4_attitude_rate_hz']:.1f} Hz"],
-             ["estimator", f"{metrics['estimator']}, epochs every {metrics['period_s']:g} s"],
-             ["parameters", str(metrics["params"])],
-             ["alignment", f"first {a['window_s']:g} s: roll / pitch / yaw {deg(a['euler_deg'])} deg (PX4 "
-                           f"{deg(a['px4_euler_deg'])}), field N / E / D "
-                           + " / ".join(f"{x * 1e6:.1f}" for x in a["field_n_T"]) + " µT"],
-             ["declination", f"{log['declination_deg']:.2f} deg ({log['declination_source']})"],
-             ["scored", f"after {metrics['settle_s']:g} s, {metrics['samples_scored']} samples "
-                        f"(every {metrics['record_s']:g} s)"],
+    setup = [["log", f"{log.file} ({log.duration_s:.1f} s, {log.info.get('ver_hw')}, PX4 {str(log.info.get('ver_sw'))[:10]})"],
+             ["rates", f"IMU {log.imu_rate_hz:.1f} Hz (grid {m.imu_grid_hz:g} Hz), magnetometer "
+                       f"{log.mag_rate_hz:.1f} Hz, baro {log.baro_rate_hz:.1f} Hz, PX4 attitude "
+                       f"{log.px4_attitude_rate_hz:.1f} Hz"],
+             ["estimator", f"{m.estimator}, epochs every {m.period_s:g} s"],
+             ["parameters", str(m.params)],
+             ["alignment", f"first {a.window_s:g} s: roll / pitch / yaw {deg(a.euler_deg)} deg (PX4 "
+                           f"{deg(a.px4_euler_deg)}), field N / E / D "
+                           + " / ".join(f"{x * 1e6:.1f}" for x in a.field_n_T) + " µT"],
+             ["declination", f"{log.declination_deg:.2f} deg ({log.declination_source})"],
+             ["scored", f"after {m.settle_s:g} s, {m.samples_scored} samples "
+                        f"(every {m.record_s:g} s)"],
              ["navsim", f"{record['versions']['navsim']} at git {record['git_revision']}"]]
-    c = metrics["cost"]
-    blocks = [Heading(f"{metrics['estimator']} against PX4's vehicle_attitude"), Table(*difference_table(metrics)),
+    c = m.cost
+    blocks = [Heading(f"{m.estimator} against PX4's vehicle_attitude"), Table(*difference_table(m)),
               Heading("Replay"), Table(["item", "value"], setup, align=["l", "l"], max_column=0.85),
-              Paragraph(f"Cost: {c['us_per_imu_step_propagated']:.1f} µs per IMU step propagated, "
-                        f"{c['us_per_epoch']:.0f} µs per epoch, {c['us_per_imu_cycle']:.0f} µs per IMU cycle "
-                        f"({c['real_time_factor']:.0f}x real time).", size=8)]
-    if metrics["resets"]:
-        blocks += [Heading("Resets"), Table(["t, s", "cause"], [[f"{x['t_s']:.2f}", x["cause"]]
-                                                                 for x in metrics["resets"]])]
-    if log["notes"]:
-        blocks += [Heading("Notes on the log")] + [Paragraph(f"- {n}", size=8) for n in log["notes"]]
+              Paragraph(f"Cost: {c.us_per_imu_step_propagated:.1f} µs per IMU step propagated, "
+                        f"{c.us_per_epoch:.0f} µs per epoch, {c.us_per_imu_cycle:.0f} µs per IMU cycle "
+                        f"({c.real_time_factor:.0f}x real time).", size=8)]
+    if m.resets:
+        blocks += [Heading("Resets"), Table(["t, s", "cause"], [[f"{x.t_s:.2f}", x.cause] for x in m.resets])]
+    if log.notes:
+        blocks += [Heading("Notes on the log")] + [Paragraph(f"- {n}", size=8) for n in log.notes]
     return blocks
 
 
-def difference_table(metrics: dict) -> tuple[list[str], list[list[str]]]:
+def difference_table(metrics: ReplayMetrics) -> tuple[list[str], list[list[str]]]:
     """Headers and rows: |estimator - PX4| RMS, 95 %, max per axis (degrees)."""
     rows = []
     for ax in AXES:
-        d = metrics["attitude_diff_deg"][ax]
-        rows.append([ax] + (["-"] * 3 if d is None else [f"{d[k]:.3f}" for k in ("rms", "p95", "max")]))
+        d = metrics.attitude_diff_deg.axis(ax)
+        rows.append([ax] + (["-"] * 3 if d is None else [f"{v:.3f}" for v in (d.rms, d.p95, d.max)]))
     return ["axis", "RMS deg", "95% deg", "max deg"], rows
 
 
-def write_replay_report(out: Path, result: ReplayResult, metrics: dict, record: dict) -> list[Path]:
+def write_replay_report(out: Path, result: ReplayResult, metrics: ReplayMetrics, record: dict) -> list[Path]:
     """Write ``attitude.png`` and ``replay.pdf`` into ``out``; returns their paths."""
     plt = pyplot()
     from matplotlib.backends.backend_pdf import PdfPages

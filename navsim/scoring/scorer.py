@@ -19,10 +19,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from navsim.records.chunk import CALIBRATION_SHARED
 from navsim.records.cost import sum_cost
 from navsim.records.history import BLOCK_ERRORS, EstimatorHistory
 from navsim.records.states import BLOCKS
+from navsim.records.truth import CalibrationHistory
 from navsim.scoring.calibration import calibration_score, thin_calibration
 from navsim.scoring.landmarks import SightingEpochs, sighting_metrics, thin_for_sightings
 from navsim.scoring.metrics import (
@@ -371,8 +371,7 @@ def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> tuple[d
         joined = SightingEpochs(pieces[0].t_s, np.concatenate([p.pos_err_m for p in pieces]),
                                 np.concatenate([p.diverged for p in pieces]))
         out[label] = replace(out[label], landmarks=sighting_metrics(joined, sightings))
-    cal = {name: calibration_score({k: v if k in CALIBRATION_SHARED else np.concatenate([p[k] for p in ps])
-                                    for k, v in ps[0].items()}) for name, ps in calib.items()}
+    cal = {name: calibration_score(CalibrationHistory.concatenate(ps)) for name, ps in calib.items()}
     return out, cal
 
 

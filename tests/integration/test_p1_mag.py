@@ -36,8 +36,8 @@ def test_two_full_turns_calibrate_within_2_percent(result):
     assert 80 < s.t_s < 100
     # before the second turn the fit is not there yet (the pencil of two circles, then one)
     cal = res.calibration["mag"]
-    one_turn = np.flatnonzero(cal["turns"] >= 1.0)[0]
-    assert np.nanmedian(cal["hard_iron_err"][:, one_turn]) > 0.05
+    one_turn = np.flatnonzero(cal.turns >= 1.0)[0]
+    assert np.nanmedian(cal.hard_iron_err[:, one_turn]) > 0.05
 
 
 def test_magnetometer_heading_beats_gnss_alone_in_the_outage(result):

@@ -194,9 +194,9 @@ def test_p4_attitude_estimators_follow_px4_on_the_real_log(log, estimator, bound
     horizontal velocity of 1 m/s sigma without GNSS; cpf 0.02/0.03/0.45 deg). No reset."""
     from navsim.replay.metrics import replay_metrics
     m = replay_metrics(replay(log, estimator, imu_rate_hz=125.0))
-    rms = [m["attitude_diff_deg"][ax]["rms"] for ax in ("roll", "pitch", "yaw")]
+    rms = [m.attitude_diff_deg.axis(ax).rms for ax in ("roll", "pitch", "yaw")]
     assert np.all(np.array(rms) < bounds), rms
-    assert m["resets"] == []
+    assert m.resets == []
 
 
 def test_the_replay_defaults_go_where_the_estimator_reads_them():

@@ -12,6 +12,7 @@ from navsim.cli import main
 from navsim.experiment.chunkstore import ChunkStore, part_arrays, part_from_arrays
 from navsim.records.chunk import ChunkPart, merge_parts
 from navsim.records.history import EstimatorHistory
+from navsim.records.truth import CalibrationHistory, TruthBias
 
 
 @pytest.fixture(autouse=True)
@@ -52,8 +53,10 @@ def synthetic_part(runs, seed):
         nis_dim={"mag_heading:mag": 1, "baro:b": 1}, diverged=np.array([False, True]),
         cost={"propagate_s": 0.1, "epoch_s": 0.2, "runs": 2, "epochs": 3, "batches": 1},
         euler_err_rad=rng.normal(size=(2, 4, 3)), resets=[[], [(1.5 + seed, "divergence"), (2.0, "innovation")]])
-    return ChunkPart(list(runs), {"CPF-EKF": h}, {"gyro_bias": rng.normal(size=(2, 4, 3))},
-                     {"mag": {"t_s": np.arange(3.0), "turns": np.arange(3.0), "hard_iron_err": rng.random((2, 3))}})
+    bias = TruthBias(gyro_bias=rng.normal(size=(2, 4, 3)), accel_bias=rng.normal(size=(2, 4, 3)))
+    return ChunkPart(list(runs), {"CPF-EKF": h}, bias,
+                     {"mag": CalibrationHistory(np.arange(3.0), np.arange(3.0), rng.random((2, 3)),
+                                                rng.random((2, 3)))})
 
 
 def test_a_part_round_trips_every_field(same_history, tmp_path):
@@ -64,9 +67,11 @@ def test_a_part_round_trips_every_field(same_history, tmp_path):
         back = part_from_arrays(data)
     assert back.runs == [4, 5]
     same_history(h, back.histories["CPF-EKF"])
-    assert np.array_equal(back.truth_bias["gyro_bias"], part.truth_bias["gyro_bias"])
-    assert back.calibration["mag"].keys() == part.calibration["mag"].keys()
-    assert all(np.array_equal(back.calibration["mag"][k], v) for k, v in part.calibration["mag"].items())
+    assert back.truth_bias.arrays().keys() == part.truth_bias.arrays().keys() == {"gyro_bias", "accel_bias"}
+    assert all(np.array_equal(back.truth_bias.arrays()[k], v) for k, v in part.truth_bias.arrays().items())
+    assert back.calibration.keys() == {"mag"}
+    cal = back.calibration["mag"].arrays()
+    assert all(np.array_equal(cal[k], v) for k, v in part.calibration["mag"].arrays().items())
 
 
 def test_the_merged_store_equals_the_in_memory_merge(same_history, tmp_path):
@@ -77,9 +82,10 @@ def test_the_merged_store_equals_the_in_memory_merge(same_history, tmp_path):
     a, b = merge_parts(parts), store.merged()
     assert list(a.runs) == list(b.runs) == [0, 1, 2, 3]
     same_history(a.histories["CPF-EKF"], b.histories["CPF-EKF"])
-    assert np.array_equal(a.truth_bias["gyro_bias"], b.truth_bias["gyro_bias"])
-    assert a.calibration["mag"].keys() == b.calibration["mag"].keys() == {"t_s", "turns", "hard_iron_err"}
-    assert all(np.array_equal(a.calibration["mag"][k], v) for k, v in b.calibration["mag"].items())
+    assert np.array_equal(a.truth_bias.gyro_bias, b.truth_bias.gyro_bias)
+    assert np.array_equal(a.truth_bias.accel_bias, b.truth_bias.accel_bias) and b.truth_bias.gyro_bias_seen is None
+    assert a.calibration.keys() == b.calibration.keys() == {"mag"}
+    assert all(np.array_equal(a.calibration["mag"].arrays()[k], v) for k, v in b.calibration["mag"].arrays().items())
 
 
 def test_stored_chunks_equal_the_in_memory_histories(same_history, short, tmp_path):
@@ -97,8 +103,9 @@ def test_stored_chunks_equal_the_in_memory_histories(same_history, short, tmp_pa
     assert memory.histories and memory.histories.keys() == stored.histories.keys()
     for label in memory.histories:
         same_history(memory.histories[label], stored.histories[label], timed=False)
-    assert memory.truth_bias and memory.truth_bias.keys() == stored.truth_bias.keys()
-    assert all(np.array_equal(memory.truth_bias[k], stored.truth_bias[k]) for k in memory.truth_bias)
+    held, back = memory.truth_bias.arrays(), stored.truth_bias.arrays()
+    assert held and held.keys() == back.keys()
+    assert all(np.array_equal(held[k], back[k]) for k in held)
     index = json.loads((tmp_path / "chunks" / "index.json").read_text())
     assert index["chunks"]["2-3"] == "chunk_2-3.npz" and index["failed"] == {} and index["seed"] == 4
 

@@ -3,6 +3,7 @@ recorder filling every epoch array the history declares, and the chunk's documen
 
 import inspect
 import re
+from dataclasses import fields
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -18,6 +19,7 @@ from navsim.navigation.strapdown import state_from_truth
 from navsim.records.chunk import ChunkPart
 from navsim.records.history import ARRAYS, BLOCK_ERRORS, EPOCH_ARRAYS
 from navsim.records.states import ATT, BLOCKS, DIM_SIZES, POS, POS_NE, SIGMA_STATES, VEL
+from navsim.records.truth import TruthBias
 
 
 def test_the_named_blocks_are_the_sigma_states():
@@ -84,12 +86,15 @@ def test_the_recorder_fills_every_declared_epoch_array():
     assert h.diverged.all() and h.divergence[0] == (0.30000000000000004, "RuntimeError: stub")
 
 
-def test_the_chunk_names_the_truth_bias_keys_it_holds():
-    """``truth_bias``'s comment named ``gyro_rad_s``/``accel_mps2``, keys nothing makes."""
+def test_the_chunk_names_the_truth_bias_fields_it_holds():
+    """``truth_bias``'s comment named ``gyro_rad_s``/``accel_mps2``, keys nothing makes; it is a
+    :class:`TruthBias` now, whose fields the comment names."""
     hist = SimpleNamespace(t_s=np.array([0.0, 0.1]))
-    keys = _truth_bias({"gyro_bias": np.zeros((1, 1, 3)), "accel_bias": np.zeros((1, 1, 3))}, {"a": hist}, 0.1, 2)
+    bias = _truth_bias({"gyro_bias": np.zeros((1, 1, 3)), "accel_bias": np.zeros((1, 1, 3))}, {"a": hist}, 0.1, 2)
+    assert isinstance(bias, TruthBias) and list(bias.arrays()) == ["gyro_bias", "accel_bias"]
+    assert bias.gyro_bias.shape == (2, 2, 3) and bias.gyro_bias_seen is None
     assert navsim.scoring.ChunkPart is ChunkPart and navsim.api.ChunkPart is ChunkPart     # one class
     doc = inspect.getsource(navsim.scoring.ChunkPart)
-    for key in [*keys, *(f"{k}_seen" for k in keys)]:
-        assert f'``"{key}"``' in doc, key
+    for key in (f.name for f in fields(TruthBias)):
+        assert f"``{key}``" in doc, key
     assert "gyro_rad_s" not in doc and "accel_mps2" not in doc

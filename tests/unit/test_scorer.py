@@ -7,6 +7,7 @@ from scipy.stats import chi2
 
 from navsim.records.chunk import ChunkPart, merge_parts
 from navsim.records.history import EstimatorHistory
+from navsim.records.truth import CalibrationHistory
 from navsim.scoring.calibration import calibration_score
 from navsim.scoring.landmarks import sighting_metrics
 from navsim.scoring.scorer import score, score_parts, score_run
@@ -144,9 +145,10 @@ def test_landmark_and_calibration_scores_from_chunks_equal_the_merged_ones(close
     turns = np.linspace(0, 3, T)
 
     def cal(n):
-        return {"t_s": np.arange(T) * 2.0, "turns": turns, "hard_iron_err": rng.random((n, T)),
-                "soft_iron_err": rng.random((n, T))}
-    parts = [ChunkPart(list(range(a, a + n)), {"KF": history(rng, n)}, {}, {"mag": cal(n)}) for a, n in ((0, 4), (4, 6))]
+        return CalibrationHistory(t_s=np.arange(T) * 2.0, turns=turns, hard_iron_err=rng.random((n, T)),
+                                  soft_iron_err=rng.random((n, T)))
+    parts = [ChunkPart(list(range(a, a + n)), {"KF": history(rng, n)}, None, {"mag": cal(n)})
+             for a, n in ((0, 4), (4, 6))]
     # sightings: one at the start, one across the records' end, two in between
     spans = [("cam landmark 1", 0.0, 3.0, 2.0), ("cam landmark 2", 40.5, 44.2, 1.5),
              ("cam landmark 3", 70.0, 70.0, 3.0), ("cam landmark 4", 110.0, 400.0, 2.0)]
@@ -158,5 +160,5 @@ def test_landmark_and_calibration_scores_from_chunks_equal_the_merged_ones(close
     assert whole.after_turns is not None and whole.runs == 10
     # against the calibration history itself: the first epoch after two turns, over all runs
     k = int(np.flatnonzero(turns >= 2.0)[0])
-    hard = 100 * merged.calibration["mag"]["hard_iron_err"][:, k]
+    hard = 100 * merged.calibration["mag"].hard_iron_err[:, k]
     assert whole.after_turns.hard_iron_pct.p95 == pytest.approx(np.percentile(hard, 95), rel=1e-12)

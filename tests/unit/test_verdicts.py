@@ -123,3 +123,22 @@ def test_bad_references_name_their_key(data, key, words):
         reference(data)
     text = str(exc.value)
     assert key in text and words in text, text
+
+
+def test_the_metric_vocabulary_is_the_metrics_dataclasses():
+    """Every section and field of EstimatorMetrics is a path a reference may name (a new field
+    needs no second list), and a misspelt field is refused with the field it meant."""
+    import dataclasses
+
+    from navsim.records.vocabulary import METRIC_HEADS, SCALAR_METRICS, SECTION_FIELDS
+    names = {f.name for f in dataclasses.fields(EstimatorMetrics)}
+    assert set(METRIC_HEADS) | set(SCALAR_METRICS) == names
+    for head, parts in SECTION_FIELDS.items():
+        for part in parts:
+            check_metric_path(f"{head}.{part}", [], file="s.yaml", key="k")
+    check_metric_path("windows.w.height_m.rms", [("w", 0, 1)], file="s.yaml", key="k")
+    check_metric_path("nis.gnss_position:bd.fraction_inside", [], file="s.yaml", key="k")
+    with pytest.raises(ScenarioError, match="fraction_inside"):
+        check_metric_path("nees.fraction_insde", [], file="s.yaml", key="k")
+    with pytest.raises(ScenarioError, match="p95_deg"):
+        check_metric_path("attitude.p95deg", [], file="s.yaml", key="k")
