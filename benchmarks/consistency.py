@@ -33,7 +33,7 @@ def rows_of(name: str, runs, seed) -> list[str]:
         per = m.nees.per_state or [float("nan")]
         worst = sorted(zip(SIGMA_STATES, per), key=lambda kv: abs(kv[1] - 1.0), reverse=True)[:2]
         nis = "; ".join(f"{k} {v.average:.2f} ({100 * v.fraction_inside:.0f} %)" for k, v in (m.nis or {}).items())
-        out.append(f"| `{name}` | {label} | {result.record['runs']} / {result.record['seed']} | "
+        out.append(f"| `{name}` | {label} | {result.record.runs} / {result.record.seed} | "
                    f"{m.nees.average:.2f} ({m.nees.band[0]:.2f}-{m.nees.band[1]:.2f}) | "
                    f"{100 * m.nees.fraction_inside:.0f} % | {min(per):.2f}-{max(per):.2f} "
                    f"({', '.join(f'{k} {v:.2f}' for k, v in worst)}) | {nis} |")

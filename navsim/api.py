@@ -4,7 +4,7 @@ its report. ``navsim run`` is this API with a progress bar and a summary table.
 >>> import navsim
 >>> scenario = navsim.load_scenario("scenarios/p0_bd_sins_ads.yaml")
 >>> result = navsim.run(scenario, runs=20, workers=2)          # out=None: nothing is written
->>> result.metrics.estimators["BD/SINS/ADS ES-KF 16"].rms.pos_m   # typed (navsim.scoring.metrics)
+>>> result.metrics.estimators["BD/SINS/ADS ES-KF 16"].rms.pos_m   # typed (navsim.records.metrics)
 >>> ds = result.to_xarray()                                    # run x epoch x axis, with units
 >>> navsim.write_report(result, "reports/p0")                 # report.pdf, PNGs, metrics.json
 >>> again = navsim.open_result("reports/p0")                   # read-only
@@ -17,6 +17,7 @@ written with :func:`write_report`.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import time
@@ -46,12 +47,13 @@ from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.provenance import provenance
 from navsim.records.chunk import ChunkPart
 from navsim.records.history import ARRAYS, ARRAY_FIELDS, EPOCH_ARRAYS, EstimatorHistory
+from navsim.records.run import RunRecord
 from navsim.records.states import SIGMA_STATES
 from navsim.records.truth import CalibrationHistory, TruthBias
 from navsim.report.pages import report_pages as _report_pages, write_report as _write_report
 from navsim.scoring.closed_loop import closed_loop_metrics
 from navsim.scoring.landmarks import sighting_spans
-from navsim.scoring.metrics import RunMetrics
+from navsim.records.metrics import RunMetrics
 from navsim.scoring.scorer import score_run
 from navsim.scoring.verdicts import judge
 
@@ -70,9 +72,10 @@ class Result:
         Estimator label -> :class:`~navsim.records.history.EstimatorHistory` (``(R, E, ...)`` arrays;
         above :data:`navsim.experiment.runner.REPORT_RUNS` runs read from a folder, the first chunks only).
     metrics : RunMetrics
-        The scores (:mod:`navsim.scoring.metrics`); ``metrics.to_dict()`` is ``metrics.json``.
-    record : dict
-        How the run was made, as ``run.json`` holds it (seed, runs, workers, versions, git).
+        The scores (:mod:`navsim.records.metrics`); ``metrics.to_dict()`` is ``metrics.json``.
+    record : RunRecord
+        How the run was made (seed, runs, workers, versions, git):
+        :class:`~navsim.records.run.RunRecord`, ``record.to_dict()`` is ``run.json``.
     folder : Path or None
         Where it was written (None: held in memory only).
     truth_bias : TruthBias or None
@@ -90,7 +93,7 @@ class Result:
     runs: np.ndarray
     histories: dict
     metrics: RunMetrics | None
-    record: dict
+    record: RunRecord
     folder: Path | None = None
     truth: object = None
     truth_bias: TruthBias | None = None
@@ -106,7 +109,7 @@ class Result:
     history_runs: np.ndarray | None = None
 
     @classmethod
-    def from_run(cls, scenario: Scenario, rr: runner.RunResult, record: dict, **rest) -> "Result":
+    def from_run(cls, scenario: Scenario, rr: runner.RunResult, record: RunRecord, **rest) -> "Result":
         """The (unscored) result of the runner's ``rr``: every field of
         :class:`~navsim.experiment.runner.RunResult`, by name, and ``rest`` (``truth``, ``loop``,
         ``reference``, ...)."""
@@ -147,9 +150,9 @@ class Result:
         ds = xr.Dataset(data, coords={k: v for k, v in coords.items()
                                       if k in ("estimator", "run", "t_s") or any(k in v.dims for v in data.values())})
         ds["diverged"] = (("estimator", "run"), np.stack([h.diverged for h in hists.values()]))
-        ds.attrs.update({"scenario": self.scenario.name, "seed": int(self.record.get("seed", -1)),
-                         "navsim": str(self.record.get("versions", {}).get("navsim", "")),
-                         "git_revision": str(self.record.get("git_revision", ""))})
+        ds.attrs.update({"scenario": self.scenario.name, "seed": int(self.record.seed),
+                         "navsim": str(self.record.versions.get("navsim", "")),
+                         "git_revision": str(self.record.git_revision or "")})
         return ds
 
 
@@ -212,8 +215,8 @@ def _run(scenario, how: "_How", folder) -> Result:
     runs, seed, workers = how.runs, how.seed, how.workers
     t0 = time.perf_counter()
     result = (_closed_loop if scenario.closed_loop is not None else _open_loop)(scenario, how, folder)
-    result.record = {"scenario": None if scenario.path is None else str(scenario.path), "runs": runs, "runs_done": int(len(result.runs)),
-                     "seed": seed, "workers": workers, **result.record}
+    result.record = dataclasses.replace(result.record, scenario=None if scenario.path is None else str(scenario.path),
+                                        runs=runs, runs_done=int(len(result.runs)), seed=seed, workers=workers)
     _score(result, time.perf_counter() - t0)
     if folder is not None:
         _write_run(result, folder)
@@ -244,8 +247,7 @@ def _closed_loop(scenario, how: _How, folder) -> Result:
         folder.clear_earlier()
     with children_die_with_parent():
         rr, loop, reference = run_closed_loop(scenario, how.runs, how.seed, how.workers, progress=how.progress)
-    record = {"flight_cached": False, "flight_key": flight_key(scenario.flight), "executor": how.executor,
-              "scheduler": None, "resumed": False}
+    record = RunRecord(flight_cached=False, flight_key=flight_key(scenario.flight), executor=how.executor)
     return Result.from_run(scenario, rr, record, truth=reference.truth, loop=loop, reference=reference)
 
 
@@ -263,10 +265,10 @@ def _open_loop(scenario, how: _How, folder) -> Result:
         rr = run_monte_carlo(scenario, truth, truth_path, how.runs, how.seed, how.workers, progress=how.progress,
                              chunk_runs=size, store=store, executor=how.executor, scheduler=how.scheduler,
                              keep_runs=runner.REPORT_RUNS if store is not None else None)
-    record = {"flight_cached": cached, "flight_key": flight_key(scenario.flight), "executor": how.executor,
-              "scheduler": how.scheduler, "resumed": bool(how.resume), "chunk_runs": size}
+    record = RunRecord(flight_cached=cached, flight_key=flight_key(scenario.flight), executor=how.executor,
+                       scheduler=how.scheduler, resumed=bool(how.resume), chunk_runs=size)
     if store is not None:
-        record.update(failed_chunks=store.failed, per_run_data="chunks/")
+        record = dataclasses.replace(record, failed_chunks=store.failed, per_run_data="chunks/")
     return Result.from_run(scenario, rr, record, truth=truth)
 
 
@@ -297,25 +299,25 @@ def _score(result: Result, wall_s: float) -> None:
     closed = None
     if sc.closed_loop is not None:
         closed = closed_loop_metrics(result.loop, result.reference, sc.closed_loop, result.histories)
-    result.metrics = RunMetrics(sc.name, result.record["runs"], int(len(result.runs)), result.record["seed"],
+    result.metrics = RunMetrics(sc.name, result.record.runs, int(len(result.runs)), result.record.seed,
                                 {str(k): v for k, v in result.failed.items()}, result.interrupted, estimators,
                                 calibration or None, closed, wall_s, judge(sc.reference, estimators))
     plotted = len(result.runs) if result.history_runs is None else len(result.history_runs)
-    result.record.update(failed_runs=result.failed, interrupted=result.interrupted, wall_s=wall_s,
-                         **provenance(), runs_plotted=plotted)
+    result.record = dataclasses.replace(result.record, failed_runs=dict(result.failed), interrupted=result.interrupted,
+                                        wall_s=wall_s, **provenance(), runs_plotted=plotted)
 
 
-def _write_run(result: Result, folder: OutputFolder, record: dict | None = None) -> None:
+def _write_run(result: Result, folder: OutputFolder, record: RunRecord | None = None) -> None:
     """``metrics.json``, ``scenario.resolved.yaml``, ``run.json`` (``record``, default the
     result's) and, for a run without a chunk store whose every history is in memory, ``runs.npz``
     into ``folder``: per-run data is kept once, in ``chunks/`` or there."""
     record = result.record if record is None else record
     folder.json("metrics.json", result.metrics.to_dict())
     folder.text("scenario.resolved.yaml",
-                f"# resolved by navsim {result.record['versions']['navsim']} at git {result.record['git_revision']}\n"
+                f"# resolved by navsim {result.record.versions['navsim']} at git {result.record.git_revision}\n"
                 + yaml.safe_dump(resolved_scenario(result), sort_keys=False))
-    folder.json("run.json", record)
-    if result.store is None and result.histories and result.record["runs_plotted"] == len(result.runs):
+    folder.json("run.json", record.to_dict())
+    if result.store is None and result.histories and result.record.plotted == len(result.runs):
         arrays = {"runs": result.runs, NPZ_KEYS: np.array(NPZ_KEYS_VERSION)}
         for label, h in result.histories.items():
             key = npz_key(label)
@@ -368,8 +370,7 @@ def _npz_histories(path: Path, labels) -> tuple:
 def resolved_scenario(result: Result) -> dict:
     """The scenario's mapping with the ``montecarlo`` settings the run used."""
     resolved = dict(result.scenario.raw)
-    resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": result.record["runs"],
-                              "seed": result.record["seed"], "workers": result.record["workers"]}
+    resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), **result.record.montecarlo()}
     return resolved
 
 
@@ -388,7 +389,7 @@ def _write_report_into(folder: OutputFolder, result: Result) -> list[Path]:
     if result.folder is None or folder.path.resolve() != Path(result.folder).resolve():
         record = result.record                  # the chunks stay where the run wrote them
         if result.store is not None:
-            record = dict(record, per_run_data=str(Path(result.store.folder).resolve()))
+            record = dataclasses.replace(record, per_run_data=str(Path(result.store.folder).resolve()))
         _write_run(result, folder, record)
     return _write_report(folder, result.scenario, _truth(result), result, result.metrics, result.record,
                          result.loop, result.reference, result.sightings)
@@ -417,12 +418,12 @@ def open_result(folder) -> Result:
     folder = Path(folder)
     try:
         metrics = RunMetrics.from_dict(json.loads((folder / "metrics.json").read_text()))
-        record = json.loads((folder / "run.json").read_text())
+        record = RunRecord.from_dict(json.loads((folder / "run.json").read_text()))
         raw = yaml.safe_load((folder / "scenario.resolved.yaml").read_text())
     except (OSError, ValueError, KeyError, TypeError, yaml.YAMLError) as exc:
         raise UsageError(f"{folder}: not a finished navsim run ({exc})") from None
     try:
-        scenario = parse_scenario(raw, record.get("scenario"))
+        scenario = parse_scenario(raw, record.scenario)
     except ScenarioError as exc:
         raise UsageError(f"{folder}: its scenario.resolved.yaml does not parse any more ({exc})") from None
     store = ChunkStore.open(folder / "chunks") if (folder / "chunks" / "index.json").is_file() else None
@@ -434,8 +435,7 @@ def open_result(folder) -> Result:
         runs, histories = _npz_histories(folder / "runs.npz", metrics.estimators)
     every = np.asarray(store.runs(), int) if store is not None else runs
     return Result(scenario, every, histories, metrics, record, folder=folder, truth_bias=bias, calibration=calib,
-                  failed={int(k): v for k, v in record.get("failed_runs", {}).items()},
-                  interrupted=bool(record.get("interrupted")), store=store,
+                  failed=dict(record.failed_runs), interrupted=bool(record.interrupted), store=store,
                   history_runs=None if len(runs) == len(every) else runs)
 
 

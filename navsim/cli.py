@@ -206,7 +206,7 @@ def cmd_run(args) -> int:
         run, why = min(result.failed.items())
         note += f"; {len(result.failed)} run(s) failed, the first (run {run}): {why}"
     out = folder.path
-    print(f"\n{len(result.runs)}/{runs} runs in {result.record['wall_s']:.1f} s{note}; wrote {out}/: "
+    print(f"\n{len(result.runs)}/{runs} runs in {result.record.wall_s:.1f} s{note}; wrote {out}/: "
           + artifacts(out, files))
     if result.interrupted:
         return 130
@@ -284,7 +284,7 @@ def cmd_sensors(args) -> int:
 def _point_line(n: int, total: int, point: dict, values: dict, res) -> str:
     what = ", ".join(f"{short_key(k)}={v}" for k, v in point.items())
     got = ", ".join(f"{lb} {num(v)}" for lb, v in values.items())
-    return f"point {n + 1}/{total} ({what}): {got} [{len(res.runs)} runs, {res.record['wall_s']:.1f} s]"
+    return f"point {n + 1}/{total} ({what}): {got} [{len(res.runs)} runs, {res.record.wall_s:.1f} s]"
 
 
 def cmd_sweep(args) -> int:

@@ -31,8 +31,9 @@ Sensors: every run's sensor errors are its own random streams, drawn as in open 
 same emulators (on a static record as long as ``time_limit_s``: the errors of the supported
 sensors do not depend on the trajectory) and added to the run's own truth as it is flown: IMU
 (scale factor, misalignment, biases, noise, vibration, quantization; the IMU rate must be the
-flight rate), GNSS (no latency, lever arm or interference: they depend on the trajectory) and
-barometer. Other kinds are refused with a clear error.
+flight rate) and every kind whose registration says how it flies in the loop
+(:class:`navsim.sensors.registry.InLoop`: GNSS without latency, lever arm or interference, which
+depend on the trajectory, and barometer). Other kinds are refused with a clear error.
 
 JSBSim holds one aircraft per instance, so the physics and the scalar autopilot step each run
 in turn; sensors and estimators are batched over the runs.
@@ -51,7 +52,6 @@ from navsim.flight.segments import State
 from navsim.flight.simulator import Aircraft, Watchdog
 from navsim.flight.track import Segment
 from navsim.flight.truth import Truth, truth_from_rows
-from navsim.foundations import atmosphere, earth
 from navsim.foundations.config import MAX_DURATION_S, Node, close_match
 from navsim.foundations.errors import FlightError, ScenarioError
 from navsim.foundations.transform import quat_from_euler
@@ -59,9 +59,9 @@ from navsim.navigation.estimators import factory
 from navsim.records.history import EPOCH_ARRAYS
 from navsim.records.truth import TruthBias
 from navsim.sensors import emulate
+from navsim.sensors.registry import LoopSample, get as get_kind, kinds as sensor_kinds
 from navsim.sensors.imu import OnlineIncrements, error_increments, quantize_increment
 
-SUPPORTED_KINDS = ("imu", "gnss", "baro")
 RETURN_LABEL = "return to land"
 
 
@@ -82,6 +82,25 @@ class ClosedLoopConfig:
     return_to_land: ReturnToLand | None = None
 
 
+def in_loop_kinds() -> list[str]:
+    """The sensor kinds a closed loop flies: the IMU and every registered kind that declares how
+    (:class:`navsim.sensors.registry.InLoop`)."""
+    return ["imu"] + [k.name for k in sensor_kinds() if k.in_loop is not None and k.name != "imu"]
+
+
+def _check_in_loop(c, file) -> None:
+    """Sensor ``c`` (a SensorConfig) can fly in the closed loop, or a ScenarioError says why."""
+    key, kind = f"sensors.{c.name}", get_kind(c.kind)
+    if c.kind != "imu" and kind.in_loop is None:
+        raise ScenarioError(f"is a {c.kind}, whose errors depend on the trajectory: it cannot be "
+                            "flown in the loop", file=file, key=key,
+                            expected="with closed_loop, sensors of kinds " + ", ".join(in_loop_kinds()),
+                            hint="remove it from this scenario or fly it open loop")
+    refusal = kind.in_loop.refuse(c) if kind.in_loop is not None and kind.in_loop.refuse is not None else None
+    if refusal is not None:
+        raise ScenarioError(refusal.what, file=file, key=key, expected=refusal.expected, hint=refusal.hint)
+
+
 def parse_closed_loop(node: Node, labels: list[str], sensors, track, duration_s: float,
                       rate_hz: float) -> ClosedLoopConfig:
     """Validate a scenario's ``closed_loop`` block (``sensors``: the scenario's SensorConfigs)."""
@@ -97,18 +116,7 @@ def parse_closed_loop(node: Node, labels: list[str], sensors, track, duration_s:
                             hint="launches and parked vehicles are open loop only")
     imu = [c for c in sensors if c.kind == "imu"]
     for c in sensors:
-        key = f"sensors.{c.name}"
-        if c.kind not in SUPPORTED_KINDS:
-            raise ScenarioError(f"is a {c.kind}, whose errors depend on the trajectory: it cannot be "
-                                "flown in the loop", file=node.file, key=key,
-                                expected="with closed_loop, sensors of kinds " + ", ".join(SUPPORTED_KINDS),
-                                hint="remove it from this scenario or fly it open loop")
-        if c.kind == "gnss" and (c.spec.latency_s or np.any(c.spec.lever_arm_b)
-                                 or any(f.type == "interference" for f in c.faults)):
-            raise ScenarioError("has latency, a lever arm or interference, which depend on the "
-                                "trajectory", file=node.file, key=key,
-                                expected="with closed_loop, a GNSS whose errors do not",
-                                hint="override latency: 0 s and lever_arm: [0, 0, 0] m")
+        _check_in_loop(c, node.file)
     if imu and abs(imu[0].spec.rate_hz - rate_hz) > 1e-9:
         raise ScenarioError(f"runs at {imu[0].spec.rate_hz:g} Hz, the flight at {rate_hz:g} Hz",
                             file=node.file, key=f"sensors.{imu[0].name}",
@@ -190,23 +198,6 @@ def _matvec(M: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``M @ v`` for stacks ``(B, 3, 3)``, ``(B, 3)`` with the same operations whatever ``B``
     (einsum may pick another summation path for another batch size)."""
     return M[:, :, 0] * v[:, None, 0] + M[:, :, 1] * v[:, None, 1] + M[:, :, 2] * v[:, None, 2]
-
-
-def _fill(data, j: int, rows: np.ndarray) -> None:
-    """Sample ``j`` of a sensor from the runs' true state ``rows`` plus the run's own error."""
-    lat, lon, h = rows[:, P.COL_LAT], rows[:, P.COL_LON], rows[:, P.COL_H]
-    v = data.values
-    if data.kind == "gnss":
-        err = data.errors["pos_error_n_m"][:, j]
-        r_m, r_n = earth.radii(lat)
-        v["lat_rad"][:, j] = lat + err[:, 0] / (r_m + h)
-        v["lon_rad"][:, j] = lon + err[:, 1] / ((r_n + h) * np.cos(lat))
-        v["h_m"][:, j] = h - err[:, 2]
-        if "vel_n_mps" in v:
-            v["vel_n_mps"][:, j] = rows[:, P.COL_VN:P.COL_VD + 1] + data.errors["vel_error_n_mps"][:, j]
-    elif data.kind == "baro":
-        v["h_baro_m"][:, j] = h + data.errors["h_error_m"][:, j]
-        v["p_static_pa"][:, j] = atmosphere.pressure(v["h_baro_m"][:, j])
 
 
 def _guidance(nav, craft0) -> tuple:
@@ -314,9 +305,10 @@ def _advance(fleet: _Fleet, loop, inc, rows: np.ndarray, k: int) -> None:
     dv = _matvec(err["accel_matrix"], dv) + err["accel"][:, k]
     dth = quantize_increment(dth, spec.gyro, dt)
     dv = quantize_increment(dv, spec.accel, dt)
+    sample = LoopSample(rows[:, P.COL_LAT], rows[:, P.COL_LON], rows[:, P.COL_H], rows[:, P.COL_VN:P.COL_VD + 1])
     for data in fleet.sensors.values():
         if k % data.meta["step"] == 0:
-            _fill(data, k // data.meta["step"], rows)
+            get_kind(data.kind).in_loop.fill(data, k // data.meta["step"], sample)
     loop.advance(dth[:, None], dv[:, None], k * dt, fleet.sensors, view, 0)
 
 

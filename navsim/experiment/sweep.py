@@ -114,7 +114,7 @@ class SweepResult:
     metric: str
     failed_points: dict = field(default_factory=dict)
     interrupted: bool = False
-    #: each point's whole :class:`~navsim.scoring.metrics.RunMetrics`, in the order of ``rows``
+    #: each point's whole :class:`~navsim.records.metrics.RunMetrics`, in the order of ``rows``
     metrics: list = field(default_factory=list)
 
     def axes(self) -> dict:
@@ -163,7 +163,7 @@ def plan_sweep(path) -> SweepPlan:
 
 def point_values(plan: SweepPlan, estimators: dict) -> dict:
     """Estimator label -> the sweep's metric of one point (vectors by their norm), from the
-    point's :class:`~navsim.scoring.metrics.EstimatorMetrics`."""
+    point's :class:`~navsim.records.metrics.EstimatorMetrics`."""
     values = {}
     for label, scores in estimators.items():
         v = scores.get(plan.metric)

@@ -1,7 +1,7 @@
 """The published results a scenario reproduces (:class:`Reference`), each a check with a rule on
 one metric of one estimator (:class:`PaperCheck`; the metric a dotted path of its
 ``metrics.json`` entry, :mod:`navsim.records.vocabulary`, as
-:meth:`navsim.scoring.metrics.EstimatorMetrics.get` reads it). The rules (:data:`RULES`):
+:meth:`navsim.records.metrics.EstimatorMetrics.get` reads it). The rules (:data:`RULES`):
 
 - ``at_most``: ours ``<=`` the bound (an accuracy the paper claims: "within 1 m");
 - ``at_least``: ours ``>=`` the bound (free SINS "diverges": its error grows past a bound);

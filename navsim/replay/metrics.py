@@ -2,7 +2,7 @@
 
 :func:`replay_metrics` gives a :class:`ReplayMetrics`, the replay's ``metrics.json`` as typed
 objects: ``to_dict()`` turns it into the JSON's nested mapping and ``from_dict()`` reads it
-back (the base of :mod:`navsim.scoring.metrics`). Units and frames are in the names: ``_s``,
+back (the base of :mod:`navsim.records.metrics`). Units and frames are in the names: ``_s``,
 ``_hz``, ``_deg``, ``_rps``, ``_n_T`` (tesla, north-east-down).
 """
 
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.replay.run import ReplayResult
-from navsim.scoring.metrics import EULER_AXES as AXES, _Record
+from navsim.records.metrics import EULER_AXES as AXES, _Record
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from navsim.report.figures import Page, ReportInput, page_figure, shade, slug, titled
-from navsim.scoring.metrics import EULER_AXES
+from navsim.records.metrics import EULER_AXES
 
 
 def paper_attitude_bounds(reference) -> dict:

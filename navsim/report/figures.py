@@ -10,8 +10,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from matplotlib.figure import Figure
 
+from navsim.records.run import RunRecord
 from navsim.report.tables import PAGE_IN
-from navsim.scoring.metrics import RunMetrics
+from navsim.records.metrics import RunMetrics
 
 #: every page of a report: A4 portrait (the text pages' size), inches
 FIGURE_IN = PAGE_IN
@@ -41,7 +42,7 @@ class ReportInput:
     truth: object
     result: object
     metrics: RunMetrics
-    record: dict
+    record: RunRecord
     loop: object = None
     reference: object = None
     sightings: tuple = ()

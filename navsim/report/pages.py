@@ -5,7 +5,7 @@ returning its :class:`~navsim.report.figures.Page` objects, none where it has no
 the summary and the metrics windows (text pages), the scenario as run, the flight, the closed
 loop, then the figures by topic (errors, height, landmarks, attitude, consistency, biases,
 calibration), each in a module of its own. Every statistic a page prints is read from the
-scorer's :class:`~navsim.scoring.metrics.RunMetrics` (the numbers of ``metrics.json``); the
+scorer's :class:`~navsim.records.metrics.RunMetrics` (the numbers of ``metrics.json``); the
 curves are drawn from the runs' histories. :func:`report_pages` puts a contents page first and
 numbers every page; :func:`write_report` writes them (:mod:`navsim.report.render`). A new page is
 a function here and a line in :data:`PAGE_SOURCES`.
@@ -21,6 +21,7 @@ from navsim.flight.plots import flight_figures
 from navsim.foundations.outputs import OutputFolder
 from navsim.report import attitude, biases, calibration, closed_loop, consistency, errors, height, landmarks
 from navsim.report import scenario_page
+from navsim.records.run import RunRecord
 from navsim.report.figures import FIGURE_IN, FOOTER_IN, Page, ReportInput, pyplot
 from navsim.report.render import render
 from navsim.report.summary import summary_figures, window_figures
@@ -104,7 +105,7 @@ def number(pages: list[Page], title: str) -> None:
                          ha="center", va="bottom", fontsize=7, color="0.45")
 
 
-def report_pages(scenario, truth, result, metrics, record: dict, loop=None, reference=None, sightings=()) -> list[Page]:
+def report_pages(scenario, truth, result, metrics, record: RunRecord, loop=None, reference=None, sightings=()) -> list[Page]:
     """The report's pages in order: the contents, then every source's pages
     (:data:`PAGE_SOURCES`), each numbered at its foot."""
     inp = ReportInput(scenario, truth, result, metrics, record, loop, reference, tuple(sightings))
@@ -122,7 +123,7 @@ def report_pages(scenario, truth, result, metrics, record: dict, loop=None, refe
     return pages
 
 
-def write_report(folder: OutputFolder, scenario, truth, result, metrics, record: dict,
+def write_report(folder: OutputFolder, scenario, truth, result, metrics, record: RunRecord,
                  loop=None, reference=None, sightings=()) -> list[Path]:
     """Write the PNGs and ``report.pdf`` into the output folder ``folder`` (each name recorded
     in its manifest before it is written); returns the files written. ``loop`` and

@@ -53,8 +53,7 @@ def pages(inp: ReportInput) -> list[Page]:
     """The scenario's YAML with the ``montecarlo`` settings the run used (the first
     :data:`MAX_LINES` lines)."""
     record, resolved = inp.record, dict(inp.scenario.raw)
-    resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), "runs": record["runs"],
-                              "seed": record["seed"], "workers": record["workers"]}
+    resolved["montecarlo"] = {**(resolved.get("montecarlo") or {}), **record.montecarlo()}
     text = _wrapped(scenario_yaml(resolved))
     if len(text) > MAX_LINES:
         text = text[:MAX_LINES - 2] + ["...", "(the whole file: scenario.resolved.yaml)"]

@@ -11,9 +11,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from navsim.records.run import RunRecord
 from navsim.records.states import SIGMA_STATES
 from navsim.report.tables import FAIL, PASS, WARN, Heading, Paragraph, Table, layout
-from navsim.scoring.metrics import RunMetrics
+from navsim.records.metrics import RunMetrics
 from navsim.scoring.scorer import NORM_QUANTITIES
 from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary
 
@@ -227,18 +228,18 @@ def _blocks(section: Section) -> list:
     return out + ([Paragraph(section.note, size=7.5, colour="#333333")] if section.note else [])
 
 
-def run_details(scenario, record: dict) -> str:
-    plotted = record.get("runs_plotted", record["runs_done"])
-    return (f"Scenario file {record['scenario']}, track {scenario.flight.track.name}; {record['runs_done']} of "
-            f"{record['runs']} runs done (seed {record['seed']}, {record['workers']} workers), "
-            f"{len(record['failed_runs'])} failed{', interrupted' if record['interrupted'] else ''}"
-            + (f"; plots show the first {plotted} runs" if plotted < record["runs_done"] else "")
-            + f". Flight {'from the cache' if record['flight_cached'] else 'flown'} ({record['flight_key']}); "
-            f"wall time {record['wall_s']:.1f} s; git {record['git_revision']}; "
-            + ", ".join(f"{k} {v}" for k, v in record["versions"].items()) + ".")
+def run_details(scenario, record: RunRecord) -> str:
+    plotted = record.plotted
+    return (f"Scenario file {record.scenario}, track {scenario.flight.track.name}; {record.runs_done} of "
+            f"{record.runs} runs done (seed {record.seed}, {record.workers} workers), "
+            f"{len(record.failed_runs)} failed{', interrupted' if record.interrupted else ''}"
+            + (f"; plots show the first {plotted} runs" if plotted < record.runs_done else "")
+            + f". Flight {'from the cache' if record.flight_cached else 'flown'} ({record.flight_key}); "
+            f"wall time {record.wall_s:.1f} s; git {record.git_revision}; "
+            + ", ".join(f"{k} {v}" for k, v in record.versions.items()) + ".")
 
 
-def summary_figures(scenario, record: dict, metrics: RunMetrics) -> list:
+def summary_figures(scenario, record: RunRecord, metrics: RunMetrics) -> list:
     """The summary's figures: the description, the sections and the run's details."""
     blocks = [Paragraph(scenario.description.strip() or "(no description)", size=8.5)]
     for s in sections(metrics, scenario):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from navsim.records.truth import CalibrationHistory
-from navsim.scoring.metrics import CalibrationAt, CalibrationScore, IronErrors
+from navsim.records.metrics import CalibrationAt, CalibrationScore, IronErrors
 
 #: the calibration is scored when the true heading has made this many full turns (and at the end)
 TURNS = 2.0

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navsim.scoring.metrics import Landmarks, Sighting, SpreadStats
+from navsim.records.metrics import Landmarks, Sighting, SpreadStats
 from navsim.sensors import emulate
 
 

@@ -1,6 +1,7 @@
 """The scores' types, declared in :mod:`navsim.records.metrics` (the layer below experiment and
-scoring, so that a scenario's parser checks metric paths against them); re-exported here for
-the scorer and for code that imports them from this module."""
+scoring, so that a scenario's parser checks metric paths against them); re-exported here,
+unchanged, for plug-ins and notebooks that import them from this module (navsim itself imports
+them from :mod:`navsim.records.metrics`)."""
 
 from navsim.records.metrics import (  # noqa: F401
     AttitudeStats,
@@ -26,5 +27,4 @@ from navsim.records.metrics import (  # noqa: F401
     Window,
     WindowNees,
     lookup,
-    _Record,
 )

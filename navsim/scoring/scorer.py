@@ -1,4 +1,4 @@
-"""The one scorer: an estimator's :class:`~navsim.scoring.metrics.EstimatorMetrics` from its
+"""The one scorer: an estimator's :class:`~navsim.records.metrics.EstimatorMetrics` from its
 histories, fed chunk by chunk so that the memory does not grow with the number of runs (10 000
 runs score in the memory of one chunk); runs held in memory are a stream of one chunk
 (:func:`score`).
@@ -25,7 +25,7 @@ from navsim.records.states import BLOCKS
 from navsim.records.truth import CalibrationHistory
 from navsim.scoring.calibration import calibration_score, thin_calibration
 from navsim.scoring.landmarks import SightingEpochs, sighting_metrics, thin_for_sightings
-from navsim.scoring.metrics import (
+from navsim.records.metrics import (
     AttitudeStats,
     Cost,
     DivergedRun,
@@ -52,7 +52,7 @@ from navsim.scoring.stats import (
 
 #: diverged runs listed by run in an estimator's ``divergence`` metrics (all are counted)
 DIVERGENCE_LISTED = 20
-#: the errors scored per axis, their names in :class:`~navsim.scoring.metrics.ErrorStats`
+#: the errors scored per axis, their names in :class:`~navsim.records.metrics.ErrorStats`
 ERRORS = ("pos_m", "vel_mps", "att_deg")
 #: the dimension of the NEES (the 9 navigation errors)
 NEES_DIM = 9
@@ -339,9 +339,9 @@ def score(h: EstimatorHistory, settle_s: float = 0.0, windows=(), good=None, run
 
 def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> tuple[dict, dict]:
     """What a run is scored on, from its chunk parts: estimator label ->
-    :class:`~navsim.scoring.metrics.EstimatorMetrics` (with ``landmarks`` for an estimator with
+    :class:`~navsim.records.metrics.EstimatorMetrics` (with ``landmarks`` for an estimator with
     a covariance when there are ``sightings``) and magnetometer name ->
-    :class:`~navsim.scoring.metrics.CalibrationScore`.
+    :class:`~navsim.records.metrics.CalibrationScore`.
 
     Parameters
     ----------
@@ -376,7 +376,7 @@ def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> tuple[d
 
 
 def score_parts(parts, settle_s: float = 0.0, windows=()) -> dict:
-    """Label -> :class:`~navsim.scoring.metrics.EstimatorMetrics` over chunk parts (as
+    """Label -> :class:`~navsim.records.metrics.EstimatorMetrics` over chunk parts (as
     :func:`score_run`)."""
     return score_run(parts, settle_s, windows)[0]
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from navsim.records.reference import Reference
-from navsim.scoring.metrics import EstimatorMetrics, Verdict
+from navsim.records.metrics import EstimatorMetrics, Verdict
 
 #: the mark of each verdict, in the terminal and on the report's first page: a check with a rule
 #: whose metric we do not have (or is not a number of the bound's shape) is "no value", never

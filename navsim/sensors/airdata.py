@@ -25,7 +25,7 @@ import numpy as np
 from navsim.foundations import atmosphere as atm
 from navsim.foundations.transform import dcm_from_quat
 from navsim.sensors.base import SensorData, apply_outages, gauss_markov, normals, sampling
-from navsim.sensors.registry import ErrorTerm, Field, Output, SensorKind, register
+from navsim.sensors.registry import ErrorTerm, Field, InLoop, Output, SensorKind, register
 
 
 @dataclass(frozen=True)
@@ -138,6 +138,14 @@ def emulate_ads(truth, spec: AdsSpec, seed: int, runs, faults=(), name: str = "a
                       meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed, "formula": spec.formula})
 
 
+def fill_baro_in_loop(data: SensorData, j: int, sample) -> None:
+    """Sample ``j`` of a barometer in the closed loop: the runs' true height of ``sample`` (a
+    :class:`~navsim.sensors.registry.LoopSample`) plus each run's own drawn error."""
+    v = data.values
+    v["h_baro_m"][:, j] = sample.h_m + data.errors["h_error_m"][:, j]
+    v["p_static_pa"][:, j] = atm.pressure(v["h_baro_m"][:, j])
+
+
 BARO = register(SensorKind(
     name="baro", spec=BaroSpec, description="barometric altimeter",
     fields={"rate_hz": Field("rate_hz", None, "plain"), "offset": Field("offset", "length", "1", signed=True),
@@ -145,7 +153,7 @@ BARO = register(SensorKind(
             "markov_tau": Field("markov_tau_s", "time", "1"), "noise": Field("noise", "length", "1")},
     outputs=(Output("h_baro_m", "m", role="height", truth="h_m", label="baro height"), Output("p_static_pa", "Pa")),
     errors=tuple(ErrorTerm(n) for n in ("offset", "offset_sigma", "markov_sigma", "noise")),
-    emulate=emulate_baro, faults=("outage", "bias", "degraded")))
+    emulate=emulate_baro, faults=("outage", "bias", "degraded"), in_loop=InLoop(fill_baro_in_loop)))
 
 _AXES = ("north", "east", "down")
 ADS = register(SensorKind(

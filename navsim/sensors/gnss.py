@@ -17,7 +17,7 @@ import numpy as np
 from navsim.foundations import earth
 from navsim.foundations.transform import dcm_from_quat
 from navsim.sensors.base import SensorData, apply_outages, gauss_markov, normals, sampling, truth_step, zeros3
-from navsim.sensors.registry import ErrorTerm, Field, Output, SensorKind, register
+from navsim.sensors.registry import ErrorTerm, Field, InLoop, Output, Refusal, SensorKind, register
 
 
 @dataclass(frozen=True)
@@ -143,6 +143,29 @@ def position_channels(data: SensorData, truth, run: int = 0) -> list:
     return out
 
 
+def fill_in_loop(data: SensorData, j: int, sample) -> None:
+    """Fix ``j`` in the closed loop: the runs' true position (and velocity) of ``sample`` (a
+    :class:`~navsim.sensors.registry.LoopSample`) plus each run's own drawn error."""
+    v, lat, h = data.values, sample.lat_rad, sample.h_m
+    err = data.errors["pos_error_n_m"][:, j]
+    r_m, r_n = earth.radii(lat)
+    v["lat_rad"][:, j] = lat + err[:, 0] / (r_m + h)
+    v["lon_rad"][:, j] = sample.lon_rad + err[:, 1] / ((r_n + h) * np.cos(lat))
+    v["h_m"][:, j] = h - err[:, 2]
+    if "vel_n_mps" in v:
+        v["vel_n_mps"][:, j] = sample.vel_n_mps + data.errors["vel_error_n_mps"][:, j]
+
+
+def refuse_in_loop(config) -> Refusal | None:
+    """Latency, a lever arm and interference depend on the trajectory: not in the closed loop."""
+    spec = config.spec
+    if spec.latency_s or np.any(spec.lever_arm_b) or any(f.type == "interference" for f in config.faults):
+        return Refusal("has latency, a lever arm or interference, which depend on the trajectory",
+                       "with closed_loop, a GNSS whose errors do not",
+                       "override latency: 0 s and lever_arm: [0, 0, 0] m")
+    return None
+
+
 KIND = register(SensorKind(
     name="gnss", spec=GnssSpec, description="GNSS / BeiDou receiver: position and velocity fixes",
     fields={"rate_hz": Field("rate_hz", None, "plain"), "position_sigma": Field("position_sigma", "length", "3"),
@@ -159,4 +182,4 @@ KIND = register(SensorKind(
     errors=tuple(ErrorTerm(n) for n in ("position_sigma", "velocity_sigma", "markov_sigma", "latency_s",
                                         "lever_arm_b")),
     emulate=emulate_gnss, faults=("outage", "bias", "degraded", "interference"), channels=position_channels,
-    vector_bias=True))
+    vector_bias=True, in_loop=InLoop(fill_in_loop, refuse_in_loop)))

@@ -13,7 +13,9 @@ module that emulates it (``navsim/sensors/imu.py``, ``gnss.py``, ``airdata.py`` 
 * its error terms, each a named source a scenario's ``off:`` switches off (:class:`ErrorTerm`);
 * the fault windows it can have (:data:`FAULT_TYPES`);
 * its emulator and, where the default (each output with a ``truth`` against that truth field)
-  does not do, its plot channels.
+  does not do, its plot channels;
+* whether and how it flies in the closed loop (:class:`InLoop`: each sample filled from the
+  runs' true state as they fly, and the configurations refused).
 
 The catalog (:mod:`navsim.sensors.catalog`), :func:`navsim.sensors.emulate`, the fault checks
 (:func:`navsim.sensors.base.check_faults`), the scenario's field checks and ``navsim sensors``'
@@ -106,6 +108,39 @@ class ErrorTerm:
     off: object = None
 
 
+class LoopSample(NamedTuple):
+    """The runs' true state at one step of the closed loop: what an in-loop sensor measures
+    (arrays over the runs ``B``)."""
+
+    lat_rad: np.ndarray          #: (B,) geodetic latitude
+    lon_rad: np.ndarray          #: (B,)
+    h_m: np.ndarray              #: (B,) height above the ellipsoid
+    vel_n_mps: np.ndarray        #: (B, 3) velocity, north-east-down
+
+
+class Refusal(NamedTuple):
+    """Why a sensor's configuration cannot fly in the closed loop: ``what`` it has (its errors
+    depend on the trajectory), ``expected`` what would fly, ``hint`` the override that does."""
+
+    what: str
+    expected: str
+    hint: str
+
+
+@dataclass(frozen=True)
+class InLoop:
+    """How a kind is emulated inside the closed loop (:mod:`navsim.experiment.closed_loop`).
+    Its errors are drawn as in open loop by the kind's ``emulate``, on a static record (so they
+    must not depend on the trajectory), and added to the runs' true state as it is flown:
+    ``fill(data, j, sample)`` writes sample ``j`` of every output of ``data`` (a
+    :class:`~navsim.sensors.base.SensorData`) from the :class:`LoopSample` ``sample`` plus
+    ``data.errors``; ``refuse(config) -> Refusal | None`` names a configuration (a
+    :class:`~navsim.sensors.base.SensorConfig`) whose errors do depend on the trajectory."""
+
+    fill: Callable
+    refuse: Callable | None = None
+
+
 @dataclass(frozen=True)
 class SensorKind:
     """Everything navsim knows of one sensor kind (see the module docstring).
@@ -113,7 +148,7 @@ class SensorKind:
     ``emulate(truth, spec, seed, runs, faults=(), name=...) -> SensorData``;
     ``channels(data, truth, run) -> [(label, unit, t, measured, true), ...]`` (None: each output
     with a ``truth`` against it); ``vector_bias``: a ``bias`` fault is a NED vector (``value_m:
-    [n, e, d]``)."""
+    [n, e, d]``); ``in_loop``: how it flies in the closed loop (:class:`InLoop`; None: it cannot)."""
 
     name: str
     spec: type
@@ -125,6 +160,7 @@ class SensorKind:
     channels: Callable | None = None
     vector_bias: bool = False
     description: str = ""
+    in_loop: InLoop | None = None
 
     def output_fields(self, spec) -> tuple[str, ...]:
         """The ``values`` keys the emulator produces for ``spec``, in declared order."""

@@ -55,7 +55,7 @@ def test_a_run_held_in_memory_writes_nothing_until_asked(short, tmp_path, monkey
     monkeypatch.chdir(tmp_path)
     result = navsim.run(short, runs=3, seed=4, workers=1)
     assert result.folder is None and sorted(p.name for p in tmp_path.iterdir()) == ["cache", "short.yaml"]
-    assert list(result.runs) == [0, 1, 2] and result.record["seed"] == 4 and result.record["git_revision"]
+    assert list(result.runs) == [0, 1, 2] and result.record.seed == 4 and result.record.git_revision
     with pytest.raises(navsim.api.UsageError, match="needs a folder"):
         navsim.write_report(result)
     files = navsim.write_report(result, tmp_path / "report")

@@ -19,7 +19,7 @@ MATCHED = {"p0_matched_ads": "ES-KF 17, matched ADS", "p3_sins_gps": "SINS/GPS 1
 def test_a_matched_filter_is_consistent(name):
     result = navsim.run(ROOT / "scenarios" / f"{name}.yaml")
     m = result.metrics.estimators[MATCHED[name]]
-    assert result.record["runs"] == 200
+    assert result.record.runs == 200
     assert m.nees.fraction_inside >= 0.9, m.nees
     # each navigation error: 200 runs put a consistent filter's mean within about +-0.2 of 1
     assert len(m.nees.per_state) == 9, m.nees.per_state      # att, vel, pos; N, E, D

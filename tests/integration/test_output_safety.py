@@ -435,7 +435,7 @@ def test_metrics_json_is_strict_and_reads_back_nan(tiny, tmp_path):
     kf = result.metrics.estimators["KF"]
     result.metrics.estimators["KF"] = dataclasses.replace(
         kf, rms=dataclasses.replace(kf.rms, pos_m=[math.nan, 1.0, math.inf]))
-    result.record["wall_s"] = math.nan
+    result.record.wall_s = math.nan
     navsim.write_report(result, tmp_path / "out")
     metrics = strict((tmp_path / "out" / "metrics.json").read_text())
     assert metrics["estimators"]["KF"]["rms"]["pos_m"] == [None, 1.0, None]

@@ -156,3 +156,46 @@ def test_docs_show_this_module_s_sonar():
     declaration = Path(__file__).read_text().split("SONAR = SensorKind(")[1].split("\n\n")[0]
     assert "SONAR = SensorKind(" + declaration in docs
     assert DATASHEET.strip() in docs
+
+
+#: the sonar flown in a closed loop on its true height (flat ground at 0 m), a sample filled
+#: each time the loop steps past one
+CLOSED_LOOP = SCENARIO.replace("start: {", "start: {type: air, ").replace(
+    "report: {formats: [pdf]}", "closed_loop: {fly_on: truth, time_limit_s: 12}\nreport: {formats: [pdf]}")
+
+
+def _fill_sonar(data, j, sample):
+    FILLED.append((j, sample.h_m.copy()))
+    data.values["range_m"][:, j] = sample.h_m + data.errors["range_error_m"][:, j]
+
+
+FILLED = []
+
+
+@pytest.mark.parametrize("in_loop, code", [(None, 2), (registry.InLoop(_fill_sonar), 0)])
+def test_a_closed_loop_flies_the_sensors_that_declare_how(in_loop, code, sonar, scenario, tmp_path, capsys):
+    """Without an :class:`InLoop` the sonar is refused in a closed loop (naming the kinds that
+    fly there, the sonar not among them); with one its every sample is filled from the runs' true
+    state as they fly (the kind's own fill, through the registry: no table in navsim)."""
+    registry.register(dataclasses.replace(sonar, in_loop=in_loop), replace=True)
+    try:
+        path = tmp_path / "loop.yaml"
+        path.write_text(CLOSED_LOOP)
+        (tmp_path / "sonar_x1.yaml").write_text(DATASHEET)
+        FILLED.clear()
+        assert main(["run", str(path), "--workers", "1", "--out", str(tmp_path / "out")]) == code
+        err = capsys.readouterr().err
+    finally:
+        registry.register(sonar, replace=True)
+    if in_loop is None:
+        assert "sensors.sonar" in err and "kinds imu, " in err and "sonar" not in err.split("kinds ")[1]
+        return
+    # two flights: the reference on truth (run 0 alone), then the Monte Carlo's two runs; in each
+    # sample 0 is the static record's (the start), then 10 Hz over 10-12 s, each once, in order
+    flights = [[(j, h) for j, h in FILLED if h.shape == (n,)] for n in (1, 2)]
+    assert len(flights[0]) + len(flights[1]) == len(FILLED)
+    for flight in flights:
+        js = [j for j, _ in flight]
+        assert js == list(range(1, len(js) + 1)) and 100 <= len(js) <= 120
+    heights = np.array([h for _, h in flights[1]])
+    assert heights.shape[1] == 2 and np.all(np.abs(heights - 150.0) < 30.0)

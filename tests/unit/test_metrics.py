@@ -5,7 +5,7 @@ import pytest
 from scipy.stats import chi2
 
 from navsim.records.history import EstimatorHistory
-from navsim.scoring.metrics import EstimatorMetrics, lookup
+from navsim.records.metrics import EstimatorMetrics, lookup
 from navsim.scoring.scorer import score
 from navsim.scoring.stats import chi2_band, convergence_time
 

@@ -8,6 +8,7 @@ import numpy as np
 
 import navsim
 from navsim.experiment.runner import RunResult
+from navsim.records.run import RunRecord
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "p3_sins_gps.yaml"
 
@@ -23,7 +24,7 @@ def test_from_run_copies_every_run_result_field_and_takes_the_rest():
     # a distinct object in every field, whatever the fields are
     values = {f.name: object() for f in dataclasses.fields(RunResult)}
     rr = RunResult(**values)
-    truth, record = object(), {"seed": 5}
+    truth, record = object(), RunRecord(seed=5)
     result = navsim.Result.from_run(scenario, rr, record, truth=truth, loop={"t_s": np.zeros(1)})
     assert all(getattr(result, name) is value for name, value in values.items())
     assert result.scenario is scenario and result.record is record and result.truth is truth

@@ -8,7 +8,7 @@ from navsim.experiment.reference import parse_reference
 from navsim.foundations.config import Node
 from navsim.foundations.errors import ScenarioError
 from navsim.records.vocabulary import check_metric_path
-from navsim.scoring.metrics import EstimatorMetrics, RunMetrics
+from navsim.records.metrics import EstimatorMetrics, RunMetrics
 from navsim.scoring.verdicts import judge, verdict_rows, verdict_summary
 
 LABELS = ["SINS", "KF"]
