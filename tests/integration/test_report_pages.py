@@ -206,8 +206,11 @@ def table_rows(block: list[list[str]], first: set) -> dict:
     repeats its first column: the groups are joined)."""
     out = defaultdict(list)
     for line in block:
-        if line[0] in first:
-            out[line[0]] += line[1:]
+        # a first cell wrapped onto lines of its own starts with its first line
+        key = line[0] if line[0] in first else next(
+            (k for k in first if k.startswith(line[0] + " ")), None)
+        if key is not None:
+            out[key] += line[1:]
     return dict(out)
 
 
