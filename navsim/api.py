@@ -150,10 +150,38 @@ class Result:
         ds = xr.Dataset(data, coords={k: v for k, v in coords.items()
                                       if k in ("estimator", "run", "t_s") or any(k in v.dims for v in data.values())})
         ds["diverged"] = (("estimator", "run"), np.stack([h.diverged for h in hists.values()]))
+        if self.metrics is not None:
+            ds = ds.assign(_metric_variables(self.metrics, list(hists))).assign_coords(
+                axis=["N", "E", "D"], bound=["lo", "hi"])
         ds.attrs.update({"scenario": self.scenario.name, "seed": int(self.record.seed),
                          "navsim": str(self.record.versions.get("navsim", "")),
                          "git_revision": str(self.record.git_revision or "")})
         return ds
+
+
+#: the per-axis metrics :meth:`Result.to_xarray` carries with their intervals
+XARRAY_METRICS = tuple(f"{section}.{q}" for section in ("rms", "final", "p99") for q in ("pos_m", "vel_mps", "att_deg"))
+
+
+def _metric_variables(metrics, labels) -> dict:
+    """``rms_pos_m`` ``(estimator, axis)`` and ``rms_pos_m_ci95`` ``(estimator, axis, bound)``
+    for each of :data:`XARRAY_METRICS` (NaN where an estimator has none)."""
+    out = {}
+    for path in XARRAY_METRICS:
+        name, unit = path.replace(".", "_"), path.rsplit("_", 1)[1].replace("mps", "m/s")
+        value = np.full((len(labels), 3), np.nan)
+        ci = np.full((len(labels), 3, 2), np.nan)
+        for i, label in enumerate(labels):
+            m = metrics.estimators.get(label)
+            if m is None or m.get(path) is None:
+                continue
+            value[i] = m.get(path)
+            if m.interval(path) is not None:
+                ci[i] = np.asarray(m.interval(path), float)
+        out[name] = (("estimator", "axis"), value, {"units": unit, "metric": path})
+        out[name + "_ci95"] = (("estimator", "axis", "bound"), ci,
+                               {"units": unit, "metric": path, "description": "95 % interval, the runs as the samples"})
+    return out
 
 
 def load_scenario(source) -> Scenario:

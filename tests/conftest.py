@@ -126,7 +126,8 @@ def _close_metrics(a, b, path=""):
     elif isinstance(a, list) and a and isinstance(a[0], (list, str, tuple)):
         assert a == b, path
     elif isinstance(a, (list, float, int)) and not isinstance(a, bool):
-        assert np.allclose(a, b, rtol=1e-12, atol=0, equal_nan=True), (path, a, b)
+        # None: an interval's open end (JSON null)
+        assert np.allclose(np.asarray(a, float), np.asarray(b, float), rtol=1e-12, atol=0, equal_nan=True), (path, a, b)
     else:
         assert a == b, path
 

@@ -257,6 +257,11 @@ class EstimatorMetrics(_Record):
     nees: Nees | None = None
     nis: dict[str, Nis] | None = None
     landmarks: Landmarks | None = None
+    #: the 95 % intervals of the metrics, the runs as the samples, in the mapping's shape
+    #: (``ci95.rms.pos_m`` is ``[[lo, hi]] * 3`` for ``rms.pos_m``; :meth:`interval`); NaN
+    #: (JSON null) where a metric has none: a maximum, fewer than two runs
+    #: (:mod:`navsim.scoring.intervals` gives the method of each)
+    ci95: dict | None = None
 
     _NULLS = ("convergence_s",)
 
@@ -270,6 +275,11 @@ class EstimatorMetrics(_Record):
         """The value at a dotted path of :meth:`to_dict` (``rms.pos_m``); None if absent."""
         return lookup(self.to_dict(), path)
 
+    def interval(self, path: str):
+        """The 95 % interval of the metric at ``path`` (``[lo, hi]``, per axis a list of them);
+        None where there is none."""
+        return None if self.ci95 is None else lookup(self.ci95, path)
+
 
 @dataclass(frozen=True)
 class IronErrors(_Record):
@@ -278,6 +288,9 @@ class IronErrors(_Record):
     mean: float | None
     p95: float | None
     max: float | None
+    #: the 95 % intervals of ``mean`` (Student's t) and ``p95`` (order statistics), the runs
+    #: as the samples; the maximum has none
+    ci95: dict | None = None
 
     _NULLS = ("mean", "p95", "max")
 
@@ -334,6 +347,11 @@ class Verdict(_Record):
     claim: str | None = None
     of: str | None = None                #: a claim relative to this estimator (``bound``: its metric × ``times``)
     times: float | None = None
+    ours_ci95: list | None = None        #: our metric's 95 % interval, ``[lo, hi]`` per component, if any
+    runs: int | None = None              #: the runs behind the interval
+    #: True where the interval straddles the bound: no verdict at these runs (``passed`` None)
+    undecided: bool | None = None
+    runs_needed: int | None = None       #: undecided: the runs at which it would be decided
 
     _NULLS = ("bound", "ours", "passed")
 

@@ -29,7 +29,8 @@ def _field_types(cls) -> dict:
     return {f.name: _plain_type(hints[f.name]) for f in dataclasses.fields(cls)}
 
 
-_ESTIMATOR = _field_types(EstimatorMetrics)
+#: the fields of an estimator's metrics (its intervals, ``ci95``, are not a metric of their own)
+_ESTIMATOR = {k: t for k, t in _field_types(EstimatorMetrics).items() if k != "ci95"}
 #: the first part of a metric path with a rest (``rms.pos_m``, ``windows.<name>.height_m.rms``):
 #: the sections of :class:`EstimatorMetrics`
 METRIC_HEADS = tuple(k for k, t in _ESTIMATOR.items() if dataclasses.is_dataclass(t) or typing.get_origin(t) is dict)

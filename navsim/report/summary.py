@@ -11,12 +11,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from navsim.records.run import RunRecord
 from navsim.records.states import SIGMA_STATES
 from navsim.report.tables import FAIL, PASS, WARN, Heading, Paragraph, Table, layout
 from navsim.records.metrics import RunMetrics
 from navsim.scoring.scorer import NORM_QUANTITIES
-from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary
+from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary, with_interval
 
 #: below this share of epochs inside its 95 % band a NEES or NIS is called out
 CONSISTENT_FRACTION = 0.5
@@ -69,6 +71,36 @@ def results(metrics: RunMetrics, settle_s: float) -> Section:
         "its kernels.",
         ["estimator", "position\nN E D, m", "velocity\nN E D, m/s", "attitude\nN E D, deg", "NEES\navg", "NEES\nin band",
          "NIS\nin band", "converged\ns", "diverged\nruns", "cost\nms/run"], rows, colours, compile_note(metrics))
+
+
+#: the metrics the intervals section shows: (what, path, unit, scale)
+INTERVAL_ROWS = (("RMS position", "rms.pos_m", "m", 1), ("RMS velocity", "rms.vel_mps", "m/s", 1),
+                 ("RMS attitude", "rms.att_deg", "deg", 1), ("final position", "final.pos_m", "m", 1),
+                 ("p99 position", "p99.pos_m", "m", 1), ("NEES average", "nees.average", "", 1),
+                 ("NEES in band", "nees.fraction_inside", "%", 100), ("converged", "convergence_s", "s", 1))
+
+
+def intervals(metrics: RunMetrics) -> Section | None:
+    """Each estimator's main metrics with their 95 % intervals (none at one run)."""
+    rows = []
+    for label, m in metrics.estimators.items():
+        first = True
+        for what, path, unit, scale in INTERVAL_ROWS:
+            v, iv = m.get(path), m.interval(path)
+            if v is None or iv is None or not np.isfinite(np.asarray(iv, float)).any():
+                continue                      # no interval (an open end shows as "-")
+            v, iv = np.atleast_1d(np.asarray(v, float)) * scale, np.asarray(iv, float).reshape(-1, 2) * scale
+            cells = [with_interval(x, [lim.tolist()]) for x, lim in zip(v, iv)]
+            rows.append([label if first else "", what + (f", {unit}" if unit else ""), *(cells + ["", "", ""])[:3]])
+            first = False
+    if not rows:
+        return None
+    return Section(f"95 % intervals over {metrics.runs_done} runs",
+                   "Each value with its 95 % confidence interval, the runs as the independent samples (a run's "
+                   "random-constant biases are one draw): an interval narrows as 1/sqrt(runs), never with the "
+                   "epochs. RMS: studentized bootstrap over runs; p99: Woodruff's; NEES and convergence: "
+                   "bootstrap over runs (navsim.scoring.intervals).",
+                   ["estimator", "metric", "N / value", "E", "D"], rows)
 
 
 def compile_note(metrics: RunMetrics) -> str | None:
@@ -175,7 +207,9 @@ def closed_loop(m: dict | None) -> Section | None:
         text += (f" At the parachute the horizontal error RMS is {num(c['horizontal_error_rms_m'])} m, the "
                  f"sigmas predict CEP50 {num(c['predicted_cep50_m'])} m; normalised error (e/sigma)^2 "
                  f"{num(c['normalised_error'])} (95 % band {c['band'][0]:.2f}-{c['band'][1]:.2f}).")
-    row = lambda name, d: [name, num(d["cep50_m"]), num(d["cep95_m"]), num(d["mean_m"]), num(d["max_m"]), str(d["n"])]
+    ci = lambda d, k: [d.get("ci95", {}).get(k)] if d.get("ci95") else None
+    row = lambda name, d: [name, *(with_interval(d[k], ci(d, k)) for k in ("cep50_m", "cep95_m", "mean_m")),
+                           num(d["max_m"]), str(d["n"])]
     return Section("Navigation in the loop: return to land", text,
                    ["miss distance", "CEP50 m", "CEP95 m", "mean m", "max m", "runs"],
                    [row("true (guided on the solution)", r["miss"]), row("the solution's own", r["miss_estimate"]),
@@ -208,7 +242,7 @@ def windows(metrics: RunMetrics, spans=()) -> list[Section]:
 
 def sections(metrics: RunMetrics, scenario) -> list[Section]:
     """Every section of the summary, in order (the windows after the rest)."""
-    out = [results(metrics, scenario.settle_s), paper_checks(metrics, scenario.reference), consistency(metrics),
+    out = [results(metrics, scenario.settle_s), intervals(metrics), paper_checks(metrics, scenario.reference), consistency(metrics),
            divergence(metrics), attitude(metrics), landmarks(metrics), closed_loop(metrics.closed_loop)]
     return [s for s in out if s is not None]
 

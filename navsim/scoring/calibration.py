@@ -7,6 +7,7 @@ import numpy as np
 
 from navsim.records.truth import CalibrationHistory
 from navsim.records.metrics import CalibrationAt, CalibrationScore, IronErrors
+from navsim.scoring.intervals import mean_interval, order_statistic_interval, rounded
 
 #: the calibration is scored when the true heading has made this many full turns (and at the end)
 TURNS = 2.0
@@ -16,7 +17,8 @@ def _stats(x) -> IronErrors:
     x = 100.0 * x[np.isfinite(x)]
     if not x.size:
         return IronErrors(None, None, None)
-    return IronErrors(float(np.mean(x)), float(np.percentile(x, 95)), float(np.max(x)))
+    return IronErrors(float(np.mean(x)), float(np.percentile(x, 95)), float(np.max(x)),
+                      rounded({"mean": mean_interval(x), "p95": order_statistic_interval(x, 95)}))
 
 
 def _at(cal: CalibrationHistory, k: int) -> CalibrationAt:

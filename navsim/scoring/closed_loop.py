@@ -7,17 +7,22 @@ from __future__ import annotations
 import numpy as np
 
 from navsim.records.states import POS_NE
+from navsim.scoring.intervals import binomial_interval, mean_interval, order_statistic_interval, rounded
 from navsim.scoring.stats import chi2_band
 
 
 def cep(miss_m: np.ndarray) -> dict:
-    """Circular error probable of horizontal miss distances: the 50 % and 95 % quantiles."""
+    """Circular error probable of horizontal miss distances: the 50 % and 95 % quantiles, with
+    their 95 % intervals (``ci95``: between order statistics; the mean's Student's t; NaN where
+    the runs cannot bound it, as a CEP95's upper end below 59 runs)."""
     m = np.asarray(miss_m, float)
     m = m[np.isfinite(m)]
     if not m.size:
         return {"cep50_m": None, "cep95_m": None, "mean_m": None, "max_m": None, "n": 0}
     return {"cep50_m": float(np.percentile(m, 50)), "cep95_m": float(np.percentile(m, 95)),
-            "mean_m": float(m.mean()), "max_m": float(m.max()), "n": int(m.size)}
+            "mean_m": float(m.mean()), "max_m": float(m.max()), "n": int(m.size),
+            "ci95": rounded({"cep50_m": order_statistic_interval(m, 50), "cep95_m": order_statistic_interval(m, 95),
+                             "mean_m": mean_interval(m)})}
 
 
 def landing_consistency(h, land_t_s) -> dict:
@@ -51,6 +56,8 @@ def closed_loop_metrics(loop, reference, config, histories: dict | None = None) 
         return out
     outcome = [str(o) for o in loop.outcome]
     out["outcomes"] = {k: outcome.count(k) for k in sorted(set(outcome))}
+    #: each outcome's share of the runs, Clopper-Pearson's exact 95 % interval
+    out["outcome_shares_ci95"] = {k: rounded(binomial_interval(n, len(outcome))) for k, n in out["outcomes"].items()}
     rtl = config.return_to_land
     if rtl is not None:
         miss = np.asarray(loop.miss_m, float)

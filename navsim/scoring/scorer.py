@@ -25,6 +25,8 @@ from navsim.records.states import BLOCKS
 from navsim.records.truth import CalibrationHistory
 from navsim.scoring.calibration import calibration_score, thin_calibration
 from navsim.scoring.landmarks import SightingEpochs, sighting_metrics, thin_for_sightings
+from navsim.scoring.intervals import rounded
+from navsim.scoring.samples import RunSamples
 from navsim.records.metrics import (
     AttitudeStats,
     Cost,
@@ -165,6 +167,8 @@ class EstimatorScore:
         self.nis_dim: dict = {}
         self.quantities: list = []          # the window quantities, in their order
         self.passes = 1
+        self.samples = RunSamples(self.windows)
+        self.rows = 0                       # runs fed so far: the default run numbers
 
     def _a(self, key, make):
         if key not in self.acc:
@@ -200,6 +204,9 @@ class EstimatorScore:
     def _first_pass(self, c: _Chunk, runs) -> None:
         h, good = c.h, c.good
         self.t_s = h.t_s
+        runs = np.arange(self.rows, self.rows + good.size) if runs is None else np.asarray(runs)
+        self.rows += good.size
+        self.samples.add(c, runs[good], {n: self._mask(a, b) for n, a, b in self.windows if self._mask(a, b).any()})
         self.good += int(good.sum())
         self.bad += int((~good).sum())
         self.divergence.add(h, good, runs)
@@ -216,6 +223,7 @@ class EstimatorScore:
         rows = np.arange(len(last))
         self.final.append((h.pos_err_m[good][rows, last], h.vel_err_mps[good][rows, last],
                            np.degrees(h.att_err_rad[good][rows, last])))
+        self.samples.add_final([f ** 2 for f in self.final[-1]])
         if c.euler is not None:
             self._a("e_sq", Sum).add(c.euler ** 2, (0, 1))
             self._a("e_max", lambda: Extreme(np.nanmax)).add(np.abs(c.euler), (0, 1))
@@ -226,7 +234,9 @@ class EstimatorScore:
         if h.sigma is not None:
             e = np.concatenate([getattr(h, BLOCK_ERRORS[block]) for block in BLOCKS], -1)[good][:, c.after]
             with np.errstate(invalid="ignore", divide="ignore"):
-                self._a("nsq", Sum).add((e / h.sigma[good][:, c.after]) ** 2, (0, 1))
+                z2 = (e / h.sigma[good][:, c.after]) ** 2
+            self._a("nsq", Sum).add(z2, (0, 1))
+            self.samples.add_normalised(z2)
         if h.nees is not None:
             self._a("nees", Sum).add(h.nees[good], 0)
             self._a("nees_finite", Sum).add(np.where(np.isfinite(h.nees[good]), 1.0, np.nan), 0)
@@ -276,7 +286,37 @@ class EstimatorScore:
                                             [p(("att_about", j)) for j in range(3)])
         if self.has_nees:
             out.update(nees=self._nees(), nis=self._nis())
+        out["ci95"] = self._intervals()
         return EstimatorMetrics(**out)
+
+    def _intervals(self) -> dict:
+        """The 95 % intervals of the metrics (:mod:`navsim.scoring.samples`), the percentiles'
+        (Woodruff's) among them; a maximum has none."""
+        bands = {}
+        if self.has_nees:
+            bands["nees"] = self._nees_bands()[1:]
+            for key, d in self.nis_dim.items():
+                s = self.acc.get(("nis", key))
+                if s is not None and (s.n > 0).any():
+                    bands[("nis", key)] = (s.n > 0, *chi2_band(d, int(np.median(s.n[s.n > 0]))))
+        out = self.samples.intervals(self.t_s, self.settle_s, self.good, bands)
+        if not out:
+            return None
+        iv = self.pct.interval
+        out["p99"] = {n: [iv(("p99", n, j)) for j in range(3)] for n in ERRORS}
+        if self.has_euler:
+            out["attitude"].update(p95_deg=[iv(("att_p95", j)) for j in range(3)],
+                                   p95_about_run_mean_deg=[iv(("att_about", j)) for j in range(3)])
+        for name, _, _ in self.windows:
+            for key in self.quantities:
+                if ("win", name, key) in self.pct.q:
+                    out["windows"].setdefault(name, {}).setdefault(key, {})["p95_abs"] = iv(("win", name, key))
+        return rounded(out)
+
+    def _nees_bands(self):
+        """The epochs the NEES is scored at, and each one's band (its own number of runs)."""
+        sel = (self.t_s >= self.settle_s) & (self.t_s > 0)
+        return (sel, *chi2_bands(NEES_DIM, np.maximum(self.acc["nees_finite"].n[sel], 1)))
 
     def _window(self, name: str, a: float, b: float) -> Window:
         acc = self.acc
@@ -295,10 +335,9 @@ class EstimatorScore:
 
     def _nees(self) -> Nees:
         mean_all = self.acc["nees"].mean()
-        sel = (self.t_s >= self.settle_s) & (self.t_s > 0)
-        mean = mean_all[sel]
         # the band of each epoch's own number of runs (closed-loop runs end at their landing)
-        lo_e, hi_e = chi2_bands(NEES_DIM, np.maximum(self.acc["nees_finite"].n[sel], 1))
+        sel, lo_e, hi_e = self._nees_bands()
+        mean = mean_all[sel]
         return Nees(float(np.nanmean(mean)), list(chi2_band(NEES_DIM, self.good)),
                     float(np.mean((mean > lo_e) & (mean < hi_e))), NEES_DIM, float(np.nanmean(mean_all[1:])),
                     self.acc["nsq"].mean().tolist() if "nsq" in self.acc else None)

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
+from navsim.scoring.intervals import woodruff_probabilities
+
 #: the resolution of the first pass of :class:`AbsPercentiles`: bins per decade, from 1e-15 to 1e15
 BINS_PER_DECADE = 400
 _LOG_MIN, _LOG_MAX = -15.0, 15.0
@@ -44,9 +46,13 @@ class AbsPercentiles:
         self.hist: dict = {}
         self.window: dict | None = None      # key -> (first bin, last bin, values below, ranks, t)
         self.kept: dict = {}
+        self.per_run: dict = {}             # key -> [(each run's values below, its values)]
 
     def add(self, key, x, q: float) -> None:
-        v = np.abs(np.asarray(x, float)).ravel()
+        """Feed the values ``x``, ``(runs, ...)``: a run per row (the second pass counts each
+        run's values below the percentile's bin, for :meth:`interval`)."""
+        x = np.asarray(x, float)
+        v = np.abs(x).ravel()
         v = v[~np.isnan(v)]
         b = _bins(v)
         if self.window is None:
@@ -56,6 +62,10 @@ class AbsPercentiles:
         elif key in self.window and self.window[key] is not None:
             lo, hi = self.window[key][:2]
             self.kept.setdefault(key, []).append(v[(b >= lo) & (b <= hi)])
+            rows = np.abs(x).reshape((x.shape[0], int(np.prod(x.shape[1:]))) if x.ndim else (1, 1))
+            valid = ~np.isnan(rows)
+            self.per_run.setdefault(key, []).append(
+                (np.sum(valid & (_bins(rows) < lo), axis=1), np.sum(valid, axis=1)))
 
     def second_pass(self) -> None:
         self.window = {}
@@ -79,6 +89,53 @@ class AbsPercentiles:
         _, _, below, (r_lo, r_hi), t = w
         vals = np.sort(np.concatenate(self.kept.get(key, [np.empty(0)])))
         return float(_lerp(vals[r_lo - below], vals[r_hi - below], t))
+
+
+    def interval(self, key) -> list[float]:
+        """Woodruff's 95 % interval of the percentile (the runs as the samples,
+        :func:`navsim.scoring.intervals.woodruff_probabilities`), read from the first pass's
+        histogram (to a bin, 0.6 %); NaN where the runs are too few."""
+        w, pieces = self.window.get(key), self.per_run.get(key)
+        if w is None or not pieces:
+            return [float("nan")] * 2
+        below, n = (np.concatenate([p[i] for p in pieces]) for i in range(2))
+        shares = woodruff_probabilities(below, n, self.q[key])
+        if shares is None:
+            return [float("nan")] * 2
+        return [self._at_share(key, p) for p in shares]
+
+    def _at_share(self, key, share: float) -> float:
+        """The value at cumulative ``share`` of the first pass's histogram (log-linear in a bin)."""
+        hist = self.hist[key]
+        cum = np.cumsum(hist)
+        rank = share * (cum[-1] - 1)
+        k = int(np.searchsorted(cum, rank, side="right"))
+        if k == 0:
+            return 0.0
+        k = min(k, _NBINS - 1)
+        f = (rank - cum[k - 1]) / max(hist[k], 1)
+        return float(10.0 ** (_LOG_MIN + (k - 1 + min(max(f, 0.0), 1.0)) / BINS_PER_DECADE))
+
+
+class RunSums:
+    """Each run's ``np.nansum`` and non-NaN count over the axes after the run axis (its last
+    axes kept: ``(B, epochs, 3)`` -> ``(B, 3)``), run after run: what an interval with the
+    runs as the samples needs (:mod:`navsim.scoring.intervals`)."""
+
+    def __init__(self, keep: int = 0):
+        self.keep = keep             # trailing axes kept
+        self.s: list = []
+        self.n: list = []
+
+    def add(self, x) -> None:
+        x = np.asarray(x, float)
+        axes = tuple(range(1, x.ndim - self.keep))
+        self.s.append(np.nansum(x, axis=axes))
+        self.n.append(np.sum(~np.isnan(x), axis=axes))
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """The runs' sums and counts, run axis first."""
+        return np.concatenate(self.s), np.concatenate(self.n)
 
 
 class Moments:

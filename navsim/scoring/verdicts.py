@@ -1,4 +1,14 @@
-"""A scenario's published results judged against ours: :func:`judge`, and their table."""
+"""A scenario's published results judged against ours: :func:`judge`, and their table.
+
+Where our metric has a 95 % interval (:attr:`~navsim.records.metrics.EstimatorMetrics.ci95`,
+the runs as the samples) the check is judged on the interval, not on the point value: it passes
+when the whole interval satisfies the rule, fails when none of it does, and is otherwise
+*undecided at N runs*, with the runs that would decide it (the interval's half-width towards
+the bound shrinks as ``1 / sqrt(runs)``; :func:`navsim.scoring.intervals.runs_needed`). A vector
+passes when every component does and fails when one does. A metric without an interval (a
+maximum, a single run) is judged on its value, as is the bound of a claim relative to another
+estimator (``of``: its metric times the factor, taken as exact).
+"""
 
 from __future__ import annotations
 
@@ -6,8 +16,9 @@ import math
 
 import numpy as np
 
-from navsim.records.reference import Reference
 from navsim.records.metrics import EstimatorMetrics, Verdict
+from navsim.records.reference import Reference
+from navsim.scoring.intervals import runs_needed
 
 #: the mark of each verdict, in the terminal and on the report's first page: a check with a rule
 #: whose metric we do not have (or is not a number of the bound's shape) is "no value", never
@@ -32,6 +43,55 @@ def _passes(rule: str, ours: np.ndarray, bound: np.ndarray, tolerance: float) ->
     return None
 
 
+def _region(rule: str, bound: float, tolerance: float) -> tuple[float, float]:
+    """The values that satisfy ``rule`` against ``bound``."""
+    if rule == "at_most":
+        return -math.inf, bound
+    if rule == "at_least":
+        return bound, math.inf
+    return bound - tolerance * abs(bound), bound + tolerance * abs(bound)
+
+
+def _decide(rule: str, ours: np.ndarray, bound: np.ndarray, tolerance: float, interval, runs: int):
+    """``(passed, runs needed)`` of a rule judged on the per-component ``interval`` ``(k, 2)``:
+    passed None (undecided) where an interval straddles an edge of the rule's region."""
+    outcomes, needed = [], []
+    for v, (lo, hi), b in zip(ours, interval, bound):
+        a, z = _region(rule, b, tolerance)
+        if a <= lo and hi <= z:
+            outcomes.append(True)
+        elif hi < a or lo > z:
+            outcomes.append(False)
+        else:
+            outcomes.append(None)
+            edges = [e for e in (a, z) if math.isfinite(e) and lo <= e <= hi]
+            n = [runs_needed(runs, v, (lo, hi), e) for e in edges]
+            needed.append(max((x for x in n if x is not None and math.isfinite(x)), default=None))
+    if False in outcomes:
+        return False, None
+    if None in outcomes:
+        known = [n for n in needed if n is not None]
+        return None, (max(known) if known and len(known) == len(needed) else None)
+    return True, None
+
+
+def _interval(estimators: dict, label: str, path: str, shape) -> np.ndarray | None:
+    """Our metric's interval as ``(k, 2)`` of the value's ``k`` components (an open end
+    infinite), or None where it has none (or not for every component)."""
+    m = estimators.get(label)
+    iv = None if m is None else m.interval(path)
+    if iv is None:
+        return None
+    try:
+        a = np.asarray(iv, float).reshape(-1, 2)
+    except (TypeError, ValueError):
+        return None
+    if a.shape[0] != shape[0] or np.isnan(a).all(axis=1).any():
+        return None
+    # an open end (null: the runs cannot bound it there) reaches as far as it can
+    return np.where(np.isnan(a), np.array([-np.inf, np.inf]), a)
+
+
 def judge(reference: Reference | None, estimators: dict[str, EstimatorMetrics]) -> list[Verdict] | None:
     """Each of ``reference``'s checks against the estimators' metrics (None without a
     reference). A metric of ours that is missing or not a number, or has another length than
@@ -46,13 +106,19 @@ def judge(reference: Reference | None, estimators: dict[str, EstimatorMetrics]) 
         if c.of is not None:
             base = _numbers(_metric(estimators, c.of, c.metric))
             bound = None if base is None else (base * c.bound).tolist()
-        passed = None
+        passed, interval, runs, needed = None, None, None, None
         a, b = _numbers(ours), _numbers(bound)
         if a is not None and b is not None and a.shape == b.shape and not np.isnan(a).any() and np.isfinite(b).all():
             passed = _passes(c.rule, a, b, c.tolerance)
+            interval = _interval(estimators, c.estimator, c.metric, a.shape) if c.rule != "none" else None
+            if interval is not None:
+                runs = estimators[c.estimator].runs_counted
+                passed, needed = _decide(c.rule, a, b, c.tolerance, interval, runs)
         out.append(Verdict(c.estimator, c.metric, c.rule, bound, ours, passed,
                            c.tolerance if c.rule == "close" else None, c.claim, c.of,
-                           c.bound if c.of is not None else None))
+                           c.bound if c.of is not None else None,
+                           None if interval is None else interval.tolist(), runs,
+                           True if interval is not None and passed is None else None, needed))
     return out
 
 
@@ -106,8 +172,29 @@ def verdict_rows(verdicts: list[Verdict]) -> list[list[str]]:
         elif v.rule == "close":
             paper = f"{_fmt(v.bound)} ±{100 * v.tolerance:.0f}%"
         mark = NO_VALUE if v.passed is None and v.rule != "none" else MARKS[v.passed]
-        rows.append([v.estimator, v.claim or "as published", v.metric, paper, _fmt(v.ours), mark])
+        if v.undecided:
+            mark = undecided_text(v)
+        rows.append([v.estimator, v.claim or "as published", v.metric, paper, with_interval(v.ours, v.ours_ci95), mark])
     return rows
+
+
+def undecided_text(v: Verdict) -> str:
+    """``"undecided at 20 runs (~80 decide)"``."""
+    return f"undecided at {v.runs} runs" + (f" (~{v.runs_needed} decide)" if v.runs_needed else "")
+
+
+def with_interval(value, interval) -> str:
+    """A value with its 95 % interval, ``"1.29 [1.21, 1.38]"`` (a vector's components
+    separated by two spaces); :func:`num` alone where there is no interval."""
+    if interval is None or isinstance(value, (dict, str)) or value is None:
+        return _fmt(value)
+    values = np.atleast_1d(np.asarray(value, float)).tolist()
+    ivs = np.asarray(interval, float).reshape(-1, 2).tolist()
+    if len(ivs) != len(values):
+        return _fmt(value)
+    # an open end (the runs cannot bound it there) shows as "-"
+    return "  ".join(_fmt(x) if not any(map(math.isfinite, iv)) else f"{_fmt(x)} [{num(iv[0])}, {num(iv[1])}]"
+                     for x, iv in zip(values, ivs))
 
 
 def verdict_summary(verdicts: list[Verdict]) -> str:
@@ -115,9 +202,11 @@ def verdict_summary(verdicts: list[Verdict]) -> str:
     judged ones (they did not pass), those shown without a verdict apart."""
     passed = sum(v.passed is True for v in verdicts)
     failed = sum(v.passed is False for v in verdicts)
-    missing = sum(v.passed is None and v.rule != "none" for v in verdicts)
-    judged = passed + failed + missing
+    undecided = [v for v in verdicts if v.undecided]
+    missing = sum(v.passed is None and v.rule != "none" and not v.undecided for v in verdicts)
+    judged = passed + failed + missing + len(undecided)
     text = f"{passed} of {judged} paper checks pass" + (f", {failed} fail" if failed else "") \
+        + (f", {len(undecided)} undecided at {undecided[0].runs} runs" if undecided else "") \
         + (f", {missing} without a value" if missing else "")
     rest = len(verdicts) - judged
     return text + (f" ({rest} shown without a verdict)" if rest else "")

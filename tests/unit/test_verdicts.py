@@ -132,7 +132,7 @@ def test_the_metric_vocabulary_is_the_metrics_dataclasses():
 
     from navsim.records.vocabulary import METRIC_HEADS, SCALAR_METRICS, SECTION_FIELDS
     names = {f.name for f in dataclasses.fields(EstimatorMetrics)}
-    assert set(METRIC_HEADS) | set(SCALAR_METRICS) == names
+    assert set(METRIC_HEADS) | set(SCALAR_METRICS) == names - {"ci95"}       # the intervals: not a metric
     for head, parts in SECTION_FIELDS.items():
         for part in parts:
             check_metric_path(f"{head}.{part}", [], file="s.yaml", key="k")
@@ -142,3 +142,38 @@ def test_the_metric_vocabulary_is_the_metrics_dataclasses():
         check_metric_path("nees.fraction_insde", [], file="s.yaml", key="k")
     with pytest.raises(ScenarioError, match="p95_deg"):
         check_metric_path("attitude.p95deg", [], file="s.yaml", key="k")
+
+
+def _with_interval(rms, ci, runs=20):
+    return {"KF": EstimatorMetrics.from_dict({"runs_counted": runs, "diverged_runs": 0, "settle_s": 60,
+                                              "convergence_s": 4.0, "rms": stats(rms),
+                                              "ci95": {"rms": {"pos_m": ci}}})}
+
+
+@pytest.mark.parametrize("rule, bound, passed, needed", [
+    ("at_most", 1.3, True, None),      # the whole interval of every axis below
+    ("at_most", 0.85, False, None),    # all of N's interval above: fails whatever the rest
+    ("at_most", 1.05, None, 80),       # N straddles 1.05: half-width 0.2 must become 0.1 -> 4 x 20 runs
+    ("at_least", 0.5, True, None),
+    ("close", 0.78, None, 1280),       # 25 % of 0.78: 0.585-0.975 cuts every axis; N's 0.95 is 0.025
+                                       # from 0.975 with a half-width 0.2: 64 x 20 runs
+])
+def test_a_check_with_an_interval_passes_fails_or_is_undecided_with_the_runs_that_decide_it(rule, bound, passed, needed):
+    est = _with_interval([0.95, 0.6, 1.0], [[0.75, 1.15], [0.5, 0.7], [0.9, 1.1]])
+    ref = reference({"source": "paper", "check": rule, "values": {"KF": {"rms.pos_m": [bound] * 3}}})
+    v = judge(ref, est)[0]
+    assert v.passed is passed and v.ours_ci95 == [[0.75, 1.15], [0.5, 0.7], [0.9, 1.1]] and v.runs == 20
+    assert v.undecided is (True if passed is None else None)
+    if passed is None:
+        assert v.runs_needed == needed
+        row = verdict_rows([v])[0]
+        assert row[-1] == f"undecided at 20 runs (~{v.runs_needed} decide)"
+        assert row[4].startswith("0.95 [0.75, 1.15]")
+        assert verdict_summary([v]) == "0 of 1 paper checks pass, 1 undecided at 20 runs"
+
+
+def test_a_check_without_an_interval_is_judged_on_its_value():
+    est = _with_interval([0.95, 0.6, 1.0], [[None, None]] * 3, runs=1)
+    ref = reference({"source": "paper", "check": "at_most", "values": {"KF": {"rms.pos_m": [1.0] * 3}}})
+    v = judge(ref, est)[0]
+    assert v.passed is True and v.ours_ci95 is None and v.undecided is None

@@ -1,0 +1,156 @@
+"""The runs as the samples of an estimator's scores: what each run contributes to a metric,
+kept run by run as the chunks go by, and the 95 % intervals made of it
+(:mod:`navsim.scoring.intervals`), in the shape of the metrics mapping
+(:attr:`~navsim.records.metrics.EstimatorMetrics.ci95`: ``ci95.rms.pos_m`` is
+``[[lo, hi]] * 3`` beside ``rms.pos_m``).
+
+Kept per run: the sums of squares and counts of the errors (RMS), of the Euler errors, of the
+normalised errors (``nees.per_state``), of the windows' quantities (RMS, standard deviation)
+and the last epoch's errors (``final``); kept per replicate of a Poisson bootstrap over runs
+(``(R, epochs)``): the summed NEES, NIS and squared position error (the NEES and NIS averages
+and shares, the convergence time). Memory: a few numbers per run and metric, and
+:data:`~navsim.scoring.intervals.BOOTSTRAP_REPLICATES` rows per epoch array.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from navsim.scoring.intervals import (
+    MIN_RUNS,
+    WeightedSums,
+    bootstrap_interval,
+    bootstrap_weights,
+    mean_square_interval,
+    rms_intervals,
+    std_interval,
+)
+from navsim.scoring.stats import RunSums, chi2_band, convergence_time
+
+#: the errors scored per axis (as :data:`navsim.scoring.scorer.ERRORS`)
+ERRORS = ("pos_m", "vel_mps", "att_deg")
+
+
+def _rms(acc: RunSums) -> list:
+    return rms_intervals(*acc.arrays())
+
+
+class RunSamples:
+    """Each run's part of an estimator's metrics, fed once per chunk (the first pass)."""
+
+    def __init__(self, windows=()):
+        self.windows = list(windows)
+        self.sums: dict = {}
+        self.boot: dict = {}
+        self.final: list = []
+
+    def _s(self, key, keep: int = 0) -> RunSums:
+        if key not in self.sums:
+            self.sums[key] = RunSums(keep)
+        return self.sums[key]
+
+    def _b(self, key) -> WeightedSums:
+        if key not in self.boot:
+            self.boot[key] = WeightedSums()
+        return self.boot[key]
+
+    def add(self, c, runs, masks: dict) -> None:
+        """Feed a chunk ``c`` (:class:`navsim.scoring.scorer._Chunk`) whose counted runs have
+        the numbers ``runs``; ``masks``: window name -> its epochs."""
+        h, good = c.h, c.good
+        for name, x in c.errors.items():
+            self._s(("sq", name), 1).add(x ** 2)
+        if c.euler is not None:
+            self._s("e_sq", 1).add(c.euler ** 2)
+        for name, m in masks.items():
+            for key, v in c.quantities.items():
+                self._s(("w1", name, key)).add(v[:, m])
+                self._s(("wsq", name, key)).add(v[:, m] ** 2)
+            self._s(("whor", name)).add(np.sum(h.pos_err_m[good][:, m, :2] ** 2, axis=-1))
+        w = bootstrap_weights(runs)
+        self._b("conv").add(w, np.sum(h.pos_err_m[good] ** 2, axis=-1))
+        if h.nees is not None:
+            self._b("nees").add(w, h.nees[good])
+            for key, nis in h.nis.items():
+                self._b(("nis", key)).add(w, nis[good][:, c.after])
+
+    def add_normalised(self, z2) -> None:
+        """Feed the squared normalised errors ``(e / sigma)^2``, ``(B, epochs, 9)``."""
+        self._s("nsq", 1).add(z2)
+
+    def add_final(self, squares) -> None:
+        """Feed the squared last-epoch errors of the runs, one ``(B, 3)`` per quantity."""
+        self.final.append(squares)
+
+    def intervals(self, t_s, settle_s: float, good: int, bands: dict) -> dict:
+        """The intervals, in the metrics' shape (sections that were not scored left out).
+        ``bands``: ``"nees"`` -> each scored epoch's band ``(lo, hi)``, ``("nis", key)`` ->
+        ``(epochs scored, lo, hi)``, as the point values use them."""
+        if good < MIN_RUNS:                   # no interval from one run
+            return {}
+        out = {"rms": {n: _rms(self.sums[("sq", n)]) for n in ERRORS}}
+        fin = [np.concatenate([f[i] for f in self.final]) for i in range(3)]
+        out["final"] = {n: [_sqrt(mean_square_interval(np.nan_to_num(f[:, j]), np.isfinite(f[:, j])))
+                            for j in range(3)] for n, f in zip(ERRORS, fin)}   # f: squares
+        conv = self.boot["conv"].mean()
+        out["convergence_s"] = bootstrap_interval(
+            [_or_inf(convergence_time(t_s, np.sqrt(r))) for r in conv])   # never: inf (an open end)
+        if "e_sq" in self.sums:
+            out["attitude"] = {"rms_deg": _rms(self.sums["e_sq"])}
+        if "nsq" in self.sums:
+            s, n = self.sums["nsq"].arrays()
+            out.setdefault("nees", {})["per_state"] = [mean_square_interval(s[:, j], n[:, j]) for j in range(s.shape[1])]
+        if "nees" in self.boot:
+            out.setdefault("nees", {}).update(self._nees(t_s, settle_s, bands["nees"]))
+            out["nis"] = self._nis({k[1]: v for k, v in bands.items() if k != "nees"})
+        out["windows"] = {name: self._window(name, t_s, good, a, b) for name, a, b in self.windows}
+        return out
+
+    def _window(self, name: str, t_s, good: int, a: float, b: float) -> dict:
+        out = {}
+        for key in [k[2] for k in self.sums if k[0] == "w1" and k[1] == name]:
+            s1, n = self.sums[("w1", name, key)].arrays()
+            s2, _ = self.sums[("wsq", name, key)].arrays()
+            out[key] = {"std": std_interval(s1, s2, n), "rms": _sqrt(mean_square_interval(s2, n))}
+        if ("whor", name) in self.sums:
+            out["horizontal_m"] = {"rms": _sqrt(mean_square_interval(*self.sums[("whor", name)].arrays()))}
+        if "nees" in self.boot:
+            m = (t_s >= a) & (t_s <= b)
+            if m.any():
+                lo, hi = chi2_band(9, good)
+                mean = self.boot["nees"].mean()[:, m]
+                out["nees"] = {"average": bootstrap_interval(_nanmean(mean)),
+                               "fraction_inside": bootstrap_interval(np.mean((mean > lo) & (mean < hi), axis=1))}
+        return out
+
+    def _nees(self, t_s, settle_s: float, band) -> dict:
+        mean_all = self.boot["nees"].mean()
+        mean = mean_all[:, (t_s >= settle_s) & (t_s > 0)]
+        lo_e, hi_e = band
+        return {"average": bootstrap_interval(_nanmean(mean)),
+                "fraction_inside": bootstrap_interval(np.mean((mean > lo_e) & (mean < hi_e), axis=1)),
+                "average_from_start": bootstrap_interval(_nanmean(mean_all[:, 1:]))}
+
+    def _nis(self, nis_cols: dict) -> dict:
+        out = {}
+        for key, (cols, lo, hi) in nis_cols.items():
+            per_epoch = self.boot[("nis", key)].mean()[:, cols]
+            out[key] = {"average": bootstrap_interval(_nanmean(per_epoch)),
+                        "fraction_inside": bootstrap_interval(np.mean((per_epoch > lo) & (per_epoch < hi), axis=1))}
+        return out
+
+
+def _nanmean(a) -> np.ndarray:
+    with np.errstate(invalid="ignore"):
+        return np.array([np.nanmean(r) if np.isfinite(r).any() else math.nan for r in a])
+
+
+def _sqrt(interval) -> list[float]:
+    return [math.sqrt(v) if math.isfinite(v) and v >= 0 else math.nan for v in interval]
+
+
+def _or_inf(v) -> float:
+    return math.inf if v is None else float(v)
+
