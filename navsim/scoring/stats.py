@@ -52,9 +52,10 @@ class AbsPercentiles:
         """Feed the values ``x``, ``(runs, ...)``: a run per row (the second pass counts each
         run's values below the percentile's bin, for :meth:`interval`)."""
         x = np.asarray(x, float)
-        v = np.abs(x).ravel()
-        v = v[~np.isnan(v)]
-        b = _bins(v)
+        rows = np.abs(x).reshape((x.shape[0], int(np.prod(x.shape[1:]))) if x.ndim else (1, 1))
+        valid = ~np.isnan(rows)
+        b_rows = _bins(rows)                 # binned once: the pooled values and each run's
+        v, b = rows[valid], b_rows[valid]
         if self.window is None:
             self.q[key] = q
             counts = np.bincount(b, minlength=_NBINS)
@@ -62,10 +63,8 @@ class AbsPercentiles:
         elif key in self.window and self.window[key] is not None:
             lo, hi = self.window[key][:2]
             self.kept.setdefault(key, []).append(v[(b >= lo) & (b <= hi)])
-            rows = np.abs(x).reshape((x.shape[0], int(np.prod(x.shape[1:]))) if x.ndim else (1, 1))
-            valid = ~np.isnan(rows)
             self.per_run.setdefault(key, []).append(
-                (np.sum(valid & (_bins(rows) < lo), axis=1), np.sum(valid, axis=1)))
+                (np.sum(valid & (b_rows < lo), axis=1), np.sum(valid, axis=1)))
 
     def second_pass(self) -> None:
         self.window = {}
