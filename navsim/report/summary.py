@@ -42,6 +42,13 @@ def pct(fraction) -> str:
     return "-" if fraction is None else f"{100 * fraction:.0f} %"
 
 
+def pct_ci(fraction, interval) -> str:
+    """A share in per cent with its 95 % interval (:func:`pct` alone where there is none)."""
+    if fraction is None or interval is None:
+        return pct(fraction)
+    return with_interval(100 * fraction, [[100 * v for v in interval]]) + " %"
+
+
 def _nis_worst(m):
     """The NIS of the estimator's measurement least often inside its band, or None."""
     if not m.nis:
@@ -183,14 +190,17 @@ def attitude(metrics: RunMetrics) -> Section | None:
 
 
 def landmarks(metrics: RunMetrics) -> Section | None:
-    rows = [[label, str(lm.count), num(lm.rms_before_m.median), num(lm.rms_after_m), num(lm.max_ratio),
-             pct(lm.fraction_within_3sigma)]
-            for label, lm in ((k, m.landmarks) for k, m in metrics.estimators.items()) if lm]
+    ci = lambda m, k: m.interval(f"landmarks.{k}")
+    rows = [[label, str(m.landmarks.count), num(m.landmarks.rms_before_m.median),
+             with_interval(m.landmarks.rms_after_m, ci(m, "rms_after_m")), num(m.landmarks.max_ratio),
+             pct_ci(m.landmarks.fraction_within_3sigma, ci(m, "fraction_within_3sigma"))]
+            for label, m in metrics.estimators.items() if m.landmarks]
     if not rows:
         return None
     return Section("Landmark sightings",
                    "Horizontal error just before a sighting (RMS, median over sightings), after its last fix (RMS "
-                   "per axis), the largest |error| / fix sigma, and the share inside 3 sigma.",
+                   "per axis), the largest |error| / fix sigma, and the share inside 3 sigma; after and inside "
+                   "with their 95 % intervals over the runs.",
                    ["estimator", "sightings", "before\nm", "after\nm", "max\n|e|/sigma", "inside\n3 sigma"], rows)
 
 
@@ -223,20 +233,26 @@ def windows(metrics: RunMetrics, spans=()) -> list[Section]:
     times = {name: (a, b) for name, a, b in spans}
     out = []
     for name in names:
-        rows = []
+        rows, nees = [], []
         for label, m in metrics.estimators.items():
             w = (m.windows or {}).get(name)
             if w is None:
                 continue
-            nees = "" if w.nees is None else f"NEES {num(w.nees.average)}, {pct(w.nees.fraction_inside)} in band"
+            ci = lambda key: m.interval(f"windows.{name}.{key}")
+            if w.nees is not None:
+                nees.append(f"{label} {with_interval(w.nees.average, ci('nees.average'))}, "
+                            f"{pct_ci(w.nees.fraction_inside, ci('nees.fraction_inside'))} in band")
             for j, (q, v) in enumerate(w.quantities.items()):
                 norm = q in NORM_QUANTITIES
                 rows.append([label if j == 0 else "", q + (" (norm)" if norm else ""), num(v.max_pos),
-                             "-" if norm else num(v.max_neg), num(v.std), num(v.rms), nees if j == 0 else ""])
+                             "-" if norm else num(v.max_neg), with_interval(v.std, ci(f"{q}.std")),
+                             with_interval(v.rms, ci(f"{q}.rms"))])
         span = f" ({times[name][0]:g}-{times[name][1]:g} s)" if name in times else ""
-        out.append(Section(f"Window '{name}'{span}", "Errors over the window, every run: largest positive and "
-                           "negative (a norm has no negative side), standard deviation and RMS.",
-                           ["estimator", "quantity", "max +", "max -", "std", "RMS", "consistency"], rows))
+        text = ("Errors over the window, every run: largest positive and negative (a norm has no negative side), "
+                "standard deviation and RMS with their 95 % intervals over the runs.")
+        text += f" NEES over the window: {'; '.join(nees)}." if nees else ""
+        out.append(Section(f"Window '{name}'{span}", text,
+                           ["estimator", "quantity", "max +", "max -", "std", "RMS"], rows))
     return out
 
 

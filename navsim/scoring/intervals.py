@@ -268,15 +268,24 @@ def bootstrap_weights(runs, replicates: int = BOOTSTRAP_REPLICATES) -> np.ndarra
     return out
 
 
-def bootstrap_interval(replicates) -> list[float]:
+def bootstrap_interval(replicates, point: float | None = None, bounds=(-math.inf, math.inf)) -> list[float]:
     """The percentile interval of a statistic's bootstrap replicates (NaN ones left out; an
-    infinite end, as a convergence that never comes, is NaN: open)."""
+    infinite end, as a convergence that never comes, is NaN: open).
+
+    With the statistic's ``point`` value, the interval is shifted by the replicates' median
+    bias (``median - point``) and clipped to ``bounds``: a statistic that resampling biases
+    (the share of epochs whose run-averaged NEES is inside its band falls as the resampled
+    runs add spread) keeps its point inside its interval."""
     v = np.asarray(replicates, float)
     v = v[~np.isnan(v)]
     if v.size < 10:
         return _none()
     a = (1 - CONFIDENCE) / 2
     lo, hi = np.quantile(v, [a, 1 - a], method="inverted_cdf")
+    if point is not None and math.isfinite(point):
+        bias = float(np.quantile(v, 0.5, method="inverted_cdf")) - point
+        if math.isfinite(bias):
+            lo, hi = np.clip([lo - bias, hi - bias], *bounds)
     return [float(x) if math.isfinite(x) else math.nan for x in (lo, hi)]
 
 
@@ -303,19 +312,28 @@ class WeightedSums:
     (``(R, epochs)``, float32)."""
 
     def __init__(self):
-        self.s = self.n = None
+        self.s = self.n = self.s0 = self.n0 = None
 
     def add(self, w: np.ndarray, x) -> None:
         x = np.asarray(x, float)
         finite = np.isfinite(x)
-        s = w @ np.where(finite, x, 0.0).astype(np.float32)
-        n = w @ finite.astype(np.float32)
-        self.s, self.n = (s, n) if self.s is None else (self.s + s, self.n + n)
+        x0 = np.where(finite, x, 0.0)
+        s, n = w @ x0.astype(np.float32), w @ finite.astype(np.float32)
+        s0, n0 = x0.sum(axis=0), finite.sum(axis=0)           # the unweighted sums: the point
+        if self.s is None:
+            self.s, self.n, self.s0, self.n0 = s, n, s0, n0
+        else:
+            self.s, self.n, self.s0, self.n0 = self.s + s, self.n + n, self.s0 + s0, self.n0 + n0
 
     def mean(self) -> np.ndarray:
         """Each replicate's per-epoch weighted mean (NaN where no weighted value)."""
         with np.errstate(invalid="ignore", divide="ignore"):
             return (self.s / self.n).astype(float)
+
+    def point(self) -> np.ndarray:
+        """The per-epoch mean over the runs themselves (every weight 1), ``(1, epochs)``."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (self.s0 / self.n0)[None, :]
 
 
 def rounded(tree, digits: int = 4):

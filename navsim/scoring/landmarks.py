@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.records.metrics import Landmarks, Sighting, SpreadStats
+from navsim.scoring.intervals import MIN_RUNS, mean_square_interval, share_interval
 from navsim.sensors import emulate
 
 
@@ -77,3 +78,21 @@ def sighting_metrics(h, spans, good=None) -> Landmarks | None:
     return Landmarks(len(spans), float(inside.mean()), float(max(p.max_ratio for p in per)),
                      float(np.sqrt(np.mean([np.mean(np.square(p.rms_ne_m)) for p in per]))),
                      SpreadStats(float(np.median(before)), float(np.max(before))), per)
+
+
+def sighting_intervals(h, spans, good=None) -> dict:
+    """The 95 % intervals of :func:`sighting_metrics`' shares and RMS, the runs as the samples:
+    ``fraction_within_3sigma`` (Wilson's, with the runs' effective count) and ``rms_after_m``
+    (the mean square's studentized bootstrap). Empty below two counted runs."""
+    if good is None:
+        good = ~np.asarray(h.diverged, bool)
+    if not spans or int(np.sum(good)) < MIN_RUNS:
+        return {}
+    last, _ = _epochs(h.t_s, spans)
+    e = h.pos_err_m[good][:, last, :2]                             # (B, sightings, 2)
+    sigma = np.maximum([sg for *_, sg in spans], 1e-9)
+    inside = np.abs(e) / sigma[None, :, None] <= 3.0
+    count = np.full(len(e), float(inside[0].size))
+    ms = mean_square_interval(np.sum(e ** 2, axis=(1, 2)), count)       # over sightings and N, E
+    return {"fraction_within_3sigma": share_interval(inside.sum(axis=(1, 2)).astype(float), count),
+            "rms_after_m": [float(np.sqrt(v)) if np.isfinite(v) else float("nan") for v in ms]}

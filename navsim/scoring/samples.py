@@ -94,9 +94,8 @@ class RunSamples:
         fin = [np.concatenate([f[i] for f in self.final]) for i in range(3)]
         out["final"] = {n: [_sqrt(mean_square_interval(np.nan_to_num(f[:, j]), np.isfinite(f[:, j])))
                             for j in range(3)] for n, f in zip(ERRORS, fin)}   # f: squares
-        conv = self.boot["conv"].mean()
-        out["convergence_s"] = bootstrap_interval(
-            [_or_inf(convergence_time(t_s, np.sqrt(r))) for r in conv])   # never: inf (an open end)
+        conv = lambda mean: [_or_inf(convergence_time(t_s, np.sqrt(r))) for r in mean]   # never: inf (open)
+        out["convergence_s"] = self._boot("conv", conv)
         if "e_sq" in self.sums:
             out["attitude"] = {"rms_deg": _rms(self.sums["e_sq"])}
         if "nsq" in self.sums:
@@ -119,27 +118,28 @@ class RunSamples:
         if "nees" in self.boot:
             m = (t_s >= a) & (t_s <= b)
             if m.any():
-                lo, hi = chi2_band(9, good)
-                mean = self.boot["nees"].mean()[:, m]
-                out["nees"] = {"average": bootstrap_interval(_nanmean(mean)),
-                               "fraction_inside": bootstrap_interval(np.mean((mean > lo) & (mean < hi), axis=1))}
+                out["nees"] = self._shares("nees", m, chi2_band(9, good))
         return out
+
+    def _boot(self, key, stat, bounds=(-math.inf, math.inf)) -> list[float]:
+        """The interval of ``stat`` (replicates' per-epoch means -> one value per replicate)
+        over the bootstrap of ``key``, bias-shifted to its value on the runs themselves."""
+        b = self.boot[key]
+        return bootstrap_interval(stat(b.mean()), float(stat(b.point())[0]), bounds)
+
+    def _shares(self, key, cols, band) -> dict:
+        """The average over the epochs ``cols`` and the share of them inside ``band``."""
+        lo, hi = band
+        return {"average": self._boot(key, lambda m: _nanmean(m[:, cols])),
+                "fraction_inside": self._boot(key, lambda m: np.mean((m[:, cols] > lo) & (m[:, cols] < hi), axis=1),
+                                              (0.0, 1.0))}
 
     def _nees(self, t_s, settle_s: float, band) -> dict:
-        mean_all = self.boot["nees"].mean()
-        mean = mean_all[:, (t_s >= settle_s) & (t_s > 0)]
-        lo_e, hi_e = band
-        return {"average": bootstrap_interval(_nanmean(mean)),
-                "fraction_inside": bootstrap_interval(np.mean((mean > lo_e) & (mean < hi_e), axis=1)),
-                "average_from_start": bootstrap_interval(_nanmean(mean_all[:, 1:]))}
+        out = self._shares("nees", (t_s >= settle_s) & (t_s > 0), band)
+        return {**out, "average_from_start": self._boot("nees", lambda m: _nanmean(m[:, 1:]))}
 
     def _nis(self, nis_cols: dict) -> dict:
-        out = {}
-        for key, (cols, lo, hi) in nis_cols.items():
-            per_epoch = self.boot[("nis", key)].mean()[:, cols]
-            out[key] = {"average": bootstrap_interval(_nanmean(per_epoch)),
-                        "fraction_inside": bootstrap_interval(np.mean((per_epoch > lo) & (per_epoch < hi), axis=1))}
-        return out
+        return {key: self._shares(("nis", key), cols, (lo, hi)) for key, (cols, lo, hi) in nis_cols.items()}
 
 
 def _nanmean(a) -> np.ndarray:

@@ -24,7 +24,7 @@ from navsim.records.history import BLOCK_ERRORS, EstimatorHistory
 from navsim.records.states import BLOCKS
 from navsim.records.truth import CalibrationHistory
 from navsim.scoring.calibration import calibration_score, thin_calibration
-from navsim.scoring.landmarks import SightingEpochs, sighting_metrics, thin_for_sightings
+from navsim.scoring.landmarks import SightingEpochs, sighting_intervals, sighting_metrics, thin_for_sightings
 from navsim.scoring.intervals import rounded
 from navsim.scoring.samples import RunSamples
 from navsim.records.metrics import (
@@ -409,7 +409,9 @@ def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> tuple[d
     for label, pieces in thin.items():
         joined = SightingEpochs(pieces[0].t_s, np.concatenate([p.pos_err_m for p in pieces]),
                                 np.concatenate([p.diverged for p in pieces]))
-        out[label] = replace(out[label], landmarks=sighting_metrics(joined, sightings))
+        m, ci = out[label], sighting_intervals(joined, sightings)
+        out[label] = replace(m, landmarks=sighting_metrics(joined, sightings),
+                             ci95={**m.ci95, "landmarks": rounded(ci)} if m.ci95 is not None and ci else m.ci95)
     cal = {name: calibration_score(CalibrationHistory.concatenate(ps)) for name, ps in calib.items()}
     return out, cal
 

@@ -11,6 +11,7 @@ from scipy.stats import binomtest, norm
 
 from navsim.records.history import EstimatorHistory
 from navsim.scoring import intervals as iv
+from navsim.scoring.landmarks import SightingEpochs, sighting_intervals
 from navsim.scoring.scorer import EstimatorScore, score
 from navsim.scoring.stats import AbsPercentiles
 
@@ -140,3 +141,32 @@ def test_the_intervals_do_not_depend_on_the_chunking_and_hold_the_point_values()
     for name in ("pos_m", "vel_mps", "att_deg"):
         for v, (lo, hi) in zip(getattr(one.rms, name), one.ci95["rms"][name]):
             assert lo <= v <= hi
+
+
+def test_a_biased_bootstrap_statistic_keeps_its_point_inside_its_interval():
+    """The share of epochs whose run-averaged NEES is inside its band falls under resampling
+    (the resampled runs add spread): 12 consistent runs, the shifted interval holds the share
+    and stays within [0, 1]."""
+    m = score(_history(3), settle_s=5.0)
+    lo, hi = m.ci95["nees"]["fraction_inside"]
+    assert 0.0 <= lo <= m.nees.fraction_inside <= hi <= 1.0
+    lo, hi = m.ci95["nees"]["average"]
+    assert lo <= m.nees.average <= hi
+
+
+def test_the_landmark_intervals_cover_their_truth():
+    """Gaussian fix errors of a known sigma per run (a random constant per run and sighting):
+    the RMS after the sightings and the share inside 3 sigma covered at 95 % from 20 runs."""
+    spans = [(f"cam {k}", 10.0 * k, 10.0 * k + 5, 1.5) for k in range(1, 6)]
+    t = np.arange(60.0)
+    truth_rms, truth_share = 2.0, 2 * norm.cdf(3 * 1.5 / 2.0) - 1
+    hits = np.zeros(2)
+    rng = np.random.default_rng(5)
+    trials = 400
+    for _ in range(trials):
+        e = rng.normal(0, truth_rms, (20, len(t), 3))
+        ci = sighting_intervals(SightingEpochs(t, e, np.zeros(20, bool)), spans)
+        hits += [ci["rms_after_m"][0] <= truth_rms <= ci["rms_after_m"][1],
+                 ci["fraction_within_3sigma"][0] <= truth_share <= ci["fraction_within_3sigma"][1]]
+    # 400 trials: 95 % give or take 3.5 binomial sigmas (3.8 points)
+    assert np.all((hits / trials > 0.91) & (hits / trials < 0.99)), hits / trials
