@@ -17,7 +17,9 @@ written with :func:`write_report`.
 
 from __future__ import annotations
 
+import csv
 import dataclasses
+import io
 import json
 import logging
 import time
@@ -40,6 +42,7 @@ from navsim.experiment.runner import (
     scenario_hash,
 )
 from navsim.experiment import resources
+from navsim.experiment.results import ResultFiles, check_comparable, pairing, read_result
 from navsim.experiment.scenario import Scenario, check_scenario, load_scenario as _load_file, parse_scenario
 from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
 from navsim.foundations.errors import ScenarioError, UsageError
@@ -48,10 +51,15 @@ from navsim.foundations.provenance import provenance
 from navsim.records.chunk import ChunkPart
 from navsim.records.history import ARRAYS, ARRAY_FIELDS, EPOCH_ARRAYS, EstimatorHistory
 from navsim.records.run import RunRecord
+from navsim.records.samples import SAMPLES_FILE, EstimatorSamples, load_samples, save_samples
 from navsim.records.states import SIGMA_STATES
 from navsim.records.truth import CalibrationHistory, TruthBias
+from navsim.report.compare import CSV_HEADERS, compare_page, csv_rows
+from navsim.report.figures import pyplot
 from navsim.report.pages import report_pages as _report_pages, write_report as _write_report
+from navsim.report.render import render
 from navsim.scoring.closed_loop import closed_loop_metrics
+from navsim.scoring.compare import Comparison, Side, compare_samples
 from navsim.scoring.landmarks import sighting_spans
 from navsim.records.metrics import RunMetrics
 from navsim.scoring.scorer import score_run
@@ -107,6 +115,9 @@ class Result:
     store: object = None
     #: the runs ``histories`` hold when fewer than ``runs`` (the first chunks); None: all
     history_runs: np.ndarray | None = None
+    #: estimator label -> its runs' samples (:mod:`navsim.records.samples`, ``samples.npz``:
+    #: what :func:`compare` pairs); empty until scored or read
+    samples: dict[str, EstimatorSamples] = field(default_factory=dict)
 
     @classmethod
     def from_run(cls, scenario: Scenario, rr: runner.RunResult, record: RunRecord, **rest) -> "Result":
@@ -323,7 +334,8 @@ def _score(result: Result, wall_s: float) -> None:
     else:
         held = ChunkPart(list(result.runs), result.histories, calibration=result.calibration)
         parts = lambda: iter([held] if result.histories else [])
-    estimators, calibration = score_run(parts, sc.settle_s, sc.windows, result.sightings)
+    scores = score_run(parts, sc.settle_s, sc.windows, result.sightings)
+    estimators, calibration, result.samples = scores.estimators, scores.calibration, scores.samples
     closed = None
     if sc.closed_loop is not None:
         closed = closed_loop_metrics(result.loop, result.reference, sc.closed_loop, result.histories)
@@ -345,6 +357,8 @@ def _write_run(result: Result, folder: OutputFolder, record: RunRecord | None = 
                 f"# resolved by navsim {result.record.versions['navsim']} at git {result.record.git_revision}\n"
                 + yaml.safe_dump(resolved_scenario(result), sort_keys=False))
     folder.json("run.json", record.to_dict())
+    if result.samples:
+        folder.write(SAMPLES_FILE, lambda p: save_samples(p, result.samples))
     if result.store is None and result.histories and result.record.plotted == len(result.runs):
         arrays = {"runs": result.runs, NPZ_KEYS: np.array(NPZ_KEYS_VERSION)}
         for label, h in result.histories.items():
@@ -508,3 +522,102 @@ def sweep(path, workers: int | None = None, *, executor: str = "local", schedule
         if progress:
             progress(1)
     return result
+
+
+def compare(a, b=None, estimators=None, *, partial: bool = False, unpaired: bool = False) -> list[Comparison]:
+    """Compare two estimators over the runs as the samples: ``B - A`` per metric with its 95 %
+    interval and a verdict (:mod:`navsim.scoring.compare`); nothing is written.
+
+    Parameters
+    ----------
+    a, b : path
+        Result folders (``navsim run``'s ``--out``); ``b`` None: two estimators of ``a``.
+    estimators : sequence of str, optional
+        ``(A, B)``: the estimator of ``a`` and of ``b``; one label: the same on both sides.
+        Default: every label the two results share (one comparison each), or each one's only
+        estimator; required for two estimators of one result.
+    partial : bool
+        Compare an interrupted result as it is (its finished runs), else refuse it.
+    unpaired : bool
+        Compare side against side even where the runs pair (what pairing gains).
+
+    Returns
+    -------
+    list of Comparison
+        One per estimator pair. Paired run by run when both results flew the same flights and
+        sensor data (:func:`navsim.experiment.results.pairing`), else unpaired.
+
+    Raises
+    ------
+    UsageError
+        A folder that is not a result or that an older navsim wrote, two different tracks or
+        metric settings, an interrupted result without ``partial``, an unknown estimator.
+    """
+    ra = read_result(a)
+    rb = ra if b is None else read_result(b)
+    check_comparable(ra, rb)
+    for r in {id(ra): ra, id(rb): rb}.values():
+        if r.record.interrupted and not partial:
+            raise UsageError(f"{r.folder}: interrupted after {r.record.runs_done} of {r.record.runs} runs; hint: "
+                             "complete it with navsim run --resume, or compare what finished with --partial")
+    paired, why = pairing(ra, rb)
+    if unpaired:
+        paired, why = False, "unpaired (asked): side against side"
+    out = []
+    for la, lb in _estimator_pairs(ra, rb, b is None, estimators):
+        side = lambda r, label: Side(str(r.folder), label, len(r.samples[label].runs), r.record.runs_done,
+                                     r.record.runs, bool(r.record.interrupted), r.record.seed)
+        c = compare_samples(side(ra, la), ra.samples[la], side(rb, lb), rb.samples[lb], paired, why)
+        if not c.differences:
+            raise UsageError(f"{ra.folder} '{la}' and {rb.folder} '{lb}' share no metric to compare")
+        out.append(c)
+    return out
+
+
+def _estimator_pairs(ra: ResultFiles, rb: ResultFiles, one: bool, estimators) -> list[tuple[str, str]]:
+    """The ``(A, B)`` labels compared (see :func:`compare`)."""
+    la, lb = list(ra.samples), list(rb.samples)
+    if estimators:
+        names = list(estimators)
+        if len(names) > 2:
+            raise UsageError(f"--estimators takes one or two labels, not {len(names)}")
+        pair = (names[0], names[-1])
+        for r, label in zip((ra, rb), pair):
+            if label not in r.samples:
+                raise UsageError(f"{r.folder}: no estimator '{label}'; it has: " + ", ".join(r.samples))
+        if one and pair[0] == pair[1]:
+            raise UsageError(f"{ra.folder}: one estimator against itself; name two: --estimators A B")
+        return [pair]
+    if one:
+        raise UsageError(f"{ra.folder}: one result: name the two estimators to compare, --estimators A B "
+                         "(it has: " + ", ".join(la) + ")")
+    common = [x for x in la if x in lb]
+    if common:
+        return [(x, x) for x in common]
+    if len(la) == len(lb) == 1:
+        return [(la[0], lb[0])]
+    raise UsageError(f"{ra.folder} and {rb.folder} share no estimator label; name them: --estimators A B "
+                     f"(A has: {', '.join(la)}; B has: {', '.join(lb)})")
+
+
+def write_comparison(comparisons: list[Comparison], folder: OutputFolder, a, b=None, fmts=("pdf", "png")) -> list[Path]:
+    """``compare.json``, ``compare.csv`` and the page of each comparison (``compare.pdf``, a PNG
+    each) into ``folder``; returns the files written. ``a``, ``b``: the result folders (their
+    per-run samples are drawn)."""
+    ra = read_result(a)
+    rb = ra if b is None else read_result(b)
+    folder.json("compare.json", {"comparisons": [c.to_dict() for c in comparisons], **provenance()})
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(CSV_HEADERS)
+    for c in comparisons:
+        w.writerows(csv_rows(c))
+    folder.text("compare.csv", buf.getvalue())
+    pages = [compare_page(c, ra.samples[c.a.estimator], rb.samples[c.b.estimator],
+                          "compare" if j == 0 else f"compare_{j + 1}") for j, c in enumerate(comparisons)]
+    try:
+        files = render(folder, pages, fmts, "navsim compare", pdf="compare.pdf")
+    finally:
+        for p in pages:
+            pyplot().close(p.figure)
+    return [folder.path / "compare.json", folder.path / "compare.csv", *files]

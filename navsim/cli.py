@@ -47,6 +47,7 @@ from navsim.flight.simulator import fly
 from navsim.flight.track import available_tracks, load_track, nominal_duration_s
 from navsim.foundations.config import MAX_RUNS
 from navsim.foundations.errors import FlightError, NavsimError, OutputError, UsageError
+from navsim.report.compare import HEADERS as COMPARE_HEADERS, headline, text_rows
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.progress import Progress
 from navsim.foundations.provenance import provenance
@@ -220,7 +221,7 @@ def artifacts(out: Path, files) -> str:
     """Every file a run wrote into ``out``: the report's and the run's own."""
     pngs = [f for f in files if f.suffix == ".png"]
     names = [f.name for f in files if f.suffix == ".pdf"] + ([f"{len(pngs)} PNGs"] if pngs else [])
-    names += [n for n in ("metrics.json", "run.json", "scenario.resolved.yaml", "runs.npz") if (out / n).exists()]
+    names += [n for n in ("metrics.json", "run.json", "scenario.resolved.yaml", "samples.npz", "runs.npz") if (out / n).exists()]
     if (out / "chunks" / "index.json").exists():
         names.append(f"chunks/ (per-run data, {len(listed_runs(out / 'chunks'))} runs)")
     return ", ".join(names)
@@ -308,6 +309,19 @@ def cmd_sweep(args) -> int:
         print(f"interrupted after {len(sweep.rows)} of {len(points)} points", file=sys.stderr)
         return 130
     return 1 if sweep.failed_points else 0
+
+
+def cmd_compare(args) -> int:
+    comparisons = api.compare(args.a, args.b, args.estimators, partial=args.partial, unpaired=args.unpaired)
+    name = lambda p: Path(p).resolve().name
+    default = Path("reports") / (f"compare_{name(args.a)}" + (f"_vs_{name(args.b)}" if args.b else ""))
+    folder = _open_folder(args, default)     # only now: a refused comparison writes nothing
+    for j, c in enumerate(comparisons):
+        print(("\n" if j else "") + headline(c) + "\n\n" + _table(list(COMPARE_HEADERS), text_rows(c)))
+    folder.clear_earlier()
+    files = api.write_comparison(comparisons, folder, args.a, args.b)
+    print(f"\nwrote {folder.path}/: " + ", ".join(f.name for f in files))
+    return 0
 
 
 def write_sweep_files(folder: OutputFolder, sweep) -> None:
@@ -503,6 +517,32 @@ def _executor_options(p) -> None:
                    "LocalCluster of --workers processes is started")
 
 
+def _compare_parser(sub) -> None:
+    p = sub.add_parser("compare", help="compare two estimators' metrics: B - A with 95 %% intervals",
+                       description="Compare the metrics of two results (navsim run's folders), or of two "
+                       "estimators of one result: for each metric A, B, B - A with its 95 % interval and a "
+                       "verdict (better / worse / no significant difference at N runs, with the runs that "
+                       "would resolve it; NEES: higher / lower). When both flew the same flights and sensor "
+                       "data (the resolved scenarios equal but for their estimators and run counts, the same "
+                       "seed and flight) the runs are paired by number, which cancels the noise they share; "
+                       "else side against side. Writes compare.json, compare.csv and compare.pdf/.png. "
+                       "Refused with exit 2, nothing written: a folder that is not a result or that an older "
+                       "navsim wrote, two different tracks or metric settings, an interrupted result "
+                       "(unless --partial).")
+    p.add_argument("a", help="result folder A")
+    p.add_argument("b", nargs="?", help="result folder B (default: A, comparing two of its estimators)")
+    p.add_argument("--estimators", nargs="+", metavar="LABEL",
+                   help="the estimator of A and of B (one label: the same on both; default: every label both "
+                   "have, or each one's only estimator)")
+    p.add_argument("--partial", action="store_true",
+                   help="compare an interrupted result's finished runs (each side's count is printed)")
+    p.add_argument("--unpaired", action="store_true",
+                   help="compare side against side even where the runs pair (to see what pairing gains)")
+    p.add_argument("--out", help="output folder (default reports/compare_<A>_vs_<B>)")
+    _writer_options(p)
+    p.set_defaults(func=cmd_compare)
+
+
 def _replay_parser(sub) -> None:
     p = sub.add_parser("replay", help="replay a real PX4 flight log through an estimator",
                        description="Read a PX4 ULog (pyulog), feed its IMU, magnetometer and baro "
@@ -587,6 +627,7 @@ def build_parser() -> argparse.ArgumentParser:
     _writer_options(p)
     p.set_defaults(func=cmd_sweep)
     _replay_parser(sub)
+    _compare_parser(sub)
     p = sub.add_parser("schema", help="print the JSON Schema of scenario files",
                        description="Print the JSON Schema of scenario files for editors, with the "
                        "estimators and measurement types of installed plug-ins (docs/scenario.schema.json "

@@ -14,14 +14,14 @@ from navsim.report.figures import Page
 from navsim.report.tables import PNG_DPI
 
 
-def render(folder: OutputFolder, pages: list[Page], fmts, title: str) -> list[Path]:
-    """Each page to ``<name>.png`` and all of them, in order, to ``report.pdf`` (``title`` in
+def render(folder: OutputFolder, pages: list[Page], fmts, title: str, pdf: str = "report.pdf") -> list[Path]:
+    """Each page to ``<name>.png`` and all of them, in order, to ``pdf`` (``title`` in
     its metadata); returns the files written. Where the machine has a second core and ``fork``
     (Linux), a forked child draws the PNGs while this process draws the PDF (about half the
     time: a page costs as much to draw for either)."""
     out = folder.path
     pngs = [(out / f"{page.name}.png", page.figure) for page in pages] if "png" in fmts else []
-    pdf_path = out / "report.pdf" if "pdf" in fmts else None
+    pdf_path = out / pdf if "pdf" in fmts else None
     folder.record([p for p, _ in pngs] + ([pdf_path] if pdf_path else []))
     child = _fork_writer(pngs) if pngs and pdf_path and _can_fork() else None
     if child is None:

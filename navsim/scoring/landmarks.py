@@ -80,6 +80,20 @@ def sighting_metrics(h, spans, good=None) -> Landmarks | None:
                      SpreadStats(float(np.median(before)), float(np.max(before))), per)
 
 
+def _after(h, spans, good) -> np.ndarray:
+    """The north and east errors at each sighting's last fix, ``(B counted, sightings, 2)``."""
+    last, _ = _epochs(h.t_s, spans)
+    return h.pos_err_m[good][:, last, :2]
+
+
+def sighting_sums(h, spans, good=None) -> tuple[np.ndarray, np.ndarray]:
+    """Each counted run's sum of squared north and east errors after the sightings and their
+    count (``rms_after_m`` is the root of their ratio), ``(B,)`` each."""
+    good = ~np.asarray(h.diverged, bool) if good is None else good
+    e = _after(h, spans, good)
+    return np.sum(e ** 2, axis=(1, 2)), np.full(len(e), float(e[0].size if len(e) else 0))
+
+
 def sighting_intervals(h, spans, good=None) -> dict:
     """The 95 % intervals of :func:`sighting_metrics`' shares and RMS, the runs as the samples:
     ``fraction_within_3sigma`` (Wilson's, with the runs' effective count) and ``rms_after_m``
@@ -88,11 +102,10 @@ def sighting_intervals(h, spans, good=None) -> dict:
         good = ~np.asarray(h.diverged, bool)
     if not spans or int(np.sum(good)) < MIN_RUNS:
         return {}
-    last, _ = _epochs(h.t_s, spans)
-    e = h.pos_err_m[good][:, last, :2]                             # (B, sightings, 2)
+    e = _after(h, spans, good)
     sigma = np.maximum([sg for *_, sg in spans], 1e-9)
     inside = np.abs(e) / sigma[None, :, None] <= 3.0
     count = np.full(len(e), float(inside[0].size))
-    ms = mean_square_interval(np.sum(e ** 2, axis=(1, 2)), count)       # over sightings and N, E
+    ms = mean_square_interval(*sighting_sums(h, spans, good))
     return {"fraction_within_3sigma": share_interval(inside.sum(axis=(1, 2)).astype(float), count),
             "rms_after_m": [float(np.sqrt(v)) if np.isfinite(v) else float("nan") for v in ms]}

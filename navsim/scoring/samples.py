@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from navsim.records.samples import EstimatorSamples, MetricSamples
 from navsim.scoring.intervals import (
     MIN_RUNS,
     WeightedSums,
@@ -45,6 +46,7 @@ class RunSamples:
         self.sums: dict = {}
         self.boot: dict = {}
         self.final: list = []
+        self.runs: list = []
 
     def _s(self, key, keep: int = 0) -> RunSums:
         if key not in self.sums:
@@ -60,6 +62,7 @@ class RunSamples:
         """Feed a chunk ``c`` (:class:`navsim.scoring.scorer._Chunk`) whose counted runs have
         the numbers ``runs``; ``masks``: window name -> its epochs."""
         h, good = c.h, c.good
+        self.runs.append(np.asarray(runs, np.int64))
         for name, x in c.errors.items():
             self._s(("sq", name), 1).add(x ** 2)
         if c.euler is not None:
@@ -72,6 +75,7 @@ class RunSamples:
         w = bootstrap_weights(runs)
         self._b("conv").add(w, np.sum(h.pos_err_m[good] ** 2, axis=-1))
         if h.nees is not None:
+            self._s("nees_run").add(h.nees[good][:, c.after & (h.t_s > 0)])
             self._b("nees").add(w, h.nees[good])
             for key, nis in h.nis.items():
                 self._b(("nis", key)).add(w, nis[good][:, c.after])
@@ -83,6 +87,28 @@ class RunSamples:
     def add_final(self, squares) -> None:
         """Feed the squared last-epoch errors of the runs, one ``(B, 3)`` per quantity."""
         self.final.append(squares)
+
+    def table(self) -> EstimatorSamples:
+        """The metrics that are ratios of per-run sums, run by run
+        (:mod:`navsim.records.samples`: what a paired comparison reads)."""
+        m = {f"rms.{n}": (self.sums[("sq", n)], True) for n in ERRORS}
+        if "e_sq" in self.sums:
+            m["attitude.rms_deg"] = (self.sums["e_sq"], True)
+        if "nees_run" in self.sums:
+            m["nees.average"] = (self.sums["nees_run"], False)
+        if "nsq" in self.sums:
+            m["nees.per_state"] = (self.sums["nsq"], False)
+        for key in self.sums:
+            if key[0] == "wsq":
+                m[f"windows.{key[1]}.{key[2]}.rms"] = (self.sums[key], True)
+            elif key[0] == "whor":
+                m[f"windows.{key[1]}.horizontal_m.rms"] = (self.sums[key], True)
+        out = {path: MetricSamples(*_columns(acc), root) for path, (acc, root) in m.items()}
+        for n, i in zip(ERRORS, range(3)):
+            sq = np.concatenate([f[i] for f in self.final]) if self.final else np.zeros((0, 3))
+            out[f"final.{n}"] = MetricSamples(np.nan_to_num(sq), np.isfinite(sq).astype(float), True)
+        runs = np.concatenate(self.runs) if self.runs else np.zeros(0, np.int64)
+        return EstimatorSamples(runs, out)
 
     def intervals(self, t_s, settle_s: float, good: int, bands: dict) -> dict:
         """The intervals, in the metrics' shape (sections that were not scored left out).
@@ -140,6 +166,13 @@ class RunSamples:
 
     def _nis(self, nis_cols: dict) -> dict:
         return {key: self._shares(("nis", key), cols, (lo, hi)) for key, (cols, lo, hi) in nis_cols.items()}
+
+
+def _columns(acc: RunSums) -> tuple[np.ndarray, np.ndarray]:
+    """A run sum's arrays as ``(B, k)`` (one column where no axis was kept)."""
+    s, n = acc.arrays()
+    k = int(np.prod(s.shape[1:]))                 # 1 for one number per run; also with no run
+    return s.reshape(len(s), k).astype(float), n.reshape(len(n), k).astype(float)
 
 
 def _nanmean(a) -> np.ndarray:

@@ -15,20 +15,22 @@ depend on the chunking beyond the rounding of sums (tested to 1e-12 relative).
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from navsim.records.cost import sum_cost
 from navsim.records.history import BLOCK_ERRORS, EstimatorHistory
+from navsim.records.samples import EstimatorSamples, MetricSamples
 from navsim.records.states import BLOCKS
 from navsim.records.truth import CalibrationHistory
 from navsim.scoring.calibration import calibration_score, thin_calibration
-from navsim.scoring.landmarks import SightingEpochs, sighting_intervals, sighting_metrics, thin_for_sightings
+from navsim.scoring.landmarks import SightingEpochs, sighting_intervals, sighting_metrics, sighting_sums, thin_for_sightings
 from navsim.scoring.intervals import rounded
 from navsim.scoring.samples import RunSamples
 from navsim.records.metrics import (
     AttitudeStats,
+    CalibrationScore,
     Cost,
     DivergedRun,
     Divergence,
@@ -376,10 +378,21 @@ def score(h: EstimatorHistory, settle_s: float = 0.0, windows=(), good=None, run
     return s.result()
 
 
-def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> tuple[dict, dict]:
+@dataclass(frozen=True)
+class RunScores:
+    """What :func:`score_run` finds: per estimator label its metrics and its runs' samples
+    (the ratio-of-sums metrics run by run, :mod:`navsim.records.samples`), per calibrated
+    magnetometer its score."""
+
+    estimators: dict[str, EstimatorMetrics]
+    calibration: dict[str, CalibrationScore]
+    samples: dict[str, EstimatorSamples]
+
+
+def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> RunScores:
     """What a run is scored on, from its chunk parts: estimator label ->
     :class:`~navsim.records.metrics.EstimatorMetrics` (with ``landmarks`` for an estimator with
-    a covariance when there are ``sightings``) and magnetometer name ->
+    a covariance when there are ``sightings``) and its runs' samples, and magnetometer name ->
     :class:`~navsim.records.metrics.CalibrationScore`.
 
     Parameters
@@ -406,18 +419,22 @@ def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> tuple[d
         for label, h in part.histories.items():
             scores[label].add(h, runs=part.runs)
     out = {label: s.result() for label, s in scores.items()}
+    samples = {label: s.samples.table() for label, s in scores.items()}
     for label, pieces in thin.items():
         joined = SightingEpochs(pieces[0].t_s, np.concatenate([p.pos_err_m for p in pieces]),
                                 np.concatenate([p.diverged for p in pieces]))
         m, ci = out[label], sighting_intervals(joined, sightings)
         out[label] = replace(m, landmarks=sighting_metrics(joined, sightings),
                              ci95={**m.ci95, "landmarks": rounded(ci)} if m.ci95 is not None and ci else m.ci95)
+        s, n = sighting_sums(joined, sightings)
+        if len(s) == len(samples[label].runs):
+            samples[label].metrics["landmarks.rms_after_m"] = MetricSamples(s[:, None], n[:, None], True)
     cal = {name: calibration_score(CalibrationHistory.concatenate(ps)) for name, ps in calib.items()}
-    return out, cal
+    return RunScores(out, cal, samples)
 
 
 def score_parts(parts, settle_s: float = 0.0, windows=()) -> dict:
     """Label -> :class:`~navsim.records.metrics.EstimatorMetrics` over chunk parts (as
     :func:`score_run`)."""
-    return score_run(parts, settle_s, windows)[0]
+    return score_run(parts, settle_s, windows).estimators
 

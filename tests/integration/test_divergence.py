@@ -79,7 +79,7 @@ def test_a_blown_up_filter_is_flagged_and_the_sane_one_scored_on_every_run(p0, t
     assert s["diverged_runs"] == 0 and s["runs_counted"] == 3 and "divergence" not in s
     assert max(s["rms"]["pos_m"]) < 5.0 and max(s["rms"]["att_deg"]) < 0.1
     # the streamed scorer (chunks of 2 and 1 runs) lists the same
-    streamed = score_run(store.parts, 10.0)[0]
+    streamed = score_run(store.parts, 10.0).estimators
     close_metrics(m, streamed[BLOWN].to_dict())
     close_metrics(s, streamed[SANE].to_dict())
 

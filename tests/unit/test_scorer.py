@@ -152,7 +152,8 @@ def test_landmark_and_calibration_scores_from_chunks_equal_the_merged_ones(close
     # sightings: one at the start, one across the records' end, two in between
     spans = [("cam landmark 1", 0.0, 3.0, 2.0), ("cam landmark 2", 40.5, 44.2, 1.5),
              ("cam landmark 3", 70.0, 70.0, 3.0), ("cam landmark 4", 110.0, 400.0, 2.0)]
-    metrics, calib = score_run(lambda: iter(parts), 30.0, (), spans)
+    scores = score_run(lambda: iter(parts), 30.0, (), spans)
+    metrics, calib = scores.estimators, scores.calibration
     merged = merge_parts(parts)
     close(sighting_metrics(merged.histories["KF"], spans).to_dict(), metrics["KF"].landmarks.to_dict())
     whole = calibration_score(merged.calibration["mag"])

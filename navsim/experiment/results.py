@@ -1,0 +1,121 @@
+"""A result folder's files as :func:`navsim.compare` reads them, and what two results share:
+whether they flew the same flights and sensor data (then they pair run by run) and whether their
+metrics can be compared at all.
+
+Read: ``metrics.json``, ``run.json``, ``scenario.resolved.yaml`` and ``samples.npz`` (each run's
+part of the metrics, :mod:`navsim.records.samples`); nothing is written. A folder that lacks one
+of them, or whose ``samples.npz`` an older navsim wrote, is refused with a
+:class:`~navsim.foundations.errors.UsageError` naming it.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from navsim.foundations.errors import UsageError
+from navsim.records.metrics import RunMetrics
+from navsim.records.run import RunRecord
+from navsim.records.samples import SAMPLES_FILE, EstimatorSamples, load_samples
+
+#: the first navsim that writes ``samples.npz``
+SAMPLES_SINCE = (0, 2, 0)
+#: the keys of a resolved scenario that do not change the flights or the sensor data: what is
+#: estimated, how many runs and workers, the paper's numbers, the names
+NOT_THE_DATA = ("name", "description", "estimators", "reference")
+NOT_THE_DATA_MONTECARLO = ("runs", "workers")
+#: the keys that make the metrics: results that differ here cannot be compared
+METRIC_SET = ("metrics",)
+
+
+@dataclass(frozen=True)
+class ResultFiles:
+    """A finished (or interrupted) run's files."""
+
+    folder: Path
+    metrics: RunMetrics
+    record: RunRecord
+    resolved: dict                                #: scenario.resolved.yaml
+    samples: dict[str, EstimatorSamples]
+
+    @property
+    def version(self) -> str:
+        return str(self.record.versions.get("navsim", "unknown"))
+
+
+def _version(text: str) -> tuple:
+    try:
+        return tuple(int(p) for p in text.split("+")[0].split(".")[:3])
+    except ValueError:
+        return ()
+
+
+def read_result(folder) -> ResultFiles:
+    """The files of the result in ``folder``; :class:`UsageError` for a folder that is not a
+    result or was written by a navsim before :data:`SAMPLES_SINCE`."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise UsageError(f"{folder}: no such folder (expected a result folder of navsim run)")
+    missing = [n for n in ("metrics.json", "run.json", "scenario.resolved.yaml") if not (folder / n).is_file()]
+    if missing:
+        raise UsageError(f"{folder}: not a navsim result (no {', '.join(missing)}); "
+                         "hint: pass the folder navsim run wrote (its --out)")
+    try:
+        metrics = RunMetrics.from_dict(json.loads((folder / "metrics.json").read_text()))
+        record = RunRecord.from_dict(json.loads((folder / "run.json").read_text()))
+        resolved = yaml.safe_load((folder / "scenario.resolved.yaml").read_text())
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, yaml.YAMLError) as exc:
+        raise UsageError(f"{folder}: not a readable navsim result ({type(exc).__name__}: {exc})") from None
+    version = str(record.versions.get("navsim", "unknown"))
+    if not (folder / SAMPLES_FILE).is_file() or _version(version) < SAMPLES_SINCE:
+        since = ".".join(map(str, SAMPLES_SINCE))
+        raise UsageError(f"{folder}: written by navsim {version}, before the per-run samples ({SAMPLES_FILE}, "
+                         f"navsim {since}) a comparison reads; hint: run its scenario again with this navsim")
+    try:
+        samples = load_samples(folder / SAMPLES_FILE)
+    except (OSError, ValueError, KeyError) as exc:
+        raise UsageError(f"{folder}/{SAMPLES_FILE}: not readable ({exc}); hint: run its scenario again") from None
+    if not isinstance(resolved, dict):
+        raise UsageError(f"{folder}/scenario.resolved.yaml: expected a mapping")
+    return ResultFiles(folder, metrics, record, resolved, samples)
+
+
+def the_data(resolved: dict) -> dict:
+    """The part of a resolved scenario that makes the flights and sensor data (every key but
+    :data:`NOT_THE_DATA` and the Monte Carlo's run and worker counts)."""
+    out = {k: v for k, v in resolved.items() if k not in NOT_THE_DATA}
+    mc = dict(out.get("montecarlo") or {})
+    for k in NOT_THE_DATA_MONTECARLO:
+        mc.pop(k, None)
+    out["montecarlo"] = mc
+    return out
+
+
+def check_comparable(a: ResultFiles, b: ResultFiles) -> None:
+    """:class:`UsageError` when two results cannot be compared: different tracks, or different
+    metric settings (settling time, windows)."""
+    ta, tb = a.resolved.get("track"), b.resolved.get("track")
+    if ta != tb:
+        raise UsageError(f"{a.folder} flew track {ta!r}, {b.folder} track {tb!r}: errors on different "
+                         "flights are not comparable; hint: compare results of one track")
+    for key in METRIC_SET:
+        if a.resolved.get(key) != b.resolved.get(key):
+            raise UsageError(f"{a.folder} and {b.folder} score differently ({key}: {a.resolved.get(key)!r} "
+                             f"against {b.resolved.get(key)!r}): their metrics are not the same quantities")
+
+
+def pairing(a: ResultFiles, b: ResultFiles) -> tuple[bool, str]:
+    """Whether the two results flew the same flights and sensor data (then their runs pair by
+    number), and why: from the resolved scenarios' content and the flight's cache key."""
+    if a.folder.resolve() == b.folder.resolve():
+        return True, "one result: the same runs"
+    da, db = the_data(a.resolved), the_data(b.resolved)
+    differ = sorted(k for k in set(da) | set(db) if da.get(k) != db.get(k))
+    if a.record.flight_key != b.record.flight_key:
+        differ.append("flight")
+    if differ:
+        return False, f"not the same sensor data (they differ in {', '.join(differ)}): unpaired"
+    return True, "the same flight, sensors, initial errors and seed: paired run by run"

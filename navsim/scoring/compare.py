@@ -1,0 +1,243 @@
+"""Two estimators' metrics compared, the runs as the samples: ``B - A`` with its 95 % interval
+and a verdict, run by run (paired) where both flew the same runs, else side against side.
+
+Every metric compared is a ratio of per-run sums (:mod:`navsim.records.samples`),
+``R = sum(s) / sum(n)``, or its square root. Its run-by-run influence values (the linearised
+ratio, as :func:`navsim.scoring.intervals.ratio_se`),
+
+    g_b = f'(R) (s_b - R n_b) / mean(n),
+
+have the metric's sampling variance ``var(g) / B``. Paired, the runs both sides have are
+matched by run number and the difference's variance is that of ``g_B - g_A``: the errors the
+two share (the same flight, sensor noise, biases and initial errors) cancel. Unpaired, the
+variances add (Welch's degrees of freedom). The interval is Student's t on that standard error.
+
+A verdict: for an error (an RMS) ``better`` when B - A is significantly below 0, ``worse`` above,
+``no significant difference`` otherwise, with the runs at which the 95 % interval would exclude
+0 if the difference seen held (the half-width shrinking as ``1 / sqrt(runs)``). A consistency
+statistic (NEES) has no better side: ``higher`` or ``lower``. The verdicts hold for the family
+of components compared together (Holm's step-down at 5 %: the chance that any of them is
+called different when none is stays at 5 %, where 30 components each tested at 5 % would call
+one in four out of nothing); the intervals are each one's own 95 %. A component whose own
+interval excludes 0 but that does not pass Holm's step is ``no significant difference`` with
+its ``p_value`` shown.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.stats import norm, t as student_t
+
+from navsim.records.samples import EstimatorSamples, MetricSamples
+from navsim.records.states import SIGMA_STATES
+from navsim.scoring.intervals import CONFIDENCE, MIN_RUNS
+
+#: the verdicts (an error metric; a consistency statistic)
+BETTER, WORSE, SAME = "better", "worse", "no significant difference"
+HIGHER, LOWER = "higher", "lower"
+#: the names of a metric's components, by its shape (the metric path's start decides first)
+COMPONENTS = {"attitude.rms_deg": ("roll", "pitch", "yaw"), "nees.per_state": SIGMA_STATES}
+AXES = ("N", "E", "D")
+#: the paths with a horizontal component (the root of the N and E mean squares' sum)
+HORIZONTAL = ("rms.pos_m", "final.pos_m")
+
+
+@dataclass(frozen=True)
+class Difference:
+    """One component of one metric: A's and B's values, ``B - A`` and its 95 % interval."""
+
+    metric: str                 #: the metrics path (``rms.pos_m``)
+    component: str              #: ``N``, ``horizontal``, ``roll``, ``pos_E``, or "" for a scalar
+    a: float
+    b: float
+    diff: float
+    ci95: list[float]
+    verdict: str
+    #: the runs (per side) at which the difference would be significant over the family if it
+    #: held (Bonferroni's bound of Holm's step); only for ``no significant difference``
+    runs_needed: int | None = None
+    #: the two-sided p-value of B - A = 0 (Student's t on the same standard error)
+    p_value: float = math.nan
+    #: the runs it is over (paired: both sides'; unpaired: the smaller side)
+    runs: int = 0
+    #: the standard error of B - A
+    se: float = math.nan
+
+    @property
+    def relative(self) -> float:
+        """``(B - A) / A`` (NaN where A is 0)."""
+        return self.diff / self.a if self.a else math.nan
+
+    @property
+    def name(self) -> str:
+        return f"{self.metric} {self.component}".strip()
+
+
+def _components(path: str, k: int) -> tuple[str, ...]:
+    if len(COMPONENTS.get(path, ())) == k:
+        return COMPONENTS[path]
+    return AXES if k == 3 else tuple(str(j) for j in range(k)) if k > 1 else ("",)
+
+
+def columns(path: str, m: MetricSamples) -> list[tuple[str, MetricSamples]]:
+    """The metric's columns as ``(component, one-column samples)``, with the horizontal one."""
+    names = _components(path, m.s.shape[1])
+    out = [(c, MetricSamples(m.s[:, j:j + 1], m.n[:, j:j + 1], m.root)) for j, c in enumerate(names)]
+    if path in HORIZONTAL:
+        out.append(("horizontal", MetricSamples(m.s[:, :2].sum(1, keepdims=True), m.n[:, :1], m.root)))
+    return out
+
+
+def influence(m: MetricSamples) -> tuple[float, np.ndarray]:
+    """The metric's value over the runs and each run's influence value ``g_b`` (``(B,)``)."""
+    s, n = m.s[:, 0], m.n[:, 0]
+    mean_n = float(np.mean(n))
+    ratio = float(np.sum(s) / np.sum(n)) if np.sum(n) > 0 else math.nan
+    g = (s - ratio * n) / mean_n if mean_n > 0 else np.full(len(s), math.nan)
+    if m.root:
+        value = math.sqrt(ratio) if ratio >= 0 else math.nan
+        return value, g / (2 * value) if value > 0 else np.zeros(len(s))
+    return ratio, g
+
+
+def _interval(diff: float, se: float, dof: float) -> list[float]:
+    """The t interval of ``diff`` (NaN where it cannot be had)."""
+    if not (math.isfinite(se) and dof >= 1):
+        return [math.nan, math.nan]
+    half = float(student_t.ppf(0.5 + CONFIDENCE / 2, dof)) * se
+    return [diff - half, diff + half]
+
+
+def _verdict(metric: str, ci: list[float]) -> str:
+    """The verdict of one component's own interval (before Holm's step over the family)."""
+    lo, hi = ci
+    error = not metric.startswith("nees.")
+    if lo > 0:
+        return WORSE if error else HIGHER
+    if hi < 0:
+        return BETTER if error else LOWER
+    return SAME
+
+
+def paired_rows(a: EstimatorSamples, b: EstimatorSamples) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of ``a`` and of ``b`` of the runs both have, in run order."""
+    _, ia, ib = np.intersect1d(a.runs, b.runs, return_indices=True)
+    return ia, ib
+
+
+def _rows(m: MetricSamples, rows) -> MetricSamples:
+    return MetricSamples(m.s[rows], m.n[rows], m.root)
+
+
+def differences(a: EstimatorSamples, b: EstimatorSamples, paired: bool) -> list[Difference]:
+    """Every metric both sides kept, component by component: ``B - A`` with its interval and
+    verdict (Holm's over the components, :func:`holm`). Paired: over the runs both have
+    (matched by number); unpaired: each side's own."""
+    ia, ib = paired_rows(a, b) if paired else (slice(None), slice(None))
+    out = []
+    for path in [p for p in a.metrics if p in b.metrics]:
+        if a.metrics[path].s.shape[1] != b.metrics[path].s.shape[1]:
+            continue
+        for (comp, ma), (_, mb) in zip(columns(path, _rows(a.metrics[path], ia)),
+                                       columns(path, _rows(b.metrics[path], ib))):
+            out.append(_difference(path, comp, ma, mb, paired))
+    return holm(out)
+
+
+def holm(diffs: list[Difference], alpha: float = 1 - CONFIDENCE) -> list[Difference]:
+    """The verdicts of Holm's step-down over ``diffs``: the k-th smallest p-value (from 0) is
+    significant while it and every smaller one is below ``alpha / (m - k)``; the rest are
+    ``no significant difference``."""
+    order = sorted(range(len(diffs)), key=lambda i: diffs[i].p_value if math.isfinite(diffs[i].p_value) else 2.0)
+    keep = set()
+    for k, i in enumerate(order):
+        if not diffs[i].p_value <= alpha / (len(diffs) - k):
+            break
+        keep.add(i)
+    # the runs at which the difference seen would pass the family's strictest step (Bonferroni's
+    # alpha / m, an upper bound of Holm's), the standard error shrinking as 1 / sqrt(runs)
+    q = float(norm.ppf(1 - alpha / (2 * max(len(diffs), 1))))
+    out = []
+    for i, d in enumerate(diffs):
+        if i not in keep:
+            needed = int(math.ceil(d.runs * (q * d.se / abs(d.diff)) ** 2)) if d.diff and d.se > 0 else None
+            d = replace(d, verdict=SAME, runs_needed=needed)
+        out.append(d)
+    return out
+
+
+def _difference(path: str, comp: str, ma: MetricSamples, mb: MetricSamples, paired: bool) -> Difference:
+    va, ga = influence(ma)
+    vb, gb = influence(mb)
+    na, nb = len(ga), len(gb)
+    diff = vb - va
+    if min(na, nb) < MIN_RUNS:
+        se, dof = math.nan, 0.0
+    elif paired:
+        d = gb - ga
+        se, dof = float(np.std(d, ddof=1) / math.sqrt(na)), na - 1.0
+    else:
+        va2, vb2 = np.var(ga, ddof=1) / na, np.var(gb, ddof=1) / nb
+        se = float(math.sqrt(va2 + vb2))
+        denom = va2 ** 2 / (na - 1) + vb2 ** 2 / (nb - 1)
+        dof = float((va2 + vb2) ** 2 / denom) if denom > 0 else na + nb - 2.0
+    if se == 0 and diff == 0:                  # identical sides: the difference is exactly 0
+        return Difference(path, comp, va, vb, 0.0, [0.0, 0.0], SAME, None, 1.0, min(na, nb), 0.0)
+    ci = _interval(diff, se, dof)
+    p = float(2 * student_t.sf(abs(diff) / se, dof)) if se > 0 and dof >= 1 else math.nan
+    return Difference(path, comp, va, vb, diff, ci, _verdict(path, ci), None, p, min(na, nb), se)
+
+
+@dataclass(frozen=True)
+class Side:
+    """One side of a comparison: the result and the estimator."""
+
+    result: str                 #: the result folder
+    estimator: str
+    runs: int                   #: its counted runs (the diverged left out)
+    runs_done: int              #: the runs its result finished
+    runs_asked: int
+    interrupted: bool
+    seed: int
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A against B, metric by metric (:func:`differences`)."""
+
+    a: Side
+    b: Side
+    paired: bool
+    pairing: str                #: why paired or not
+    runs_compared: int          #: paired: the runs both have; unpaired: the smaller side
+    differences: list[Difference]
+
+    def summary(self) -> dict[str, int]:
+        """Verdict -> how many components have it."""
+        out: dict[str, int] = {}
+        for d in self.differences:
+            out[d.verdict] = out.get(d.verdict, 0) + 1
+        return out
+
+    def to_dict(self) -> dict:
+        """The comparison as ``compare.json`` holds it (NaN as None)."""
+        clean = lambda v: None if isinstance(v, float) and not math.isfinite(v) else v
+        side = lambda s: dict(vars(s))
+        rows = [{"metric": d.metric, "component": d.component, "a": clean(d.a), "b": clean(d.b),
+                 "diff": clean(d.diff), "relative": clean(d.relative), "ci95": [clean(v) for v in d.ci95],
+                 "verdict": d.verdict, "runs_needed": d.runs_needed, "p_value": clean(d.p_value)}
+                for d in self.differences]
+        return {"a": side(self.a), "b": side(self.b), "paired": self.paired, "pairing": self.pairing,
+                "runs_compared": self.runs_compared, "confidence": CONFIDENCE,
+                "verdicts": "Holm's step-down over the components at 5 %", "summary": self.summary(),
+                "differences": rows}
+
+
+def compare_samples(a: Side, sa: EstimatorSamples, b: Side, sb: EstimatorSamples, paired: bool,
+                    pairing: str) -> Comparison:
+    """The :class:`Comparison` of two estimators' samples."""
+    runs = len(paired_rows(sa, sb)[0]) if paired else min(len(sa.runs), len(sb.runs))
+    return Comparison(a, b, paired, pairing, runs, differences(sa, sb, paired))

@@ -1,0 +1,96 @@
+"""The comparison's statistics (navsim.scoring.compare): the paired and unpaired intervals of a
+difference of two RMS cover it, pairing narrows them, Holm's step keeps the family's false
+alarms at 5 %, the per-run samples round-trip through samples.npz."""
+
+import math
+
+import numpy as np
+
+from navsim.records.samples import EstimatorSamples, MetricSamples, load_samples, save_samples
+from navsim.scoring.compare import BETTER, SAME, differences
+
+EPOCHS = 100
+TRIALS = 1000
+
+
+def _side(errors, scale: float = 1.0) -> EstimatorSamples:
+    """An estimator's ``rms.pos_m`` samples from errors ``(B, epochs, 3)``."""
+    e = scale * errors
+    return EstimatorSamples(np.arange(e.shape[0]), {"rms.pos_m": MetricSamples(
+        np.sum(e ** 2, 1), np.full((e.shape[0], 3), float(EPOCHS)), True)})
+
+
+def _runs(rng, runs: int):
+    """A run's errors: a random constant (its bias) plus white noise, and a small part of its own
+    (what two filters on the same data do not share)."""
+    shared = rng.normal(0, 1, (runs, 1, 3)) + rng.normal(0, 1, (runs, EPOCHS, 3))
+    own = lambda: 0.1 * rng.normal(0, 1, (runs, EPOCHS, 3)) + 0.1 * rng.normal(0, 1, (runs, 1, 3))
+    return shared + own(), shared + own()
+
+
+def test_the_paired_and_unpaired_intervals_cover_the_difference_at_50_runs():
+    """B's errors are 1.05 times A's kind: B - A of the RMS is 0.05 sqrt(2.02) per axis; both
+    intervals hold it in 95 % of 1000 Monte Carlos (give or take 3.5 binomial sigmas)."""
+    rng = np.random.default_rng(21)
+    truth = 0.05 * math.sqrt(2.02)
+    hits = {True: 0, False: 0}
+    for _ in range(TRIALS):
+        ea, eb = _runs(rng, 50)
+        hits[True] += (lambda d: d.ci95[0] <= truth <= d.ci95[1])(differences(_side(ea), _side(eb, 1.05), True)[0])
+        ea, _ = _runs(rng, 50)
+        _, eb = _runs(rng, 50)
+        hits[False] += (lambda d: d.ci95[0] <= truth <= d.ci95[1])(differences(_side(ea), _side(eb, 1.05), False)[0])
+    for paired, n in hits.items():
+        assert 0.925 <= n / TRIALS <= 0.975, (paired, n / TRIALS)
+
+
+def test_pairing_cancels_the_shared_errors():
+    """The same data: the paired interval is several times narrower, and finds the 5 % that the
+    unpaired one cannot at 50 runs."""
+    ea, eb = _runs(np.random.default_rng(4), 50)
+    a, b = _side(ea), _side(eb, 1.05)
+    p = {d.name: d for d in differences(a, b, True)}
+    u = {d.name: d for d in differences(a, b, False)}
+    key = "rms.pos_m horizontal"
+    assert p[key].diff == u[key].diff
+    width = lambda d: d.ci95[1] - d.ci95[0]
+    assert width(u[key]) > 4 * width(p[key])
+    assert p[key].verdict == "worse" and u[key].verdict == SAME and u[key].runs_needed > 50
+
+
+def test_holm_keeps_the_familys_false_alarms_at_5_pct():
+    """30 components with no difference (two seeds of one filter): one or more is called
+    different in at most 5 % of 400 Monte Carlos (give or take 3.5 binomial sigmas), where
+    testing each at 5 % calls one in about 79 %."""
+    rng = np.random.default_rng(8)
+    alarms = raw = 0
+    for _ in range(400):
+        sides = []
+        for _ in range(2):
+            e = rng.normal(0, 1, (40, 1, 30)) + rng.normal(0, 1, (40, 20, 30))
+            sides.append(EstimatorSamples(np.arange(40), {"nees.per_state": MetricSamples(
+                np.sum(e ** 2, 1), np.full((40, 30), 20.0), False)}))
+        d = differences(*sides, False)
+        alarms += any(x.verdict != SAME for x in d)
+        raw += any(x.p_value < 0.05 for x in d)
+    assert alarms / 400 <= 0.05 + 3.5 * math.sqrt(0.05 * 0.95 / 400), alarms / 400
+    assert raw / 400 > 0.6
+
+
+def test_a_better_filter_is_called_better_and_identical_sides_are_no_difference():
+    ea, eb = _runs(np.random.default_rng(2), 30)
+    d = differences(_side(ea), _side(ea, 0.9), True)
+    assert all(x.verdict == BETTER for x in d), [x.verdict for x in d]
+    same = differences(_side(ea), _side(ea), True)
+    assert all(x.verdict == SAME and x.diff == 0 and x.ci95 == [0.0, 0.0] for x in same)
+
+
+def test_the_samples_file_round_trips(tmp_path):
+    ea, _ = _runs(np.random.default_rng(3), 5)
+    s = {"ES-KF, 16": _side(ea), "free SINS": EstimatorSamples(np.array([0, 2]), {})}
+    save_samples(tmp_path / "samples.npz", s)
+    back = load_samples(tmp_path / "samples.npz")
+    assert list(back) == list(s)
+    m, n = back["ES-KF, 16"].metrics["rms.pos_m"], s["ES-KF, 16"].metrics["rms.pos_m"]
+    assert np.array_equal(m.s, n.s) and np.array_equal(m.n, n.n) and m.root
+    assert np.array_equal(back["free SINS"].runs, [0, 2])
