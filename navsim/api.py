@@ -62,6 +62,7 @@ from navsim.scoring.closed_loop import closed_loop_metrics
 from navsim.scoring.compare import Comparison, Side, compare_samples
 from navsim.scoring.landmarks import sighting_spans
 from navsim.records.metrics import RunMetrics
+from navsim.scoring.samples import value_interval
 from navsim.scoring.scorer import score_run
 from navsim.scoring.verdicts import judge
 
@@ -503,8 +504,9 @@ def sweep(path, workers: int | None = None, *, executor: str = "local", schedule
     Returns
     -------
     SweepResult
-        The rows ``(point, {label: value})``; the points none of whose runs succeeded; whether
-        it was interrupted (the points after it are not run).
+        The rows ``(point, {label: value})`` and each value's 95 % interval
+        (``intervals``); the points none of whose runs succeeded; whether it was interrupted
+        (the points after it are not run).
     """
     plan = plan_sweep(path)
     result = SweepResult([], plan.metric)
@@ -517,6 +519,8 @@ def sweep(path, workers: int | None = None, *, executor: str = "local", schedule
             result.failed_points[i] = min(res.failed.items())[1] if res.failed else "no run"
         result.rows.append((point, point_values(plan, res.metrics.estimators)))
         result.metrics.append(res.metrics)
+        result.intervals.append({label: value_interval(m, res.samples.get(label), plan.metric)
+                                 for label, m in res.metrics.estimators.items()})
         if on_point:
             on_point(i, point, result.rows[-1][1], res)
         if progress:

@@ -59,7 +59,7 @@ from navsim.replay.run import IMU_RATE_HZ
 from navsim.report.replay import difference_table, write_replay_report
 from navsim.report.summary import sections as summary_sections, text_table
 from navsim.report.sweep import short_key, write_sweep_figure
-from navsim.scoring.verdicts import num
+from navsim.scoring.verdicts import num, with_interval
 from navsim.sensors import emulate
 from navsim.sensors.catalog import entries as catalog_entries
 from navsim.sensors.plots import channels, plot_allan, plot_sensor
@@ -296,12 +296,13 @@ def cmd_sweep(args) -> int:
                           scheduler=args.scheduler,
                           on_point=lambda i, p, v, r: print(_point_line(i, len(points), p, v, r), flush=True))
     labels = list(sweep.rows[0][1]) if sweep.rows else []
-    table = [[", ".join(f"{short_key(k)}={v}" for k, v in p.items())] + [num(vals.get(lb)) for lb in labels]
-             for p, vals in sweep.rows]
+    ci = lambda n, lb: [sweep.interval(n, lb)] if sweep.interval(n, lb) else None
+    table = [[", ".join(f"{short_key(k)}={v}" for k, v in p.items())]
+             + [with_interval(vals.get(lb), ci(n, lb)) for lb in labels] for n, (p, vals) in enumerate(sweep.rows)]
     print("\n" + _table(["point"] + [f"{lb}: {sweep.metric}" for lb in labels], table))
     folder.clear_earlier()                 # only now: a sweep that cannot start leaves the earlier one
     write_sweep_files(folder, sweep)
-    write_sweep_figure(folder, sweep, f"sweep {Path(args.sweep).name}: {sweep.metric} (vectors by their norm)")
+    write_sweep_figure(folder, sweep, f"sweep {Path(args.sweep).name}: {sweep.metric} (vectors by their norm), 95 % intervals over the runs")
     print(f"\nwrote {folder.path}/: sweep.json (every point's metrics), sweep.csv, sweep.png")
     for i, why in sweep.failed_points.items():
         print(f"error: no run of point {i} succeeded: {why}", file=sys.stderr)
@@ -325,18 +326,22 @@ def cmd_compare(args) -> int:
 
 
 def write_sweep_files(folder: OutputFolder, sweep) -> None:
-    """``sweep.json``: each point with its values and its whole ``metrics.json``; ``sweep.csv``:
-    one row per point, the swept parameters then the metric of each estimator."""
+    """``sweep.json``: each point with its values, their 95 % intervals and its whole
+    ``metrics.json``; ``sweep.csv``: one row per point, the swept parameters then the metric of
+    each estimator and its interval's ends (empty where there is none)."""
     folder.json("sweep.json", {"metric": sweep.metric, "points": [
-        {"point": p, "values": v, "metrics": m.to_dict()} for (p, v), m in zip(sweep.rows, sweep.metrics)],
+        {"point": p, "values": v, "ci95": sweep.intervals[i] if i < len(sweep.intervals) else {},
+         "metrics": m.to_dict()} for i, ((p, v), m) in enumerate(zip(sweep.rows, sweep.metrics))],
         "failed_points": sweep.failed_points, "interrupted": sweep.interrupted})
     keys = list(sweep.axes())
     labels = list(sweep.rows[0][1]) if sweep.rows else []
     buf = io.StringIO()
     w = csv.writer(buf)
-    w.writerow(["point", *keys, *(f"{lb}: {sweep.metric}" for lb in labels)])
+    w.writerow(["point", *keys, *(f"{lb}: {sweep.metric}{end}" for lb in labels for end in ("", " ci95_lo", " ci95_hi"))])
+    cell = lambda v: "" if v is None or (isinstance(v, float) and not math.isfinite(v)) else repr(v)
     for n, (p, vals) in enumerate(sweep.rows):
-        w.writerow([n, *(p.get(k) for k in keys), *("" if vals.get(lb) is None else repr(vals[lb]) for lb in labels)])
+        ends = lambda lb: sweep.interval(n, lb) or [None, None]
+        w.writerow([n, *(p.get(k) for k in keys), *(cell(x) for lb in labels for x in (vals.get(lb), *ends(lb)))])
     folder.text("sweep.csv", buf.getvalue())
 
 

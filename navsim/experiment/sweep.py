@@ -116,6 +116,13 @@ class SweepResult:
     interrupted: bool = False
     #: each point's whole :class:`~navsim.records.metrics.RunMetrics`, in the order of ``rows``
     metrics: list = field(default_factory=list)
+    #: each point's label -> the 95 % interval ``[lo, hi]`` of its value (None: none), in the
+    #: order of ``rows``
+    intervals: list = field(default_factory=list)
+
+    def interval(self, row: int, label: str) -> list[float] | None:
+        """The interval of point ``row``'s value of ``label`` (None: none)."""
+        return self.intervals[row].get(label) if row < len(self.intervals) else None
 
     def axes(self) -> dict:
         """Parameter -> its values in the order the points take them (a grid's axes)."""

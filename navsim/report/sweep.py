@@ -1,9 +1,9 @@
 """The figure of a ``navsim sweep``, shaped by its grid (:func:`write_sweep_figure`).
 
 - one swept parameter: the metric of each estimator against the parameter's values, a line
-  each;
+  each, with its 95 % interval over the runs as error bars;
 - two: small multiples, one heat map per estimator (rows the first parameter, columns the
-  second), each cell holding its number;
+  second), each cell holding its number and its 95 % interval;
 - more, or a list of points: the metric of each estimator at each point, the points numbered
   on the axis (``sweep.csv`` says which point is which).
 """
@@ -28,6 +28,16 @@ def _values(sweep: SweepResult, label: str) -> list:
     return [np.nan if v.get(label) is None else float(v[label]) for _, v in sweep.rows]
 
 
+def _errors(sweep: SweepResult, label: str) -> np.ndarray:
+    """The error bars' lengths below and above each point's value, ``(2, points)`` (0: none)."""
+    out = np.zeros((2, len(sweep.rows)))
+    for n, v in enumerate(_values(sweep, label)):
+        iv = sweep.interval(n, label)
+        if iv is not None and np.all(np.isfinite(iv)) and np.isfinite(v):
+            out[:, n] = [max(v - iv[0], 0.0), max(iv[1] - v, 0.0)]
+    return out
+
+
 def _log_if_positive(ax, values) -> None:
     v = np.asarray(values, float)
     v = v[np.isfinite(v)]
@@ -40,7 +50,8 @@ def _lines(fig, sweep: SweepResult, labels: list, key: str | None) -> None:
     ax = fig.add_subplot()
     ticks = [str(p.get(key, "-")) for p, _ in sweep.rows] if key else [str(i) for i in range(len(sweep.rows))]
     for lb in labels:
-        ax.plot(range(len(sweep.rows)), _values(sweep, lb), "o-", label=lb)
+        ax.errorbar(range(len(sweep.rows)), _values(sweep, lb), yerr=_errors(sweep, lb), fmt="o-", capsize=3,
+                    label=lb)
     ax.set_xticks(range(len(sweep.rows)), ticks, rotation=30 if max(map(len, ticks)) > 8 else 0,
                   ha="right" if max(map(len, ticks)) > 8 else "center", fontsize=8)
     ax.set_xlabel(short_key(key) if key else "point (see sweep.csv)")
@@ -56,13 +67,18 @@ def _heatmaps(fig, sweep: SweepResult, labels: list, rows_key: str, cols_key: st
     grid_axes = fig.subplots(1, len(labels), squeeze=False)[0]
     for ax, lb in zip(grid_axes, labels):
         M = np.full((len(R), len(C)), np.nan)
-        for (p, _), v in zip(sweep.rows, _values(sweep, lb)):
-            M[R.index(p[rows_key]), C.index(p[cols_key])] = v
+        text = {}
+        for n, ((p, _), v) in enumerate(zip(sweep.rows, _values(sweep, lb))):
+            i, j = R.index(p[rows_key]), C.index(p[cols_key])
+            M[i, j] = v
+            iv = sweep.interval(n, lb)
+            ends = f"[{num(iv[0])}, {num(iv[1])}]" if iv is not None else ""
+            text[i, j] = num(v) + ("\n" + (ends.replace(", ", ",\n") if len(ends) > 16 else ends) if ends else "")
         im = ax.imshow(M, cmap="viridis", aspect="auto")
         for i in range(len(R)):
             for j in range(len(C)):
                 dark = np.isfinite(M[i, j]) and M[i, j] < np.nanmean(M)
-                ax.text(j, i, num(M[i, j]), ha="center", va="center", fontsize=8, color="w" if dark else "k")
+                ax.text(j, i, text.get((i, j), "-"), ha="center", va="center", fontsize=7, color="w" if dark else "k")
         ax.set_xticks(range(len(C)), [str(c) for c in C], fontsize=7, rotation=20, ha="right")
         ax.set_yticks(range(len(R)), [str(r) for r in R], fontsize=7)
         ax.set_xlabel(short_key(cols_key), fontsize=8)
@@ -80,7 +96,7 @@ def write_sweep_figure(folder: OutputFolder, sweep: SweepResult, title: str) -> 
     combos = {tuple(repr(p.get(k)) for k in axes) for p, _ in sweep.rows}
     grid = (len(axes) == 2 and all(set(p) == set(axes) for p, _ in sweep.rows)
             and len(combos) == len(sweep.rows) == np.prod([len(v) for v in axes.values()]))
-    width = max(6.5, 3.6 * len(labels)) if grid else max(6.5, 0.9 * len(sweep.rows) + 3)
+    width = max(6.5, 4.0 * len(labels)) if grid else max(6.5, 0.9 * len(sweep.rows) + 3)
     fig = plt.figure(figsize=(min(width, 16), 4.8), layout="constrained")
     if not sweep.rows:                        # interrupted before its first point finished
         fig.text(0.5, 0.5, "no point finished", ha="center", va="center")

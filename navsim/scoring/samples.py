@@ -187,3 +187,19 @@ def _sqrt(interval) -> list[float]:
 def _or_inf(v) -> float:
     return math.inf if v is None else float(v)
 
+
+
+def value_interval(metrics, samples: EstimatorSamples | None, path: str) -> list[float] | None:
+    """The 95 % interval of the value a sweep plots for ``path``: a scalar's own (``ci95``); a
+    vector's norm (``rms.pos_m``: the RMS of the 3-D error) from the runs' summed mean squares
+    where the runs' samples keep the metric (an RMS, all axes counted alike); else None."""
+    value = metrics.get(path)
+    if isinstance(value, list):
+        m = None if samples is None else samples.metrics.get(path)
+        if m is None or not m.root or not np.all(m.n == m.n[:, :1]):
+            return None
+        return _sqrt(mean_square_interval(m.s.sum(axis=1), m.n[:, 0]))
+    iv = metrics.interval(path)
+    if isinstance(iv, list) and len(iv) == 2 and all(isinstance(v, (int, float)) for v in iv):
+        return [float(v) for v in iv]
+    return None

@@ -251,8 +251,11 @@ metric: rms.pos_m
     assert kf[0] == pytest.approx(np.linalg.norm(data["points"][0]["metrics"]["estimators"]["KF"]["rms"]["pos_m"]))
     rows = (out / "sweep.csv").read_text().splitlines()
     assert rows[0] == "point,sensors.gps.override.position_sigma,estimators[1].measurements[0].sigma_m," \
-                      "free SINS: rms.pos_m,KF: rms.pos_m" and len(rows) == 5
-    assert float(rows[3].rsplit(",", 1)[1]) == kf[2]
+                      "free SINS: rms.pos_m,free SINS: rms.pos_m ci95_lo,free SINS: rms.pos_m ci95_hi," \
+                      "KF: rms.pos_m,KF: rms.pos_m ci95_lo,KF: rms.pos_m ci95_hi" and len(rows) == 5
+    value, lo, hi = map(float, rows[3].split(",")[-3:])
+    # the norm's interval: the 3-D RMS's over the 2 runs, around the value
+    assert value == kf[2] and lo < value < hi and data["points"][2]["ci95"]["KF"] == [lo, hi]
     out_text = capsys.readouterr().out
     assert "KF: rms.pos_m" in out_text
     # a line per point as it finishes
