@@ -17,6 +17,7 @@ from navsim.records.run import RunRecord
 from navsim.records.states import SIGMA_STATES
 from navsim.report.tables import FAIL, PASS, WARN, Heading, Paragraph, Table, layout
 from navsim.records.metrics import RunMetrics
+from navsim.scoring.intervals import runs_for_precision
 from navsim.scoring.scorer import NORM_QUANTITIES
 from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary, with_interval
 
@@ -80,6 +81,8 @@ def results(metrics: RunMetrics, settle_s: float) -> Section:
          "NIS\nin band", "converged\ns", "diverged\nruns", "cost\nms/run"], rows, colours, compile_note(metrics))
 
 
+#: the relative precision the intervals section gives the runs for
+PRECISION = 0.05
 #: the metrics the intervals section shows: (what, path, unit, scale)
 INTERVAL_ROWS = (("RMS position", "rms.pos_m", "m", 1), ("RMS velocity", "rms.vel_mps", "m/s", 1),
                  ("RMS attitude", "rms.att_deg", "deg", 1), ("final position", "final.pos_m", "m", 1),
@@ -98,7 +101,10 @@ def intervals(metrics: RunMetrics) -> Section | None:
                 continue                      # no interval (an open end shows as "-")
             v, iv = np.atleast_1d(np.asarray(v, float)) * scale, np.asarray(iv, float).reshape(-1, 2) * scale
             cells = [with_interval(x, [lim.tolist()]) for x, lim in zip(v, iv)]
-            rows.append([label if first else "", what + (f", {unit}" if unit else ""), *(cells + ["", "", ""])[:3]])
+            needed = [runs_for_precision(m.runs_counted, x, lim, PRECISION) for x, lim in zip(v, iv)]
+            needed = max([n for n in needed if n is not None], default=None)
+            rows.append([label if first else "", what + (f", {unit}" if unit else ""), *(cells + ["", "", ""])[:3],
+                         "-" if needed is None else str(needed)])
             first = False
     if not rows:
         return None
@@ -106,8 +112,9 @@ def intervals(metrics: RunMetrics) -> Section | None:
                    "Each value with its 95 % confidence interval, the runs as the independent samples (a run's "
                    "random-constant biases are one draw): an interval narrows as 1/sqrt(runs), never with the "
                    "epochs. RMS: studentized bootstrap over runs; p99: Woodruff's; NEES and convergence: "
-                   "bootstrap over runs (navsim.scoring.intervals).",
-                   ["estimator", "metric", "N / value", "E", "D"], rows)
+                   "bootstrap over runs (navsim.scoring.intervals). Runs for ±5 %: the runs at which every "
+                   "component's interval would be its value ±5 % (the half-width shrinking as 1/sqrt(runs)).",
+                   ["estimator", "metric", "N / value", "E", "D", "runs for\n±5 %"], rows)
 
 
 def compile_note(metrics: RunMetrics) -> str | None:

@@ -305,6 +305,19 @@ def runs_needed(runs: int, value: float, interval, target: float) -> int | None:
     return int(math.ceil(runs * (half / gap) ** 2))
 
 
+def runs_for_precision(runs: int, value: float, interval, precision: float) -> int | None:
+    """The runs at which the 95 % interval around ``value`` (now from ``runs`` runs) would be
+    ``2 * precision * value`` wide (``value +- 5 %``): its half-width shrinks as
+    ``t(runs - 1) / sqrt(runs)`` (Student's quantile: a few runs' interval is wider than the
+    square-root law alone). None where there is no interval or the value is 0."""
+    lo, hi = interval
+    if not all(math.isfinite(v) for v in (value, lo, hi)) or runs < MIN_RUNS or value == 0 or precision <= 0:
+        return None
+    q = float(norm.ppf(0.5 + CONFIDENCE / 2) / student_t.ppf(0.5 + CONFIDENCE / 2, runs - 1))
+    half = q * (hi - lo) / 2
+    return max(int(math.ceil(runs * (half / (precision * abs(value))) ** 2)), MIN_RUNS)
+
+
 class WeightedSums:
     """The Poisson-bootstrap replicates of per-epoch sums over runs, fed chunk by chunk: for
     values ``x`` ``(B, epochs)`` of runs with weights ``w`` ``(R, B)``

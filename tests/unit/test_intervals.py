@@ -170,3 +170,27 @@ def test_the_landmark_intervals_cover_their_truth():
                  ci["fraction_within_3sigma"][0] <= truth_share <= ci["fraction_within_3sigma"][1]]
     # 400 trials: 95 % give or take 3.5 binomial sigmas (3.8 points)
     assert np.all((hits / trials > 0.91) & (hits / trials < 0.99)), hits / trials
+
+
+def test_the_runs_for_a_precision_give_that_precision():
+    """From 20 runs of a random constant under noise, the runs predicted for a +-5 % interval of
+    the RMS (the median over 50 such Monte Carlos: one alone is as uncertain as its interval's
+    width); at that many runs the interval's half-width is 5 % of the value (mean over 100
+    Monte Carlos, within 4.5-5.5 %)."""
+    rng = np.random.default_rng(17)
+    draw = lambda runs: (np.sum((rng.normal(0, 1, (runs, 1)) + rng.normal(0, 1, (runs, 100))) ** 2, 1),
+                         np.full(runs, 100.0))
+    predicted = []
+    for _ in range(50):
+        s, n = draw(20)
+        rms = math.sqrt(s.sum() / n.sum())
+        predicted.append(iv.runs_for_precision(20, rms, iv.rms_interval(s, n), 0.05))
+    runs = int(np.median(predicted))
+    assert 100 < runs < 2000
+    halves = []
+    for _ in range(100):
+        s, n = draw(runs)
+        rms = math.sqrt(s.sum() / n.sum())
+        lo, hi = iv.rms_interval(s, n)
+        halves.append((hi - lo) / 2 / rms)
+    assert 0.045 < np.mean(halves) < 0.055, (runs, np.mean(halves))
