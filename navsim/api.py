@@ -477,9 +477,13 @@ def open_result(folder) -> Result:
     elif (folder / "runs.npz").is_file():
         runs, histories = _npz_histories(folder / "runs.npz", metrics.estimators)
     every = np.asarray(store.runs(), int) if store is not None else runs
+    try:
+        samples = load_samples(folder / SAMPLES_FILE) if (folder / SAMPLES_FILE).is_file() else {}
+    except (OSError, ValueError, KeyError):
+        samples = {}                          # unreadable: compare refuses it, the rest reads
     return Result(scenario, every, histories, metrics, record, folder=folder, truth_bias=bias, calibration=calib,
                   failed=dict(record.failed_runs), interrupted=bool(record.interrupted), store=store,
-                  history_runs=None if len(runs) == len(every) else runs)
+                  history_runs=None if len(runs) == len(every) else runs, samples=samples)
 
 
 def sweep(path, workers: int | None = None, *, executor: str = "local", scheduler: str | None = None,
@@ -534,8 +538,9 @@ def compare(a, b=None, estimators=None, *, partial: bool = False, unpaired: bool
 
     Parameters
     ----------
-    a, b : path
-        Result folders (``navsim run``'s ``--out``); ``b`` None: two estimators of ``a``.
+    a, b : path or Result
+        Result folders (``navsim run``'s ``--out``) or :class:`Result` objects (:func:`run`,
+        :func:`open_result`); ``b`` None: two estimators of ``a``.
     estimators : sequence of str, optional
         ``(A, B)``: the estimator of ``a`` and of ``b``; one label: the same on both sides.
         Default: every label the two results share (one comparison each), or each one's only
@@ -557,8 +562,8 @@ def compare(a, b=None, estimators=None, *, partial: bool = False, unpaired: bool
         A folder that is not a result or that an older navsim wrote, two different tracks or
         metric settings, an interrupted result without ``partial``, an unknown estimator.
     """
-    ra = read_result(a)
-    rb = ra if b is None else read_result(b)
+    ra = _result_files(a)
+    rb = ra if b is None or b is a else _result_files(b)
     check_comparable(ra, rb)
     for r in {id(ra): ra, id(rb): rb}.values():
         if r.record.interrupted and not partial:
@@ -576,6 +581,17 @@ def compare(a, b=None, estimators=None, *, partial: bool = False, unpaired: bool
             raise UsageError(f"{ra.folder} '{la}' and {rb.folder} '{lb}' share no metric to compare")
         out.append(c)
     return out
+
+
+def _result_files(x) -> ResultFiles:
+    """A result folder's files (:func:`~navsim.experiment.results.read_result`), or the same
+    of a :class:`Result` at hand (its scenario resolved as a folder would hold it)."""
+    if not isinstance(x, Result):
+        return read_result(x)
+    if x.metrics is None or not x.samples:
+        raise UsageError(f"result of '{x.scenario.name}': not scored, or scored by an older navsim (no per-run samples)")
+    resolved = yaml.safe_load(yaml.safe_dump(resolved_scenario(x), sort_keys=False))
+    return ResultFiles(x.folder or f"{x.scenario.name} (in memory)", x.metrics, x.record, resolved, x.samples)
 
 
 def _estimator_pairs(ra: ResultFiles, rb: ResultFiles, one: bool, estimators) -> list[tuple[str, str]]:
@@ -606,10 +622,10 @@ def _estimator_pairs(ra: ResultFiles, rb: ResultFiles, one: bool, estimators) ->
 
 def write_comparison(comparisons: list[Comparison], folder: OutputFolder, a, b=None, fmts=("pdf", "png")) -> list[Path]:
     """``compare.json``, ``compare.csv`` and the page of each comparison (``compare.pdf``, a PNG
-    each) into ``folder``; returns the files written. ``a``, ``b``: the result folders (their
-    per-run samples are drawn)."""
-    ra = read_result(a)
-    rb = ra if b is None else read_result(b)
+    each) into ``folder``; returns the files written. ``a``, ``b``: the results compared, as
+    :func:`compare` took them (their per-run samples are drawn)."""
+    ra = _result_files(a)
+    rb = ra if b is None or b is a else _result_files(b)
     folder.json("compare.json", {"comparisons": [c.to_dict() for c in comparisons], **provenance()})
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")

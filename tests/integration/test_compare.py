@@ -63,6 +63,15 @@ def test_the_same_sensor_data_pairs_exactly_and_two_seeds_do_not(results):
     assert all(d.verdict == "no significant difference" for d in c.differences), c.summary()
 
 
+def test_results_at_hand_compare_as_their_folders(results):
+    """A :class:`navsim.Result` (read back, or run in memory) against a folder: the same pairing."""
+    [c] = navsim.compare(navsim.open_result(results["a"]), results["same"])
+    assert c.paired and all(d.diff == 0 for d in c.differences)
+    held = navsim.run(results["same"] / "scenario.resolved.yaml", RUNS, 1)      # in memory
+    [c] = navsim.compare(results["b"], held)
+    assert c.paired and c.runs_compared == RUNS and any(d.verdict == "higher" for d in c.differences)
+
+
 def test_two_estimators_of_one_result(results):
     [c] = navsim.compare(results["a"], estimators=["free SINS", ESKF])
     assert c.paired and c.a.estimator == "free SINS"
