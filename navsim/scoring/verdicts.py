@@ -178,8 +178,15 @@ def verdict_rows(verdicts: list[Verdict]) -> list[list[str]]:
     return rows
 
 
+#: beyond this many runs a check is called too close to its bound to decide
+DECIDABLE_RUNS = 100_000
+
+
 def undecided_text(v: Verdict) -> str:
-    """``"undecided at 20 runs (~80 decide)"``."""
+    """``"undecided at 20 runs (~80 decide)"``; ``"... (at the bound)"`` when the value sits so
+    close to the bound that more than :data:`DECIDABLE_RUNS` runs would be needed."""
+    if v.runs_needed and v.runs_needed > DECIDABLE_RUNS:
+        return f"undecided at {v.runs} runs (at the bound: >{DECIDABLE_RUNS} runs to decide)"
     return f"undecided at {v.runs} runs" + (f" (~{v.runs_needed} decide)" if v.runs_needed else "")
 
 

@@ -177,3 +177,13 @@ def test_a_check_without_an_interval_is_judged_on_its_value():
     ref = reference({"source": "paper", "check": "at_most", "values": {"KF": {"rms.pos_m": [1.0] * 3}}})
     v = judge(ref, est)[0]
     assert v.passed is True and v.ours_ci95 is None and v.undecided is None
+
+
+def test_a_value_on_its_bound_is_undecided_at_the_bound():
+    """N's 0.95 with [0.75, 1.15] against a bound of 0.9500001: 0.2 / 1e-7 squared x 20 runs
+    would decide it, far beyond any Monte Carlo: the verdict says so instead of the count."""
+    est = _with_interval([0.95, 0.6, 1.0], [[0.75, 1.15], [0.5, 0.7], [0.9, 1.1]])
+    ref = reference({"source": "paper", "check": "at_most", "values": {"KF": {"rms.pos_m": [0.9500001, 1.3, 1.3]}}})
+    v = judge(ref, est)[0]
+    assert v.undecided and v.runs_needed > 10 ** 6
+    assert verdict_rows([v])[0][-1] == "undecided at 20 runs (at the bound: >100000 runs to decide)"
