@@ -60,6 +60,7 @@ from navsim.report.pages import report_pages as _report_pages, write_report as _
 from navsim.report.render import render
 from navsim.scoring.closed_loop import closed_loop_metrics
 from navsim.scoring.compare import Comparison, Side, compare_samples
+from navsim.scoring.intervals import MIN_RUNS
 from navsim.scoring.landmarks import sighting_spans
 from navsim.records.metrics import RunMetrics
 from navsim.scoring.samples import value_interval
@@ -256,7 +257,8 @@ def _run(scenario, how: "_How", folder) -> Result:
     t0 = time.perf_counter()
     result = (_closed_loop if scenario.closed_loop is not None else _open_loop)(scenario, how, folder)
     result.record = dataclasses.replace(result.record, scenario=None if scenario.path is None else str(scenario.path),
-                                        runs=runs, runs_done=int(len(result.runs)), seed=seed, workers=workers)
+                                        runs=runs, runs_done=int(len(result.runs)), seed=seed, workers=workers,
+                                        data_key=runner.data_key(scenario, seed))
     _score(result, time.perf_counter() - t0)
     if folder is not None:
         _write_run(result, folder)
@@ -579,6 +581,10 @@ def compare(a, b=None, estimators=None, *, partial: bool = False, unpaired: bool
         c = compare_samples(side(ra, la), ra.samples[la], side(rb, lb), rb.samples[lb], paired, why)
         if not c.differences:
             raise UsageError(f"{ra.folder} '{la}' and {rb.folder} '{lb}' share no metric to compare")
+        if c.runs_compared < MIN_RUNS:
+            raise UsageError(f"'{la}' ({c.a.runs} counted runs) against '{lb}' ({c.b.runs}): "
+                             f"{c.runs_compared} runs to compare{' in common' if paired else ''}, at least "
+                             f"{MIN_RUNS} needed (a diverged run is not counted)")
         out.append(c)
     return out
 
@@ -620,12 +626,9 @@ def _estimator_pairs(ra: ResultFiles, rb: ResultFiles, one: bool, estimators) ->
                      f"(A has: {', '.join(la)}; B has: {', '.join(lb)})")
 
 
-def write_comparison(comparisons: list[Comparison], folder: OutputFolder, a, b=None, fmts=("pdf", "png")) -> list[Path]:
+def write_comparison(comparisons: list[Comparison], folder: OutputFolder, fmts=("pdf", "png")) -> list[Path]:
     """``compare.json``, ``compare.csv`` and the page of each comparison (``compare.pdf``, a PNG
-    each) into ``folder``; returns the files written. ``a``, ``b``: the results compared, as
-    :func:`compare` took them (their per-run samples are drawn)."""
-    ra = _result_files(a)
-    rb = ra if b is None or b is a else _result_files(b)
+    each, its runs' differences drawn) into ``folder``; returns the files written."""
     folder.json("compare.json", {"comparisons": [c.to_dict() for c in comparisons], **provenance()})
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -633,8 +636,7 @@ def write_comparison(comparisons: list[Comparison], folder: OutputFolder, a, b=N
     for c in comparisons:
         w.writerows(csv_rows(c))
     folder.text("compare.csv", buf.getvalue())
-    pages = [compare_page(c, ra.samples[c.a.estimator], rb.samples[c.b.estimator],
-                          "compare" if j == 0 else f"compare_{j + 1}") for j, c in enumerate(comparisons)]
+    pages = [compare_page(c, "compare" if j == 0 else f"compare_{j + 1}") for j, c in enumerate(comparisons)]
     try:
         files = render(folder, pages, fmts, "navsim compare", pdf="compare.pdf")
     finally:

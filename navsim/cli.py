@@ -316,11 +316,17 @@ def cmd_compare(args) -> int:
     comparisons = api.compare(args.a, args.b, args.estimators, partial=args.partial, unpaired=args.unpaired)
     name = lambda p: Path(p).resolve().name
     default = Path("reports") / (f"compare_{name(args.a)}" + (f"_vs_{name(args.b)}" if args.b else ""))
+    out = (Path(args.out) if args.out else default).resolve()
+    for given in filter(None, (args.a, args.b)):
+        held = Path(given).resolve()
+        if out == held or held in out.parents or out in held.parents:
+            raise UsageError(f"--out {out}: inside or holding the result {given} it compares; hint: write the "
+                             "comparison to a folder of its own (default reports/compare_<A>_vs_<B>)")
     folder = _open_folder(args, default)     # only now: a refused comparison writes nothing
     for j, c in enumerate(comparisons):
         print(("\n" if j else "") + headline(c) + "\n\n" + _table(list(COMPARE_HEADERS), text_rows(c)))
     folder.clear_earlier()
-    files = api.write_comparison(comparisons, folder, args.a, args.b)
+    files = api.write_comparison(comparisons, folder)
     print(f"\nwrote {folder.path}/: " + ", ".join(f.name for f in files))
     return 0
 

@@ -11,6 +11,7 @@ of them, or whose ``samples.npz`` an older navsim wrote, is refused with a
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,7 +26,7 @@ from navsim.records.samples import SAMPLES_FILE, EstimatorSamples, load_samples
 SAMPLES_SINCE = (0, 2, 0)
 #: the keys of a resolved scenario that do not change the flights or the sensor data: what is
 #: estimated, how many runs and workers, the paper's numbers, the names
-NOT_THE_DATA = ("name", "description", "estimators", "reference")
+NOT_THE_DATA = ("name", "description", "estimators", "reference", "report")
 NOT_THE_DATA_MONTECARLO = ("runs", "workers")
 #: the keys that make the metrics: results that differ here cannot be compared
 METRIC_SET = ("metrics",)
@@ -47,10 +48,15 @@ class ResultFiles:
 
 
 def _version(text: str) -> tuple:
-    try:
-        return tuple(int(p) for p in text.split("+")[0].split(".")[:3])
-    except ValueError:
-        return ()
+    """``"0.2.0rc1"`` -> ``(0, 2, 0)``: the leading digits of the first three parts (``()``
+    for none)."""
+    out = []
+    for part in text.split("+")[0].split(".")[:3]:
+        digits = re.match(r"\d+", part)
+        if digits is None:
+            break
+        out.append(int(digits.group()))
+    return tuple(out)
 
 
 def read_result(folder) -> ResultFiles:
@@ -70,10 +76,13 @@ def read_result(folder) -> ResultFiles:
     except (OSError, ValueError, KeyError, TypeError, AttributeError, yaml.YAMLError) as exc:
         raise UsageError(f"{folder}: not a readable navsim result ({type(exc).__name__}: {exc})") from None
     version = str(record.versions.get("navsim", "unknown"))
-    if not (folder / SAMPLES_FILE).is_file() or _version(version) < SAMPLES_SINCE:
-        since = ".".join(map(str, SAMPLES_SINCE))
-        raise UsageError(f"{folder}: written by navsim {version}, before the per-run samples ({SAMPLES_FILE}, "
-                         f"navsim {since}) a comparison reads; hint: run its scenario again with this navsim")
+    since = ".".join(map(str, SAMPLES_SINCE))
+    if _version(version) < SAMPLES_SINCE:
+        raise UsageError(f"{folder}: written by navsim {version}, before the per-run samples a comparison reads "
+                         f"(navsim {since}); hint: run its scenario again with this navsim")
+    if not (folder / SAMPLES_FILE).is_file():
+        raise UsageError(f"{folder}: no {SAMPLES_FILE} (each run's part of the metrics, what a comparison reads); "
+                         "hint: run its scenario again")
     try:
         samples = load_samples(folder / SAMPLES_FILE)
     except (OSError, ValueError, KeyError) as exc:
@@ -109,13 +118,18 @@ def check_comparable(a: ResultFiles, b: ResultFiles) -> None:
 
 def pairing(a: ResultFiles, b: ResultFiles) -> tuple[bool, str]:
     """Whether the two results flew the same flights and sensor data (then their runs pair by
-    number), and why: from the resolved scenarios' content and the flight's cache key."""
+    number), and why: from the resolved scenarios' content, the flight's cache key and, where
+    both runs recorded one, their data key (:func:`navsim.experiment.runner.data_key`: the
+    sensor models as resolved, which a model file's path alone does not tell)."""
     if a is b:
         return True, "one result: the same runs"
     da, db = the_data(a.resolved), the_data(b.resolved)
     differ = sorted(k for k in set(da) | set(db) if da.get(k) != db.get(k))
     if a.record.flight_key != b.record.flight_key:
         differ.append("flight")
-    if differ:
+    keyed = bool(a.record.data_key and b.record.data_key)
+    if keyed and a.record.data_key != b.record.data_key and not differ:
+        differ.append("the resolved sensor models or the flown estimator")    # a model file's content
+    if differ or (keyed and a.record.data_key != b.record.data_key):
         return False, f"not the same sensor data (they differ in {', '.join(differ)}): unpaired"
     return True, "the same flight, sensors, initial errors and seed: paired run by run"

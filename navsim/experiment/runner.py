@@ -89,6 +89,23 @@ def scenario_hash(scenario) -> str:
     return h.hexdigest()[:20]
 
 
+def data_key(scenario, seed: int) -> str:
+    """Hash of what makes a run's flights and sensor data: the sensors and initial errors as
+    resolved (catalog and model files read), the seed and the flight; in a closed loop also the
+    estimators and the loop (the flight follows the estimator it flies on). Two results with one
+    data key have the same run ``j`` whatever their estimators: :func:`navsim.compare` pairs them.
+
+    Returns
+    -------
+    str
+        20 hex digits.
+    """
+    parts = [scenario.sensors, scenario.initial, int(seed), flight_key(scenario.flight)]
+    if scenario.closed_loop is not None:
+        parts += [scenario.estimators, scenario.closed_loop]
+    return hashlib.sha256(json.dumps(plain(parts), sort_keys=True, default=str).encode()).hexdigest()[:20]
+
+
 def flight_key(config) -> str:
     """Hash of everything that determines a flight."""
     h = hashlib.sha256()

@@ -30,6 +30,9 @@ class RunRecord:
     workers: int = 1
     flight_cached: bool = False         #: the flight came from the cache (not flown for this run)
     flight_key: str = ""                #: the flight cache's key of the scenario's flight
+    #: the key of the flights and sensor data (:func:`navsim.experiment.runner.data_key`; ""
+    #: in older files): equal keys pair run by run
+    data_key: str = ""
     executor: str = "local"
     scheduler: str | None = None        #: a Dask scheduler's address
     resumed: bool = False               #: continued an interrupted run (``--resume``)

@@ -13,7 +13,6 @@ import math
 
 import numpy as np
 
-from navsim.records.samples import EstimatorSamples
 from navsim.report.figures import Page, page_figure, titled
 from navsim.report.tables import FAIL, PASS
 from navsim.scoring.compare import (BETTER, HIGHER, LOWER, SAME, WORSE, Comparison, Difference, columns,
@@ -36,8 +35,10 @@ def verdict_text(d: Difference, runs: int) -> str:
     """The verdict as printed: ``no significant difference at 50 runs (~210 would resolve it)``."""
     if d.verdict != SAME:
         return f"B {d.verdict}"
-    p = f", p {d.p_value:.2g}" if math.isfinite(d.p_value) and d.p_value < 1 - CONFIDENCE else ""
-    more = f" (~{d.runs_needed} runs would resolve {_signed(d.diff)}{p})" if d.runs_needed else ""
+    if math.isfinite(d.p_value) and d.p_value < 1 - CONFIDENCE:     # its own interval excludes 0
+        return (f"not significant over the components (Holm; its own p {d.p_value:.2g}; "
+                f"~{d.runs_needed} runs would resolve {_signed(d.diff)})")
+    more = f" (~{d.runs_needed} runs would resolve {_signed(d.diff)})" if d.runs_needed else ""
     return f"{SAME} at {runs} runs{more}"
 
 
@@ -63,12 +64,19 @@ def headline(c: Comparison) -> str:
     """Who is compared with whom, how, and the count of each verdict."""
     side = lambda s, k: f"{k}: {s.estimator} in {s.result} ({s.runs} runs{', interrupted' if s.interrupted else ''})"
     counts = ", ".join(f"{n} {v}" for v, n in c.summary().items())
-    return (f"{side(c.a, 'A')}\n{side(c.b, 'B')}\n{c.pairing}; {c.runs_compared} runs compared; {counts}; "
+    left = [f"{len(runs)} counted only in {k} ({', '.join(map(str, runs[:5]))}{', ...' if len(runs) > 5 else ''})"
+            for k, runs in (("A", c.only_a), ("B", c.only_b)) if runs]
+    left = f" (left out: {'; '.join(left)}: diverged on the other side)" if left else ""
+    return (f"{side(c.a, 'A')}\n{side(c.b, 'B')}\n{c.pairing}; {c.runs_compared} runs compared{left}; {counts}; "
             f"the verdicts over the {len(c.differences)} components together (Holm, 5 %)")
 
 
-def _dots(c: Comparison, sa: EstimatorSamples, sb: EstimatorSamples) -> dict:
-    """Per difference name, the runs' values drawn, in per cent of A's value."""
+def _dots(c: Comparison) -> dict:
+    """Per difference name, the runs' values drawn (paired: each run's B - A; unpaired: each
+    side's own)."""
+    sa, sb = c.samples_a, c.samples_b
+    if sa is None or sb is None:
+        return {}
     ia, ib = paired_rows(sa, sb) if c.paired else (slice(None), slice(None))
     out = {}
     for path in [p for p in sa.metrics if p in sb.metrics]:
@@ -116,14 +124,14 @@ def _panel(ax, c: Comparison, diffs: list[Difference], dots: dict) -> None:
     ax.grid(axis="x", lw=0.3, alpha=0.5)
 
 
-def compare_page(c: Comparison, sa: EstimatorSamples, sb: EstimatorSamples, name: str = "compare") -> Page:
+def compare_page(c: Comparison, name: str = "compare") -> Page:
     """The page of one comparison (see the module docstring): the errors above, the
     consistency statistics (NEES) below, each panel on its own scale."""
     groups = [g for g in ([d for d in c.differences if not d.metric.startswith("nees.")],
                           [d for d in c.differences if d.metric.startswith("nees.")]) if g]
     fig, axes = page_figure(len(groups), 1, squeeze=False,
                             gridspec_kw={"height_ratios": [len(g) + 2 for g in groups]})
-    dots = _dots(c, sa, sb)
+    dots = _dots(c)
     for ax, diffs in zip(axes[:, 0], groups):
         _panel(ax, c, diffs, dots)
     axes[-1, 0].set_xlabel("B - A, % of A " + ("(grey: each run's own B - A)" if c.paired else

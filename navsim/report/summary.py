@@ -113,7 +113,7 @@ def intervals(metrics: RunMetrics) -> Section | None:
                    "random-constant biases are one draw): an interval narrows as 1/sqrt(runs), never with the "
                    "epochs. RMS: studentized bootstrap over runs; p99: Woodruff's; NEES and convergence: "
                    "bootstrap over runs (navsim.scoring.intervals). Runs for ±5 %: the runs at which every "
-                   "component's interval would be its value ±5 % (the half-width shrinking as 1/sqrt(runs)).",
+                   "component's interval would be its value ±5 % (the half-width scaled as t(runs - 1)/sqrt(runs)).",
                    ["estimator", "metric", "N / value", "E", "D", "runs for\n±5 %"], rows)
 
 

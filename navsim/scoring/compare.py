@@ -13,8 +13,8 @@ two share (the same flight, sensor noise, biases and initial errors) cancel. Unp
 variances add (Welch's degrees of freedom). The interval is Student's t on that standard error.
 
 A verdict: for an error (an RMS) ``better`` when B - A is significantly below 0, ``worse`` above,
-``no significant difference`` otherwise, with the runs at which the 95 % interval would exclude
-0 if the difference seen held (the half-width shrinking as ``1 / sqrt(runs)``). A consistency
+``no significant difference`` otherwise, with the runs at which the difference seen would be
+significant over the family (:func:`runs_to_resolve`). A consistency
 statistic (NEES) has no better side: ``higher`` or ``lower``. The verdicts hold for the family
 of components compared together (Holm's step-down at 5 %: the chance that any of them is
 called different when none is stays at 5 %, where 30 components each tested at 5 % would call
@@ -26,21 +26,21 @@ its ``p_value`` shown.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.stats import norm, t as student_t
+from scipy.stats import t as student_t
 
 from navsim.records.samples import EstimatorSamples, MetricSamples
-from navsim.records.states import SIGMA_STATES
-from navsim.scoring.intervals import CONFIDENCE, MIN_RUNS
+from navsim.records.states import POS, SIGMA_STATES
+from navsim.scoring.intervals import CONFIDENCE, MIN_RUNS, student_runs
 
 #: the verdicts (an error metric; a consistency statistic)
 BETTER, WORSE, SAME = "better", "worse", "no significant difference"
 HIGHER, LOWER = "higher", "lower"
 #: the names of a metric's components, by its shape (the metric path's start decides first)
 COMPONENTS = {"attitude.rms_deg": ("roll", "pitch", "yaw"), "nees.per_state": SIGMA_STATES}
-AXES = ("N", "E", "D")
+AXES = tuple(s.split("_")[1] for s in SIGMA_STATES[POS])
 #: the paths with a horizontal component (the root of the N and E mean squares' sum)
 HORIZONTAL = ("rms.pos_m", "final.pos_m")
 
@@ -65,6 +65,9 @@ class Difference:
     runs: int = 0
     #: the standard error of B - A
     se: float = math.nan
+    #: the standard error B - A would have at one run per side (``se * sqrt(runs)`` paired;
+    #: ``sqrt(var(g_A) + var(g_B))`` unpaired): what the runs needed scale
+    spread: float = math.nan
 
     @property
     def relative(self) -> float:
@@ -157,16 +160,24 @@ def holm(diffs: list[Difference], alpha: float = 1 - CONFIDENCE) -> list[Differe
         if not diffs[i].p_value <= alpha / (len(diffs) - k):
             break
         keep.add(i)
-    # the runs at which the difference seen would pass the family's strictest step (Bonferroni's
-    # alpha / m, an upper bound of Holm's), the standard error shrinking as 1 / sqrt(runs)
-    q = float(norm.ppf(1 - alpha / (2 * max(len(diffs), 1))))
     out = []
     for i, d in enumerate(diffs):
         if i not in keep:
-            needed = int(math.ceil(d.runs * (q * d.se / abs(d.diff)) ** 2)) if d.diff and d.se > 0 else None
-            d = replace(d, verdict=SAME, runs_needed=needed)
+            d = replace(d, verdict=SAME, runs_needed=runs_to_resolve(d, alpha / max(len(diffs), 1)))
         out.append(d)
     return out
+
+
+def runs_to_resolve(d: Difference, alpha: float) -> int | None:
+    """The runs (per side) at which the difference seen would pass a two-sided test at
+    ``alpha`` (the family's strictest step, Bonferroni's ``alpha / m``: an upper bound of
+    Holm's): the fewest ``N`` with ``t(N - 1) * spread / sqrt(N) <= |diff|``
+    (:func:`~navsim.scoring.intervals.student_runs`), and more than the runs it is over. None
+    without a difference or a spread."""
+    if not d.diff:
+        return None
+    n = student_runs(d.spread, abs(d.diff), alpha)
+    return None if n is None else max(n, d.runs + 1)
 
 
 def _difference(path: str, comp: str, ma: MetricSamples, mb: MetricSamples, paired: bool) -> Difference:
@@ -175,20 +186,22 @@ def _difference(path: str, comp: str, ma: MetricSamples, mb: MetricSamples, pair
     na, nb = len(ga), len(gb)
     diff = vb - va
     if min(na, nb) < MIN_RUNS:
-        se, dof = math.nan, 0.0
+        se, dof, spread = math.nan, 0.0, math.nan
     elif paired:
-        d = gb - ga
-        se, dof = float(np.std(d, ddof=1) / math.sqrt(na)), na - 1.0
+        spread = float(np.std(gb - ga, ddof=1))
+        se, dof = spread / math.sqrt(na), na - 1.0
     else:
         va2, vb2 = np.var(ga, ddof=1) / na, np.var(gb, ddof=1) / nb
-        se = float(math.sqrt(va2 + vb2))
+        se, spread = float(math.sqrt(va2 + vb2)), float(math.sqrt(va2 * na + vb2 * nb))
         denom = va2 ** 2 / (na - 1) + vb2 ** 2 / (nb - 1)
         dof = float((va2 + vb2) ** 2 / denom) if denom > 0 else na + nb - 2.0
-    if se == 0 and diff == 0:                  # identical sides: the difference is exactly 0
-        return Difference(path, comp, va, vb, 0.0, [0.0, 0.0], SAME, None, 1.0, min(na, nb), 0.0)
+    if se == 0:                                # the runs agree exactly: 0, or a certain difference
+        return Difference(path, comp, va, vb, diff, [diff, diff], _verdict(path, [diff, diff]), None,
+                          1.0 if diff == 0 else 0.0, min(na, nb), 0.0, 0.0)
     ci = _interval(diff, se, dof)
-    p = float(2 * student_t.sf(abs(diff) / se, dof)) if se > 0 and dof >= 1 else math.nan
-    return Difference(path, comp, va, vb, diff, ci, _verdict(path, ci), None, p, min(na, nb), se)
+    p = float(2 * student_t.sf(abs(diff) / se, dof)) if math.isfinite(se) and dof >= 1 else math.nan
+    return Difference(path, comp, va, vb, diff, ci, _verdict(path, ci), None, p, min(na, nb), se,
+                      spread if min(na, nb) >= MIN_RUNS else math.nan)
 
 
 @dataclass(frozen=True)
@@ -214,6 +227,12 @@ class Comparison:
     pairing: str                #: why paired or not
     runs_compared: int          #: paired: the runs both have; unpaired: the smaller side
     differences: list[Difference]
+    #: paired: the counted runs of one side the other left out (diverged there), per side
+    only_a: list[int] = field(default_factory=list)
+    only_b: list[int] = field(default_factory=list)
+    #: the samples compared (what the page draws)
+    samples_a: EstimatorSamples | None = field(default=None, repr=False)
+    samples_b: EstimatorSamples | None = field(default=None, repr=False)
 
     def summary(self) -> dict[str, int]:
         """Verdict -> how many components have it."""
@@ -231,13 +250,16 @@ class Comparison:
                  "verdict": d.verdict, "runs_needed": d.runs_needed, "p_value": clean(d.p_value)}
                 for d in self.differences]
         return {"a": side(self.a), "b": side(self.b), "paired": self.paired, "pairing": self.pairing,
-                "runs_compared": self.runs_compared, "confidence": CONFIDENCE,
+                "runs_compared": self.runs_compared, "left_out": {"a_only": self.only_a, "b_only": self.only_b},
+                "confidence": CONFIDENCE,
                 "verdicts": "Holm's step-down over the components at 5 %", "summary": self.summary(),
                 "differences": rows}
 
 
 def compare_samples(a: Side, sa: EstimatorSamples, b: Side, sb: EstimatorSamples, paired: bool,
                     pairing: str) -> Comparison:
-    """The :class:`Comparison` of two estimators' samples."""
+    """The :class:`Comparison` of two estimators' samples (paired: over the runs both counted;
+    those only one side counted are listed)."""
     runs = len(paired_rows(sa, sb)[0]) if paired else min(len(sa.runs), len(sb.runs))
-    return Comparison(a, b, paired, pairing, runs, differences(sa, sb, paired))
+    only = lambda x, y: np.setdiff1d(x.runs, y.runs).astype(int).tolist() if paired else []
+    return Comparison(a, b, paired, pairing, runs, differences(sa, sb, paired), only(sa, sb), only(sb, sa), sa, sb)

@@ -305,17 +305,36 @@ def runs_needed(runs: int, value: float, interval, target: float) -> int | None:
     return int(math.ceil(runs * (half / gap) ** 2))
 
 
+def student_runs(unit: float, target: float, alpha: float = 1 - CONFIDENCE, most: int = 10 ** 9) -> int | None:
+    """The fewest runs ``N >= 2`` whose two-sided Student half-width ``t(1 - alpha/2, N - 1) *
+    unit / sqrt(N)`` is at most ``target`` (``unit``: the spread of one run); the half-width
+    falls with ``N``, so a doubling then a bisection finds it. None where it takes more than
+    ``most`` or cannot be had."""
+    if not (math.isfinite(unit) and math.isfinite(target) and unit > 0 and target > 0):
+        return None
+    ok = lambda n: float(student_t.ppf(1 - alpha / 2, n - 1)) * unit / math.sqrt(n) <= target
+    lo, hi = 1, 2
+    while not ok(hi):
+        lo, hi = hi, hi * 2
+        if hi > most:
+            return None
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if ok(mid) else (mid, hi)
+    return hi
+
+
 def runs_for_precision(runs: int, value: float, interval, precision: float) -> int | None:
     """The runs at which the 95 % interval around ``value`` (now from ``runs`` runs) would be
-    ``2 * precision * value`` wide (``value +- 5 %``): its half-width shrinks as
-    ``t(runs - 1) / sqrt(runs)`` (Student's quantile: a few runs' interval is wider than the
-    square-root law alone). None where there is no interval or the value is 0."""
+    ``2 * precision * value`` wide (``value +- 5 %``): its half-width scales as
+    ``t(N - 1) / sqrt(N)`` (Student's quantile: a few runs' interval is wider than the
+    square-root law alone; :func:`student_runs`). None where there is no interval or the value
+    is 0."""
     lo, hi = interval
     if not all(math.isfinite(v) for v in (value, lo, hi)) or runs < MIN_RUNS or value == 0 or precision <= 0:
         return None
-    q = float(norm.ppf(0.5 + CONFIDENCE / 2) / student_t.ppf(0.5 + CONFIDENCE / 2, runs - 1))
-    half = q * (hi - lo) / 2
-    return max(int(math.ceil(runs * (half / (precision * abs(value))) ** 2)), MIN_RUNS)
+    unit = (hi - lo) / 2 * math.sqrt(runs) / float(student_t.ppf(0.5 + CONFIDENCE / 2, runs - 1))
+    return student_runs(unit, precision * abs(value))
 
 
 class WeightedSums:

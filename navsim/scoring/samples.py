@@ -5,10 +5,11 @@ kept run by run as the chunks go by, and the 95 % intervals made of it
 ``[[lo, hi]] * 3`` beside ``rms.pos_m``).
 
 Kept per run: the sums of squares and counts of the errors (RMS), of the Euler errors, of the
-normalised errors (``nees.per_state``), of the windows' quantities (RMS, standard deviation)
-and the last epoch's errors (``final``); kept per replicate of a Poisson bootstrap over runs
-(``(R, epochs)``): the summed NEES, NIS and squared position error (the NEES and NIS averages
-and shares, the convergence time). Memory: a few numbers per run and metric, and
+normalised errors (``nees.per_state``), of the NEES from the settling time (``nees.average``
+where every run has every epoch: then a ratio of per-run sums), of the windows' quantities
+(RMS, standard deviation) and the last epoch's errors (``final``); kept per replicate of a
+Poisson bootstrap over runs (``(R, epochs)``): the summed NEES, NIS and squared position error
+(the other NEES and NIS averages and shares, the convergence time). Memory: a few numbers per run and metric, and
 :data:`~navsim.scoring.intervals.BOOTSTRAP_REPLICATES` rows per epoch array.
 """
 
@@ -161,7 +162,15 @@ class RunSamples:
                                               (0.0, 1.0))}
 
     def _nees(self, t_s, settle_s: float, band) -> dict:
-        out = self._shares("nees", (t_s >= settle_s) & (t_s > 0), band)
+        cols = (t_s >= settle_s) & (t_s > 0)
+        out = self._shares("nees", cols, band)
+        # every run has every scored epoch (an open loop): the average of the per-epoch means is
+        # the runs' pooled mean, a ratio of per-run sums with the studentized interval of an RMS's
+        # mean square (the bootstrap's percentile interval covers it in 90 % at 20 runs)
+        s, n = self.sums["nees_run"].arrays()
+        point = float(_nanmean(self.boot["nees"].point()[:, cols])[0])
+        if n.sum() > 0 and math.isclose(float(s.sum() / n.sum()), point, rel_tol=1e-6):
+            out["average"] = mean_square_interval(s, n)
         return {**out, "average_from_start": self._boot("nees", lambda m: _nanmean(m[:, 1:]))}
 
     def _nis(self, nis_cols: dict) -> dict:

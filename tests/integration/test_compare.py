@@ -10,6 +10,7 @@ import pytest
 
 import navsim
 from navsim.cli import main
+from navsim.records.samples import EstimatorSamples, MetricSamples, load_samples, save_samples
 
 ESKF = "BD/SINS/ADS ES-KF 16"
 RUNS = 12
@@ -114,6 +115,19 @@ def test_hostile_inputs_are_refused_with_nothing_written(results, repo_root, shi
     shipped_flight("p3_sins_gps")                    # its flight from the session's cache
     navsim.run(repo_root / "scenarios" / "p3_sins_gps.yaml", 2, out=other)
     assert "track" in _refused(capsys, ["compare", str(results["a"]), str(other)], out)
+    # the output folder on (or inside) a result compared: refused, the result untouched
+    before = sorted(p.name for p in results["a"].iterdir())
+    capsys.readouterr()
+    assert main(["compare", str(results["a"]), str(results["b"]), "--out", str(results["a"])]) == 2
+    assert "--out" in capsys.readouterr().err and sorted(p.name for p in results["a"].iterdir()) == before
+    # a side with fewer than two counted runs
+    one = tmp_path / "one"
+    shutil.copytree(results["b"], one)
+    samples = load_samples(one / "samples.npz")
+    save_samples(one / "samples.npz", {k: EstimatorSamples(v.runs[:1], {p: MetricSamples(m.s[:1], m.n[:1], m.root)
+                                                                        for p, m in v.metrics.items()})
+                                       for k, v in samples.items()})
+    assert "at least 2 needed" in _refused(capsys, ["compare", str(results["a"]), str(one)], out)
     # one result without two estimators named, an unknown estimator
     assert "--estimators" in _refused(capsys, ["compare", str(results["a"])], out)
     assert "no estimator 'UKF'" in _refused(capsys, ["compare", str(results["a"]), "--estimators", "UKF", ESKF], out)

@@ -7,7 +7,9 @@ import math
 import numpy as np
 
 from navsim.records.samples import EstimatorSamples, MetricSamples, load_samples, save_samples
-from navsim.scoring.compare import BETTER, SAME, differences
+from scipy.stats import t as student_t
+
+from navsim.scoring.compare import BETTER, SAME, Difference, Side, compare_samples, differences, holm, runs_to_resolve
 
 EPOCHS = 100
 TRIALS = 1000
@@ -94,3 +96,43 @@ def test_the_samples_file_round_trips(tmp_path):
     m, n = back["ES-KF, 16"].metrics["rms.pos_m"], s["ES-KF, 16"].metrics["rms.pos_m"]
     assert np.array_equal(m.s, n.s) and np.array_equal(m.n, n.n) and m.root
     assert np.array_equal(back["free SINS"].runs, [0, 2])
+
+
+def _fixed(p_values):
+    """Differences with the given p-values, each with an interval that excludes 0."""
+    return [Difference("rms.pos_m", str(k), 1.0, 1.1, 0.1, [0.01, 0.19], "worse", None, p, 20, 0.04, 0.18)
+            for k, p in enumerate(p_values)]
+
+
+def test_holms_step_down_on_fixed_p_values():
+    """m = 4 at 5 %, sorted 0.001, 0.01, 0.03, 0.06: 0.001 <= 0.05/4 and 0.01 <= 0.05/3 pass,
+    0.03 > 0.05/2 stops the steps (0.06 after it too); the order given does not matter."""
+    out = holm(_fixed([0.03, 0.01, 0.001, 0.06]))
+    assert [d.verdict for d in out] == [SAME, "worse", "worse", SAME]
+    out = holm(_fixed([0.03, 0.02, 0.04, 0.013]))            # 0.013 > 0.0125: none passes
+    assert all(d.verdict == SAME for d in out)
+    # a demoted component's runs to resolve it are more than it has, at the family's level
+    assert all(d.runs_needed > 20 for d in out)
+
+
+def test_runs_to_resolve_uses_students_quantile_at_few_runs():
+    """A difference 1.5 spreads from 0 at one run (z 1.5): over a family of 10, t(N-1) at
+    0.0025 per side needs N with sqrt(N) / t(N - 1) = 1 / 1.5: about 10, where the normal
+    quantile alone says 4."""
+    d = Difference("rms.pos_m", "N", 1.0, 2.5, 1.5, [0.0, 3.0], SAME, None, 0.06, 3, 0.87, 1.0)
+    n = runs_to_resolve(d, 0.05 / 10)
+    t = student_t.ppf(1 - 0.0025, n - 1)
+    assert 8 <= n <= 14 and t * 1.0 / math.sqrt(n) <= 1.5 * 1.05
+
+
+def test_a_run_diverged_on_one_side_is_left_out_of_both_and_listed():
+    ea, eb = _runs(np.random.default_rng(6), 12)
+    a, b = _side(ea), _side(eb, 1.05)
+    b = EstimatorSamples(np.delete(b.runs, [3, 7]), {k: MetricSamples(np.delete(m.s, [3, 7], 0),
+                                                                        np.delete(m.n, [3, 7], 0), m.root)
+                                                     for k, m in b.metrics.items()})
+    side = Side("a", "x", 12, 12, 12, False, 1)
+    c = compare_samples(side, a, side, b, True, "paired")
+    assert c.runs_compared == 10 and c.only_a == [3, 7] and c.only_b == []
+    keep = np.delete(np.arange(12), [3, 7])
+    assert c.differences[0].a == math.sqrt(np.sum(a.metrics["rms.pos_m"].s[keep, 0]) / (10 * EPOCHS))

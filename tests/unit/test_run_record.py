@@ -11,7 +11,7 @@ from navsim.foundations.outputs import strict_json
 from navsim.records.run import RunRecord
 
 #: run.json's keys, in order, of a run streamed to a chunk store (as written before the record was typed)
-STREAMED_KEYS = ["scenario", "runs", "runs_done", "seed", "workers", "flight_cached", "flight_key", "executor",
+STREAMED_KEYS = ["scenario", "runs", "runs_done", "seed", "workers", "flight_cached", "flight_key", "data_key", "executor",
                  "scheduler", "resumed", "chunk_runs", "failed_chunks", "per_run_data", "failed_runs",
                  "interrupted", "wall_s", "versions", "git_revision", "utc", "command", "platform", "runs_plotted"]
 
