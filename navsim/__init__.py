@@ -23,7 +23,8 @@ Arrays are batch-first: quantities of several Monte Carlo runs carry a leading r
 The Python API (:mod:`navsim.api`): :func:`load_scenario`, :func:`run` (a :class:`Result`),
 :func:`open_result` (a finished run's folder, read-only), :func:`write_report`, :func:`report_figures`
 (the report's pages as figures), :func:`sweep`, and :func:`compare` (two estimators, ``B - A`` with
-95 % intervals, run by run where they flew the same runs) with :func:`write_comparison`.
+95 % intervals, run by run where they flew the same runs) with :func:`write_comparison`, and
+:func:`budget` (each error source's share of the errors) with :func:`write_budget`.
 
 The subpackages follow the data flow; each imports only from those before it:
 :mod:`navsim.foundations` (Earth, rotations, atmosphere, YAML, errors, output folders) ->
@@ -34,9 +35,9 @@ driver, chunks, executors, closed loop, sweep) -> :mod:`navsim.scoring` (typed m
 :mod:`navsim.replay` (PX4 logs) -> :mod:`navsim.report` -> :mod:`navsim.api` -> :mod:`navsim.cli`.
 """
 
-from navsim.api import (Result, compare, load_scenario, open_result, report_figures, run, sweep,  # noqa: E402
-                        write_comparison, write_report)
+from navsim.api import (Result, budget, compare, load_scenario, open_result, report_figures, run,  # noqa: E402
+                        sweep, write_budget, write_comparison, write_report)
 from navsim.version import __version__  # noqa: E402
 
-__all__ = ["Result", "compare", "write_comparison", "load_scenario", "open_result", "report_figures", "run", "sweep", "write_report",
+__all__ = ["Result", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "report_figures", "run", "sweep", "write_report",
            "__version__"]

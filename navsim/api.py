@@ -42,6 +42,7 @@ from navsim.experiment.runner import (
     scenario_hash,
 )
 from navsim.experiment import resources
+from navsim.experiment.budget import GROUPS as BUDGET_GROUPS, alone, budget_sources, find_source, scaled
 from navsim.experiment.results import ResultFiles, check_comparable, pairing, read_result
 from navsim.experiment.scenario import Scenario, check_scenario, load_scenario as _load_file, parse_scenario
 from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
@@ -54,10 +55,12 @@ from navsim.records.run import RunRecord
 from navsim.records.samples import SAMPLES_FILE, EstimatorSamples, load_samples, save_samples
 from navsim.records.states import SIGMA_STATES
 from navsim.records.truth import CalibrationHistory, TruthBias
+from navsim.report.budget import CSV_HEADERS as BUDGET_CSV_HEADERS, budget_csv_rows, budget_pages
 from navsim.report.compare import CSV_HEADERS, compare_page, csv_rows
 from navsim.report.figures import pyplot
 from navsim.report.pages import report_pages as _report_pages, write_report as _write_report
 from navsim.report.render import render
+from navsim.scoring.budget import Budget, WhatIf, metric_budgets, predict
 from navsim.scoring.closed_loop import closed_loop_metrics
 from navsim.scoring.compare import Comparison, Side, compare_samples
 from navsim.scoring.intervals import MIN_RUNS
@@ -643,3 +646,83 @@ def write_comparison(comparisons: list[Comparison], folder: OutputFolder, fmts=(
         for p in pages:
             pyplot().close(p.figure)
     return [folder.path / "compare.json", folder.path / "compare.csv", *files]
+
+
+def budget(scenario, runs: int | None = None, seed: int | None = None, workers: int | None = None, *,
+           group: str = "source", scales=(), executor: str = "local", scheduler: str | None = None,
+           progress=None) -> Budget:
+    """The error budget of every estimator of ``scenario`` by Monte Carlo: the runs with every
+    error source on, with none, and with each source alone (the same seeds: each source's
+    realisation is the one it has with all on), then each source's contribution to every RMS
+    metric (:mod:`navsim.scoring.budget`); nothing is written.
+
+    Parameters
+    ----------
+    scenario, runs, seed, workers, executor, scheduler
+        As :func:`run` (each of the Monte Carlos runs so).
+    group : {"source", "sensor", "kind"}
+        The budget's lines: each source, each sensor (and the initial errors), each sensor's
+        kind of term (``imu gyro``).
+    scales : sequence of (str, float)
+        "What if": each source scaled by the factor; the metric predicted from the budget, then
+        a Monte Carlo with it scaled (:class:`~navsim.scoring.budget.WhatIf`).
+    progress : callable, optional
+        ``progress(done, total, what)`` after each Monte Carlo.
+
+    Raises
+    ------
+    UsageError
+        No error source in the scenario, an unknown source or group, a factor below 0.
+    """
+    t0 = time.perf_counter()
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    sources = budget_sources(sc)
+    if group not in BUDGET_GROUPS:
+        raise UsageError(f"--group {group!r}: expected one of {', '.join(BUDGET_GROUPS)}")
+    scaled_runs = [(find_source(name, sources), float(k)) for name, k in scales]
+    plan = [("all on", sc), ("none", alone(sc, None, sources))] + [(s.name, alone(sc, s, sources)) for s in sources]
+    plan += [(f"{s.name} x{k:g}", scaled(sc, s, k)) for s, k in scaled_runs]
+    runs = sc.runs if runs is None else runs
+    seed = sc.seed if seed is None else seed
+    flight = cached_flight(sc.flight) if sc.closed_loop is None else None
+    samples = {}
+    for i, (what, variant) in enumerate(plan):
+        res = run(variant, runs, seed, workers, executor=executor, scheduler=scheduler, flight=flight)
+        if res.interrupted:
+            raise KeyboardInterrupt
+        samples[what] = res.samples
+        if progress:
+            progress(i + 1, len(plan), what)
+    metrics, what_if = [], []
+    for label in samples["all on"]:
+        per = {s.name: samples[s.name][label] for s in sources}
+        metrics += metric_budgets(label, samples["all on"][label], samples["none"][label], per,
+                                  {s.name: s.group_of(group) for s in sources})
+        by_source = metric_budgets(label, samples["all on"][label], samples["none"][label], per,
+                                   {s.name: s.name for s in sources})
+        for s, k in scaled_runs:
+            measured = metric_budgets(label, samples[f"{s.name} x{k:g}"][label], samples["none"][label], {}, {})
+            for mb in by_source:
+                m = next(x for x in measured if (x.metric, x.component) == (mb.metric, mb.component))
+                what_if.append(WhatIf(s.name, k, label, mb.metric, mb.component, mb.all_on, predict(mb, s.name, k),
+                                      m.all_on))
+    return Budget(sc.name, runs, seed, [s.name for s in sources], group, metrics, what_if, time.perf_counter() - t0)
+
+
+def write_budget(result: Budget, folder: OutputFolder, metrics=None, fmts=("pdf", "png")) -> list[Path]:
+    """``budget.json``, ``budget.csv`` (one row per estimator, metric and line) and the budget's
+    pages (``budget.pdf``, a PNG each: a sorted bar chart per estimator and metric of
+    ``metrics``, default :data:`~navsim.scoring.budget.DEFAULT_METRICS`) into ``folder``."""
+    folder.json("budget.json", {**result.to_dict(), **provenance()})
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(BUDGET_CSV_HEADERS)
+    w.writerows(budget_csv_rows(result))
+    folder.text("budget.csv", buf.getvalue())
+    pages = budget_pages(result, metrics)
+    try:
+        files = render(folder, pages, fmts, f"navsim budget {result.scenario}", pdf="budget.pdf")
+    finally:
+        for p in pages:
+            pyplot().close(p.figure)
+    return [folder.path / "budget.json", folder.path / "budget.csv", *files]

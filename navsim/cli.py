@@ -47,6 +47,9 @@ from navsim.flight.simulator import fly
 from navsim.flight.track import available_tracks, load_track, nominal_duration_s
 from navsim.foundations.config import MAX_RUNS
 from navsim.foundations.errors import FlightError, NavsimError, OutputError, UsageError
+from navsim.experiment.budget import GROUPS as BUDGET_GROUP_NAMES, budget_sources, find_source
+from navsim.report.budget import HEADERS as BUDGET_HEADERS, check_text, chosen as budget_chosen
+from navsim.report.budget import text_rows as budget_text_rows
 from navsim.report.compare import HEADERS as COMPARE_HEADERS, headline, text_rows
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.progress import Progress
@@ -331,6 +334,56 @@ def cmd_compare(args) -> int:
     return 0
 
 
+def parse_scales(items: list[str] | None) -> list[tuple[str, float]]:
+    """``SOURCE=K`` strings to ``(source, factor)``; a factor that is not a number >= 0 is a
+    :class:`UsageError`."""
+    out = []
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        try:
+            factor = float(value)
+        except ValueError:
+            factor = math.nan
+        if not sep or not name or not (math.isfinite(factor) and factor >= 0):
+            raise UsageError(f"--scale {item!r}: expected SOURCE=K with a factor K >= 0 (--scale imu.gyro.noise_density=0.5)")
+        out.append((name, factor))
+    return out
+
+
+def parse_budget_metrics(items: list[str] | None):
+    """``PATH[:COMPONENT]`` strings (``final.pos_m:horizontal``) to pairs; None: the default."""
+    return None if not items else [tuple((x.split(":", 1) + [""])[:2]) for x in items]
+
+
+def cmd_budget(args) -> int:
+    scenario = load_scenario(args.scenario)
+    scales = parse_scales(args.scale)
+    metrics = parse_budget_metrics(args.metric)
+    sources = budget_sources(scenario)           # checked before anything runs or is written
+    for name, _ in scales:
+        find_source(name, sources)
+    folder = _open_folder(args, Path("reports") / scenario.name / "budget")
+    todo = len(sources) + 2 + len(scales)
+    with Progress(todo, f"budget {scenario.name}", unit="Monte Carlo") as bar:
+        result = api.budget(scenario, args.runs, args.seed, args.workers, group=args.group, scales=scales,
+                            executor=args.executor, scheduler=args.scheduler, progress=lambda *_: bar.update(1))
+    shown = budget_chosen(result, metrics)
+    if metrics and not shown:
+        raise UsageError(f"--metric: none of {', '.join(':'.join(m) for m in metrics)} is scored; hint: "
+                         "final.pos_m:horizontal, rms.att_deg:D, windows.<name>.height_m.rms")
+    for m in shown:
+        print(f"\n{m.estimator}: {m.name}\n" + _table(list(BUDGET_HEADERS), budget_text_rows(m)) + "\n" + check_text(m))
+    for w in result.what_if:
+        if (w.metric, w.component) in [(m.metric, m.component) for m in shown]:
+            print(f"what if {w.source} x{w.factor:g}: {w.estimator} {w.metric} {w.component} {num(w.all_on)} -> "
+                  f"predicted {num(w.predicted)}, run {num(w.measured)} ({100 * w.error:+.1f} %)")
+    folder.clear_earlier()
+    files = api.write_budget(result, folder, metrics)
+    print(f"\n{todo} Monte Carlos of {result.runs} runs in {result.wall_s:.1f} s; wrote {folder.path}/: "
+          + ", ".join(f.name for f in files))
+    return 0
+
+
 def write_sweep_files(folder: OutputFolder, sweep) -> None:
     """``sweep.json``: each point with its values, their 95 % intervals and its whole
     ``metrics.json``; ``sweep.csv``: one row per point, the swept parameters then the metric of
@@ -528,6 +581,33 @@ def _executor_options(p) -> None:
                    "LocalCluster of --workers processes is started")
 
 
+def _budget_parser(sub) -> None:
+    p = sub.add_parser("budget", help="error budget: each error source's share of every estimator's errors",
+                       description="Run the scenario's Monte Carlo with every error source on, with none, and "
+                       "with each source alone (the same seeds: a source's realisation is the one it has with "
+                       "all on); print each source's contribution to the final and RMS errors, its share of "
+                       "the variance and the root-sum-square against the all-on value (the linearity check). "
+                       "Sources: every error term of the sensors' truth models that is on, each fault, the "
+                       "initial attitude, velocity and position errors. Writes budget.json, budget.csv and "
+                       "budget.pdf/.png.")
+    p.add_argument("scenario", help="scenario YAML file")
+    p.add_argument("--runs", type=RUNS, help="runs per Monte Carlo (default: montecarlo.runs)")
+    p.add_argument("--seed", type=SEED, help="seed (default: montecarlo.seed)")
+    p.add_argument("--workers", type=WORKERS, help="worker processes (default: montecarlo.workers)")
+    p.add_argument("--group", choices=BUDGET_GROUP_NAMES, default="source",
+                   help="the budget's lines: each source (default), each sensor, each sensor's kind of term")
+    p.add_argument("--scale", action="append", metavar="SOURCE=K",
+                   help="what if: the source scaled by K, predicted from the budget and checked by a run "
+                   "(repeatable)")
+    p.add_argument("--metric", action="append", metavar="PATH[:COMPONENT]",
+                   help="a metric to print and draw (repeatable; default final.pos_m:horizontal, "
+                   "final.att_deg:D, rms.pos_m:horizontal, rms.att_deg:D); budget.json has every RMS metric")
+    p.add_argument("--out", help="output folder (default reports/<name>/budget)")
+    _executor_options(p)
+    _writer_options(p)
+    p.set_defaults(func=cmd_budget)
+
+
 def _compare_parser(sub) -> None:
     p = sub.add_parser("compare", help="compare two estimators' metrics: B - A with 95 %% intervals",
                        description="Compare the metrics of two results (navsim run's folders), or of two "
@@ -639,6 +719,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_sweep)
     _replay_parser(sub)
     _compare_parser(sub)
+    _budget_parser(sub)
     p = sub.add_parser("schema", help="print the JSON Schema of scenario files",
                        description="Print the JSON Schema of scenario files for editors, with the "
                        "estimators and measurement types of installed plug-ins (docs/scenario.schema.json "

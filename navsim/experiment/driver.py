@@ -43,27 +43,31 @@ SYMMETRY_TOL = 1e-6
 PSD_TOL = 1e-9
 
 
-#: the field of :class:`InitialErrors` that holds each block of the states
-_DRAWN = {"att": "att_rad", "vel": "vel_mps", "pos": "pos_m"}
+#: the field of :class:`InitialErrors` that holds each block of the states (as an error budget names them)
+DRAWN_FIELDS = {"att": "att_rad", "vel": "vel_mps", "pos": "pos_m"}
 
 
 @dataclass(frozen=True)
 class InitialErrors:
     """1-sigma initial errors drawn per run: position NED (m), velocity NED (m/s), attitude
     (rad, about N, E, D). P0: 5, 5, 10 m; 0.1 m/s; 20", 20", 50". P3: 5, 5, 3 m; 0.2, 0.2,
-    0.1 m/s; 1', 1', 1'. ``fixed``: use the sigmas as the errors themselves."""
+    0.1 m/s; 1', 1', 1'. ``fixed``: use the sigmas as the errors themselves. ``drawn``: the
+    blocks the truth starts off by (an error budget's run of one source leaves the others at
+    0, each block's draw the one it has with all drawn); a filter's initial covariance keeps
+    every sigma."""
 
     pos_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
     vel_mps: np.ndarray = field(default_factory=lambda: np.zeros(3))
     att_rad: np.ndarray = field(default_factory=lambda: np.zeros(3))
     fixed: bool = False
+    drawn: tuple[str, ...] = ("att", "vel", "pos")
 
     def draw(self, seed: int, runs) -> np.ndarray:
         """``(B, 9)`` errors of the runs, in the order of
         :data:`~navsim.records.states.SIGMA_STATES` (att rad, vel m/s, pos NED m)."""
         sig = np.empty(len(SIGMA_STATES))
         for name, block in BLOCKS.items():
-            sig[block] = getattr(self, _DRAWN[name])
+            sig[block] = getattr(self, DRAWN_FIELDS[name]) if name in self.drawn else 0.0
         if self.fixed:
             return np.broadcast_to(sig, (len(list(runs)), sig.size)).copy()
         return np.stack([g.standard_normal(sig.size) for g in run_generators(seed, runs, "initial")]) * sig
@@ -75,7 +79,7 @@ class InitialErrors:
         r_m, r_n = earth.radii(lat_rad)
         pos = np.array([self.pos_m[0] / (r_m + h_m), self.pos_m[1] / ((r_n + h_m) * math.cos(lat_rad)),
                         self.pos_m[2]])
-        return {name: pos if name == "pos" else getattr(self, field) for name, field in _DRAWN.items()}
+        return {name: pos if name == "pos" else getattr(self, field) for name, field in DRAWN_FIELDS.items()}
 
 
 def perturbed_start(truth, errors: np.ndarray, k: int = 0) -> NavState:

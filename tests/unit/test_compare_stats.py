@@ -62,11 +62,11 @@ def test_pairing_cancels_the_shared_errors():
 
 def test_holm_keeps_the_familys_false_alarms_at_5_pct():
     """30 components with no difference (two seeds of one filter): one or more is called
-    different in at most 5 % of 400 Monte Carlos (give or take 3.5 binomial sigmas), where
+    different in at most 5 % of 200 Monte Carlos (give or take 3.5 binomial sigmas), where
     testing each at 5 % calls one in about 79 %."""
     rng = np.random.default_rng(8)
     alarms = raw = 0
-    for _ in range(400):
+    for _ in range(200):
         sides = []
         for _ in range(2):
             e = rng.normal(0, 1, (40, 1, 30)) + rng.normal(0, 1, (40, 20, 30))
@@ -75,8 +75,8 @@ def test_holm_keeps_the_familys_false_alarms_at_5_pct():
         d = differences(*sides, False)
         alarms += any(x.verdict != SAME for x in d)
         raw += any(x.p_value < 0.05 for x in d)
-    assert alarms / 400 <= 0.05 + 3.5 * math.sqrt(0.05 * 0.95 / 400), alarms / 400
-    assert raw / 400 > 0.6
+    assert alarms / 200 <= 0.05 + 3.5 * math.sqrt(0.05 * 0.95 / 200), alarms / 200
+    assert raw / 200 > 0.6
 
 
 def test_a_better_filter_is_called_better_and_identical_sides_are_no_difference():

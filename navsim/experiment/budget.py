@@ -1,0 +1,181 @@
+"""An error budget's sources and the scenarios that run each one alone.
+
+A scenario's error sources are every error term its sensors' truth models apply (the terms each
+sensor kind declares, :attr:`navsim.sensors.registry.SensorKind.errors`, that are not already
+off), each fault window of a sensor, and each block of the initial errors (attitude, velocity,
+position) that is not zero. :func:`alone` is the scenario with one source on and every other
+off, in the truth only: the estimators, their noise models and initial covariances are the
+scenario's own, and the seeds are the same, so a source's realisation is the one it has with
+all on (the initial errors draw every block and zero the others; a sensor's random stream is
+its own, by its name).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from navsim.foundations.errors import UsageError
+from navsim.experiment.driver import DRAWN_FIELDS
+from navsim.sensors import registry
+
+#: the initial errors' blocks as sources, and the label of their group
+INITIAL = "initial"
+#: the groupings ``--group`` offers: each source alone, per sensor, per sensor and kind of term
+GROUPS = ("source", "sensor", "kind")
+#: the magnitude a source switched off for a budget keeps (times its unit; its square is still a
+#: normal double, as a white noise density needs): every random number
+#: it draws is still drawn, so the other sources' streams are where they are with it on, and its
+#: effect is below any double's resolution beside the truth (an emulator that draws only for a
+#: non-zero term would otherwise hand the next term the stream this one had)
+HELD = 1e-150
+#: terms that are not held but switched off: they draw nothing, and a held value would be wrong
+#: (a quantization step divides, a range bounds)
+NOT_HELD = ("quantization", "range")
+
+
+@dataclass(frozen=True)
+class Source:
+    """One error source: its name (``imu.gyro.bias_instability``, ``gnss.fault[0]``,
+    ``initial.att``), the sensor it belongs to (``initial`` for the initial errors), the error
+    term or fault it is, and the kind group it reports under (``imu gyro``)."""
+
+    name: str
+    sensor: str
+    term: str
+    group: str
+
+    def group_of(self, how: str) -> str:
+        """The name it is summed under for ``how`` (one of :data:`GROUPS`)."""
+        return {"source": self.name, "sensor": self.sensor, "kind": self.group}[how]
+
+
+def _value(spec, path: str):
+    node = spec
+    for part in path.split("."):
+        node = getattr(node, part)
+    return node
+
+
+def _on(spec, kind, term) -> bool:
+    """Whether the error term is on in ``spec`` (its value is not the one that switches it off)."""
+    off = kind.disable(spec, [term.name])
+    now, then = _value(spec, term.name), _value(off, term.name)
+    if isinstance(now, tuple):
+        return len(now) > 0
+    return not np.array_equal(np.asarray(now, float), np.asarray(then, float))
+
+
+def error_sources(scenario) -> list[Source]:
+    """Every error source of ``scenario`` that is on, sensors first (in their order, each
+    kind's declared terms in order, then its faults), then the initial errors."""
+    out = []
+    for c in scenario.sensors:
+        kind = registry.of(c.spec)
+        for term in kind.errors:
+            if _on(c.spec, kind, term):
+                head = term.name.split(".")[0]
+                group = f"{c.name} {head}" if "." in term.name else c.name
+                out.append(Source(f"{c.name}.{term.name}", c.name, term.name, group))
+        for i, f in enumerate(c.faults):
+            out.append(Source(f"{c.name}.fault[{i}]", c.name, f"fault[{i}]", f"{c.name} faults ({f.type})"))
+    init = scenario.initial
+    if init is not None:
+        for block, fld in DRAWN_FIELDS.items():
+            if np.any(np.asarray(getattr(init, fld), float) != 0):
+                out.append(Source(f"{INITIAL}.{block}", INITIAL, block, f"{INITIAL} errors"))
+    return out
+
+
+def held(spec, kind, term: str):
+    """``spec`` with the error term ``term`` off for a budget: held at :data:`HELD` where it is
+    a magnitude that switches off at 0 (its draws kept), else switched off."""
+    off = kind.disable(spec, [term])
+    now, then = _value(spec, term), _value(off, term)
+    magnitude = isinstance(now, (float, int, np.ndarray)) and np.ndim(now) <= 1
+    if term.split(".")[-1] in NOT_HELD or not magnitude or np.any(np.asarray(then, float) != 0):
+        return off
+    value = np.full(np.shape(now), HELD) if isinstance(now, np.ndarray) else HELD
+    return _replace_at(spec, term.split("."), value)
+
+
+def _replace_at(spec, path: list, value):
+    head = path[0]
+    if len(path) > 1:
+        return dataclasses.replace(spec, **{head: _replace_at(getattr(spec, head), path[1:], value)})
+    return dataclasses.replace(spec, **{head: value})
+
+
+def budget_sources(scenario) -> list[Source]:
+    """:func:`error_sources`, or a :class:`UsageError` when there is none to budget."""
+    out = error_sources(scenario)
+    if not out:
+        raise UsageError(f"{scenario.name}: no error source is on (every sensor ideal, no fault, no initial "
+                         "error): nothing to budget; hint: remove 'off: all' or give initial_errors")
+    return out
+
+
+def alone(scenario, source: Source | None, sources: list[Source]):
+    """``scenario`` with only ``source`` on in the truth (None: every source off), every other
+    of ``sources`` off (:func:`held`); its name suffixed with the source."""
+    sensors = []
+    for c in scenario.sensors:
+        kind = registry.of(c.spec)
+        spec = c.spec
+        for s in sources:
+            if s.sensor == c.name and not s.term.startswith("fault[") and (source is None or s.name != source.name):
+                spec = held(spec, kind, s.term)
+        faults = tuple(f for i, f in enumerate(c.faults)
+                       if source is not None and source.name == f"{c.name}.fault[{i}]")
+        sensors.append(dataclasses.replace(c, spec=spec, faults=faults))
+    init = scenario.initial
+    if init is not None:
+        keep = (source.term,) if source is not None and source.sensor == INITIAL else ()
+        init = dataclasses.replace(init, drawn=keep)
+    suffix = "none" if source is None else source.name
+    return dataclasses.replace(scenario, name=f"{scenario.name} [{suffix}]", sensors=tuple(sensors), initial=init)
+
+
+def scaled(scenario, source: Source, factor: float):
+    """``scenario`` with one source's magnitude times ``factor`` (a sensor's error term: its
+    value; an initial error block: its sigma in the truth and in the filters' covariances alike,
+    as a better alignment would give)."""
+    if not (math.isfinite(factor) and factor >= 0):
+        raise UsageError(f"--scale {source.name}={factor}: expected a factor >= 0")
+    if source.sensor == INITIAL:
+        fld = DRAWN_FIELDS[source.term]
+        init = dataclasses.replace(scenario.initial, **{fld: np.asarray(getattr(scenario.initial, fld)) * factor})
+        return dataclasses.replace(scenario, initial=init)
+    if source.term.startswith("fault["):
+        raise UsageError(f"--scale {source.name}: a fault has no magnitude to scale; hint: scale an error term")
+    sensors = []
+    for c in scenario.sensors:
+        if c.name == source.sensor:
+            c = dataclasses.replace(c, spec=_times(c.spec, source.term.split("."), factor))
+        sensors.append(c)
+    return dataclasses.replace(scenario, sensors=tuple(sensors))
+
+
+def _times(spec, path: list, factor: float):
+    head = path[0]
+    current = getattr(spec, head)
+    if len(path) > 1:
+        return dataclasses.replace(spec, **{head: _times(current, path[1:], factor)})
+    if isinstance(current, np.ndarray) and current.shape == (3, 3):     # a matrix about the identity
+        return dataclasses.replace(spec, **{head: np.eye(3) + factor * (current - np.eye(3))})
+    if isinstance(current, tuple):
+        raise UsageError(f"--scale: '{head}' is a list of terms, not a magnitude")
+    return dataclasses.replace(spec, **{head: np.asarray(current, float) * factor
+                                        if isinstance(current, np.ndarray) else float(current) * factor})
+
+
+def find_source(name: str, sources: list[Source]) -> Source:
+    """The source called ``name``; :class:`UsageError` naming those there are."""
+    for s in sources:
+        if s.name == name:
+            return s
+    raise UsageError(f"no error source '{name}' in this scenario; its sources: " + ", ".join(s.name for s in sources))
+
