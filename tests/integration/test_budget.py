@@ -37,8 +37,10 @@ def test_each_source_alone_has_its_all_on_realisation(p0, shipped_flight):
 
 def test_a_budget_writes_its_tables_and_pages(p0, repo_root, tmp_path, capsys):
     out = tmp_path / "b"
-    assert main(["budget", str(repo_root / "scenarios" / "p0_matched_ads.yaml"), "--runs", "3",
-                 "--scale", "bd.position_sigma=0.5", "--group", "kind", "--out", str(out)]) == 0
+    assert main(["budget", str(repo_root / "scenarios" / "p0_matched_ads.yaml"), "--runs", "2",
+                 "--workers", "1", "--scale", "bd.position_sigma=0.5", "--group", "kind",
+                 "--metric", "final.pos_m:horizontal",
+                 "--out", str(out)]) == 0
     data = json.loads((out / "budget.json").read_text())
     assert data["sources"] == [s.name for s in error_sources(p0)] and data["group"] == "kind"
     m = next(x for x in data["metrics"] if x["estimator"] == "ES-KF 17, matched ADS"

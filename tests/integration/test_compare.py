@@ -28,7 +28,7 @@ def results(repo_root, tmp_path_factory):
     out = {}
     for key, scenario, seed in (("a", base, 1), ("b", wider, 1), ("same", alone, 1), ("seed2", base, 2)):
         out[key] = root / key
-        navsim.run(scenario, RUNS, seed, out=out[key])        # the run's files, no report
+        navsim.run(scenario, RUNS, seed, 1, out=out[key])     # the run's files, no report
     return out
 
 
@@ -68,7 +68,7 @@ def test_results_at_hand_compare_as_their_folders(results):
     """A :class:`navsim.Result` (read back, or run in memory) against a folder: the same pairing."""
     [c] = navsim.compare(navsim.open_result(results["a"]), results["same"])
     assert c.paired and all(d.diff == 0 for d in c.differences)
-    held = navsim.run(results["same"] / "scenario.resolved.yaml", RUNS, 1)      # in memory
+    held = navsim.run(results["same"] / "scenario.resolved.yaml", RUNS, 1, 1)   # in memory
     [c] = navsim.compare(results["b"], held)
     assert c.paired and c.runs_compared == RUNS and any(d.verdict == "higher" for d in c.differences)
 
@@ -113,7 +113,7 @@ def test_hostile_inputs_are_refused_with_nothing_written(results, repo_root, shi
     # another track
     other = tmp_path / "p3"
     shipped_flight("p3_sins_gps")                    # its flight from the session's cache
-    navsim.run(repo_root / "scenarios" / "p3_sins_gps.yaml", 2, out=other)
+    navsim.run(repo_root / "scenarios" / "p3_sins_gps.yaml", 2, workers=1, out=other)
     assert "track" in _refused(capsys, ["compare", str(results["a"]), str(other)], out)
     # the output folder on (or inside) a result compared: refused, the result untouched
     before = sorted(p.name for p in results["a"].iterdir())

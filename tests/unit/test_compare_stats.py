@@ -12,7 +12,7 @@ from scipy.stats import t as student_t
 from navsim.scoring.compare import BETTER, SAME, Difference, Side, compare_samples, differences, holm, runs_to_resolve
 
 EPOCHS = 100
-TRIALS = 1000
+TRIALS = 600
 
 
 def _side(errors, scale: float = 1.0) -> EstimatorSamples:
@@ -32,7 +32,7 @@ def _runs(rng, runs: int):
 
 def test_the_paired_and_unpaired_intervals_cover_the_difference_at_50_runs():
     """B's errors are 1.05 times A's kind: B - A of the RMS is 0.05 sqrt(2.02) per axis; both
-    intervals hold it in 95 % of 1000 Monte Carlos (give or take 3.5 binomial sigmas)."""
+    intervals hold it in 95 % of 600 Monte Carlos (give or take 3.5 binomial sigmas, 3.1 %)."""
     rng = np.random.default_rng(21)
     truth = 0.05 * math.sqrt(2.02)
     hits = {True: 0, False: 0}
@@ -43,7 +43,7 @@ def test_the_paired_and_unpaired_intervals_cover_the_difference_at_50_runs():
         _, eb = _runs(rng, 50)
         hits[False] += (lambda d: d.ci95[0] <= truth <= d.ci95[1])(differences(_side(ea), _side(eb, 1.05), False)[0])
     for paired, n in hits.items():
-        assert 0.925 <= n / TRIALS <= 0.975, (paired, n / TRIALS)
+        assert 0.919 <= n / TRIALS <= 0.981, (paired, n / TRIALS)
 
 
 def test_pairing_cancels_the_shared_errors():
