@@ -64,8 +64,11 @@ def _bars(ax, m: MetricBudget) -> None:
     ax.set_xlim(0, max(values + [1e-12]) * 1.35)
     ax.tick_params(axis="x", labelsize=7)
     colour = PASS if m.additive else FAIL
-    ax.set_title(f"{m.name}: all on {num(m.all_on)}, RSS {num(m.rss)} (ratio {m.ratio:.2f}), none {num(m.baseline)}",
-                 fontsize=8, color=colour, loc="left")
+    lo, hi = m.ratio_ci95
+    ci = f" [{lo:.2f}, {hi:.2f}]" if math.isfinite(lo) and math.isfinite(hi) else ""
+    ax.set_title(f"{m.name}: all on {num(m.all_on)}, RSS {num(m.rss)} (ratio {m.ratio:.2f}{ci}"
+                 f"{'' if m.additive else ': NOT additive'}), none {num(m.baseline)}", fontsize=8, color=colour,
+                 loc="left")
     ax.grid(axis="x", lw=0.3, alpha=0.5)
 
 
