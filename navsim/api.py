@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import hashlib
 import io
 import json
 import logging
@@ -43,12 +44,14 @@ from navsim.experiment.runner import (
 )
 from navsim.experiment import resources
 from navsim.experiment.budget import GROUPS as BUDGET_GROUPS, alone, budget_sources, find_source, scaled
+from navsim.experiment.budget import check_method, covariance_contributions, linear_sources
 from navsim.experiment.results import ResultFiles, check_comparable, pairing, read_result
 from navsim.experiment.scenario import Scenario, check_scenario, load_scenario as _load_file, parse_scenario
 from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.provenance import provenance
+from navsim.version import __version__
 from navsim.records.chunk import ChunkPart
 from navsim.records.history import ARRAYS, ARRAY_FIELDS, EPOCH_ARRAYS, EstimatorHistory
 from navsim.records.run import RunRecord
@@ -60,7 +63,8 @@ from navsim.report.compare import CSV_HEADERS, compare_page, csv_rows
 from navsim.report.figures import pyplot
 from navsim.report.pages import report_pages as _report_pages, write_report as _write_report
 from navsim.report.render import render
-from navsim.scoring.budget import Budget, WhatIf, metric_budgets, predict
+from navsim.scoring.budget import METHODS as BUDGET_METHODS, Budget, WhatIf, covariance_budgets, metric_budgets
+from navsim.scoring.budget import predict, with_covariance
 from navsim.scoring.closed_loop import closed_loop_metrics
 from navsim.scoring.compare import Comparison, Side, compare_samples
 from navsim.scoring.intervals import MIN_RUNS
@@ -649,12 +653,11 @@ def write_comparison(comparisons: list[Comparison], folder: OutputFolder, fmts=(
 
 
 def budget(scenario, runs: int | None = None, seed: int | None = None, workers: int | None = None, *,
-           group: str = "source", scales=(), executor: str = "local", scheduler: str | None = None,
-           progress=None) -> Budget:
-    """The error budget of every estimator of ``scenario`` by Monte Carlo: the runs with every
-    error source on, with none, and with each source alone (the same seeds: each source's
-    realisation is the one it has with all on), then each source's contribution to every RMS
-    metric (:mod:`navsim.scoring.budget`); nothing is written.
+           group: str = "source", scales=(), method: str = "montecarlo", executor: str = "local",
+           scheduler: str | None = None, progress=None, store: OutputFolder | None = None,
+           resume: bool = False) -> Budget:
+    """The error budget of every estimator of ``scenario``: each error source's contribution to
+    every RMS metric (:mod:`navsim.scoring.budget`); nothing is written.
 
     Parameters
     ----------
@@ -666,47 +669,146 @@ def budget(scenario, runs: int | None = None, seed: int | None = None, workers: 
     scales : sequence of (str, float)
         "What if": each source scaled by the factor; the metric predicted from the budget, then
         a Monte Carlo with it scaled (:class:`~navsim.scoring.budget.WhatIf`).
+    method : {"montecarlo", "covariance", "both"}
+        ``montecarlo``: the runs with every error source on, with none, and with each source
+        alone (the same seeds: each source's realisation is the one it has with all on);
+        ``covariance``: one covariance analysis along the flight
+        (:mod:`navsim.navigation.covariance`; the sources without a linear form are listed in
+        ``monte_carlo_only``, the filters it does not take in ``not_analysed``); ``both``: the
+        Monte Carlo budget with each line's covariance figure beside it.
     progress : callable, optional
-        ``progress(done, total, what)`` after each Monte Carlo.
+        ``progress(done, total, what)`` after each Monte Carlo (and the covariance analysis).
+    store : OutputFolder, optional
+        Where each finished Monte Carlo's per-run samples go (``budget_part_<key>.npz``, keyed
+        by the scenario, the source, the runs, the seed and navsim's version), so that an
+        interrupted budget keeps them.
+    resume : bool
+        Read the Monte Carlos ``store`` already holds instead of running them again.
 
     Raises
     ------
     UsageError
-        No error source in the scenario, an unknown source or group, a factor below 0.
+        No error source in the scenario, an unknown source, group or method, a factor below 0;
+        a covariance analysis of a closed loop or of sources none of which has a linear form.
     """
     t0 = time.perf_counter()
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     sources = budget_sources(sc)
     if group not in BUDGET_GROUPS:
         raise UsageError(f"--group {group!r}: expected one of {', '.join(BUDGET_GROUPS)}")
+    check_method(sc, method, BUDGET_METHODS)
     scaled_runs = [(find_source(name, sources), float(k)) for name, k in scales]
-    plan = [("all on", sc), ("none", alone(sc, None, sources))] + [(s.name, alone(sc, s, sources)) for s in sources]
-    plan += [(f"{s.name} x{k:g}", scaled(sc, s, k)) for s, k in scaled_runs]
+    plan = _budget_plan(sc, sources, scaled_runs, method)
     runs = sc.runs if runs is None else runs
     seed = sc.seed if seed is None else seed
     flight = cached_flight(sc.flight) if sc.closed_loop is None else None
+    steps = len(plan) + (method != "montecarlo")
+    cov = None
+    if method != "montecarlo":
+        cov = _covariance_budget(sc, sources, flight[0], group)
+        if progress:
+            progress(1, steps, "covariance analysis")
     samples = {}
     for i, (what, variant) in enumerate(plan):
-        res = run(variant, runs, seed, workers, executor=executor, scheduler=scheduler, flight=flight)
-        if res.interrupted:
-            raise KeyboardInterrupt
-        samples[what] = res.samples
+        name = _budget_part(sc, what, runs, seed)
+        kept = store.path / name if store is not None else None
+        if resume and kept is not None and kept.is_file():
+            samples[what] = load_samples(kept)
+        else:
+            res = run(variant, runs, seed, workers, executor=executor, scheduler=scheduler, flight=flight)
+            if res.interrupted:
+                raise KeyboardInterrupt
+            samples[what] = res.samples
+            if store is not None:
+                store.write(name, lambda path: save_samples(path, res.samples))
         if progress:
-            progress(i + 1, len(plan), what)
-    metrics, what_if = [], []
+            progress(i + 1 + (cov is not None), steps, what)
+    metrics, by_source = (cov.metrics, cov.by_source) if method == "covariance" else _monte_carlo_budgets(
+        samples, sources, group)
+    if method == "both":
+        metrics = with_covariance(metrics, cov.metrics)
+    what_if = _what_ifs(samples, by_source, scaled_runs)
+    extra = {} if cov is None else dict(monte_carlo_only=cov.left, not_analysed=cov.skipped, covariance_s=cov.wall_s,
+                                        curves=cov.curves)
+    return Budget(sc.name, runs if method != "covariance" or plan else 0, seed, [s.name for s in sources], group,
+                  metrics, what_if, time.perf_counter() - t0, method, **extra)
+
+
+def _budget_plan(sc: Scenario, sources, scaled_runs, method: str) -> list:
+    """The Monte Carlos of a budget, ``(what, scenario)``: all on, none and each source alone
+    (not for a covariance analysis alone), then each scaled source."""
+    plan = [(f"{s.name} x{k:g}", scaled(sc, s, k)) for s, k in scaled_runs]
+    if method == "covariance":
+        return plan
+    return [("all on", sc), ("none", alone(sc, None, sources))] + [(s.name, alone(sc, s, sources))
+                                                                   for s in sources] + plan
+
+
+#: the files a budget keeps of each finished Monte Carlo (:func:`budget`'s ``store``)
+BUDGET_PARTS = "budget_part_*.npz"
+
+
+def _budget_part(sc: Scenario, what: str, runs: int, seed: int) -> str:
+    """The file of one Monte Carlo of a budget: named by a digest of what makes its numbers."""
+    key = json.dumps([sc.raw, what, runs, seed, __version__], sort_keys=True, default=str)
+    return BUDGET_PARTS.replace("*", hashlib.sha256(key.encode()).hexdigest()[:16])
+
+
+@dataclass
+class _CovarianceBudget:
+    metrics: list                   #: grouped as asked
+    by_source: dict                 #: estimator -> its budgets of each source alone
+    left: list                      #: the sources without a linear form
+    skipped: dict                   #: the estimators not analysed -> why
+    curves: dict                    #: estimator -> Contributions
+    wall_s: float
+
+
+def _covariance_budget(sc, sources, truth, group: str) -> _CovarianceBudget:
+    """The covariance analysis's budgets of ``sources`` (:func:`covariance_contributions`)."""
+    t0 = time.perf_counter()
+    models, left = linear_sources(sc, sources, truth)
+    if not models:
+        raise UsageError(f"{sc.name}: none of its sources has a linear form (" + ", ".join(left)
+                         + "): no covariance analysis; hint: --method montecarlo")
+    contributions, skipped = covariance_contributions(sc, truth, models)
+    if not contributions:
+        raise UsageError(f"{sc.name}: no estimator a covariance analysis takes ("
+                         + "; ".join(f"{k}: {v}" for k, v in skipped.items()) + ")")
+    groups = {s.name: s.group_of(group) for s in sources}
+    metrics, by_source = [], {}
+    for label, c in contributions.items():
+        metrics += covariance_budgets(label, c, sc.settle_s, groups)
+        by_source[label] = covariance_budgets(label, c, sc.settle_s, {s: s for s in c.sources})
+    return _CovarianceBudget(metrics, by_source, left, skipped, contributions, time.perf_counter() - t0)
+
+
+def _monte_carlo_budgets(samples: dict, sources, group: str) -> tuple[list, dict]:
+    """The Monte Carlo budgets (grouped as asked) and each estimator's budgets per source."""
+    metrics, by_source = [], {}
     for label in samples["all on"]:
         per = {s.name: samples[s.name][label] for s in sources}
         metrics += metric_budgets(label, samples["all on"][label], samples["none"][label], per,
                                   {s.name: s.group_of(group) for s in sources})
-        by_source = metric_budgets(label, samples["all on"][label], samples["none"][label], per,
-                                   {s.name: s.name for s in sources})
-        for s, k in scaled_runs:
-            measured = metric_budgets(label, samples[f"{s.name} x{k:g}"][label], samples["none"][label], {}, {})
-            for mb in by_source:
-                m = next(x for x in measured if (x.metric, x.component) == (mb.metric, mb.component))
-                what_if.append(WhatIf(s.name, k, label, mb.metric, mb.component, mb.all_on, predict(mb, s.name, k),
+        by_source[label] = metric_budgets(label, samples["all on"][label], samples["none"][label], per,
+                                          {s.name: s.name for s in sources})
+    return metrics, by_source
+
+
+def _what_ifs(samples: dict, by_source: dict, scaled_runs) -> list[WhatIf]:
+    """Each scaled source's predictions (from the per-source budgets) beside its run."""
+    out = []
+    for s, k in scaled_runs:
+        for label, budgets in by_source.items():
+            run_samples = samples[f"{s.name} x{k:g}"][label]
+            zero = samples["none"][label] if "none" in samples else None
+            measured = metric_budgets(label, run_samples, zero if zero is not None else run_samples, {}, {})
+            for mb in budgets:
+                m = next((x for x in measured if (x.metric, x.component) == (mb.metric, mb.component)), None)
+                if m is not None:
+                    out.append(WhatIf(s.name, k, label, mb.metric, mb.component, mb.all_on, predict(mb, s.name, k),
                                       m.all_on))
-    return Budget(sc.name, runs, seed, [s.name for s in sources], group, metrics, what_if, time.perf_counter() - t0)
+    return out
 
 
 def write_budget(result: Budget, folder: OutputFolder, metrics=None, fmts=("pdf", "png")) -> list[Path]:

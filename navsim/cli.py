@@ -47,9 +47,10 @@ from navsim.flight.simulator import fly
 from navsim.flight.track import available_tracks, load_track, nominal_duration_s
 from navsim.foundations.config import MAX_RUNS
 from navsim.foundations.errors import FlightError, NavsimError, OutputError, UsageError
-from navsim.experiment.budget import GROUPS as BUDGET_GROUP_NAMES, budget_sources, find_source
-from navsim.report.budget import HEADERS as BUDGET_HEADERS, check_text, chosen as budget_chosen
-from navsim.report.budget import text_rows as budget_text_rows
+from navsim.experiment.budget import GROUPS as BUDGET_GROUP_NAMES, budget_sources, check_method, find_source
+from navsim.scoring.budget import METHODS as BUDGET_METHODS
+from navsim.report.budget import check_text, chosen as budget_chosen, covariance_notes
+from navsim.report.budget import headers as budget_headers, text_rows as budget_text_rows
 from navsim.report.compare import HEADERS as COMPARE_HEADERS, headline, text_rows
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.progress import Progress
@@ -362,25 +363,40 @@ def cmd_budget(args) -> int:
     sources = budget_sources(scenario)           # checked before anything runs or is written
     for name, _ in scales:
         find_source(name, sources)
+    check_method(scenario, args.method, BUDGET_METHODS)
     folder = _open_folder(args, Path("reports") / scenario.name / "budget")
-    todo = len(sources) + 2 + len(scales)
-    with Progress(todo, f"budget {scenario.name}", unit="Monte Carlo") as bar:
-        result = api.budget(scenario, args.runs, args.seed, args.workers, group=args.group, scales=scales,
-                            executor=args.executor, scheduler=args.scheduler, progress=lambda *_: bar.update(1))
+    if not args.resume:
+        folder.clear_earlier()
+    carlos = (len(sources) + 2 if args.method != "covariance" else 0) + len(scales)
+    todo = carlos + (args.method != "montecarlo")
+    try:
+        with Progress(todo, f"budget {scenario.name}", unit="step") as bar:
+            result = api.budget(scenario, args.runs, args.seed, args.workers, group=args.group, scales=scales,
+                                method=args.method, executor=args.executor, scheduler=args.scheduler,
+                                progress=lambda *_: bar.update(1), store=folder, resume=args.resume)
+    except KeyboardInterrupt:
+        kept = len(list(folder.path.glob(api.BUDGET_PARTS)))
+        print(f"interrupted: {kept} finished Monte Carlo(s) kept in {folder.path}/; the same command with "
+              "--resume completes the budget", file=sys.stderr)
+        return 130
     shown = budget_chosen(result, metrics)
     if metrics and not shown:
         raise UsageError(f"--metric: none of {', '.join(':'.join(m) for m in metrics)} is scored; hint: "
                          "final.pos_m:horizontal, rms.att_deg:D, windows.<name>.height_m.rms")
+    heads = budget_headers(result)
     for m in shown:
-        print(f"\n{m.estimator}: {m.name}\n" + _table(list(BUDGET_HEADERS), budget_text_rows(m)) + "\n" + check_text(m))
+        print(f"\n{m.estimator}: {m.name}\n" + _table(list(heads), budget_text_rows(m, heads)) + "\n" + check_text(m))
     for w in result.what_if:
         if (w.metric, w.component) in [(m.metric, m.component) for m in shown]:
             print(f"what if {w.source} x{w.factor:g}: {w.estimator} {w.metric} {w.component} {num(w.all_on)} -> "
                   f"predicted {num(w.predicted)}, run {num(w.measured)} ({100 * w.error:+.1f} %)")
-    folder.clear_earlier()
+    for line in covariance_notes(result):
+        print(line)
     files = api.write_budget(result, folder, metrics)
-    print(f"\n{todo} Monte Carlos of {result.runs} runs in {result.wall_s:.1f} s; wrote {folder.path}/: "
-          + ", ".join(f.name for f in files))
+    done = [f"{carlos} Monte Carlos of {result.runs} runs"] if carlos else []
+    if result.method != "montecarlo":
+        done.append(f"a covariance analysis in {result.covariance_s:.1f} s")
+    print(f"\n{' and '.join(done)}: {result.wall_s:.1f} s; wrote {folder.path}/: " + ", ".join(f.name for f in files))
     return 0
 
 
@@ -588,7 +604,11 @@ def _budget_parser(sub) -> None:
                        "all on); print each source's contribution to the final and RMS errors, its share of "
                        "the variance and the root-sum-square against the all-on value (the linearity check). "
                        "Sources: every error term of the sensors' truth models that is on, each fault, the "
-                       "initial attitude, velocity and position errors. Writes budget.json, budget.csv and "
+                       "initial attitude, velocity and position errors. --method covariance: each source's "
+                       "contribution by one covariance analysis along the flight instead (no runs; the sources "
+                       "without a linear form, faults, quantization, saturation, vibration, latency and lever "
+                       "arm, are named and left to Monte Carlo); --method both: the Monte Carlo budget with the "
+                       "covariance analysis's figure beside each line. Writes budget.json, budget.csv and "
                        "budget.pdf/.png.")
     p.add_argument("scenario", help="scenario YAML file")
     p.add_argument("--runs", type=RUNS, help="runs per Monte Carlo (default: montecarlo.runs)")
@@ -602,7 +622,14 @@ def _budget_parser(sub) -> None:
     p.add_argument("--metric", action="append", metavar="PATH[:COMPONENT]",
                    help="a metric to print and draw (repeatable; default final.pos_m:horizontal, "
                    "final.att_deg:D, rms.pos_m:horizontal, rms.att_deg:D); budget.json has every RMS metric")
+    p.add_argument("--method", choices=BUDGET_METHODS, default="montecarlo",
+                   help="montecarlo (default): a Monte Carlo per source; covariance: one covariance analysis "
+                   "(ES-KF and free inertial, seconds); both: Monte Carlo with the covariance figures beside")
     p.add_argument("--out", help="output folder (default reports/<name>/budget)")
+    p.add_argument("--resume", action="store_true",
+                   help="complete an interrupted budget in --out: each Monte Carlo it finished is read back "
+                   "(budget_part_*.npz, kept for the same scenario, source, runs, seed and navsim version), "
+                   "the others run")
     _executor_options(p)
     _writer_options(p)
     p.set_defaults(func=cmd_budget)

@@ -20,7 +20,11 @@ import numpy as np
 
 from navsim.foundations.errors import UsageError
 from navsim.experiment.driver import DRAWN_FIELDS
-from navsim.sensors import registry
+from navsim.navigation.covariance import CovarianceAnalysis, SourceModel
+from navsim.navigation.estimators import factory
+from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.sins import FreeInertial
+from navsim.sensors import emulate, registry
 
 #: the initial errors' blocks as sources, and the label of their group
 INITIAL = "initial"
@@ -178,4 +182,70 @@ def find_source(name: str, sources: list[Source]) -> Source:
         if s.name == name:
             return s
     raise UsageError(f"no error source '{name}' in this scenario; its sources: " + ", ".join(s.name for s in sources))
+
+
+
+# --- covariance analysis ----------------------------------------------------------------------------
+#: the estimator types a covariance analysis takes: linear in the errors, their gains set by the
+#: trajectory alone (an adaptive or federated filter's gains follow the data)
+ANALYSABLE = (ErrorStateKF, FreeInertial)
+
+
+def check_method(scenario, method: str, methods) -> None:
+    """:class:`UsageError` for a method not in ``methods``, or a covariance analysis of a closed
+    loop (its flight is not known before the runs)."""
+    if method not in methods:
+        raise UsageError(f"--method {method!r}: expected one of {', '.join(methods)}")
+    if method != "montecarlo" and scenario.closed_loop is not None:
+        raise UsageError(f"{scenario.name}: a closed loop flies on the filter's solution, so its flight is not known "
+                         "before the runs: no covariance analysis; hint: --method montecarlo")
+
+
+def linear_sources(scenario, sources: list[Source], truth) -> tuple[list[SourceModel], list[str]]:
+    """The linear forms of ``sources`` (:class:`~navsim.navigation.covariance.SourceModel`),
+    and the names of those that have none (faults, quantization, saturation, vibration, a
+    latency, a lever arm: left to Monte Carlo)."""
+    configs = {c.name: c for c in scenario.sensors}
+    models, left = [], []
+    for s in sources:
+        if s.sensor == INITIAL:
+            sig = scenario.initial.sigma_blocks(float(truth.lat_rad[0]), float(truth.h_m[0]))
+            P0 = np.zeros((9, 9))
+            i = list(DRAWN_FIELDS).index(s.term)
+            P0[3 * i:3 * i + 3, 3 * i:3 * i + 3] = np.diag(np.asarray(sig[s.term], float) ** 2)
+            models.append(SourceModel(s.name, P0_nav=P0))
+            continue
+        spec = configs[s.sensor].spec
+        term = next((t for t in registry.of(spec).errors if t.name == s.term), None)
+        form = term.linear(spec) if term is not None and term.linear is not None else None
+        if form is None:
+            left.append(s.name)
+        else:
+            models.append(SourceModel(s.name, s.sensor, form))
+    return models, left
+
+
+def _ideal(truth, config, seed: int):
+    """The sensor without its errors, one run, its outages kept (the samples a run has)."""
+    spec = registry.of(config.spec).ideal(config.spec)
+    faults = tuple(f for f in config.faults if f.type == "outage")
+    return emulate(truth, dataclasses.replace(config, spec=spec, faults=faults), seed, [0])
+
+
+def covariance_contributions(scenario, truth, models: list[SourceModel]) -> tuple[dict, dict]:
+    """Each estimator's :class:`~navsim.navigation.covariance.Contributions` of ``models``
+    (label -> it), and the estimators not analysed (label -> why)."""
+    imu = next(c for c in scenario.sensors if c.kind == "imu")
+    others = {c.name: _ideal(truth, c, scenario.seed) for c in scenario.sensors if c.kind != "imu"}
+    sigma_nav = scenario.initial.sigma_blocks(float(truth.lat_rad[0]), float(truth.h_m[0]))
+    out, skipped = {}, {}
+    for config in scenario.estimators:
+        est = factory.build(config)
+        if type(est) not in ANALYSABLE:
+            skipped[config.label] = (f"a {config.type} filter's gains follow its data, not the trajectory alone: "
+                                     "no covariance analysis (its budget needs --method montecarlo)")
+            continue
+        sigma0 = {**sigma_nav, **est.noise_sigma0()} if hasattr(est, "noise_sigma0") else sigma_nav
+        out[config.label] = CovarianceAnalysis(truth, est, 1.0 / imu.spec.rate_hz, others, sigma0).run(models)
+    return out, skipped
 

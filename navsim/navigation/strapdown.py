@@ -90,6 +90,15 @@ class BlockStrapdown:
         self.sum_dv_n_mps = np.zeros((B, 3))
         self.steps = 0
 
+    def follow(self, state: NavState, sum_C_nb: np.ndarray, sum_dv_n_mps: np.ndarray, steps: int) -> None:
+        """Take ``steps`` intervals as flown instead of mechanizing them (a covariance analysis
+        along the truth, :mod:`navsim.navigation.covariance`): ``state`` at their end, their
+        sums of ``C_nb`` and of the specific-force increments in NED added to the sums."""
+        self.state = state
+        self.sum_C_nb = self.sum_C_nb + sum_C_nb
+        self.sum_dv_n_mps = self.sum_dv_n_mps + sum_dv_n_mps
+        self.steps += steps
+
     def block(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float, gyro_bias: np.ndarray | None = None,
               accel_bias: np.ndarray | None = None) -> NavState:
         """Advance by the ``K`` intervals of the increments ``dtheta_b`` (rad), ``dv_b`` (m/s),

@@ -15,17 +15,39 @@ from navsim.scoring.verdicts import num
 
 #: the columns of ``budget.csv``
 CSV_HEADERS = ("estimator", "metric", "component", "all_on", "baseline", "rss", "ratio", "line", "alone",
-               "contribution", "share")
-#: the terminal table's columns
+               "contribution", "share", "covariance")
+#: the terminal table's columns (with ``covariance`` where a covariance analysis ran beside)
 HEADERS = ("source", "alone", "contribution", "share")
 #: the bars a page draws per metric (the rest summed as one)
 BARS = 12
+#: the sources a page of errors against time draws (by their share of the final horizontal
+#: position error), the rest summed as one line
+CURVES = 5
+#: the errors against time: (label, unit, columns of the variances, factor of the unit)
+_CURVE_PANELS = (("horizontal position", "m", (6, 7), 1.0), ("horizontal velocity", "m/s", (3, 4), 1.0),
+                 ("attitude about D (heading)", "deg", (2,), (180.0 / math.pi) ** 2))
 
 
 def budget_csv_rows(b: Budget) -> list[list]:
     v = lambda x: "" if x is None or (isinstance(x, float) and not math.isfinite(x)) else x
     return [[m.estimator, m.metric, m.component, v(m.all_on), v(m.baseline), v(m.rss), v(m.ratio), x.source,
-             v(x.alone), v(x.contribution), v(x.share)] for m in b.metrics for x in m.lines]
+             v(x.alone), v(x.contribution), v(x.share), v(x.covariance)] for m in b.metrics for x in m.lines]
+
+
+def headers(b: Budget) -> tuple[str, ...]:
+    """The terminal table's columns for ``b``: the covariance figure beside the Monte Carlo's
+    where both ran."""
+    return HEADERS + (("covariance", "cov / MC") if b.method == "both" else ())
+
+
+def covariance_notes(b: Budget) -> list[str]:
+    """What a covariance analysis left out: the sources it leaves to Monte Carlo, the
+    estimators it does not take."""
+    out = []
+    if b.method != "montecarlo" and b.monte_carlo_only:
+        out.append("no linear form (Monte Carlo only): " + ", ".join(b.monte_carlo_only))
+    out += [f"not analysed: {label}: {why}" for label, why in b.not_analysed.items()]
+    return out
 
 
 def chosen(b: Budget, metrics=None) -> list[MetricBudget]:
@@ -45,8 +67,16 @@ def check_text(m: MetricBudget) -> str:
             f"{verdict}); with no source {num(m.baseline)}")
 
 
-def text_rows(m: MetricBudget) -> list[list[str]]:
-    return [[x.source, num(x.alone), num(x.contribution), f"{100 * x.share:.1f} %"] for x in m.lines]
+def text_rows(m: MetricBudget, heads=HEADERS) -> list[list[str]]:
+    """The terminal table's rows of ``m`` under the columns ``heads`` (:func:`headers`)."""
+    rows = []
+    for x in m.lines:
+        row = [x.source, num(x.alone), num(x.contribution), f"{100 * x.share:.1f} %"]
+        if "covariance" in heads:
+            ratio = x.covariance / x.contribution if x.contribution > 0 and math.isfinite(x.covariance) else math.nan
+            row += [num(x.covariance), f"{ratio:.2f}" if math.isfinite(ratio) else "-"]
+        rows.append(row)
+    return rows
 
 
 def _bars(ax, m: MetricBudget) -> None:
@@ -57,6 +87,11 @@ def _bars(ax, m: MetricBudget) -> None:
     shares = [x.share for x in lines] + ([sum(x.share for x in rest)] if rest else [])
     y = np.arange(len(values))
     ax.barh(y, values, color="#4c72b0")
+    cov = [x.covariance for x in lines] + ([math.nan] if rest else [])
+    if any(math.isfinite(x.covariance) and x.covariance != x.contribution for x in lines):     # beside a Monte Carlo
+        ax.plot(cov, y, "D", color="#dd8452", ms=4, label="covariance analysis")
+        ax.legend(fontsize=6.5, loc="lower right")
+        values = values + [v for v in cov if math.isfinite(v)]
     for yi, v, s in zip(y, values, shares):
         ax.text(v, yi, f" {num(v)} ({100 * s:.0f} %)", va="center", fontsize=6.5)
     ax.set_yticks(y, labels, fontsize=7)
@@ -72,8 +107,40 @@ def _bars(ax, m: MetricBudget) -> None:
     ax.grid(axis="x", lw=0.3, alpha=0.5)
 
 
+def curve_pages(b: Budget) -> list[Page]:
+    """Per estimator a covariance analysis took: the top :data:`CURVES` sources' errors against
+    time (1-sigma, log scale), the rest summed, and all of them."""
+    out = []
+    for j, (label, c) in enumerate(b.curves.items()):
+        final = c.var[:, -1, 6] + c.var[:, -1, 7]
+        order = np.argsort(-final)
+        top, rest = order[:CURVES], order[CURVES:]
+        fig, axes = page_figure(len(_CURVE_PANELS), 1, squeeze=False, sharex=True)
+        for ax, (name, unit, cols, factor) in zip(axes[:, 0], _CURVE_PANELS):
+            var = c.var[:, :, list(cols)].sum(axis=2) * factor
+            for k in top:
+                ax.plot(c.t_s, np.sqrt(var[k]), lw=1.0, label=f"{c.sources[k]} ({100 * final[k] / final.sum():.0f} %)")
+            if len(rest):
+                ax.plot(c.t_s, np.sqrt(var[rest].sum(axis=0)), lw=0.8, color="0.55", ls="--",
+                        label=f"the other {len(rest)} ({100 * final[rest].sum() / final.sum():.0f} %)")
+            total = np.sqrt(var.sum(axis=0))
+            ax.plot(c.t_s, total, lw=1.4, color="k", label="all sources")
+            ax.set_yscale("log")
+            ax.set_ylim(bottom=1e-3 * max(float(np.nanmax(total)), 1e-300))      # three decades under the top
+            ax.set_ylabel(f"{name}, 1-sigma ({unit})", fontsize=8)
+            ax.tick_params(labelsize=7)
+            ax.grid(lw=0.3, alpha=0.5, which="both")
+        axes[0, 0].legend(fontsize=6.5, loc="best", title="source (share of the final horizontal position "
+                          "variance)", title_fontsize=6.5)
+        axes[-1, 0].set_xlabel("time (s)", fontsize=8)
+        title = f"Each source's error against time, by covariance analysis: {label} ({b.scenario})"
+        out.append(titled(fig, "budget_time" if j == 0 else f"budget_time_{j + 1}", title))
+    return out
+
+
 def budget_pages(b: Budget, metrics=None) -> list[Page]:
-    """One page per estimator: the chosen metrics' bars."""
+    """One page per estimator: the chosen metrics' bars; then, where a covariance analysis ran,
+    each estimator's top sources against time (:func:`curve_pages`)."""
     out = []
     by_est: dict[str, list[MetricBudget]] = {}
     for m in chosen(b, metrics):
@@ -84,7 +151,8 @@ def budget_pages(b: Budget, metrics=None) -> list[Page]:
             _bars(ax, m)
         axes[-1, 0].set_xlabel("contribution (the metric's unit): what the source adds to the mean square, "
                                "its root; share of the variance in brackets", fontsize=7)
-        title = (f"Error budget of {label}: {b.scenario}, {b.runs} runs per source, seed {b.seed} "
-                 f"(lines: {b.group})")
+        how = {"montecarlo": f"{b.runs} runs per source, seed {b.seed}", "covariance": "covariance analysis",
+               "both": f"{b.runs} runs per source, seed {b.seed}; covariance analysis beside"}[b.method]
+        title = f"Error budget of {label}: {b.scenario}, {how} (lines: {b.group})"
         out.append(titled(fig, "budget" if j == 0 else f"budget_{j + 1}", title))
-    return out
+    return out + curve_pages(b)

@@ -18,10 +18,16 @@ gain that switches with the data.
 
 "What if": a source scaled by ``K`` changes the mean square by ``(K^2 - 1) d_k^2``, so
 ``A' = sqrt(A^2 + (K^2 - 1) d_k^2)``; :class:`WhatIf` holds that prediction beside a run.
+
+By covariance analysis (:mod:`navsim.navigation.covariance`) each source's variance of the
+errors comes without runs, and the contributions add up exactly (``c_0 = 0``, the ratio 1):
+:func:`covariance_budgets`; beside a Monte Carlo budget it is the cross-check, each line's
+:attr:`BudgetLine.covariance` (:func:`with_covariance`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -29,8 +35,10 @@ import numpy as np
 
 from scipy.stats import t as student_t
 
+from navsim.navigation.covariance import Contributions
 from navsim.records.samples import EstimatorSamples
-from navsim.scoring.compare import columns
+from navsim.records.states import ATT, POS, VEL
+from navsim.scoring.compare import AXES, HORIZONTAL, columns
 from navsim.scoring.intervals import CONFIDENCE, MIN_RUNS
 
 #: the metrics the terminal shows by default: (path, component)
@@ -38,6 +46,12 @@ DEFAULT_METRICS = (("final.pos_m", "horizontal"), ("final.att_deg", "D"), ("rms.
                    ("rms.att_deg", "D"))
 #: a budget whose root-sum-square is further than this from the all-on value is flagged
 LINEARITY_TOLERANCE = 0.05
+#: how the contributions are had: Monte Carlo, covariance analysis, or both (the second the
+#: cross-check of the first)
+METHODS = ("montecarlo", "covariance", "both")
+#: the errors a covariance analysis gives, their columns of :class:`Contributions`' variances
+#: and the factor of their unit
+_COVARIANCE_ERRORS = (("att_deg", ATT, (180.0 / math.pi) ** 2), ("vel_mps", VEL, 1.0), ("pos_m", POS, 1.0))
 
 
 @dataclass(frozen=True)
@@ -48,6 +62,9 @@ class BudgetLine:
     alone: float                 #: the metric with this source alone on (``c_k``)
     contribution: float          #: ``d_k``
     share: float                 #: of the summed variance
+    #: the covariance analysis's contribution of the same line (NaN: not analysed, or the
+    #: source has no linear form)
+    covariance: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -118,6 +135,14 @@ class Budget:
     metrics: list[MetricBudget]
     what_if: list[WhatIf] = field(default_factory=list)
     wall_s: float = math.nan
+    method: str = "montecarlo"                   #: one of :data:`METHODS`
+    #: the sources a covariance analysis leaves to Monte Carlo (no linear form)
+    monte_carlo_only: list[str] = field(default_factory=list)
+    #: estimators the covariance analysis does not take -> why
+    not_analysed: dict = field(default_factory=dict)
+    covariance_s: float = math.nan               #: the covariance analysis's wall time
+    #: estimator -> its sources' :class:`Contributions` (each source's errors against time)
+    curves: dict = field(default_factory=dict)
 
     def get(self, estimator: str, metric: str, component: str = "") -> MetricBudget | None:
         return next((m for m in self.metrics if (m.estimator, m.metric, m.component) == (estimator, metric, component)),
@@ -126,7 +151,9 @@ class Budget:
     def to_dict(self) -> dict:
         clean = lambda v: None if isinstance(v, float) and not math.isfinite(v) else v
         return {"scenario": self.scenario, "runs": self.runs, "seed": self.seed, "sources": self.sources,
-                "group": self.group, "wall_s": clean(self.wall_s), "linearity_tolerance": LINEARITY_TOLERANCE,
+                "group": self.group, "method": self.method, "wall_s": clean(self.wall_s),
+                "covariance_s": clean(self.covariance_s), "monte_carlo_only": self.monte_carlo_only,
+                "not_analysed": self.not_analysed, "linearity_tolerance": LINEARITY_TOLERANCE,
                 "metrics": [{"estimator": m.estimator, "metric": m.metric, "component": m.component,
                              "all_on": clean(m.all_on), "baseline": clean(m.baseline), "rss": clean(m.rss),
                              "ratio": clean(m.ratio), "ratio_ci95": [clean(v) for v in m.ratio_ci95],
@@ -144,7 +171,8 @@ class Budget:
         ests = list(dict.fromkeys(m.estimator for m in self.metrics))
         names = list(dict.fromkeys(m.name for m in self.metrics))
         srcs = list(dict.fromkeys(x.source for m in self.metrics for x in m.lines))
-        cube = {k: np.full((len(ests), len(names), len(srcs)), np.nan) for k in ("contribution", "share", "alone")}
+        cube = {k: np.full((len(ests), len(names), len(srcs)), np.nan)
+                for k in ("contribution", "share", "alone", "covariance")}
         flat = {k: np.full((len(ests), len(names)), np.nan) for k in ("all_on", "baseline", "rss")}
         for m in self.metrics:
             i, j = ests.index(m.estimator), names.index(m.name)
@@ -237,3 +265,51 @@ def predict(budget: MetricBudget, source: str, factor: float) -> float:
     if line is None:
         return math.nan
     return math.sqrt(max(budget.all_on ** 2 + (factor * factor - 1) * line.contribution ** 2, 0.0))
+
+
+def covariance_values(c: Contributions, settle_s: float) -> dict[tuple[str, str], np.ndarray]:
+    """(path, component) -> each source's mean square ``(K,)`` of the RMS errors a covariance
+    analysis gives: ``rms.*`` (the epochs from ``settle_s`` on, as the scorer counts them) and
+    ``final.*``, per axis and horizontal for position, attitude in degrees."""
+    after = c.t_s >= settle_s
+    out = {}
+    for name, cols, unit in _COVARIANCE_ERRORS:
+        var = c.var[:, :, cols] * unit
+        for head, x in (("rms", var[:, after].mean(axis=1)), ("final", var[:, -1])):
+            path = f"{head}.{name}"
+            for j, comp in enumerate(AXES):
+                out[path, comp] = x[:, j]
+            if path in HORIZONTAL:
+                out[path, "horizontal"] = x[:, 0] + x[:, 1]
+    return out
+
+
+def covariance_budgets(label: str, c: Contributions, settle_s: float, groups: dict[str, str]) -> list[MetricBudget]:
+    """One estimator's budgets by covariance analysis: each line's contribution the root of its
+    sources' variances, the all-on value their root-sum-square (no baseline, a ratio of 1)."""
+    out = []
+    for (path, comp), ms in covariance_values(c, settle_s).items():
+        sums: dict[str, float] = {}
+        for s, v in zip(c.sources, ms):
+            sums[groups[s]] = sums.get(groups[s], 0.0) + max(float(v), 0.0)
+        total = sum(sums.values())
+        lines = sorted((BudgetLine(g, math.sqrt(d2), math.sqrt(d2), d2 / total if total > 0 else math.nan,
+                                   math.sqrt(d2)) for g, d2 in sums.items()), key=lambda x: -x.contribution)
+        out.append(MetricBudget(label, path, comp, math.sqrt(total), 0.0, lines, math.sqrt(total)))
+    return out
+
+
+def with_covariance(monte_carlo: list[MetricBudget], covariance: list[MetricBudget]) -> list[MetricBudget]:
+    """The Monte Carlo budgets with each line's :attr:`BudgetLine.covariance` from the
+    covariance analysis's budget of the same estimator, metric and line."""
+    cov = {(m.estimator, m.metric, m.component): m for m in covariance}
+    out = []
+    for m in monte_carlo:
+        other = cov.get((m.estimator, m.metric, m.component))
+        if other is None:
+            out.append(m)
+            continue
+        lines = [dataclasses.replace(x, covariance=other.line(x.source).contribution)
+                 if other.line(x.source) is not None else x for x in m.lines]
+        out.append(dataclasses.replace(m, lines=lines))
+    return out

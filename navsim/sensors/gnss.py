@@ -17,7 +17,7 @@ import numpy as np
 from navsim.foundations import earth
 from navsim.foundations.transform import dcm_from_quat
 from navsim.sensors.base import SensorData, apply_outages, gauss_markov, normals, sampling, truth_step, zeros3
-from navsim.sensors.registry import ErrorTerm, Field, InLoop, Output, Refusal, SensorKind, register
+from navsim.sensors.registry import ErrorTerm, Field, InLoop, LinearError, Output, Refusal, SensorKind, register
 
 
 @dataclass(frozen=True)
@@ -166,6 +166,22 @@ def refuse_in_loop(config) -> Refusal | None:
     return None
 
 
+def linear_forms(term: str):
+    """The linear form (:class:`~navsim.sensors.registry.LinearError`) of the GNSS error
+    ``term`` as :func:`emulate_gnss` applies it (NED, per fix), or None: the latency and the
+    lever arm (errors set by the trajectory, left to Monte Carlo)."""
+    def form(spec: GnssSpec) -> LinearError | None:
+        if term == "position_sigma":
+            return LinearError("pos_n", white=np.asarray(spec.position_sigma, float) ** 2)
+        if term == "velocity_sigma":
+            return LinearError("vel_n", white=np.asarray(spec.velocity_sigma, float) ** 2)
+        if term == "markov_sigma":
+            s2 = np.asarray(spec.markov_sigma, float) ** 2
+            return LinearError("pos_n", np.diag(s2), np.full(3, spec.markov_tau_s), 2.0 * s2 / spec.markov_tau_s)
+        return None
+    return form
+
+
 KIND = register(SensorKind(
     name="gnss", spec=GnssSpec, description="GNSS / BeiDou receiver: position and velocity fixes",
     fields={"rate_hz": Field("rate_hz", None, "plain"), "position_sigma": Field("position_sigma", "length", "3"),
@@ -179,7 +195,7 @@ KIND = register(SensorKind(
              Output("fix_type", "1"), Output("h_acc_m", "m"), Output("v_acc_m", "m"), Output("s_acc_mps", "m/s"),
              Output("vel_n_mps", "m/s", role="velocity", when=lambda spec: spec.velocity_output,
                     axes=("north", "east", "down"))),
-    errors=tuple(ErrorTerm(n) for n in ("position_sigma", "velocity_sigma", "markov_sigma", "latency_s",
-                                        "lever_arm_b")),
+    errors=tuple(ErrorTerm(n, linear=linear_forms(n)) for n in ("position_sigma", "velocity_sigma", "markov_sigma",
+                                                                 "latency_s", "lever_arm_b")),
     emulate=emulate_gnss, faults=("outage", "bias", "degraded", "interference"), channels=position_channels,
     vector_bias=True, in_loop=InLoop(fill_in_loop, refuse_in_loop)))

@@ -39,7 +39,7 @@ from navsim.foundations.errors import ScenarioError
 from navsim.foundations.transform import cross, rotation
 from navsim.sensors import kernels
 from navsim.sensors.base import SensorData, decimation, normals, run_generators, zeros3
-from navsim.sensors.registry import ErrorTerm, Field, Group, Output, SensorKind, register
+from navsim.sensors.registry import ErrorTerm, Field, Group, LinearError, Output, SensorKind, register
 
 
 @dataclass(frozen=True)
@@ -606,6 +606,65 @@ _TRIAD_ERRORS = ("bias", "bias_sigma", "bias_instability", "markov_sigma", "nois
                  "scale_factor", "scale_factor_sigma", "misalignment_sigma", "quantization", "range")
 
 
+#: the off-diagonal entries of a triad's misalignment matrix, the states of its linear form
+_OFF_DIAGONAL = tuple((i, j) for i in range(3) for j in range(3) if i != j)
+
+
+def _constant(value, coupling=None, fixed: bool = False):
+    """A random constant of std ``value`` (``fixed``: the error ``value`` itself, its outer
+    product the second moment) as the ``(P0, tau_s, q, coupling)`` of a linear form."""
+    v = np.asarray(value, float)
+    P0 = np.outer(v, v) if fixed else np.diag(v * v)
+    return dict(P0=P0, tau_s=np.full(v.size, np.inf), q=np.zeros(v.size), coupling=coupling)
+
+
+def _markov(sigma, tau_s: float):
+    """A stationary first-order Gauss-Markov process of std ``sigma`` ``(3,)``."""
+    s2 = np.asarray(sigma, float) ** 2
+    return dict(P0=np.diag(s2), tau_s=np.full(3, float(tau_s)), q=2.0 * s2 / tau_s)
+
+
+def triad_linear(group: str, term: str):
+    """The linear form (:class:`~navsim.sensors.registry.LinearError`) of the triad ``group``'s
+    (``gyro``, ``accel``) error ``term``, as :func:`emulate_imu` applies it, or None where there
+    is none (quantization, saturation). The bias instability is its Gauss-Markov process
+    (:func:`gauss_markov_biases`), the white noise the density the emulator draws
+    (:func:`white_noise_std`, the quantization's share taken out); scale factors and
+    misalignments multiply the true rate or specific force."""
+    quantity = "rate_b" if group == "gyro" else "force_b"
+    true = (lambda m: m.omega_ib_b_rps) if group == "gyro" else (lambda m: m.f_b_mps2)
+
+    def misaligned(m):
+        C = np.zeros((3, len(_OFF_DIAGONAL)))
+        x = true(m)
+        for k, (i, j) in enumerate(_OFF_DIAGONAL):
+            C[i, k] = x[j]
+        return C
+
+    def form(spec: ImuSpec) -> LinearError | None:
+        e = getattr(spec, group)
+        dt = 1.0 / spec.rate_hz
+        scale = lambda m: np.diag(true(m))
+        parts = {
+            "bias": lambda: _constant(e.bias, fixed=True),
+            "bias_sigma": lambda: _constant(e.bias_sigma),
+            "bias_instability": lambda: _markov(*gauss_markov_biases(e)[0]),
+            "markov_sigma": lambda: _markov(*gauss_markov_biases(e)[1]),
+            "random_walk": lambda: dict(P0=np.zeros((3, 3)), tau_s=np.full(3, np.inf),
+                                        q=np.asarray(e.random_walk, float) ** 2 * np.ones(3)),
+            "scale_factor": lambda: _constant(e.scale_factor, scale, fixed=True),
+            "scale_factor_sigma": lambda: _constant(e.scale_factor_sigma, scale),
+            "misalignment_sigma": lambda: _constant(np.full(len(_OFF_DIAGONAL), e.misalignment_sigma), misaligned),
+        }
+        if term == "noise_density":
+            return LinearError(quantity, white=white_noise_std(e, dt) ** 2 * dt)
+        if term not in parts:
+            return None
+        return LinearError(quantity, **parts[term]())
+
+    return form
+
+
 def _emulate(truth, spec: ImuSpec, seed: int, runs, faults=(), name: str = "imu") -> SensorData:
     """:func:`emulate_imu` as every kind's emulator is called (an IMU has no fault windows)."""
     return emulate_imu(truth, spec, seed, runs, name=name)
@@ -629,6 +688,6 @@ KIND = register(SensorKind(
     outputs=(Output("omega_ib_b_rps", "rad/s", truth="omega_ib_b_rps", axes=("x", "y", "z")),
              Output("f_b_mps2", "m/s^2", truth="f_b_mps2", axes=("x", "y", "z")),
              Output("dtheta_b_rad", "rad", axes=("x", "y", "z")), Output("dv_b_mps", "m/s", axes=("x", "y", "z"))),
-    errors=tuple(ErrorTerm(f"{g}.{f}", math.inf if f == "range" else None)
+    errors=tuple(ErrorTerm(f"{g}.{f}", math.inf if f == "range" else None, triad_linear(g, f))
                  for g in ("gyro", "accel") for f in _TRIAD_ERRORS) + (ErrorTerm("vibration"),),
     emulate=_emulate, faults=(), channels=imu_channels))

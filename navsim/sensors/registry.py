@@ -98,14 +98,58 @@ class Output:
     axes: tuple[str, ...] = ()
 
 
+#: the quantities a :class:`LinearError` adds its error to: the IMU's body rate and specific
+#: force (they drive the strapdown error dynamics), a position (NED, m) and a velocity (NED, m/s)
+#: fix (they enter the measurements that read them)
+LINEAR_QUANTITIES = ("rate_b", "force_b", "pos_n", "vel_n")
+
+
+class Motion(NamedTuple):
+    """The true motion over one step of a covariance analysis, what a time-varying
+    :class:`LinearError` coupling reads (a scale factor multiplies the true rate)."""
+
+    omega_ib_b_rps: np.ndarray      #: (3,) body rate, rad/s
+    f_b_mps2: np.ndarray            #: (3,) specific force, body, m/s^2
+
+
+@dataclass(frozen=True)
+class LinearError:
+    """The linear form of one error term, for covariance analysis (``navsim budget --method
+    covariance``): the error it adds to ``quantity`` (one of :data:`LINEAR_QUANTITIES`),
+
+        e(t) = C(t) s(t) + w(t),      s' = -s / tau + q^(1/2) n(t),
+
+    with ``n`` states ``s`` whose second moment at the start is ``P0`` ``(n, n)`` (a random
+    constant: its variance; a fixed error: its outer product, a mean being a second moment
+    too), ``tau_s`` ``(n,)`` their correlation times (``inf``: a constant or a random walk),
+    ``q`` ``(n,)`` their driving noise's density squared (per s), ``C = coupling(Motion)``
+    ``(3, n)`` (None: the identity) and ``w`` white noise of ``white`` ``(3,)``: the density
+    squared (unit^2 s) for the IMU's quantities, the variance of one sample for a fix's."""
+
+    quantity: str
+    P0: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
+    tau_s: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    q: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    coupling: Callable | None = None
+    white: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+
+    @property
+    def n(self) -> int:
+        """The number of states."""
+        return int(np.shape(self.P0)[0])
+
+
 @dataclass(frozen=True)
 class ErrorTerm:
     """One error source of a kind: the dotted path of the spec attribute that sets it (its name,
-    as ``off:`` lists it) and the value that switches it off (None: the zero of its type, the
-    identity for a 3x3 matrix, no entries for a tuple)."""
+    as ``off:`` lists it), the value that switches it off (None: the zero of its type, the
+    identity for a 3x3 matrix, no entries for a tuple) and its linear form ``linear(spec) ->``
+    :class:`LinearError` (None: it has none, a covariance analysis leaves it to Monte Carlo:
+    quantization, saturation, vibration, faults)."""
 
     name: str
     off: object = None
+    linear: Callable | None = None
 
 
 class LoopSample(NamedTuple):

@@ -157,6 +157,13 @@ class ErrorStateKF:
         self.sd.block(dtheta_b, dv_b, dt, self.b_gyro + self.m_gyro, self.b_accel + self.m_accel)
         self._elapsed = self.sd.steps * dt          # whatever the blocks the period was cut into
 
+    def follow(self, nav: NavState, sum_C_nb: np.ndarray, sum_dv_n_mps: np.ndarray, steps: int, dt: float) -> None:
+        """Take ``steps`` IMU intervals of ``dt`` as flown instead of mechanizing increments (a
+        covariance analysis along the truth, :mod:`navsim.navigation.covariance`): ``nav`` the
+        state at their end, their sums of ``C_nb`` and of the specific-force increments in NED."""
+        self.sd.follow(nav, sum_C_nb, sum_dv_n_mps, steps)
+        self._elapsed = self.sd.steps * dt
+
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self.predict()
         since = self._since(t)
