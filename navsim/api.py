@@ -64,7 +64,7 @@ from navsim.report.figures import pyplot
 from navsim.report.pages import report_pages as _report_pages, write_report as _write_report
 from navsim.report.render import render
 from navsim.scoring.budget import METHODS as BUDGET_METHODS, Budget, WhatIf, covariance_budgets, metric_budgets
-from navsim.scoring.budget import predict, with_covariance
+from navsim.scoring.budget import epoch_mean_squares, monte_carlo_curves, predict, with_covariance
 from navsim.scoring.closed_loop import closed_loop_metrics
 from navsim.scoring.compare import Comparison, Side, compare_samples
 from navsim.scoring.intervals import MIN_RUNS
@@ -708,19 +708,11 @@ def budget(scenario, runs: int | None = None, seed: int | None = None, workers: 
         cov = _covariance_budget(sc, sources, flight[0], group)
         if progress:
             progress(1, steps, "covariance analysis")
-    samples = {}
+    samples, squares = {}, {}
     for i, (what, variant) in enumerate(plan):
-        name = _budget_part(sc, what, runs, seed)
-        kept = store.path / name if store is not None else None
-        if resume and kept is not None and kept.is_file():
-            samples[what] = load_samples(kept)
-        else:
-            res = run(variant, runs, seed, workers, executor=executor, scheduler=scheduler, flight=flight)
-            if res.interrupted:
-                raise KeyboardInterrupt
-            samples[what] = res.samples
-            if store is not None:
-                store.write(name, lambda path: save_samples(path, res.samples))
+        samples[what], squares[what] = _budget_monte_carlo(
+            (variant, runs, seed, workers), dict(executor=executor, scheduler=scheduler, flight=flight),
+            store, _budget_part(sc, what, runs, seed), resume)
         if progress:
             progress(i + 1 + (cov is not None), steps, what)
     metrics, by_source = (cov.metrics, cov.by_source) if method == "covariance" else _monte_carlo_budgets(
@@ -729,7 +721,9 @@ def budget(scenario, runs: int | None = None, seed: int | None = None, workers: 
         metrics = with_covariance(metrics, cov.metrics)
     what_if = _what_ifs(samples, by_source, scaled_runs)
     extra = {} if cov is None else dict(monte_carlo_only=cov.left, not_analysed=cov.skipped, covariance_s=cov.wall_s,
-                                        curves=cov.curves)
+                                        covariance_curves=cov.curves)
+    if method != "covariance":
+        extra["curves"] = monte_carlo_curves(squares, [s.name for s in sources])
     return Budget(sc.name, runs if method != "covariance" or plan else 0, seed, [s.name for s in sources], group,
                   metrics, what_if, time.perf_counter() - t0, method, **extra)
 
@@ -752,6 +746,28 @@ def _budget_part(sc: Scenario, what: str, runs: int, seed: int) -> str:
     """The file of one Monte Carlo of a budget: named by a digest of what makes its numbers."""
     key = json.dumps([sc.raw, what, runs, seed, __version__], sort_keys=True, default=str)
     return BUDGET_PARTS.replace("*", hashlib.sha256(key.encode()).hexdigest()[:16])
+
+
+def _budget_monte_carlo(args: tuple, how: dict, store: OutputFolder | None, name: str, resume: bool):
+    """One Monte Carlo of a budget: its per-run samples and epoch mean squares
+    (:func:`~navsim.scoring.budget.epoch_mean_squares`), run (and kept in ``store``, both in one
+    file) or, with ``resume``, read back from ``store``."""
+    if resume and store is not None and (store.path / name).is_file():
+        with np.load(store.path / name, allow_pickle=False) as z:
+            squares = {str(label): (z[f"squares_t{i}"], z[f"squares_ms{i}"])
+                       for i, label in enumerate(z["squares_labels"].tolist())} if "squares_labels" in z.files else None
+        if squares is not None:
+            return load_samples(store.path / name), squares
+    res = run(*args, **how)
+    if res.interrupted:
+        raise KeyboardInterrupt
+    squares = epoch_mean_squares(res.histories)
+    if store is not None:
+        extra = {"squares_labels": np.array(list(squares), dtype=str)}
+        for i, (t, ms) in enumerate(squares.values()):
+            extra.update({f"squares_t{i}": t, f"squares_ms{i}": ms})
+        store.write(name, lambda path: save_samples(path, res.samples, extra))
+    return res.samples, squares
 
 
 @dataclass

@@ -55,8 +55,9 @@ class EstimatorSamples:
     metrics: dict[str, MetricSamples] = field(default_factory=dict)
 
 
-def save_samples(path: Path, samples: dict[str, EstimatorSamples]) -> None:
-    """Write label -> :class:`EstimatorSamples` to ``path`` (an ``.npz``)."""
+def save_samples(path: Path, samples: dict[str, EstimatorSamples], extra: dict | None = None) -> None:
+    """Write label -> :class:`EstimatorSamples` to ``path`` (an ``.npz``), with the arrays
+    ``extra`` beside (names without a dot: :func:`load_samples` reads past them)."""
     arrays = {"format": np.array(SAMPLES_FORMAT), "labels": np.array(list(samples), dtype=str)}
     for i, es in enumerate(samples.values()):
         paths = list(es.metrics)
@@ -65,7 +66,7 @@ def save_samples(path: Path, samples: dict[str, EstimatorSamples]) -> None:
         for p in paths:
             arrays[f"e{i}.{p}.s"], arrays[f"e{i}.{p}.n"] = es.metrics[p].s, es.metrics[p].n
     with open(path, "wb") as f:
-        np.savez(f, **arrays)
+        np.savez(f, **arrays, **(extra or {}))
 
 
 def load_samples(path: Path) -> dict[str, EstimatorSamples]:

@@ -88,12 +88,14 @@ def _bars(ax, m: MetricBudget) -> None:
     y = np.arange(len(values))
     ax.barh(y, values, color="#4c72b0")
     cov = [x.covariance for x in lines] + ([math.nan] if rest else [])
+    ends = list(values)
     if any(math.isfinite(x.covariance) and x.covariance != x.contribution for x in lines):     # beside a Monte Carlo
         ax.plot(cov, y, "D", color="#dd8452", ms=4, label="covariance analysis")
         ax.legend(fontsize=6.5, loc="lower right")
-        values = values + [v for v in cov if math.isfinite(v)]
-    for yi, v, s in zip(y, values, shares):
-        ax.text(v, yi, f" {num(v)} ({100 * s:.0f} %)", va="center", fontsize=6.5)
+        ends = [max(v, c) if math.isfinite(c) else v for v, c in zip(values, cov)]
+    for yi, v, end, s in zip(y, values, ends, shares):
+        ax.text(end, yi, f"  {num(v)} ({100 * s:.0f} %)", va="center", fontsize=6.5)
+    values = ends
     ax.set_yticks(y, labels, fontsize=7)
     ax.invert_yaxis()
     ax.set_xlim(0, max(values + [1e-12]) * 1.35)
@@ -108,34 +110,51 @@ def _bars(ax, m: MetricBudget) -> None:
 
 
 def curve_pages(b: Budget) -> list[Page]:
-    """Per estimator a covariance analysis took: the top :data:`CURVES` sources' errors against
-    time (1-sigma, log scale), the rest summed, and all of them."""
+    """Per estimator: the top :data:`CURVES` sources' errors against time (1-sigma, log scale),
+    the rest summed, and all of them; by Monte Carlo where it ran (the covariance analysis's
+    dashed beside, ``both``), else by covariance analysis."""
     out = []
-    for j, (label, c) in enumerate(b.curves.items()):
+    primary = b.curves or b.covariance_curves
+    for j, (label, c) in enumerate(primary.items()):
+        beside = b.covariance_curves.get(label) if b.curves else None
         final = c.var[:, -1, 6] + c.var[:, -1, 7]
         order = np.argsort(-final)
-        top, rest = order[:CURVES], order[CURVES:]
         fig, axes = page_figure(len(_CURVE_PANELS), 1, squeeze=False, sharex=True)
-        for ax, (name, unit, cols, factor) in zip(axes[:, 0], _CURVE_PANELS):
-            var = c.var[:, :, list(cols)].sum(axis=2) * factor
-            for k in top:
-                ax.plot(c.t_s, np.sqrt(var[k]), lw=1.0, label=f"{c.sources[k]} ({100 * final[k] / final.sum():.0f} %)")
-            if len(rest):
-                ax.plot(c.t_s, np.sqrt(var[rest].sum(axis=0)), lw=0.8, color="0.55", ls="--",
-                        label=f"the other {len(rest)} ({100 * final[rest].sum() / final.sum():.0f} %)")
-            total = np.sqrt(var.sum(axis=0))
-            ax.plot(c.t_s, total, lw=1.4, color="k", label="all sources")
-            ax.set_yscale("log")
-            ax.set_ylim(bottom=1e-3 * max(float(np.nanmax(total)), 1e-300))      # three decades under the top
-            ax.set_ylabel(f"{name}, 1-sigma ({unit})", fontsize=8)
-            ax.tick_params(labelsize=7)
-            ax.grid(lw=0.3, alpha=0.5, which="both")
+        for ax, panel in zip(axes[:, 0], _CURVE_PANELS):
+            _curve_panel(ax, c, beside, order, final, panel)
         axes[0, 0].legend(fontsize=6.5, loc="best", title="source (share of the final horizontal position "
-                          "variance)", title_fontsize=6.5)
+                          "variance)" + ("; dashed: covariance analysis" if beside is not None else ""),
+                          title_fontsize=6.5)
         axes[-1, 0].set_xlabel("time (s)", fontsize=8)
-        title = f"Each source's error against time, by covariance analysis: {label} ({b.scenario})"
+        how = (f"by Monte Carlo ({b.runs} runs: what each adds to the mean square, its root)" if b.curves
+               else "by covariance analysis")
+        title = f"Each source's error against time: {label} ({b.scenario}), {how}"
         out.append(titled(fig, "budget_time" if j == 0 else f"budget_time_{j + 1}", title))
     return out
+
+
+def _curve_panel(ax, c, beside, order, final, panel) -> None:
+    """One quantity's curves: the top sources, the rest, all (``beside``: dashed, same colours)."""
+    name, unit, cols, factor = panel
+    top, rest = order[:CURVES], order[CURVES:]
+    var = c.var[:, :, list(cols)].sum(axis=2) * factor
+    other = beside.var[:, :, list(cols)].sum(axis=2) * factor if beside is not None else None
+    share = lambda idx: 100 * final[idx].sum() / final.sum() if final.sum() > 0 else math.nan
+    for k in top:
+        line, = ax.plot(c.t_s, np.sqrt(var[k]), lw=1.0, label=f"{c.sources[k]} ({share([k]):.0f} %)")
+        if other is not None and c.sources[k] in beside.sources:
+            ax.plot(beside.t_s, np.sqrt(other[beside.sources.index(c.sources[k])]), lw=0.8, ls="--",
+                    color=line.get_color())
+    if len(rest):
+        ax.plot(c.t_s, np.sqrt(var[rest].sum(axis=0)), lw=0.8, color="0.55", ls=":",
+                label=f"the other {len(rest)} ({share(rest):.0f} %)")
+    total = np.sqrt(var.sum(axis=0))
+    ax.plot(c.t_s, total, lw=1.4, color="k", label="all sources")
+    ax.set_yscale("log")
+    ax.set_ylim(bottom=1e-3 * max(float(np.nanmax(total)), 1e-300))      # three decades under the top
+    ax.set_ylabel(f"{name}, 1-sigma ({unit})", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.grid(lw=0.3, alpha=0.5, which="both")
 
 
 def budget_pages(b: Budget, metrics=None) -> list[Page]:

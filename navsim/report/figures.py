@@ -4,6 +4,7 @@ landed closed-loop run leaves NaN."""
 
 from __future__ import annotations
 
+import textwrap
 import warnings
 from dataclasses import dataclass, field
 
@@ -79,10 +80,16 @@ def fit(fig, top: float = 1.0) -> None:
     fig.tight_layout(rect=(0, FOOTER_IN / fig.get_figheight(), 1, top))
 
 
+#: the characters of a page title's line at its font size across the page (a longer title wraps)
+TITLE_CHARS = 90
+
+
 def titled(fig, name: str, title: str) -> Page:
-    """The page ``name`` of ``fig`` under ``title`` (also its line in the contents), fitted."""
-    fig.suptitle(title, fontsize=11, y=1 - 0.25 / fig.get_figheight(), va="top")
-    fit(fig, 1 - 0.5 / fig.get_figheight())
+    """The page ``name`` of ``fig`` under ``title`` (also its line in the contents), fitted; a
+    title longer than :data:`TITLE_CHARS` wraps onto more lines, the axes moved down under them."""
+    lines = textwrap.wrap(title, TITLE_CHARS) or [""]
+    fig.suptitle("\n".join(lines), fontsize=11, y=1 - 0.25 / fig.get_figheight(), va="top")
+    fit(fig, 1 - (0.5 + 0.2 * (len(lines) - 1)) / fig.get_figheight())
     return Page(name, title, fig)
 
 

@@ -141,8 +141,11 @@ class Budget:
     #: estimators the covariance analysis does not take -> why
     not_analysed: dict = field(default_factory=dict)
     covariance_s: float = math.nan               #: the covariance analysis's wall time
-    #: estimator -> its sources' :class:`Contributions` (each source's errors against time)
+    #: estimator -> its sources' errors against time (:class:`Contributions`) by Monte Carlo:
+    #: what each adds to the mean square over the runs (:func:`monte_carlo_curves`)
     curves: dict = field(default_factory=dict)
+    #: the same by covariance analysis
+    covariance_curves: dict = field(default_factory=dict)
 
     def get(self, estimator: str, metric: str, component: str = "") -> MetricBudget | None:
         return next((m for m in self.metrics if (m.estimator, m.metric, m.component) == (estimator, metric, component)),
@@ -312,4 +315,31 @@ def with_covariance(monte_carlo: list[MetricBudget], covariance: list[MetricBudg
         lines = [dataclasses.replace(x, covariance=other.line(x.source).contribution)
                  if other.line(x.source) is not None else x for x in m.lines]
         out.append(dataclasses.replace(m, lines=lines))
+    return out
+
+
+def epoch_mean_squares(histories: dict) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Estimator label -> ``(t_s (E,), mean square (E, 9))``: each epoch's navigation errors
+    squared and averaged over the runs not diverged (attitude in rad^2, velocity, position NED),
+    what a Monte Carlo budget's errors against time are made of."""
+    out = {}
+    for label, h in histories.items():
+        good = ~np.asarray(h.diverged, bool)
+        e = np.concatenate([h.att_err_rad, h.vel_err_mps, h.pos_err_m], axis=-1)[good]
+        ms = np.full((len(h.t_s), 9), np.nan)
+        if len(e):
+            with np.errstate(invalid="ignore"):
+                ms = np.nanmean(e * e, axis=0)
+        out[label] = (np.asarray(h.t_s, float), ms)
+    return out
+
+
+def monte_carlo_curves(mean_squares: dict, sources: list[str]) -> dict[str, Contributions]:
+    """Estimator label -> each source's errors against time from the Monte Carlos' epoch mean
+    squares (``what -> label -> (t_s, ms)``, :func:`epoch_mean_squares`): what the source alone
+    adds to the mean square of the run with none, ``max(ms_k - ms_0, 0)``, as a variance."""
+    out = {}
+    for label, (t, ms0) in mean_squares["none"].items():
+        var = np.stack([np.maximum(mean_squares[s][label][1] - ms0, 0.0) for s in sources])
+        out[label] = Contributions(list(sources), t, var)
     return out
