@@ -51,7 +51,6 @@ from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.provenance import provenance
-from navsim.version import __version__
 from navsim.records.chunk import ChunkPart
 from navsim.records.history import ARRAYS, ARRAY_FIELDS, EPOCH_ARRAYS, EstimatorHistory
 from navsim.records.run import RunRecord
@@ -696,7 +695,7 @@ def budget(scenario, runs: int | None = None, seed: int | None = None, workers: 
     sources = budget_sources(sc)
     if group not in BUDGET_GROUPS:
         raise UsageError(f"--group {group!r}: expected one of {', '.join(BUDGET_GROUPS)}")
-    check_method(sc, method, BUDGET_METHODS)
+    check_method(sc, method, BUDGET_METHODS, sources)
     scaled_runs = [(find_source(name, sources), float(k)) for name, k in scales]
     plan = _budget_plan(sc, sources, scaled_runs, method)
     runs = sc.runs if runs is None else runs
@@ -712,7 +711,7 @@ def budget(scenario, runs: int | None = None, seed: int | None = None, workers: 
     for i, (what, variant) in enumerate(plan):
         samples[what], squares[what] = _budget_monte_carlo(
             (variant, runs, seed, workers), dict(executor=executor, scheduler=scheduler, flight=flight),
-            store, _budget_part(sc, what, runs, seed), resume)
+            store, _budget_part(variant, runs, seed), resume)
         if progress:
             progress(i + 1 + (cov is not None), steps, what)
     metrics, by_source = (cov.metrics, cov.by_source) if method == "covariance" else _monte_carlo_budgets(
@@ -742,9 +741,12 @@ def _budget_plan(sc: Scenario, sources, scaled_runs, method: str) -> list:
 BUDGET_PARTS = "budget_part_*.npz"
 
 
-def _budget_part(sc: Scenario, what: str, runs: int, seed: int) -> str:
-    """The file of one Monte Carlo of a budget: named by a digest of what makes its numbers."""
-    key = json.dumps([sc.raw, what, runs, seed, __version__], sort_keys=True, default=str)
+def _budget_part(variant: Scenario, runs: int, seed: int) -> str:
+    """The file of one Monte Carlo of a budget, named by a digest of what makes its numbers:
+    the variant's content as resolved (its sensor and estimator models, initial errors and
+    flight, navsim's version: :func:`~navsim.experiment.runner.scenario_hash`), its metric
+    settings, the runs and the seed."""
+    key = json.dumps([scenario_hash(variant), variant.raw.get("metrics"), runs, seed], sort_keys=True, default=str)
     return BUDGET_PARTS.replace("*", hashlib.sha256(key.encode()).hexdigest()[:16])
 
 
@@ -757,6 +759,7 @@ def _budget_monte_carlo(args: tuple, how: dict, store: OutputFolder | None, name
             squares = {str(label): (z[f"squares_t{i}"], z[f"squares_ms{i}"])
                        for i, label in enumerate(z["squares_labels"].tolist())} if "squares_labels" in z.files else None
         if squares is not None:
+            store.record([store.path / name])             # this budget's: kept when the folder is cleared
             return load_samples(store.path / name), squares
     res = run(*args, **how)
     if res.interrupted:
@@ -784,13 +787,7 @@ def _covariance_budget(sc, sources, truth, group: str) -> _CovarianceBudget:
     """The covariance analysis's budgets of ``sources`` (:func:`covariance_contributions`)."""
     t0 = time.perf_counter()
     models, left = linear_sources(sc, sources, truth)
-    if not models:
-        raise UsageError(f"{sc.name}: none of its sources has a linear form (" + ", ".join(left)
-                         + "): no covariance analysis; hint: --method montecarlo")
-    contributions, skipped = covariance_contributions(sc, truth, models)
-    if not contributions:
-        raise UsageError(f"{sc.name}: no estimator a covariance analysis takes ("
-                         + "; ".join(f"{k}: {v}" for k, v in skipped.items()) + ")")
+    contributions, skipped = covariance_contributions(sc, truth, models)       # check_method: some of each
     groups = {s.name: s.group_of(group) for s in sources}
     metrics, by_source = [], {}
     for label, c in contributions.items():

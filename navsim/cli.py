@@ -363,10 +363,8 @@ def cmd_budget(args) -> int:
     sources = budget_sources(scenario)           # checked before anything runs or is written
     for name, _ in scales:
         find_source(name, sources)
-    check_method(scenario, args.method, BUDGET_METHODS)
+    check_method(scenario, args.method, BUDGET_METHODS, sources)
     folder = _open_folder(args, Path("reports") / scenario.name / "budget")
-    if not args.resume:
-        folder.clear_earlier()
     carlos = (len(sources) + 2 if args.method != "covariance" else 0) + len(scales)
     todo = carlos + (args.method != "montecarlo")
     try:
@@ -375,7 +373,7 @@ def cmd_budget(args) -> int:
                                 method=args.method, executor=args.executor, scheduler=args.scheduler,
                                 progress=lambda *_: bar.update(1), store=folder, resume=args.resume)
     except KeyboardInterrupt:
-        kept = len(list(folder.path.glob(api.BUDGET_PARTS)))
+        kept = len([p for p in folder.path.glob(api.BUDGET_PARTS) if p.name in folder.written()])
         print(f"interrupted: {kept} finished Monte Carlo(s) kept in {folder.path}/; the same command with "
               "--resume completes the budget", file=sys.stderr)
         return 130
@@ -393,6 +391,7 @@ def cmd_budget(args) -> int:
     for line in covariance_notes(result):
         print(line)
     files = api.write_budget(result, folder, metrics)
+    folder.clear_earlier()          # an earlier budget's files; this one's, its kept Monte Carlos among them, stay
     done = [f"{carlos} Monte Carlos of {result.runs} runs"] if carlos else []
     if result.method != "montecarlo":
         done.append(f"a covariance analysis in {result.covariance_s:.1f} s")

@@ -191,33 +191,47 @@ def find_source(name: str, sources: list[Source]) -> Source:
 ANALYSABLE = (ErrorStateKF, FreeInertial)
 
 
-def check_method(scenario, method: str, methods) -> None:
-    """:class:`UsageError` for a method not in ``methods``, or a covariance analysis of a closed
-    loop (its flight is not known before the runs)."""
+def check_method(scenario, method: str, methods, sources: list[Source]) -> None:
+    """:class:`UsageError` for a method not in ``methods``, or a covariance analysis that cannot
+    be had: of a closed loop (its flight is not known before the runs), of sources none of which
+    has a linear form, of estimators none of which it takes (:data:`ANALYSABLE`)."""
     if method not in methods:
         raise UsageError(f"--method {method!r}: expected one of {', '.join(methods)}")
-    if method != "montecarlo" and scenario.closed_loop is not None:
+    if method == "montecarlo":
+        return
+    if scenario.closed_loop is not None:
         raise UsageError(f"{scenario.name}: a closed loop flies on the filter's solution, so its flight is not known "
                          "before the runs: no covariance analysis; hint: --method montecarlo")
+    if not any(s.sensor == INITIAL or _linear(scenario, s) is not None for s in sources):
+        raise UsageError(f"{scenario.name}: none of its sources has a linear form (" + ", ".join(s.name for s in sources)
+                         + "): no covariance analysis; hint: --method montecarlo")
+    kinds = {c.label: c.type for c in scenario.estimators if type(factory.build(c)) not in ANALYSABLE}
+    if len(kinds) == len(scenario.estimators):
+        raise UsageError(f"{scenario.name}: no estimator a covariance analysis takes (" + ", ".join(
+            f"{k}: {v}" for k, v in kinds.items()) + "; it takes eskf and sins); hint: --method montecarlo")
+
+
+def _linear(scenario, s: Source):
+    """The linear form of a sensor's source, None where it has none."""
+    spec = next(c.spec for c in scenario.sensors if c.name == s.sensor)
+    term = next((t for t in registry.of(spec).errors if t.name == s.term), None)
+    return term.linear(spec) if term is not None and term.linear is not None else None
 
 
 def linear_sources(scenario, sources: list[Source], truth) -> tuple[list[SourceModel], list[str]]:
     """The linear forms of ``sources`` (:class:`~navsim.navigation.covariance.SourceModel`),
     and the names of those that have none (faults, quantization, saturation, vibration, a
     latency, a lever arm: left to Monte Carlo)."""
-    configs = {c.name: c for c in scenario.sensors}
     models, left = [], []
     for s in sources:
         if s.sensor == INITIAL:
-            sig = scenario.initial.sigma_blocks(float(truth.lat_rad[0]), float(truth.h_m[0]))
+            sig = np.asarray(scenario.initial.sigma_blocks(float(truth.lat_rad[0]), float(truth.h_m[0]))[s.term], float)
             P0 = np.zeros((9, 9))
-            i = list(DRAWN_FIELDS).index(s.term)
-            P0[3 * i:3 * i + 3, 3 * i:3 * i + 3] = np.diag(np.asarray(sig[s.term], float) ** 2)
+            i = list(DRAWN_FIELDS).index(s.term)          # fixed errors: their outer product, a second moment
+            P0[3 * i:3 * i + 3, 3 * i:3 * i + 3] = np.outer(sig, sig) if scenario.initial.fixed else np.diag(sig ** 2)
             models.append(SourceModel(s.name, P0_nav=P0))
             continue
-        spec = configs[s.sensor].spec
-        term = next((t for t in registry.of(spec).errors if t.name == s.term), None)
-        form = term.linear(spec) if term is not None and term.linear is not None else None
+        form = _linear(scenario, s)
         if form is None:
             left.append(s.name)
         else:
@@ -226,10 +240,10 @@ def linear_sources(scenario, sources: list[Source], truth) -> tuple[list[SourceM
 
 
 def _ideal(truth, config, seed: int):
-    """The sensor without its errors, one run, its outages kept (the samples a run has)."""
+    """The sensor without its errors and faults, one run: the samples each source alone has in
+    the Monte Carlo budget (:func:`alone` flies every source but a fault without the faults)."""
     spec = registry.of(config.spec).ideal(config.spec)
-    faults = tuple(f for f in config.faults if f.type == "outage")
-    return emulate(truth, dataclasses.replace(config, spec=spec, faults=faults), seed, [0])
+    return emulate(truth, dataclasses.replace(config, spec=spec, faults=()), seed, [0])
 
 
 def covariance_contributions(scenario, truth, models: list[SourceModel]) -> tuple[dict, dict]:

@@ -486,6 +486,10 @@ class OutputFolder:
         self._save_manifest()
         return removed
 
+    def written(self) -> set[str]:
+        """The names of the files this command wrote or kept here (:meth:`record`)."""
+        return set(self._held.mine)
+
     def record(self, paths) -> None:
         """Add files written in the folder (by their own writers) to the manifest; their
         identity is taken when the manifest is saved (now, and when the folder is closed)."""

@@ -628,9 +628,9 @@ def triad_linear(group: str, term: str):
     """The linear form (:class:`~navsim.sensors.registry.LinearError`) of the triad ``group``'s
     (``gyro``, ``accel``) error ``term``, as :func:`emulate_imu` applies it, or None where there
     is none (quantization, saturation). The bias instability is its Gauss-Markov process
-    (:func:`gauss_markov_biases`), the white noise the density the emulator draws
-    (:func:`white_noise_std`, the quantization's share taken out); scale factors and
-    misalignments multiply the true rate or specific force."""
+    (:func:`gauss_markov_biases`), the white noise its whole density (as the emulator draws it
+    without quantization: an error budget's term alone); scale factors and misalignments
+    multiply the true rate or specific force."""
     quantity = "rate_b" if group == "gyro" else "force_b"
     true = (lambda m: m.omega_ib_b_rps) if group == "gyro" else (lambda m: m.f_b_mps2)
 
@@ -643,7 +643,6 @@ def triad_linear(group: str, term: str):
 
     def form(spec: ImuSpec) -> LinearError | None:
         e = getattr(spec, group)
-        dt = 1.0 / spec.rate_hz
         scale = lambda m: np.diag(true(m))
         parts = {
             "bias": lambda: _constant(e.bias, fixed=True),
@@ -656,8 +655,8 @@ def triad_linear(group: str, term: str):
             "scale_factor_sigma": lambda: _constant(e.scale_factor_sigma, scale),
             "misalignment_sigma": lambda: _constant(np.full(len(_OFF_DIAGONAL), e.misalignment_sigma), misaligned),
         }
-        if term == "noise_density":
-            return LinearError(quantity, white=white_noise_std(e, dt) ** 2 * dt)
+        if term == "noise_density":        # the whole density: alone, the noise is drawn without quantization
+            return LinearError(quantity, white=np.asarray(e.noise_density, float) ** 2 * np.ones(3))
         if term not in parts:
             return None
         return LinearError(quantity, **parts[term]())

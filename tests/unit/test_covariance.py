@@ -56,13 +56,23 @@ def test_free_inertial_errors_grow_as_the_analytic_model():
     assert np.sqrt(c.var[1, -1, 1]) == pytest.approx(1e-5 * t, rel=2e-3)      # tilt about east
 
 
-def _matched(truth, spec: ImuSpec, gnss: GnssSpec, sigma_nav: dict):
+#: the matched filters' layouts and the IMU terms of their truth: P3's 15 states (random-constant
+#: biases), P2's 18 (a gyro constant, gyro and accelerometer Markov biases: fed back and decaying)
+MATCHED = {"p3_15": (("att", "vel", "pos", "gyro_bias", "accel_bias"),
+                     [(g, t) for g in ("gyro", "accel") for t in ("bias_sigma", "noise_density")]),
+           "p2_18": (("att", "vel", "pos", "gyro_bias", "gyro_markov", "accel_markov"),
+                     [("gyro", "bias_sigma"), ("gyro", "markov_sigma"), ("gyro", "noise_density"),
+                      ("accel", "markov_sigma"), ("accel", "noise_density")])}
+
+
+def _matched(truth, spec: ImuSpec, gnss: GnssSpec, sigma_nav: dict, states: str = "p3_15"):
     """An ES-KF whose model is the truth's, its GNSS data ideal, and the sources of the truth."""
-    est = ErrorStateKF.from_imu_spec(Layout(("att", "vel", "pos", "gyro_bias", "accel_bias")), spec,
+    blocks, terms = MATCHED[states]
+    est = ErrorStateKF.from_imu_spec(Layout(blocks), spec,
                                      [GnssPosition("gps", np.asarray(gnss.position_sigma)),
                                       Velocity("gps", np.asarray(gnss.velocity_sigma))], series_order=8)
     ideal = emulate_gnss(truth, GnssSpec(rate_hz=gnss.rate_hz), 1, [0], name="gps")
-    sources = _imu_sources(spec, [(g, t) for g in ("gyro", "accel") for t in ("bias_sigma", "noise_density")])
+    sources = _imu_sources(spec, terms)
     sources += [SourceModel(f"gps.{t}", "gps", linear_forms(t)(gnss)) for t in ("position_sigma", "velocity_sigma")]
     r_m, r_n = earth.radii(LAT)
     to_filter = np.r_[np.ones(6), 1 / (r_m + H), 1 / ((r_n + H) * math.cos(LAT)), 1.0]
@@ -74,15 +84,22 @@ def _matched(truth, spec: ImuSpec, gnss: GnssSpec, sigma_nav: dict):
     return est, {"gps": ideal}, sources, {**sigma0, **est.noise_sigma0()}
 
 
-def test_a_matched_filters_sources_add_up_to_its_own_covariance():
+@pytest.mark.parametrize("states", list(MATCHED))
+def test_a_matched_filters_sources_add_up_to_its_own_covariance(states):
     """Truth model = filter model: the sources' variances add up to the filter's own P (its
-    navigation block, NED metres), however the gains came out."""
+    navigation block, NED metres), however the gains came out; with Markov biases fed back too
+    (their compensation decaying as the filter's model has it)."""
     truth = _at_rest(120.0)
-    spec = ImuSpec(gyro=AxisErrors(bias_sigma=np.full(3, 1e-5), noise_density=np.full(3, 3e-5)),
-                   accel=AxisErrors(bias_sigma=np.full(3, 1e-3), noise_density=np.full(3, 1e-4)))
+    markov = dict(markov_sigma=np.full(3, 2e-5), markov_tau_s=60.0)
+    spec = ImuSpec(gyro=AxisErrors(bias_sigma=np.full(3, 1e-5), noise_density=np.full(3, 3e-5), **markov),
+                   accel=AxisErrors(bias_sigma=np.full(3, 1e-3) if states == "p3_15" else np.zeros(3),
+                                    noise_density=np.full(3, 1e-4),
+                                    **(dict(markov_sigma=np.full(3, 3e-3), markov_tau_s=30.0) if states != "p3_15" else {})))
+    if states == "p3_15":
+        spec = ImuSpec(gyro=AxisErrors(bias_sigma=np.full(3, 1e-5), noise_density=np.full(3, 3e-5)), accel=spec.accel)
     gnss = GnssSpec(position_sigma=np.array([2.0, 2.0, 3.0]), velocity_sigma=np.full(3, 0.1))
     sigma_nav = {"att": np.radians([0.05, 0.05, 0.5]), "vel": np.full(3, 0.3), "pos": np.array([5.0, 5.0, 8.0])}
-    est, sensors, sources, sigma0 = _matched(truth, spec, gnss, sigma_nav)
+    est, sensors, sources, sigma0 = _matched(truth, spec, gnss, sigma_nav, states)
     c = CovarianceAnalysis(truth, est, 0.01, sensors, sigma0).run(sources)
     r_m, r_n = earth.radii(LAT)
     to_ned = np.r_[np.ones(6), r_m + H, (r_n + H) * math.cos(LAT), 1.0]
