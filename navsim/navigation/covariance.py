@@ -42,6 +42,7 @@ import numpy as np
 from navsim.foundations import earth
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import sample
+from navsim.navigation.estimators.eskf import FEEDBACK
 from navsim.navigation.estimators.error_model import Layout, add_markov_decay, system_matrix
 from navsim.foundations.transform import dcm_from_quat
 from navsim.navigation.strapdown import NavState
@@ -55,8 +56,6 @@ _FULL = Layout(("att", "vel", "pos", "gyro_bias", "accel_bias"))
 #: the quantity each fed-back bias block of a filter compensates, and its own decay (None: a constant)
 _COMPENSATED = {"gyro_bias": ("rate_b", None), "accel_bias": ("force_b", None),
                 "gyro_markov": ("rate_b", "gyro_markov_tau_s"), "accel_markov": ("force_b", "accel_markov_tau_s")}
-#: the blocks a filter keeps (not fed back into the mechanization or the compensation)
-KEPT = ("baro", "pitot_bias")
 #: the series order of the truth's transition over a period (exact to rounding over 1 s), and the
 #: largest ``|F_ii| T`` it takes before Van Loan's method is used instead
 _ORDER, _SERIES_MAX_DECAY = 10, 0.5
@@ -100,7 +99,7 @@ class _Augmented:
         self.layout = layout
         blocks = layout.blocks if layout is not None else ()
         self.comp = [b for b in blocks if b in _COMPENSATED]
-        self.kept = [b for b in blocks if b in KEPT]
+        self.kept = [b for b in blocks if b not in FEEDBACK]       # the sensor-error states the filter keeps
         i = 9
         self.at = {}
         for b in self.comp + self.kept:

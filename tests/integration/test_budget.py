@@ -193,7 +193,10 @@ def test_an_interrupted_budget_keeps_what_finished_and_resumes(repo_root, tmp_pa
     """Ctrl-C in the third Monte Carlo: exit 130, the two finished kept; --resume runs only the
     rest and gives the budget an uninterrupted one gives."""
     import navsim.api as api
-    path = repo_root / "scenarios" / "p0_matched_ads.yaml"
+    data = yaml.safe_load((repo_root / ".ci" / "wheel_check.yaml").read_text())     # 8 s of P0's flight
+    data["sensors"]["bd"]["off"] = data["sensors"]["ads"]["off"] = "all"              # 7 sources, 9 Monte Carlos
+    path = tmp_path / "short.yaml"
+    path.write_text(yaml.safe_dump(data))
     args = ["budget", str(path), "--runs", "2", "--workers", "1", "--metric", "final.pos_m:horizontal"]
     assert main(args + ["--out", str(tmp_path / "whole")]) == 0
     whole = json.loads((tmp_path / "whole" / "budget.json").read_text())["metrics"]
