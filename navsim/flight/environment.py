@@ -35,6 +35,16 @@ MAX_WIND_MPS = 40.0
 MAX_TURBULENCE_SEED = 2**31 - 1
 
 
+def turbulence_sigma_mps(wind20_mps: float, h_agl_m: float) -> tuple[float, float]:
+    """The gusts' std (horizontal, vertical), m/s, of MIL-HDBK-1797's low-altitude model (below
+    1000 ft, as JSBSim's ``milspec`` and ``tustin`` use it) for the wind ``wind20_mps`` at 20 ft:
+    ``sigma_w = 0.1 W20``, ``sigma_u = sigma_v = sigma_w / (0.177 + 0.000823 h)^0.4`` with ``h``
+    in feet (at least 10 ft)."""
+    h_ft = max(h_agl_m / 0.3048, 10.0)
+    sigma_w = 0.1 * wind20_mps
+    return sigma_w / (0.177 + 0.000823 * h_ft) ** 0.4, sigma_w
+
+
 def wind_from(speed_mps: float, from_deg: float) -> tuple[float, float, float]:
     """Air-mass velocity NED of a wind of ``speed_mps`` blowing *from* ``from_deg`` (true)."""
     a = math.radians(from_deg)

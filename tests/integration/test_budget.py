@@ -102,14 +102,14 @@ def test_a_scenario_without_error_sources_is_refused(repo_root, tmp_path, capsys
 
 def test_p3s_covariance_analysis_agrees_with_its_monte_carlo(repo_root, shipped_flight):
     """P3's SINS/GPS and free SINS: the covariance analysis's RMS errors (the sum of its
-    sources; position and velocity over the flight and at its end, each axis) within a 40-run
+    sources; position and velocity over the flight and at its end, each axis) within a 20-run
     Monte Carlo's standard error (each run's influence on the mean square) times Bonferroni's
     quantile for all of them at 5 %, plus 3 % for the filter's gains (the analysis takes them
     along the truth, a run along its estimate)."""
     scenario, truth, path = shipped_flight("p3_sins_gps")
     b = navsim.budget(scenario, method="covariance")
     assert b.method == "covariance" and b.monte_carlo_only == [] and b.not_analysed == {}
-    res = navsim.run(scenario, 40, 11, 2, flight=(truth, path, True))
+    res = navsim.run(scenario, 20, 11, 2, flight=(truth, path, True))
     checks = [(label, p, comp, col) for label, samples in res.samples.items()
               for p in ("rms.pos_m", "rms.vel_mps", "final.pos_m", "final.vel_mps")
               for comp, col in columns(p, samples.metrics[p])]

@@ -108,13 +108,26 @@ def sensor_values():
 
 def _baro_error(values, b):
     """The barometer reading with an error ``b`` (sensor minus truth), m."""
-    return {**values, "h_baro_m": values["h_baro_m"] + b}
+    return {**values, "h_baro_m": values["h_baro_m"] + b[0]}
 
 
 def _pitot_bias(values, b):
     """The ADS's airspeed with a dynamic-pressure bias ``b``, Pa: moved by ``b / (rho V)``."""
     rho_v = values["p_static_pa"] / (R_AIR * values["temp_k"]) * values["tas_mps"]
-    return {**values, "tas_mps": values["tas_mps"] + b / rho_v}
+    return {**values, "tas_mps": values["tas_mps"] + b[0] / rho_v}
+
+
+def _wind(axes):
+    """The air data with a wind ``b`` more on ``axes`` (N, E; or D): the air velocity the
+    values hold less the wind, seen in the body at the true attitude."""
+    def move(values, b):
+        C = nominal()[4]
+        a, s, V = values["alpha_rad"], values["beta_rad"], values["tas_mps"]
+        air_n = C @ np.array([np.cos(a) * np.cos(s), np.sin(s), np.sin(a) * np.cos(s)]) * V
+        w = np.zeros(3)
+        w[list(axes)] = b
+        return {**values, **_air_data(air_n - w, C)}
+    return move
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,7 +154,9 @@ _VANES = {"sensor": "ads", "model": "p0_ads", "override": {"velocity_axis": "air
 FD_CASES = {
     "air_velocity": [FdCase("vanes", _VANES),
                      FdCase("no_vanes", {"sensor": "ads", "model": "p0_ads", "angle_sigma_deg": 4.0}),
-                     FdCase("pitot_bias", _VANES, PRESETS["p3_15"] + ("pitot_bias",), {"pitot_bias": _pitot_bias})],
+                     FdCase("pitot_bias", _VANES, PRESETS["p3_15"] + ("pitot_bias",), {"pitot_bias": _pitot_bias}),
+                     FdCase("wind", {**_VANES, "turbulence_sigma_mps": 1.5}, PRESETS["p3_15"] + ("wind", "wind_down"),
+                            {"wind": _wind((0, 1)), "wind_down": _wind((2,))})],
     "gnss_horizontal": [FdCase("", {"sensor": "gps", "sigma_m": [1.0, 2.0, 3.0]})],
     "gnss_position": [FdCase("", {"sensor": "gps", "sigma_m": [1.0, 2.0, 3.0]})],
     "height": [FdCase("baro", {"sensor": "baro", "sigma_m": 1.0}),
@@ -156,7 +171,8 @@ FD_CASES = {
                       FdCase("ned", {"sensor": "gps", "sigma_mps": [0.05, 0.05, 0.1], "axes": "ned"})],
 }
 #: the finite-difference step of each state block's components
-FD_STEPS = {"att": [1e-6] * 3, "vel": [1e-3] * 3, "pos": [1e-8, 1e-8, 1e-2], "baro": [1e-2], "pitot_bias": [0.5]}
+FD_STEPS = {"att": [1e-6] * 3, "vel": [1e-3] * 3, "pos": [1e-8, 1e-8, 1e-2], "baro": [1e-2], "pitot_bias": [0.5],
+            "wind": [1e-3] * 2, "wind_down": [1e-3]}
 
 
 def _fd_params():
@@ -194,7 +210,7 @@ def test_H_matches_finite_differences(mtype, case):
         att, dv, dp = (dx[layout.slice(b)] for b in ("att", "vel", "pos"))
         moved = values
         for block, move in case.sensor_errors.items():
-            moved = move(moved, dx[layout.slice(block)][0])
+            moved = move(moved, dx[layout.slice(block)])
         state = nav(lat + dp[0], lon + dp[1], h + dp[2], v + dv, rotation(-att) @ C)
         return unpack(model.model(state, layout, FakeData(moved, meta), 0))[0][0]
 

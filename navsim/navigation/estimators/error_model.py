@@ -14,15 +14,19 @@ baro       1     barometric altimeter first-order Markov error, m (P0's dh_b)
 gyro_markov 3    first-order Markov gyro drift, rad/s (P2's eps_r)
 accel_markov 3   first-order Markov accelerometer bias, m/s^2 (P2's nabla)
 pitot_bias 1     the ADS's dynamic-pressure bias, Pa, a random constant (``air_velocity``)
+wind       2     the horizontal wind (air-mass velocity N, E), m/s: a random walk or a
+                 first-order Markov process (``air_velocity``)
+wind_down  1     the vertical wind, m/s, the same model
 ========== ===== =========================================================================
 
-The sensor-error blocks ``baro`` and ``pitot_bias`` stay in the filter (they are the sensors'
-errors, not fed back). P3's 15 states are ``att vel pos gyro_bias accel_bias``; P0's 16 add ``baro``; P2's 18 are
+The sensor-error blocks ``baro`` and ``pitot_bias`` and the wind stay in the filter (they are
+the sensors' errors and the air mass's motion, not fed back). P3's 15 states are ``att vel pos gyro_bias accel_bias``; P0's 16 add ``baro``; P2's 18 are
 ``att vel pos gyro_bias gyro_markov accel_markov``.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +34,9 @@ import numpy as np
 from navsim.navigation import kernels
 
 BLOCK_SIZES = {"att": 3, "vel": 3, "pos": 3, "gyro_bias": 3, "accel_bias": 3, "baro": 1,
-               "gyro_markov": 3, "accel_markov": 3, "pitot_bias": 1}
+               "gyro_markov": 3, "accel_markov": 3, "pitot_bias": 1, "wind": 2, "wind_down": 1}
+#: the wind's blocks and the axes (N, E, D) they hold
+WIND_AXES = {"wind": (0, 1), "wind_down": (2,)}
 REQUIRED = ("att", "vel", "pos")
 PRESETS = {"p3_15": ("att", "vel", "pos", "gyro_bias", "accel_bias"),
            "p0_16": ("att", "vel", "pos", "gyro_bias", "accel_bias", "baro"),
@@ -40,7 +46,8 @@ STATE_LABELS = {"att": ["phi_N", "phi_E", "phi_D"], "vel": ["dv_N", "dv_E", "dv_
                 "pos": ["dL", "dlambda", "dh"], "gyro_bias": ["eps_x", "eps_y", "eps_z"],
                 "accel_bias": ["nabla_x", "nabla_y", "nabla_z"], "baro": ["dh_b"],
                 "gyro_markov": ["eps_r_x", "eps_r_y", "eps_r_z"],
-                "accel_markov": ["nabla_r_x", "nabla_r_y", "nabla_r_z"], "pitot_bias": ["dq_c"]}
+                "accel_markov": ["nabla_r_x", "nabla_r_y", "nabla_r_z"], "pitot_bias": ["dq_c"],
+                "wind": ["w_N", "w_E"], "wind_down": ["w_D"]}
 
 
 @dataclass(frozen=True)
@@ -90,6 +97,10 @@ class ProcessNoise:
     accel_markov_tau_s: float
     baro_sigma: float = 0.0
     baro_tau_s: float = 300.0
+    #: the wind's driving noise density, m/s/sqrt(s) (a Markov process: ``sigma sqrt(2 / tau)``)
+    wind_walk: float = 0.0
+    #: the wind's correlation time, s (``inf``: a random walk)
+    wind_tau_s: float = math.inf
 
 
 def system_matrix(layout: Layout, lat, h, vel_n, C_nb, f_n) -> np.ndarray:
@@ -117,8 +128,10 @@ def system_matrix(layout: Layout, lat, h, vel_n, C_nb, f_n) -> np.ndarray:
 
 
 def add_markov_decay(F: np.ndarray, layout: Layout, noise: ProcessNoise) -> np.ndarray:
+    """``F`` with the first-order Markov blocks' decay ``-1 / tau`` on their diagonal (a random
+    walk's ``tau`` is infinite: none)."""
     for block, tau in (("gyro_markov", noise.gyro_markov_tau_s), ("accel_markov", noise.accel_markov_tau_s),
-                       ("baro", noise.baro_tau_s)):
+                       ("baro", noise.baro_tau_s), ("wind", noise.wind_tau_s), ("wind_down", noise.wind_tau_s)):
         if layout.has(block):
             s = layout.slice(block)
             idx = np.arange(s.start, s.stop)
@@ -142,4 +155,7 @@ def process_noise(layout: Layout, noise: ProcessNoise) -> np.ndarray:
         q[layout.slice("accel_markov")] = 2.0 * noise.accel_markov_sigma ** 2 / noise.accel_markov_tau_s
     if layout.has("baro"):
         q[layout.slice("baro")] = 2.0 * noise.baro_sigma ** 2 / noise.baro_tau_s
+    for block in WIND_AXES:
+        if layout.has(block):
+            q[layout.slice(block)] = noise.wind_walk ** 2
     return np.diag(q)

@@ -14,8 +14,11 @@ IMU compensation. The sensor-error states ``baro`` and ``pitot_bias`` stay in th
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from navsim.flight.environment import MAX_WIND_MPS
 from navsim.foundations.config import MAX_DURATION_S, MAX_TIME_CONSTANT_S, Node, close_match
 from navsim.foundations.jsonschema import MEASUREMENT, POS, obj
 from navsim.foundations.transform import rotation
@@ -23,6 +26,7 @@ from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.estimators.error_model import (
     BLOCK_SIZES,
+    WIND_AXES,
     PRESETS,
     Layout,
     ProcessNoise,
@@ -40,6 +44,8 @@ from navsim.sensors.catalog import load_spec
 from navsim.sensors.specs import ImuSpec
 
 FEEDBACK = ("att", "vel", "pos", "gyro_bias", "accel_bias", "gyro_markov", "accel_markov")
+#: the models of a wind state
+WIND_MODELS = ("markov", "random_walk")
 
 
 @register("eskf")
@@ -73,6 +79,8 @@ class ErrorStateKF:
               "series_order": {"type": "integer", "minimum": 1}, "latest_sample": {"type": "boolean"},
               "noise": obj({"imu": {"type": "string"}, "override": {"type": "object"}}, ["imu"]),
               "baro": obj({"sigma_m": POS, "tau_s": POS}),
+              "wind": obj({"model": {"enum": list(WIND_MODELS)}, "sigma_mps": POS, "sigma_down_mps": POS,
+                           "tau_s": POS, "walk_mps_per_rts": POS}, ["sigma_mps"]),
               "measurements": {"type": "array", "items": MEASUREMENT}}
 
     def __init__(self, layout: Layout, noise: ProcessNoise, measurements, period_s: float = 1.0,
@@ -90,19 +98,22 @@ class ErrorStateKF:
 
     @classmethod
     def from_imu_spec(cls, layout: Layout, imu_spec, measurements, baro_sigma_m: float = 0.0,
-                      baro_tau_s: float = 300.0, **kw):
+                      baro_tau_s: float = 300.0, wind: dict | None = None, **kw):
         """A filter whose noise model and initial bias uncertainty come from an IMU spec (a
-        catalog entry of its own: it need not be the spec that corrupted the data)."""
+        catalog entry of its own: it need not be the spec that corrupted the data); ``wind``
+        the wind states' model (:func:`filter_params`' ``wind``)."""
         g, a = imu_spec.gyro, imu_spec.accel
+        w = wind or {"walk_mps_per_rts": 0.0, "tau_s": math.inf, "sigma_mps": 0.0, "sigma_down_mps": 0.0}
         noise = ProcessNoise(
             gyro_white=g.noise_density, accel_white=a.noise_density,
             gyro_bias_walk=g.random_walk, accel_bias_walk=a.random_walk,
             gyro_markov_sigma=np.maximum(g.markov_sigma, 1e-12), gyro_markov_tau_s=g.markov_tau_s,
             accel_markov_sigma=np.maximum(a.markov_sigma, 1e-12), accel_markov_tau_s=a.markov_tau_s,
-            baro_sigma=baro_sigma_m, baro_tau_s=baro_tau_s)
+            baro_sigma=baro_sigma_m, baro_tau_s=baro_tau_s, wind_walk=w["walk_mps_per_rts"], wind_tau_s=w["tau_s"])
         sigma = {"gyro_bias": np.hypot(g.bias_sigma, g.bias), "accel_bias": np.hypot(a.bias_sigma, a.bias),
                  "gyro_markov": g.markov_sigma, "accel_markov": a.markov_sigma,
-                 "baro": np.array([baro_sigma_m])}
+                 "baro": np.array([baro_sigma_m]), "wind": np.full(2, w["sigma_mps"]),
+                 "wind_down": np.array([w["sigma_down_mps"]])}
         return cls(layout, noise, measurements, initial_sigma=sigma, **kw)
 
     # --- from a scenario entry -----------------------------------------------------------------
@@ -360,11 +371,42 @@ def filter_params(node: Node) -> dict:
         baro.done()
     if "baro" in blocks and params["baro"]["sigma_m"] == 0.0:
         raise node.error("the 'baro' state needs its model", "baro", expected="{sigma_m: ..., tau_s: ...}")
+    params["wind"] = _wind(node, blocks)
     return params
+
+
+def _wind(node: Node, blocks) -> dict | None:
+    """``wind: {model: markov, sigma_mps, tau_s}`` or ``{model: random_walk, sigma_mps,
+    walk_mps_per_rts}`` (``sigma_mps`` the wind's std, the initial uncertainty; the vertical
+    block's ``sigma_down_mps``, default ``sigma_mps``), the model of the ``wind`` and
+    ``wind_down`` states; None without one."""
+    wind = node.child("wind", None)
+    wanted = [b for b in WIND_AXES if b in blocks]
+    if wind is None:
+        if wanted:
+            raise node.error(f"the '{wanted[0]}' state needs its model", "wind",
+                             expected="{model: markov, sigma_mps: ..., tau_s: ...} or {model: random_walk, sigma_mps: "
+                                      "..., walk_mps_per_rts: ...}")
+        return None
+    if not wanted:
+        raise node.error("has a wind model but no wind state", "wind", expected="'wind' in the states")
+    model = wind.get("model", str, "markov", choices=WIND_MODELS)
+    sigma = wind.get("sigma_mps", float, exclusive_minimum=0.0, maximum=MAX_WIND_MPS)
+    out = {"model": model, "sigma_mps": sigma,
+           "sigma_down_mps": wind.get("sigma_down_mps", float, sigma, exclusive_minimum=0.0, maximum=MAX_WIND_MPS)}
+    if model == "markov":
+        tau = wind.get("tau_s", float, exclusive_minimum=0.0, maximum=MAX_TIME_CONSTANT_S)
+        out.update(tau_s=tau, walk_mps_per_rts=sigma * math.sqrt(2.0 / tau))
+    else:
+        out.update(tau_s=math.inf, walk_mps_per_rts=wind.get("walk_mps_per_rts", float, exclusive_minimum=0.0,
+                                                             maximum=MAX_WIND_MPS))
+    wind.done()
+    return out
 
 
 def filter_options(params: dict) -> dict:
     """The constructor arguments of :func:`filter_params`' values but the states and the IMU."""
     return dict(baro_sigma_m=params["baro"]["sigma_m"], baro_tau_s=params["baro"]["tau_s"],
                 period_s=params["period_s"], discretization=params["discretization"],
-                series_order=params["series_order"], latest_sample=params["latest_sample"])
+                series_order=params["series_order"], latest_sample=params["latest_sample"],
+                wind=params.get("wind"))

@@ -54,7 +54,7 @@ from navsim.foundations.config import Node, check_numbers, close_match
 from navsim.foundations.jsonschema import NUM, POS, VEC3, merge_properties
 from navsim.foundations.transform import skew
 from navsim.navigation import magcal
-from navsim.navigation.estimators.error_model import Layout
+from navsim.navigation.estimators.error_model import WIND_AXES, Layout
 from navsim.navigation.strapdown import NavState
 from navsim.sensors import registry
 from navsim.sensors.catalog import load_spec
@@ -363,6 +363,14 @@ class AirVelocity:
     consistent: P0's ES-KF with it has NEES 12.5 on 200 runs). With ``C_nb_est = (I - [phi x]) C_nb`` the
     attitude row is ``-[a x]``, ``a = C_nb u V``: the INS attitude error turns the air velocity.
 
+    With ``wind`` (and ``wind_down``) states the wind is estimated: ``z = v - C_nb u V -
+    wind_n_mps`` is the wind the filter has not been told plus the errors, so the wind block's
+    columns are the identity on N, E (and D); ``wind_n_mps`` is then a prior the state adds to.
+    Turbulence the filter does not model is white to it: ``turbulence_sigma_mps`` (the gusts'
+    std, taken isotropic: the larger of MIL-HDBK-1797's low-altitude intensities,
+    :func:`navsim.flight.environment.turbulence_sigma_mps`) adds its variance to ``R`` on
+    every axis.
+
     With a ``pitot_bias`` state in the filter (the dynamic pressure's per-run bias ``b``, Pa, a
     random constant whose initial std is the ADS model's), ``V = V_true + b / (rho V)``: its
     column is ``-C_nb u / (rho V)`` and ``R`` leaves the bias out. Without it, the bias is in
@@ -375,8 +383,10 @@ class AirVelocity:
     spec: AdsSpec                        #: the filter's model of the ADS
     angle_sigma_rad: float = 0.0         #: the unmeasured angles' std (an ADS model without vanes)
     wind_n_mps: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    turbulence_sigma_mps: float = 0.0    #: the gusts' std the filter takes as white, m/s
     SCHEMA = {"model": {"type": "string"}, "override": {"type": "object"}, "angle_sigma_deg": {"type": "number", "minimum": 0},
-              "wind_n_mps": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}}
+              "wind_n_mps": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
+              "turbulence_sigma_mps": {"type": "number", "minimum": 0}}
 
     @classmethod
     def parse(cls, node: Node, sensors: dict) -> dict:
@@ -398,12 +408,14 @@ class AirVelocity:
         wind = check_numbers(wind, 3, minimum=-MAX_WIND_MPS, maximum=MAX_WIND_MPS, error=lambda m, e: node.error(
             m, "wind_n_mps", expected=f"[north, east, down] in m/s ({e})"))
         return {"model": name, "override": override.data if override else None, "angle_sigma_deg": angle,
-                "wind_n_mps": [float(w) for w in wind]}
+                "wind_n_mps": [float(w) for w in wind],
+                "turbulence_sigma_mps": node.get("turbulence_sigma_mps", float, 0.0, minimum=0.0, maximum=MAX_WIND_MPS)}
 
     @classmethod
     def from_entry(cls, entry: dict):
         return cls(entry["sensor"], _ads_spec(entry["model"], entry["override"]),
-                   math.radians(entry["angle_sigma_deg"]), np.asarray(entry["wind_n_mps"], float))
+                   math.radians(entry["angle_sigma_deg"]), np.asarray(entry["wind_n_mps"], float),
+                   float(entry.get("turbulence_sigma_mps", 0.0)))
 
     @classmethod
     def reads(cls, entry: dict) -> tuple:
@@ -464,19 +476,28 @@ class AirVelocity:
         sv, dv_dqc = self.airspeed_sigma(data, j, bias_state)
         if bias_state:                   # V = V_true + b / (rho V): z = ... - C_nb u b / (rho V)
             H[:, :, layout.slice("pitot_bias").start] = -u_n * dv_dqc[:, None]
+        for block, axes in WIND_AXES.items():       # the wind the filter estimates
+            if layout.has(block):
+                cols = layout.slice(block)
+                H[:, list(axes), list(range(cols.start, cols.stop))] = 1.0
         s_across = V * sigma
         R_b = (sv[:, None, None] ** 2 * np.einsum("bi,bj->bij", u, u)
                + s_across[:, None, None] ** 2 * (np.einsum("bi,bj->bij", e_b, e_b) + np.einsum("bi,bj->bij", e_a, e_a)))
-        R = nav.C_nb @ R_b @ np.swapaxes(nav.C_nb, 1, 2)
+        R = nav.C_nb @ R_b @ np.swapaxes(nav.C_nb, 1, 2) + self.turbulence_sigma_mps ** 2 * np.eye(3)
         return Linearised(z, H, R, data.valid[:, j])
 
 
 def check_observed_states(node: Node, blocks, entries: list) -> None:
     """A ``pitot_bias`` state needs the one ``air_velocity`` model that observes it, with an
-    ADS model whose bias is not zero (its initial std)."""
+    ADS model whose bias is not zero (its initial std); a wind state an ``air_velocity`` model
+    (nothing else observes the wind)."""
+    air = [e for e in entries if e["type"] == "air_velocity"]
+    wind = [b for b in WIND_AXES if b in blocks]
+    if wind and not air:
+        raise node.error(f"the '{wind[0]}' state is observed by no measurement", "states",
+                         expected="an air_velocity measurement with a wind state (or no wind state)")
     if "pitot_bias" not in blocks:
         return
-    air = [e for e in entries if e["type"] == "air_velocity"]
     if len(air) != 1:
         raise node.error(f"the 'pitot_bias' state is observed by {len(air)} air_velocity measurements", "states",
                          expected="exactly one air_velocity measurement with a pitot_bias state")

@@ -1,0 +1,73 @@
+"""The ES-KF's wind state (issue 35): its scenario keys refused when malformed, its model in F
+and Q, and the MIL-HDBK-1797 gust intensities the air-velocity measurement's R takes."""
+
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from navsim.flight.environment import turbulence_sigma_mps
+from navsim.navigation.estimators.error_model import Layout, PRESETS, add_markov_decay, process_noise, system_matrix
+from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.sensors.catalog import load_spec
+
+
+def _scenario(repo_root, **wind_entry):
+    """P0's matched-ADS scenario with its ES-KF's states and keys changed."""
+    data = yaml.safe_load((repo_root / "scenarios" / "p0_matched_ads.yaml").read_text())
+    est = data["estimators"][0]
+    est["states"] = est["states"] + ["wind"]
+    est["wind"] = {"model": "markov", "sigma_mps": 5.0, "tau_s": 600.0}
+    for key, value in wind_entry.items():
+        if value is None:
+            est.pop(key, None)
+        else:
+            est[key] = value
+    return data
+
+
+@pytest.mark.parametrize("change, key, words", [
+    ({"wind": {"model": "markov", "sigma_mps": -1.0, "tau_s": 600.0}}, "estimators[0].wind.sigma_mps", "-1"),
+    ({"wind": {"model": "markov", "sigma_mps": 5.0, "tau_s": -60.0}}, "estimators[0].wind.tau_s", "-60"),
+    ({"wind": {"model": "random_walk", "sigma_mps": 5.0}}, "estimators[0].wind.walk_mps_per_rts", "is missing"),
+    ({"wind": {"model": "gusty", "sigma_mps": 5.0}}, "estimators[0].wind.model", "gusty"),
+    ({"wind": None}, "estimators[0].wind", "the 'wind' state needs its model"),
+    ({"states": ["att", "vel", "pos", "gyro_bias", "accel_bias"]}, "estimators[0].wind", "no wind state"),
+    ({"measurements": [{"type": "gnss_position", "sensor": "bd", "sigma_m": [8, 8, 8]}],
+      "states": ["att", "vel", "pos", "gyro_bias", "accel_bias", "wind"]}, "estimators[0].states",
+     "observed by no measurement"),
+])
+def test_a_malformed_wind_state_is_refused(change, key, words, repo_root, assert_scenario_error):
+    assert_scenario_error(_scenario(repo_root, **change), key, words)
+
+
+def test_the_wind_states_model_in_F_and_Q():
+    """A Markov wind decays with its tau and is driven by 2 sigma^2 / tau; a random walk does
+    not decay; the states start with the model's sigma."""
+    layout = Layout(PRESETS["p3_15"] + ("wind", "wind_down"))
+    imu = load_spec("p0_imu")
+    for wind, decay in (({"sigma_mps": 4.0, "sigma_down_mps": 1.0, "tau_s": 300.0,
+                          "walk_mps_per_rts": 4.0 * math.sqrt(2 / 300.0)}, -1 / 300.0),
+                        ({"sigma_mps": 4.0, "sigma_down_mps": 1.0, "tau_s": math.inf, "walk_mps_per_rts": 0.02}, 0.0)):
+        est = ErrorStateKF.from_imu_spec(layout, imu, [], wind=wind)
+        F = system_matrix(layout, np.array([0.6]), np.array([300.0]), np.array([[13.0, 1.0, 0.0]]),
+                          np.eye(3)[None], np.array([[0.0, 0.0, -9.8]]))
+        F = add_markov_decay(F, layout, est.noise)[0]
+        Q = process_noise(layout, est.noise)
+        for block in ("wind", "wind_down"):
+            s = layout.slice(block)
+            np.testing.assert_allclose(np.diag(F[s, s]), decay)
+            assert not F[s, :s.start].any() and not F[:s.start, s].any()      # the INS errors do not see it
+            np.testing.assert_allclose(np.diag(Q[s, s]), wind["walk_mps_per_rts"] ** 2)
+        np.testing.assert_allclose(est.noise_sigma0()["wind"], 4.0)
+        np.testing.assert_allclose(est.noise_sigma0()["wind_down"], 1.0)
+
+
+def test_gust_intensities_follow_mil_hdbk_1797():
+    """Low altitude: sigma_w = 0.1 W20; sigma_u / sigma_w = 1 / (0.177 + 0.000823 h)^0.4, which
+    is 1 at 1000 ft (where the low-altitude model meets the medium one) and grows below."""
+    h, v = turbulence_sigma_mps(15.0, 1000 * 0.3048)
+    assert v == pytest.approx(1.5) and h == pytest.approx(1.5 / (0.177 + 0.823) ** 0.4)
+    h_low, _ = turbulence_sigma_mps(15.0, 50.0)
+    assert h_low > h > v * 0.999
