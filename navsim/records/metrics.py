@@ -144,7 +144,13 @@ class QuantityStats(_Record):
 
 @dataclass(frozen=True)
 class HorizontalStats(_Record):
+    """A window's horizontal position error, m: its RMS over the runs and epochs, and over the
+    runs its value at the window's last epoch (``final``: an outage's drift at its end) and each
+    run's largest in the window (``max``: the drift's worst, as an RMS over the runs)."""
+
     rms: float
+    final: float | None = None
+    max: float | None = None
 
 
 @dataclass(frozen=True)

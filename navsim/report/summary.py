@@ -240,12 +240,16 @@ def windows(metrics: RunMetrics, spans=()) -> list[Section]:
     times = {name: (a, b) for name, a, b in spans}
     out = []
     for name in names:
-        rows, nees = [], []
+        rows, nees, drift = [], [], []
         for label, m in metrics.estimators.items():
             w = (m.windows or {}).get(name)
             if w is None:
                 continue
             ci = lambda key: m.interval(f"windows.{name}.{key}")
+            h = w.horizontal_m
+            if h is not None and h.final is not None:
+                drift.append(f"{label} {with_interval(h.final, ci('horizontal_m.final'))} at its end, largest "
+                             f"{with_interval(h.max, ci('horizontal_m.max'))}")
             if w.nees is not None:
                 nees.append(f"{label} {with_interval(w.nees.average, ci('nees.average'))}, "
                             f"{pct_ci(w.nees.fraction_inside, ci('nees.fraction_inside'))} in band")
@@ -257,6 +261,8 @@ def windows(metrics: RunMetrics, spans=()) -> list[Section]:
         span = f" ({times[name][0]:g}-{times[name][1]:g} s)" if name in times else ""
         text = ("Errors over the window, every run: largest positive and negative (a norm has no negative side), "
                 "standard deviation and RMS with their 95 % intervals over the runs.")
+        text += (" Horizontal position error, m (RMS over the runs; an outage's drift): " + "; ".join(drift) + "."
+                 if drift else "")
         text += f" NEES over the window: {'; '.join(nees)}." if nees else ""
         out.append(Section(f"Window '{name}'{span}", text,
                            ["estimator", "quantity", "max +", "max -", "std", "RMS"], rows))

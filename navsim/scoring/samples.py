@@ -39,6 +39,11 @@ def _rms(acc: RunSums) -> list:
     return rms_intervals(*acc.arrays())
 
 
+#: a window's horizontal statistics: the key of their per-run sums -> the field of
+#: :class:`~navsim.records.metrics.HorizontalStats`
+_HORIZONTAL = {"whor": "rms", "whor_end": "final", "whor_max": "max"}
+
+
 class RunSamples:
     """Each run's part of an estimator's metrics, fed once per chunk (the first pass)."""
 
@@ -72,7 +77,12 @@ class RunSamples:
             for key, v in c.quantities.items():
                 self._s(("w1", name, key)).add(v[:, m])
                 self._s(("wsq", name, key)).add(v[:, m] ** 2)
-            self._s(("whor", name)).add(np.sum(h.pos_err_m[good][:, m, :2] ** 2, axis=-1))
+            hor2 = np.sum(h.pos_err_m[good][:, m, :2] ** 2, axis=-1)
+            self._s(("whor", name)).add(hor2)
+            if hor2.shape[1]:
+                self._s(("whor_end", name)).add(hor2[:, -1:])
+                with np.errstate(invalid="ignore"):
+                    self._s(("whor_max", name)).add(np.nanmax(hor2, axis=1, keepdims=True))
         w = bootstrap_weights(runs)
         self._b("conv").add(w, np.sum(h.pos_err_m[good] ** 2, axis=-1))
         if h.nees is not None:
@@ -102,8 +112,8 @@ class RunSamples:
         for key in self.sums:
             if key[0] == "wsq":
                 m[f"windows.{key[1]}.{key[2]}.rms"] = (self.sums[key], True)
-            elif key[0] == "whor":
-                m[f"windows.{key[1]}.horizontal_m.rms"] = (self.sums[key], True)
+            elif key[0] in _HORIZONTAL:
+                m[f"windows.{key[1]}.horizontal_m.{_HORIZONTAL[key[0]]}"] = (self.sums[key], True)
         out = {path: MetricSamples(*_columns(acc), root) for path, (acc, root) in m.items()}
         for n, i in zip(ERRORS, range(3)):
             sq = np.concatenate([f[i] for f in self.final]) if self.final else np.zeros((0, 3))
@@ -140,8 +150,10 @@ class RunSamples:
             s1, n = self.sums[("w1", name, key)].arrays()
             s2, _ = self.sums[("wsq", name, key)].arrays()
             out[key] = {"std": std_interval(s1, s2, n), "rms": _sqrt(mean_square_interval(s2, n))}
-        if ("whor", name) in self.sums:
-            out["horizontal_m"] = {"rms": _sqrt(mean_square_interval(*self.sums[("whor", name)].arrays()))}
+        hor = {stat: _sqrt(mean_square_interval(*self.sums[key, name].arrays()))
+               for key, stat in _HORIZONTAL.items() if (key, name) in self.sums}
+        if hor:
+            out["horizontal_m"] = hor
         if "nees" in self.boot:
             m = (t_s >= a) & (t_s <= b)
             if m.any():

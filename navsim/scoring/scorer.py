@@ -256,7 +256,11 @@ class EstimatorScore:
                 self._a(("wmin", name, key), lambda: Extreme(np.nanmin)).add(x)
                 self._a(("wmom", name, key), Moments).add(x)
                 self._a(("wsq", name, key), Sum).add(x ** 2, (0, 1))
-            self._a(("whor", name), Sum).add(np.sum(c.h.pos_err_m[c.good][:, m, :2] ** 2, axis=-1), (0, 1))
+            hor2 = np.sum(c.h.pos_err_m[c.good][:, m, :2] ** 2, axis=-1)
+            self._a(("whor", name), Sum).add(hor2, (0, 1))
+            self._a(("whor_end", name), Sum).add(hor2[:, -1], 0)
+            with np.errstate(invalid="ignore"):          # a run without a finite epoch there: NaN
+                self._a(("whor_max", name), Sum).add(np.nanmax(hor2, axis=1) if hor2.shape[0] else hor2[:, 0], 0)
             if c.h.nees is not None:
                 self._a(("wnees", name), Sum).add(c.h.nees[c.good][:, m], 0)
 
@@ -333,7 +337,8 @@ class EstimatorScore:
             lo, hi = chi2_band(NEES_DIM, self.good)
             mean = acc[("wnees", name)].mean()
             nees = WindowNees(float(np.nanmean(mean)), float(np.mean((mean > lo) & (mean < hi))))
-        return Window(stats, HorizontalStats(float(np.sqrt(acc[("whor", name)].mean()))), nees)
+        root = lambda key: float(np.sqrt(acc[key, name].mean()))
+        return Window(stats, HorizontalStats(root("whor"), root("whor_end"), root("whor_max")), nees)
 
     def _nees(self) -> Nees:
         mean_all = self.acc["nees"].mean()

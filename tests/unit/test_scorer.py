@@ -95,7 +95,9 @@ def numpy_scores(h, settle_s, windows) -> dict:
                                         "p95_abs": np.nanpercentile(np.abs(v[:, m]), 95)}
                                     for k, v in q.items()} if m.any() else {}
         if m.any():
-            w["horizontal_m"] = {"rms": _rms(np.hypot(*np.moveaxis(h.pos_err_m[good][:, m, :2], -1, 0)), (0, 1))}
+            hor = np.hypot(*np.moveaxis(h.pos_err_m[good][:, m, :2], -1, 0))
+            w["horizontal_m"] = {"rms": _rms(hor, (0, 1)), "final": _rms(hor[:, -1], 0),
+                                 "max": _rms(np.nanmax(hor, axis=1), 0)}
         if m.any() and h.nees is not None:
             lo, hi = chi2.ppf([0.025, 0.975], 9 * good.sum()) / good.sum()
             mean = np.nanmean(h.nees[good][:, m], axis=0)
