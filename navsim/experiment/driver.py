@@ -366,6 +366,8 @@ class _Recorder:
             row.update({name: np.full(epoch_shape(name, B), np.nan) if s is None else np.array(s, dtype=np.float64)
                         for name, s in (("gyro_bias_sigma", sol.gyro_bias_sigma),
                                         ("accel_bias_sigma", sol.accel_bias_sigma))})
+        if sol.wind_n_mps is not None:
+            row.update(wind_n_mps=np.array(sol.wind_n_mps, float), wind_sigma_mps=np.array(sol.wind_sigma_mps, float))
         if nees is not None:
             row.update(nees=nees, sigma=sig)
         for name, v in row.items():

@@ -48,6 +48,10 @@ class EstimatorHistory:
     #: 1-sigma of the estimates (NaN on an axis that is not a state)
     gyro_bias_sigma: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "rad/s", default=None)
     accel_bias_sigma: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "m/s^2", default=None)
+    #: the estimated wind (air-mass velocity NED, NaN on an axis that is not a state) and its
+    #: 1-sigma, where the estimator has a wind state
+    wind_n_mps: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "m/s", default=None)
+    wind_sigma_mps: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "m/s", default=None)
     #: CPU seconds spent in ``propagate`` and in the epochs (predict + corrections), summed over
     #: the batches, and the number of runs and filter epochs they covered
     #: (:func:`~navsim.records.cost.sum_cost`); the seconds compiling kernels inside those calls

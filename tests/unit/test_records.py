@@ -64,7 +64,8 @@ class _Stub:
         B = self.nav.lat_rad.shape[0]
         return Solution(self.nav, P_nav=np.broadcast_to(np.eye(9) * 1e-6, (B, 9, 9)).copy(),
                         gyro_bias=np.zeros((B, 3)), accel_bias=np.zeros((B, 3)),
-                        gyro_bias_sigma=np.full((B, 3), 1e-5))
+                        gyro_bias_sigma=np.full((B, 3), 1e-5), wind_n_mps=np.zeros((B, 3)),
+                        wind_sigma_mps=np.ones((B, 3)))
 
 
 def test_the_recorder_fills_every_declared_epoch_array():

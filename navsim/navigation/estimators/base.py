@@ -69,6 +69,8 @@ class Solution:
     accel_bias: np.ndarray | None = None     #: (B, 3) estimated, m/s^2
     gyro_bias_sigma: np.ndarray | None = None    #: (B, 3) 1-sigma of ``gyro_bias``, rad/s (NaN: not a state)
     accel_bias_sigma: np.ndarray | None = None   #: (B, 3) 1-sigma of ``accel_bias``, m/s^2 (NaN: not a state)
+    wind_n_mps: np.ndarray | None = None     #: (B, 3) estimated wind NED, m/s (NaN: an axis not estimated)
+    wind_sigma_mps: np.ndarray | None = None     #: (B, 3) its 1-sigma, m/s
     extra: dict = field(default_factory=dict)
 
 

@@ -213,7 +213,25 @@ class ErrorStateKF:
         sg, sa = self._bias_sigma()
         return Solution(nav=self.sd.state, P_nav=P_nav,
                         gyro_bias=self.b_gyro + self.m_gyro, accel_bias=self.b_accel + self.m_accel,
-                        gyro_bias_sigma=sg, accel_bias_sigma=sa, extra={"P": self.P, "diverged": self.diverged})
+                        gyro_bias_sigma=sg, accel_bias_sigma=sa, **self._wind(),
+                        extra={"P": self.P, "diverged": self.diverged})
+
+    def _wind(self) -> dict:
+        """The wind states' estimate and 1-sigma ``(B, 3)`` NED (NaN on an axis without a
+        state; the estimate on the prior of the ``air_velocity`` model observing it), or
+        nothing without a wind state."""
+        blocks = [b for b in WIND_AXES if self.layout.has(b)]
+        if not blocks:
+            return {}
+        B = self.x.shape[0]
+        prior = next((np.asarray(m.wind_n_mps, float) for m in self.measurements if hasattr(m, "wind_n_mps")),
+                     np.zeros(3))
+        wind, sigma = np.full((B, 3), np.nan), np.full((B, 3), np.nan)
+        for b in blocks:
+            sl, axes = self.layout.slice(b), list(WIND_AXES[b])
+            wind[:, axes] = prior[axes] + self.x[:, sl]
+            sigma[:, axes] = np.sqrt(np.maximum(np.diagonal(self.P[:, sl, sl], axis1=1, axis2=2), 0.0))
+        return {"wind_n_mps": wind, "wind_sigma_mps": sigma}
 
     def _bias_sigma(self):
         """1-sigma of the estimated gyro and accelerometer biases ``(B, 3)`` each: of the sum of
