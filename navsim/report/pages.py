@@ -4,7 +4,7 @@ Each source (:data:`PAGE_SOURCES`) is a function of a :class:`~navsim.report.fig
 returning its :class:`~navsim.report.figures.Page` objects, none where it has nothing to show:
 the summary and the metrics windows (text pages), the scenario as run, the flight, the closed
 loop, then the figures by topic (errors, height, landmarks, attitude, consistency, biases,
-calibration), each in a module of its own. Every statistic a page prints is read from the
+wind, calibration), each in a module of its own. Every statistic a page prints is read from the
 scorer's :class:`~navsim.records.metrics.RunMetrics` (the numbers of ``metrics.json``); the
 curves are drawn from the runs' histories. :func:`report_pages` puts a contents page first and
 numbers every page; :func:`write_report` writes them (:mod:`navsim.report.render`). A new page is
@@ -20,7 +20,7 @@ from typing import Callable
 from navsim.flight.plots import flight_figures
 from navsim.foundations.outputs import OutputFolder
 from navsim.report import attitude, biases, calibration, closed_loop, consistency, errors, height, landmarks
-from navsim.report import scenario_page
+from navsim.report import scenario_page, wind
 from navsim.records.run import RunRecord
 from navsim.report.figures import FIGURE_IN, FOOTER_IN, Page, ReportInput, pyplot
 from navsim.report.render import render
@@ -80,6 +80,7 @@ PAGE_SOURCES: tuple[PageSource, ...] = (
     PageSource("attitude", _with_histories(attitude.pages)),
     PageSource("consistency", _with_histories(consistency.pages)),
     PageSource("biases", _with_histories(biases.pages)),
+    PageSource("wind", _with_histories(wind.pages)),
     PageSource("calibration", _with_histories(calibration.pages)),
 )
 
