@@ -145,8 +145,9 @@ class QuantityStats(_Record):
 @dataclass(frozen=True)
 class HorizontalStats(_Record):
     """A window's horizontal position error, m: its RMS over the runs and epochs, and over the
-    runs its value at the window's last epoch (``final``: an outage's drift at its end) and each
-    run's largest in the window (``max``: the drift's worst, as an RMS over the runs)."""
+    runs its value at the window's last epoch (``final``: an outage's drift at its end; a run
+    with no record there, a closed-loop run landed before it, is left out) and each run's
+    largest in the window (``max``: the drift's worst, as an RMS over the runs)."""
 
     rms: float
     final: float | None = None

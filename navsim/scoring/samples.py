@@ -16,6 +16,7 @@ Poisson bootstrap over runs (``(R, epochs)``): the summed NEES, NIS and squared 
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
@@ -81,7 +82,8 @@ class RunSamples:
             self._s(("whor", name)).add(hor2)
             if hor2.shape[1]:
                 self._s(("whor_end", name)).add(hor2[:, -1:])
-                with np.errstate(invalid="ignore"):
+                with warnings.catch_warnings():       # a run without a finite epoch there: NaN, left out
+                    warnings.simplefilter("ignore", RuntimeWarning)
                     self._s(("whor_max", name)).add(np.nanmax(hor2, axis=1, keepdims=True))
         w = bootstrap_weights(runs)
         self._b("conv").add(w, np.sum(h.pos_err_m[good] ** 2, axis=-1))

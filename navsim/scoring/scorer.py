@@ -15,6 +15,7 @@ depend on the chunking beyond the rounding of sums (tested to 1e-12 relative).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -259,7 +260,8 @@ class EstimatorScore:
             hor2 = np.sum(c.h.pos_err_m[c.good][:, m, :2] ** 2, axis=-1)
             self._a(("whor", name), Sum).add(hor2, (0, 1))
             self._a(("whor_end", name), Sum).add(hor2[:, -1], 0)
-            with np.errstate(invalid="ignore"):          # a run without a finite epoch there: NaN
+            with warnings.catch_warnings():               # a run without a finite epoch there: NaN, left out
+                warnings.simplefilter("ignore", RuntimeWarning)
                 self._a(("whor_max", name), Sum).add(np.nanmax(hor2, axis=1) if hor2.shape[0] else hor2[:, 0], 0)
             if c.h.nees is not None:
                 self._a(("wnees", name), Sum).add(c.h.nees[c.good][:, m], 0)

@@ -33,6 +33,12 @@ def _scenario(repo_root, **wind_entry):
     ({"wind": {"model": "random_walk", "sigma_mps": 5.0}}, "estimators[0].wind.walk_mps_per_rts", "is missing"),
     ({"wind": {"model": "gusty", "sigma_mps": 5.0}}, "estimators[0].wind.model", "gusty"),
     ({"wind": None}, "estimators[0].wind", "the 'wind' state needs its model"),
+    ({"measurements": [{"type": "gnss_position", "sensor": "bd", "sigma_m": [8, 8, 8]},
+                       {"type": "air_velocity", "sensor": "ads", "model": "p0_ads", "wind_n_mps": [1, 0, 0],
+                        "override": {"velocity_axis": "air", "vane_noise": "0.5 deg"}},
+                       {"type": "air_velocity", "sensor": "ads", "model": "p0_ads",
+                        "override": {"velocity_axis": "air", "vane_noise": "0.5 deg"}}]},
+     "estimators[0].measurements", "different wind_n_mps"),
     ({"states": ["att", "vel", "pos", "gyro_bias", "accel_bias"]}, "estimators[0].wind", "no wind state"),
     ({"measurements": [{"type": "gnss_position", "sensor": "bd", "sigma_m": [8, 8, 8]}],
       "states": ["att", "vel", "pos", "gyro_bias", "accel_bias", "wind"]}, "estimators[0].states",
@@ -48,8 +54,10 @@ def test_the_wind_states_model_in_F_and_Q():
     layout = Layout(PRESETS["p3_15"] + ("wind", "wind_down"))
     imu = load_spec("p0_imu")
     for wind, decay in (({"sigma_mps": 4.0, "sigma_down_mps": 1.0, "tau_s": 300.0,
-                          "walk_mps_per_rts": 4.0 * math.sqrt(2 / 300.0)}, -1 / 300.0),
-                        ({"sigma_mps": 4.0, "sigma_down_mps": 1.0, "tau_s": math.inf, "walk_mps_per_rts": 0.02}, 0.0)):
+                          "walk_mps_per_rts": 4.0 * math.sqrt(2 / 300.0),
+                          "walk_down_mps_per_rts": 1.0 * math.sqrt(2 / 300.0)}, -1 / 300.0),
+                        ({"sigma_mps": 4.0, "sigma_down_mps": 1.0, "tau_s": math.inf, "walk_mps_per_rts": 0.02,
+                          "walk_down_mps_per_rts": 0.01}, 0.0)):
         est = ErrorStateKF.from_imu_spec(layout, imu, [], wind=wind)
         F = system_matrix(layout, np.array([0.6]), np.array([300.0]), np.array([[13.0, 1.0, 0.0]]),
                           np.eye(3)[None], np.array([[0.0, 0.0, -9.8]]))
@@ -59,7 +67,8 @@ def test_the_wind_states_model_in_F_and_Q():
             s = layout.slice(block)
             np.testing.assert_allclose(np.diag(F[s, s]), decay)
             assert not F[s, :s.start].any() and not F[:s.start, s].any()      # the INS errors do not see it
-            np.testing.assert_allclose(np.diag(Q[s, s]), wind["walk_mps_per_rts"] ** 2)
+            walk = wind["walk_mps_per_rts" if block == "wind" else "walk_down_mps_per_rts"]
+            np.testing.assert_allclose(np.diag(Q[s, s]), walk ** 2)
         np.testing.assert_allclose(est.noise_sigma0()["wind"], 4.0)
         np.testing.assert_allclose(est.noise_sigma0()["wind_down"], 1.0)
 

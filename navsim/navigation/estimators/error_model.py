@@ -97,8 +97,10 @@ class ProcessNoise:
     accel_markov_tau_s: float
     baro_sigma: float = 0.0
     baro_tau_s: float = 300.0
-    #: the wind's driving noise density, m/s/sqrt(s) (a Markov process: ``sigma sqrt(2 / tau)``)
+    #: the wind's driving noise density, m/s/sqrt(s) (a Markov process: ``sigma sqrt(2 / tau)``),
+    #: horizontal and vertical
     wind_walk: float = 0.0
+    wind_down_walk: float = 0.0
     #: the wind's correlation time, s (``inf``: a random walk)
     wind_tau_s: float = math.inf
 
@@ -155,7 +157,7 @@ def process_noise(layout: Layout, noise: ProcessNoise) -> np.ndarray:
         q[layout.slice("accel_markov")] = 2.0 * noise.accel_markov_sigma ** 2 / noise.accel_markov_tau_s
     if layout.has("baro"):
         q[layout.slice("baro")] = 2.0 * noise.baro_sigma ** 2 / noise.baro_tau_s
-    for block in WIND_AXES:
+    for block, walk in (("wind", noise.wind_walk), ("wind_down", noise.wind_down_walk)):
         if layout.has(block):
-            q[layout.slice(block)] = noise.wind_walk ** 2
+            q[layout.slice(block)] = walk ** 2
     return np.diag(q)

@@ -80,7 +80,7 @@ class ErrorStateKF:
               "noise": obj({"imu": {"type": "string"}, "override": {"type": "object"}}, ["imu"]),
               "baro": obj({"sigma_m": POS, "tau_s": POS}),
               "wind": obj({"model": {"enum": list(WIND_MODELS)}, "sigma_mps": POS, "sigma_down_mps": POS,
-                           "tau_s": POS, "walk_mps_per_rts": POS}, ["sigma_mps"]),
+                           "tau_s": POS, "walk_mps_per_rts": POS, "walk_down_mps_per_rts": POS}, ["sigma_mps"]),
               "measurements": {"type": "array", "items": MEASUREMENT}}
 
     def __init__(self, layout: Layout, noise: ProcessNoise, measurements, period_s: float = 1.0,
@@ -103,13 +103,15 @@ class ErrorStateKF:
         catalog entry of its own: it need not be the spec that corrupted the data); ``wind``
         the wind states' model (:func:`filter_params`' ``wind``)."""
         g, a = imu_spec.gyro, imu_spec.accel
-        w = wind or {"walk_mps_per_rts": 0.0, "tau_s": math.inf, "sigma_mps": 0.0, "sigma_down_mps": 0.0}
+        w = wind or {"walk_mps_per_rts": 0.0, "walk_down_mps_per_rts": 0.0, "tau_s": math.inf, "sigma_mps": 0.0,
+                     "sigma_down_mps": 0.0}
         noise = ProcessNoise(
             gyro_white=g.noise_density, accel_white=a.noise_density,
             gyro_bias_walk=g.random_walk, accel_bias_walk=a.random_walk,
             gyro_markov_sigma=np.maximum(g.markov_sigma, 1e-12), gyro_markov_tau_s=g.markov_tau_s,
             accel_markov_sigma=np.maximum(a.markov_sigma, 1e-12), accel_markov_tau_s=a.markov_tau_s,
-            baro_sigma=baro_sigma_m, baro_tau_s=baro_tau_s, wind_walk=w["walk_mps_per_rts"], wind_tau_s=w["tau_s"])
+            baro_sigma=baro_sigma_m, baro_tau_s=baro_tau_s, wind_walk=w["walk_mps_per_rts"],
+            wind_down_walk=w["walk_down_mps_per_rts"], wind_tau_s=w["tau_s"])
         sigma = {"gyro_bias": np.hypot(g.bias_sigma, g.bias), "accel_bias": np.hypot(a.bias_sigma, a.bias),
                  "gyro_markov": g.markov_sigma, "accel_markov": a.markov_sigma,
                  "baro": np.array([baro_sigma_m]), "wind": np.full(2, w["sigma_mps"]),
@@ -396,8 +398,8 @@ def filter_params(node: Node) -> dict:
 def _wind(node: Node, blocks) -> dict | None:
     """``wind: {model: markov, sigma_mps, tau_s}`` or ``{model: random_walk, sigma_mps,
     walk_mps_per_rts}`` (``sigma_mps`` the wind's std, the initial uncertainty; the vertical
-    block's ``sigma_down_mps``, default ``sigma_mps``), the model of the ``wind`` and
-    ``wind_down`` states; None without one."""
+    block's ``sigma_down_mps`` and, for a random walk, ``walk_down_mps_per_rts``, default the
+    horizontal ones), the model of the ``wind`` and ``wind_down`` states; None without one."""
     wind = node.child("wind", None)
     wanted = [b for b in WIND_AXES if b in blocks]
     if wind is None:
@@ -414,10 +416,13 @@ def _wind(node: Node, blocks) -> dict | None:
            "sigma_down_mps": wind.get("sigma_down_mps", float, sigma, exclusive_minimum=0.0, maximum=MAX_WIND_MPS)}
     if model == "markov":
         tau = wind.get("tau_s", float, exclusive_minimum=0.0, maximum=MAX_TIME_CONSTANT_S)
-        out.update(tau_s=tau, walk_mps_per_rts=sigma * math.sqrt(2.0 / tau))
+        out.update(tau_s=tau, walk_mps_per_rts=sigma * math.sqrt(2.0 / tau),
+                   walk_down_mps_per_rts=out["sigma_down_mps"] * math.sqrt(2.0 / tau))
     else:
-        out.update(tau_s=math.inf, walk_mps_per_rts=wind.get("walk_mps_per_rts", float, exclusive_minimum=0.0,
-                                                             maximum=MAX_WIND_MPS))
+        walk = wind.get("walk_mps_per_rts", float, exclusive_minimum=0.0, maximum=MAX_WIND_MPS)
+        out.update(tau_s=math.inf, walk_mps_per_rts=walk,
+                   walk_down_mps_per_rts=wind.get("walk_down_mps_per_rts", float, walk, exclusive_minimum=0.0,
+                                                  maximum=MAX_WIND_MPS))
     wind.done()
     return out
 

@@ -496,6 +496,9 @@ def check_observed_states(node: Node, blocks, entries: list) -> None:
     if wind and not air:
         raise node.error(f"the '{wind[0]}' state is observed by no measurement", "states",
                          expected="an air_velocity measurement with a wind state (or no wind state)")
+    if wind and len({tuple(e["wind_n_mps"]) for e in air}) > 1:
+        raise node.error("the air_velocity measurements give different wind_n_mps", "measurements",
+                         expected="one wind prior for the one wind state they observe")
     if "pitot_bias" not in blocks:
         return
     if len(air) != 1:
