@@ -38,13 +38,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import block_diag
 
 from navsim.foundations import earth
+from navsim.foundations.transform import dcm_from_quat
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import sample
 from navsim.navigation.estimators.eskf import FEEDBACK
 from navsim.navigation.estimators.error_model import Layout, add_markov_decay, system_matrix
-from navsim.foundations.transform import dcm_from_quat
 from navsim.navigation.strapdown import NavState
 from navsim.sensors.base import Measurements
 from navsim.sensors.registry import LinearError, Motion
@@ -301,7 +302,7 @@ class CovarianceAnalysis:
         """The filter's stacked update at its gain, applied to each source's augmented state."""
         lins = [lin for _, _, lin in models]
         H_f = np.concatenate([lin.H[0] for lin in lins])
-        R_f = _block_diag([lin.R[0] for lin in lins])
+        R_f = block_diag(*[lin.R[0] for lin in lins])
         Pf = self.est.P[0]
         S = H_f @ Pf @ H_f.T + R_f
         Kg = np.linalg.solve(S, H_f @ Pf).T                          # (n_f, M)
@@ -398,12 +399,3 @@ def _nav_variance(P, nav) -> np.ndarray:
     r_m, r_n = earth.radii(lat)
     scale = np.r_[np.ones(6), (r_m + h), (r_n + h) * np.cos(lat), -1.0]
     return np.diagonal(P[:, :9, :9], axis1=1, axis2=2) * scale ** 2
-
-
-def _block_diag(blocks) -> np.ndarray:
-    n = sum(b.shape[0] for b in blocks)
-    out, i = np.zeros((n, n)), 0
-    for b in blocks:
-        out[i:i + b.shape[0], i:i + b.shape[0]] = b
-        i += b.shape[0]
-    return out
