@@ -159,6 +159,7 @@ class _StepTruth:
         self.euler_rad = one(r[:, [P.COL_ROLL, P.COL_PITCH, P.COL_YAW]])
         self.omega_ib_b_rps = r[:, P.COL_PI:P.COL_RI + 1]
         self.f_b_mps2 = r[:, P.COL_FX:P.COL_FZ + 1] / r[:, P.COL_MASS:P.COL_MASS + 1]
+        self.wind_steady_n_mps = one(r[:, P.COL_WSN:P.COL_WSD + 1])
 
 
 @dataclass
@@ -384,6 +385,7 @@ def _step_run(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, s: State, g
                               runner.index - 1 if runner.finished else runner.index)
     c.io.set_controls(*c.ap.step(fleet.dt, row[P.COL_TAS], s.h, climb, roll, pitch, row[P.COL_P], row[P.COL_Q],
                                  row[P.COL_BETA], s.course))
+    c.set_wind_at(t + fleet.dt)
     c.io.run()
 
 

@@ -367,7 +367,9 @@ class _Recorder:
                         for name, s in (("gyro_bias_sigma", sol.gyro_bias_sigma),
                                         ("accel_bias_sigma", sol.accel_bias_sigma))})
         if sol.wind_n_mps is not None:
-            row.update(wind_n_mps=np.array(sol.wind_n_mps, float), wind_sigma_mps=np.array(sol.wind_sigma_mps, float))
+            wind = np.array(sol.wind_n_mps, float)
+            row.update(wind_n_mps=wind, wind_sigma_mps=np.array(sol.wind_sigma_mps, float),
+                       wind_err_mps=wind - truth.wind_steady_n_mps[k])
         if nees is not None:
             row.update(nees=nees, sigma=sig)
         for name, v in row.items():

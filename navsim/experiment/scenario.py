@@ -254,7 +254,7 @@ def _check_start(track, environment, file) -> None:
 
 def check_scenario(scenario: Scenario, duration_s: float) -> None:
     """The checks that need the whole scenario and its flight's duration: every time window
-    (sensor faults, ``metrics.settle_s``, the metric windows) within the flight (a closed-loop
+    (sensor faults, the wind's changes, ``metrics.settle_s``, the metric windows) within the flight (a closed-loop
     flight's: up to ``closed_loop.time_limit_s``, where its navigation may take it), each
     estimator's period a whole number of IMU steps, each measurement's ``field`` one its sensor
     produces.
@@ -276,6 +276,11 @@ def check_scenario(scenario: Scenario, duration_s: float) -> None:
         raise ScenarioError(f"is {scenario.settle_s:g} s, not before the end of the flight ({last_s:.0f} s)",
                             file=file, key="metrics.settle_s",
                             expected=f"a time within the flight (0-{last_s:.0f} s)")
+    for i, (t, _) in enumerate(scenario.flight.environment.wind_changes):
+        if t >= last_s:
+            raise ScenarioError(f"is {t:g} s, after the end of the flight ({last_s:.6g} s)", file=file,
+                                key=f"environment.wind_changes[{i}].at_s",
+                                expected=f"a time within the flight (0 to {last_s:.6g} s)")
     for i, (name, a, b) in enumerate(scenario.windows):
         for key, t, end in (("start_s", a, last_s), ("end_s", b, last_s + 1e-6)):
             if t >= end:

@@ -115,11 +115,12 @@ def _track() -> dict:
 
 
 def _environment() -> dict:
-    """``environment``: wind, turbulence, surface height."""
+    """``environment``: wind (and its changes), turbulence, surface height."""
+    wind = {"speed_mps": {**WIND, "minimum": 0}, "from_deg": NUM, "force": {"type": "integer", "minimum": 0, "maximum": 6},
+            "north_mps": WIND, "east_mps": WIND, "down_mps": WIND}
     return obj({
-        "wind": obj({"speed_mps": {**WIND, "minimum": 0}, "from_deg": NUM,
-                      "force": {"type": "integer", "minimum": 0, "maximum": 6},
-                      "north_mps": WIND, "east_mps": WIND, "down_mps": WIND}),
+        "wind": obj(wind),
+        "wind_changes": {"type": "array", "minItems": 1, "items": obj({**wind, "at_s": TIME}, ["at_s"])},
         "turbulence": obj({"type": {"enum": ["none", "milspec", "tustin"]}, "wind20_mps": NUM,
                             "severity": {"type": "integer", "minimum": 0, "maximum": 7},
                             "seed": {"type": "integer", "minimum": 0, "maximum": MAX_TURBULENCE_SEED}}),

@@ -57,13 +57,16 @@ RAW_PROPERTIES: tuple[tuple[str, float], ...] = (
     ("velocities/r-rad_sec", 1.0),
     ("fcs/throttle-pos-norm", 1.0),
     ("propulsion/engine/propeller-rpm", 1.0),
+    ("atmosphere/wind-north-fps", FT_TO_M),
+    ("atmosphere/wind-east-fps", FT_TO_M),
+    ("atmosphere/wind-down-fps", FT_TO_M),
 )
 RAW_NAMES = tuple(name for name, _ in RAW_PROPERTIES)
 RAW_TO_SI = tuple(factor for _, factor in RAW_PROPERTIES)
 (COL_LAT, COL_LON, COL_H, COL_VN, COL_VE, COL_VD, COL_ROLL, COL_PITCH, COL_YAW,
  COL_PI, COL_QI, COL_RI, COL_FX, COL_FY, COL_FZ, COL_MASS, COL_TAS, COL_CAS, COL_PS, COL_PT,
  COL_TEMP, COL_HAGL, COL_TERRAIN, COL_WN, COL_WE, COL_WD, COL_ALPHA, COL_BETA,
- COL_P, COL_Q, COL_R, COL_THROTTLE, COL_RPM) = range(len(RAW_PROPERTIES))
+ COL_P, COL_Q, COL_R, COL_THROTTLE, COL_RPM, COL_WSN, COL_WSE, COL_WSD) = range(len(RAW_PROPERTIES))
 
 # --- properties written ------------------------------------------------------------------------
 ELEVATOR_CMD_NORM = "fcs/elevator-cmd-norm"

@@ -18,7 +18,7 @@ import yaml
 
 from navsim.flight import properties as P
 from navsim.flight.autopilot import Autopilot, Gains
-from navsim.flight.environment import Environment
+from navsim.flight.environment import Environment, steady_wind_n_mps
 from navsim.flight.segments import Limits, SegmentRunner, State
 from navsim.flight.track import Track, nominal_duration_s
 from navsim.flight.truth import Truth, truth_from_rows
@@ -27,6 +27,8 @@ from navsim.foundations.errors import FlightError
 
 SETTLE_S = 30.0          #: air start: seconds flown before the track to settle the trim
 SPINUP_S = 2.0           #: seconds the motor runs up with the airframe held
+#: how long a steady wind above the airspeed is flown before the flight fails, s
+WIND_PERSIST_S = 10.0
 STALL_PERSIST_S = 1.0    #: alpha above stall for this long is a stall
 MAX_ROLL_RAD = math.radians(75.0)
 MAX_PITCH_RAD = math.radians(50.0)
@@ -116,6 +118,12 @@ class Aircraft:
         """North and east (m) of a latitude and longitude (rad) from the track's start."""
         return (lat - self.lat0) * self.k_north, (lon - self.lon0) * self.k_east
 
+    def set_wind_at(self, t_s: float) -> None:
+        """The steady wind of the time ``t_s`` (:func:`steady_wind_n_mps`), where it changes."""
+        env = self.config.environment
+        if env.wind_changes:
+            self.io.set_wind_ned(steady_wind_n_mps(env, t_s))
+
     def start_turbulence(self) -> None:
         env = self.config.environment
         self.io.set_turbulence(env.turbulence, env.turbulence_wind20_mps, env.turbulence_severity,
@@ -125,12 +133,14 @@ class Aircraft:
 
 class Watchdog:
     """The failure checks of every step, on the true state: NaN, ground or sea impact, stall
-    (angle of attack above the stall for :data:`STALL_PERSIST_S`), loss of control."""
+    (angle of attack above the stall for :data:`STALL_PERSIST_S`), loss of control, a steady
+    wind above the airspeed (for :data:`WIND_PERSIST_S`: the aircraft cannot make way)."""
 
     def __init__(self, limits: Limits, dt: float):
         self.stall_alpha = math.radians(limits.stall_alpha_deg + 1.0)
         self.stall_steps = int(round(STALL_PERSIST_S / dt))
-        self.over_alpha = 0
+        self.wind_steps = int(round(WIND_PERSIST_S / dt))
+        self.over_alpha = self.over_wind = 0
 
     def check(self, row, ground_ok: bool = False, stall_ok: bool = False) -> str | None:
         """The reason the flight failed at this ``row``, or None. ``ground_ok``: skip the
@@ -150,7 +160,19 @@ class Watchdog:
         if abs(row[P.COL_ROLL]) > MAX_ROLL_RAD or abs(row[P.COL_PITCH]) > MAX_PITCH_RAD:
             return (f"loss of control (roll {math.degrees(row[P.COL_ROLL]):.0f} deg, "
                     f"pitch {math.degrees(row[P.COL_PITCH]):.0f} deg)")
-        return None
+        return self._headwind(row)
+
+    def _headwind(self, row) -> str | None:
+        """The failure of a steady wind above the airspeed for :data:`WIND_PERSIST_S`, or None."""
+        wind = math.hypot(row[P.COL_WSN], row[P.COL_WSE])
+        if wind <= row[P.COL_TAS]:
+            self.over_wind = 0
+            return None
+        self.over_wind += 1
+        if self.over_wind < self.wind_steps:
+            return None
+        return (f"the steady wind ({wind:.1f} m/s) is above the airspeed ({row[P.COL_TAS]:.1f} m/s) "
+                f"for {WIND_PERSIST_S:g} s: the aircraft cannot make way against it")
 
 
 def fly(config: FlightConfig | Track, progress=None) -> Truth:
@@ -207,6 +229,7 @@ def _fly_track(craft: Aircraft, rec: _Recorder, progress) -> None:
                                       row[P.COL_PITCH], row[P.COL_P], row[P.COL_Q],
                                       row[P.COL_BETA], state.course)
         set_controls(elev, ail, rud, thr)
+        craft.set_wind_at(t + dt)
         run()
         k += 1
 

@@ -20,6 +20,7 @@ temp_k             (N,)         static air temperature, K
 h_agl_m            (N,)         height above the terrain or sea surface, m
 terrain_m          (N,)         terrain / sea-surface height above the ellipsoid, m
 wind_n_mps         (N, 3)       air-mass velocity (steady wind plus turbulence), NED, m/s
+wind_steady_n_mps  (N, 3)       its steady part (the scenario's wind, changing as it sets), m/s
 alpha_rad, beta_rad (N,)        angle of attack and sideslip, rad
 throttle           (N,)         throttle position, 0..1
 segment            (N,)         index of the active track segment (-1 during the launch)
@@ -43,7 +44,7 @@ from navsim.foundations.transform import dcm_from_quat, quat_from_euler
 
 ARRAY_FIELDS = ("t_s", "lat_rad", "lon_rad", "h_m", "vel_n_mps", "quat_nb", "euler_rad",
                 "omega_ib_b_rps", "f_b_mps2", "tas_mps", "cas_mps", "p_static_pa", "p_total_pa",
-                "temp_k", "h_agl_m", "terrain_m", "wind_n_mps", "alpha_rad", "beta_rad",
+                "temp_k", "h_agl_m", "terrain_m", "wind_n_mps", "wind_steady_n_mps", "alpha_rad", "beta_rad",
                 "throttle", "segment")
 #: what :meth:`Truth.save` writes of a truth: the arrays, the segment labels, the meta (JSON)
 _CONTENT = (*ARRAY_FIELDS, "segment_labels", "meta")
@@ -82,6 +83,7 @@ class Truth:
     h_agl_m: np.ndarray
     terrain_m: np.ndarray
     wind_n_mps: np.ndarray
+    wind_steady_n_mps: np.ndarray
     alpha_rad: np.ndarray
     beta_rad: np.ndarray
     throttle: np.ndarray
@@ -172,7 +174,8 @@ class Truth:
             omega_ib_b_rps=np.tile(C_bn @ w_n, (n, 1)), f_b_mps2=np.tile(-(C_bn @ g_n), (n, 1)),
             tas_mps=0 * ones, cas_mps=0 * ones, p_static_pa=p * ones, p_total_pa=p * ones,
             temp_k=float(atmosphere.temperature(h_m)) * ones, h_agl_m=hagl,
-            terrain_m=h_m - hagl, wind_n_mps=np.zeros((n, 3)), alpha_rad=0 * ones,
+            terrain_m=h_m - hagl, wind_n_mps=np.zeros((n, 3)), wind_steady_n_mps=np.zeros((n, 3)),
+            alpha_rad=0 * ones,
             beta_rad=0 * ones, throttle=0 * ones, segment=np.zeros(n, np.int16),
             segment_labels=["static"], meta={"rate_hz": rate_hz, "track": "static"})
 
@@ -209,6 +212,7 @@ def truth_from_rows(rows: np.ndarray, t_s: np.ndarray, segment: np.ndarray,
         h_agl_m=r[:, P.COL_HAGL].copy(),
         terrain_m=r[:, P.COL_TERRAIN].copy(),
         wind_n_mps=r[:, P.COL_WN:P.COL_WD + 1].copy(),
+        wind_steady_n_mps=r[:, P.COL_WSN:P.COL_WSD + 1].copy(),
         alpha_rad=r[:, P.COL_ALPHA].copy(),
         beta_rad=r[:, P.COL_BETA].copy(),
         throttle=r[:, P.COL_THROTTLE].copy(),

@@ -52,6 +52,8 @@ class EstimatorHistory:
     #: 1-sigma, where the estimator has a wind state
     wind_n_mps: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "m/s", default=None)
     wind_sigma_mps: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "m/s", default=None)
+    #: the estimate minus the truth's steady wind (``Truth.wind_steady_n_mps``: the gusts left out)
+    wind_err_mps: np.ndarray | None = _array(_RUN_EPOCH_AXIS, "m/s", default=None)
     #: CPU seconds spent in ``propagate`` and in the epochs (predict + corrections), summed over
     #: the batches, and the number of runs and filter epochs they covered
     #: (:func:`~navsim.records.cost.sum_cost`); the seconds compiling kernels inside those calls

@@ -227,6 +227,18 @@ class SpreadStats(_Record):
 
 
 @dataclass(frozen=True)
+class WindStats(_Record):
+    """The wind estimate's error against the truth's steady wind (the scenario's, changing as it
+    sets), m/s, horizontal, from the settling time on (score from 60 s after the first GNSS
+    fix with ``settle_s``): ``rms_mps`` over the runs and epochs, ``final_mps`` the RMS over the
+    runs of the last epoch's; ``rms_axes_mps`` per axis N, E, D (None on an axis not estimated)."""
+
+    rms_mps: float
+    final_mps: float
+    rms_axes_mps: list[float | None]
+
+
+@dataclass(frozen=True)
 class Landmarks(_Record):
     """Landmark fixes: the share of (run, sighting, axis) within 3 sigma, the largest ratio, the
     RMS error after the sightings and before them (the growth between them)."""
@@ -264,6 +276,7 @@ class EstimatorMetrics(_Record):
     nees: Nees | None = None
     nis: dict[str, Nis] | None = None
     landmarks: Landmarks | None = None
+    wind: WindStats | None = None          #: with a wind state: its error (estimate - steady wind)
     #: the 95 % intervals of the metrics, the runs as the samples, in the mapping's shape
     #: (``ci95.rms.pos_m`` is ``[[lo, hi]] * 3`` for ``rms.pos_m``; :meth:`interval`); NaN
     #: (JSON null) where a metric has none: a maximum, fewer than two runs

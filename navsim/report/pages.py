@@ -3,7 +3,7 @@
 Each source (:data:`PAGE_SOURCES`) is a function of a :class:`~navsim.report.figures.ReportInput`
 returning its :class:`~navsim.report.figures.Page` objects, none where it has nothing to show:
 the summary and the metrics windows (text pages), the scenario as run, the flight, the closed
-loop, then the figures by topic (errors, height, landmarks, attitude, consistency, biases,
+loop, then the figures by topic (errors, the windows' drift, height, landmarks, attitude, consistency, biases,
 wind, calibration), each in a module of its own. Every statistic a page prints is read from the
 scorer's :class:`~navsim.records.metrics.RunMetrics` (the numbers of ``metrics.json``); the
 curves are drawn from the runs' histories. :func:`report_pages` puts a contents page first and
@@ -20,7 +20,7 @@ from typing import Callable
 from navsim.flight.plots import flight_figures
 from navsim.foundations.outputs import OutputFolder
 from navsim.report import attitude, biases, calibration, closed_loop, consistency, errors, height, landmarks
-from navsim.report import scenario_page, wind
+from navsim.report import drift, scenario_page, wind
 from navsim.records.run import RunRecord
 from navsim.report.figures import FIGURE_IN, FOOTER_IN, Page, ReportInput, pyplot
 from navsim.report.render import render
@@ -75,6 +75,7 @@ PAGE_SOURCES: tuple[PageSource, ...] = (
     PageSource("flight", flight),
     PageSource("closed_loop", closed_loop.pages),
     PageSource("errors", _with_histories(errors.pages)),
+    PageSource("drift", _with_histories(drift.pages)),
     PageSource("height", _with_histories(height.pages)),
     PageSource("landmarks", _with_histories(landmarks.pages)),
     PageSource("attitude", _with_histories(attitude.pages)),

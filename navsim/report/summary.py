@@ -211,6 +211,21 @@ def landmarks(metrics: RunMetrics) -> Section | None:
                    ["estimator", "sightings", "before\nm", "after\nm", "max\n|e|/sigma", "inside\n3 sigma"], rows)
 
 
+def wind(metrics: RunMetrics) -> Section | None:
+    """The wind estimate's error against the true steady wind, for each estimator with a wind state."""
+    ci = lambda m, k: m.interval(f"wind.{k}")
+    rows = [[label, with_interval(m.wind.rms_mps, ci(m, "rms_mps")), with_interval(m.wind.final_mps, ci(m, "final_mps")),
+             " ".join("-" if v is None else num(v) for v in m.wind.rms_axes_mps)]
+            for label, m in metrics.estimators.items() if m.wind]
+    if not rows:
+        return None
+    return Section("Wind estimate",
+                   "The estimated wind minus the true steady wind (the gusts left out), m/s, from the settling time "
+                   "on: horizontal RMS over runs and epochs and at the last epoch, with their 95 % intervals over "
+                   "the runs, and the RMS per axis (-: not estimated).",
+                   ["estimator", "horizontal\nRMS", "at the end", "RMS\nN E D"], rows)
+
+
 def closed_loop(m: dict | None) -> Section | None:
     r = m and m.get("return_to_land")
     if not r:
@@ -272,7 +287,7 @@ def windows(metrics: RunMetrics, spans=()) -> list[Section]:
 def sections(metrics: RunMetrics, scenario) -> list[Section]:
     """Every section of the summary, in order (the windows after the rest)."""
     out = [results(metrics, scenario.settle_s), intervals(metrics), paper_checks(metrics, scenario.reference), consistency(metrics),
-           divergence(metrics), attitude(metrics), landmarks(metrics), closed_loop(metrics.closed_loop)]
+           divergence(metrics), attitude(metrics), landmarks(metrics), wind(metrics), closed_loop(metrics.closed_loop)]
     return [s for s in out if s is not None]
 
 

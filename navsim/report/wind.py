@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.flight.environment import steady_wind_n_mps
 from navsim.report.figures import Page, ReportInput, head, nanmean, page_figure, pyplot, shade, slug
 
 #: the runs drawn beside the mean on a wind page
@@ -13,9 +14,10 @@ MAX_WIND_PAGES = 4
 _AXES = ("north", "east", "down")
 
 
-def _axis(ax, h, j: int, steady: float, gusty, truth_t, spans, colours) -> None:
+def _axis(ax, h, j: int, steady, gusty, truth_t, spans, colours) -> None:
     """One axis of the wind: the mean estimate over the runs with its mean ±1σ band, the first
-    runs thin, the true steady wind (dashed) and the air mass's velocity with its gusts (grey)."""
+    runs thin, the true steady wind at the epochs (dashed) and the air mass's velocity with its
+    gusts (grey)."""
     est, sig = h.wind_n_mps[..., j], h.wind_sigma_mps[..., j]
     shade(ax, spans, label=j == 0)
     if gusty is not None:
@@ -25,7 +27,7 @@ def _axis(ax, h, j: int, steady: float, gusty, truth_t, spans, colours) -> None:
     for r in range(min(WIND_RUNS, est.shape[0])):
         ax.plot(h.t_s, est[r], color=colours[r], lw=0.6, alpha=0.8)
     ax.plot(h.t_s, mean, color="tab:blue", lw=1.4)
-    ax.axhline(steady, color="k", lw=1.0, ls="--")
+    ax.plot(h.t_s, steady, color="k", lw=1.0, ls="--")
     ax.set_ylabel(f"wind {_AXES[j]}, m/s", fontsize=8)
     ax.grid(alpha=0.3)
     lo, hi = np.nanpercentile(np.r_[mean - s, mean + s, steady], [1, 99])
@@ -40,7 +42,7 @@ def pages(inp: ReportInput) -> list[Page]:
     filters = [(k, h) for k, h in inp.histories.items() if h.wind_n_mps is not None][:MAX_WIND_PAGES]
     if not filters:
         return []
-    steady = np.asarray(inp.scenario.flight.environment.wind_n_mps, float)
+    env = inp.scenario.flight.environment
     colours = pyplot().cm.tab10(np.arange(10) + 1)
     handles = [Line2D([], [], color="tab:blue", lw=1.4, label="estimate, mean over the runs (band: mean ±1σ)"),
                Line2D([], [], color="0.4", lw=0.6, label=f"the first {WIND_RUNS} runs"),
@@ -53,9 +55,10 @@ def pages(inp: ReportInput) -> list[Page]:
         if inp.truth is not None and inp.truth.wind_n_mps is not None:
             idx = np.clip(np.searchsorted(inp.truth.t_s, h.t_s - 1e-9), 0, inp.truth.n - 1)
             gusty, truth_t = inp.truth.wind_n_mps[idx], inp.truth.t_s[idx]
+        steady = np.array([steady_wind_n_mps(env, t) for t in h.t_s])
         fig, axs = page_figure(len(axes), 1, sharex=True, squeeze=False)
         for ax, j in zip(axs[:, 0], axes):
-            _axis(ax, h, j, steady[j], gusty, truth_t, inp.spans, colours)
+            _axis(ax, h, j, steady[:, j], gusty, truth_t, inp.spans, colours)
         axs[-1, 0].set_xlabel("time, s")
         title = f"{label}: the estimated wind against the true wind"
         head(fig, title, handles, 2)

@@ -20,6 +20,7 @@ import warnings
 
 import numpy as np
 
+from navsim.records.metrics import WindStats
 from navsim.records.samples import EstimatorSamples, MetricSamples
 from navsim.scoring.intervals import (
     MIN_RUNS,
@@ -93,6 +94,27 @@ class RunSamples:
             for key, nis in h.nis.items():
                 self._b(("nis", key)).add(w, nis[good][:, c.after])
 
+    def add_wind(self, err) -> None:
+        """Feed the wind estimate's errors ``(B, epochs, 3)`` from the settling time on (NaN on
+        an axis not estimated; a closed-loop run's records end at its landing)."""
+        hor2 = np.sum(err[..., :2] ** 2, axis=-1)
+        finite = np.isfinite(hor2)
+        last = hor2.shape[1] - 1 - np.argmax(finite[:, ::-1], axis=1)
+        end = np.where(finite.any(axis=1), hor2[np.arange(len(last)), last], np.nan) if hor2.shape[1] else hor2[:, :0]
+        self._s("wind_axes", 1).add(err ** 2)
+        self._s("wind_hor").add(hor2)
+        self._s("wind_end").add(np.reshape(end, (-1, 1)))
+
+    def wind(self) -> WindStats | None:
+        """The wind estimate's error (:class:`~navsim.records.metrics.WindStats`), None without one."""
+        if "wind_hor" not in self.sums:
+            return None
+        mean = lambda key: np.sum(self.sums[key].arrays()[0], axis=0) / np.sum(self.sums[key].arrays()[1], axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            axes = np.sqrt(mean("wind_axes"))
+            return WindStats(float(np.sqrt(mean("wind_hor"))), float(np.sqrt(mean("wind_end"))),
+                             [float(a) if np.isfinite(a) else None for a in axes])
+
     def add_normalised(self, z2) -> None:
         """Feed the squared normalised errors ``(e / sigma)^2``, ``(B, epochs, 9)``."""
         self._s("nsq", 1).add(z2)
@@ -111,6 +133,8 @@ class RunSamples:
             m["nees.average"] = (self.sums["nees_run"], False)
         if "nsq" in self.sums:
             m["nees.per_state"] = (self.sums["nsq"], False)
+        if "wind_hor" in self.sums:
+            m.update({"wind.rms_mps": (self.sums["wind_hor"], True), "wind.final_mps": (self.sums["wind_end"], True)})
         for key in self.sums:
             if key[0] == "wsq":
                 m[f"windows.{key[1]}.{key[2]}.rms"] = (self.sums[key], True)
@@ -144,6 +168,11 @@ class RunSamples:
             out.setdefault("nees", {}).update(self._nees(t_s, settle_s, bands["nees"]))
             out["nis"] = self._nis({k[1]: v for k, v in bands.items() if k != "nees"})
         out["windows"] = {name: self._window(name, t_s, good, a, b) for name, a, b in self.windows}
+        if "wind_hor" in self.sums:
+            s, n = self.sums["wind_axes"].arrays()
+            out["wind"] = {"rms_mps": _sqrt(mean_square_interval(*self.sums["wind_hor"].arrays())),
+                           "final_mps": _sqrt(mean_square_interval(*self.sums["wind_end"].arrays())),
+                           "rms_axes_mps": [_sqrt(mean_square_interval(s[:, j], n[:, j])) for j in range(3)]}
         return out
 
     def _window(self, name: str, t_s, good: int, a: float, b: float) -> dict:

@@ -234,6 +234,8 @@ class EstimatorScore:
             self.resets = (self.resets or []) + [r for r, g in zip(h.resets, good) if g]
         self.costs.append(h.cost)
         self._window_sums(c)
+        if h.wind_err_mps is not None:
+            self.samples.add_wind(h.wind_err_mps[good][:, c.after])
         if h.sigma is not None:
             e = np.concatenate([getattr(h, BLOCK_ERRORS[block]) for block in BLOCKS], -1)[good][:, c.after]
             with np.errstate(invalid="ignore", divide="ignore"):
@@ -287,7 +289,8 @@ class EstimatorScore:
             final=ErrorStats(*(np.sqrt(np.nanmean(f ** 2, axis=0)).tolist() for f in fin)),
             resets=None if self.resets is None else reset_metrics(self.resets),
             cost=cost_metrics(sum_cost(self.costs)),
-            windows={name: self._window(name, a, b) for name, a, b in self.windows})
+            windows={name: self._window(name, a, b) for name, a, b in self.windows},
+            wind=self.samples.wind())
         if self.has_euler:
             out["attitude"] = AttitudeStats([p(("att_p95", j)) for j in range(3)],
                                             np.sqrt(acc["e_sq"].mean()).tolist(), acc["e_max"].value(3).tolist(),

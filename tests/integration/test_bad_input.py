@@ -14,6 +14,7 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -378,6 +379,22 @@ def test_run_on_an_unflyable_track_saves_the_part_flown(workdir, capsys):
     flight = workdir / "out" / "flight"
     assert (flight / "truth.npz").stat().st_size > 0 and (flight / "flight_time.png").stat().st_size > 0
     assert json.loads((flight / "run.json").read_text())["failure"]
+
+
+def test_a_wind_above_the_airspeed_fails_the_flight_and_saves_it(workdir, capsys):
+    """A 20 m/s wind against a 14 m/s aircraft (issue 35): the flight cannot be flown, exit 3, the
+    part flown (10 s of it) saved with its steady wind recorded."""
+    (workdir / "case").mkdir()
+    (workdir / "case" / S).write_text(scenario(
+        track={"start": {"lat_deg": 37.0, "lon_deg": 118.0, "alt_m": 300, "speed_mps": 14},
+               "segments": [{"type": "straight", "time_s": 60}]},
+        environment={"wind": {"speed_mps": 20, "from_deg": 90}}))
+    assert call(RUN + ["--out", "out"]) == 3
+    err = capsys.readouterr().err
+    assert "steady wind (20.0 m/s) is above the airspeed" in err and "Traceback" not in err
+    with np.load(workdir / "out" / "flight" / "truth.npz") as truth:
+        assert 9.0 < truth["t_s"][-1] < 11.0
+        np.testing.assert_allclose(truth["wind_steady_n_mps"][-1], [0.0, -20.0, 0.0], atol=1e-9)
 
 
 def test_no_run_succeeding_is_an_error_that_shows_why(workdir, capsys, monkeypatch):

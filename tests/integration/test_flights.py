@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from navsim.flight import FlightConfig, Truth, fly, load_track, parse_track
-from navsim.flight.environment import Environment
+from navsim.flight.environment import Environment, parse_environment, steady_wind_n_mps
 from navsim.foundations import earth
 from navsim.foundations.errors import FlightError
 from navsim.foundations.transform import dcm_from_quat, quat_from_rotvec, quat_multiply
@@ -190,6 +190,32 @@ def test_wind_and_turbulence():
         turbulence="milspec", turbulence_wind20_mps=5.0, turbulence_severity=3, turbulence_seed=4)))
     assert np.std(t1.wind_n_mps[:, 0]) > 0.1
     assert not np.allclose(t1.wind_n_mps, t2.wind_n_mps)           # the seed picks the gusts
+
+
+def test_a_veering_strengthening_wind_and_a_gust_front_are_flown_and_recorded():
+    """The steady wind goes through its changes (veering 270 -> 330 deg and strengthening 4.4 ->
+    9.35 m/s over 20 s, then a gust front: 3 m/s more in 3 s); the truth records it, the
+    turbulence about it, and the aircraft holds its course through it."""
+    env = parse_environment({"wind": {"force": 3, "from_deg": 270},
+                             "wind_changes": [{"at_s": 10, "force": 3, "from_deg": 270},
+                                              {"at_s": 30, "force": 5, "from_deg": 330},
+                                              {"at_s": 40, "force": 5, "from_deg": 330},
+                                              {"at_s": 43, "speed_mps": 12.35, "from_deg": 330}],
+                             "turbulence": {"type": "milspec", "wind20_mps": 5.0, "severity": 3, "seed": 3}})
+    track = parse_track({**SHORT, "segments": [{"type": "straight", "time_s": 60}]})
+    truth = fly(FlightConfig(track=track, environment=env))
+    want = np.array([steady_wind_n_mps(env, t) for t in truth.t_s])
+    np.testing.assert_allclose(truth.wind_steady_n_mps, want, atol=1e-9)
+    speed = np.hypot(want[:, 0], want[:, 1])
+    at = lambda t: int(round(t / truth.dt_s))
+    assert speed[at(5)] == pytest.approx(4.4) and speed[at(20)] == pytest.approx(0.5 * (4.4 + 9.35))
+    np.testing.assert_allclose(want[at(20)] / speed[at(20)], [-np.cos(np.radians(300)), -np.sin(np.radians(300)), 0],
+                               atol=1e-12)                               # veered the shorter way, through 300
+    assert speed[at(41.5)] == pytest.approx(9.35 + 1.5) and speed[at(50)] == pytest.approx(12.35)
+    gusts = truth.wind_n_mps - truth.wind_steady_n_mps
+    assert 0.1 < np.std(gusts[:, 0]) < 3.0 and abs(np.mean(gusts[:, 0])) < 1.0
+    course = np.degrees(np.arctan2(truth.vel_n_mps[:, 1], truth.vel_n_mps[:, 0]))
+    assert np.abs(course[at(10):]).max() < 15.0          # the track is north: held through the front
 
 
 @pytest.mark.parametrize("segments, words", [

@@ -32,7 +32,7 @@ def _at_rest(duration_s: float, rate_hz: float = 100.0) -> Truth:
     data.update(t_s=np.arange(n) / rate_hz, lat_rad=np.full(n, LAT), h_m=np.full(n, H),
                 vel_n_mps=np.zeros((n, 3)), quat_nb=np.tile([1.0, 0, 0, 0], (n, 1)), euler_rad=np.zeros((n, 3)),
                 omega_ib_b_rps=np.tile(w_ie, (n, 1)), f_b_mps2=np.tile([0.0, 0.0, -G], (n, 1)),
-                wind_n_mps=np.zeros((n, 3)), segment=np.zeros(n, int))
+                wind_n_mps=np.zeros((n, 3)), wind_steady_n_mps=np.zeros((n, 3)), segment=np.zeros(n, int))
     return Truth(**data, segment_labels=["rest"], meta={"rate_hz": rate_hz})
 
 

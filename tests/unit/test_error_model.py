@@ -156,7 +156,10 @@ FD_CASES = {
                      FdCase("no_vanes", {"sensor": "ads", "model": "p0_ads", "angle_sigma_deg": 4.0}),
                      FdCase("pitot_bias", _VANES, PRESETS["p3_15"] + ("pitot_bias",), {"pitot_bias": _pitot_bias}),
                      FdCase("wind", {**_VANES, "turbulence_sigma_mps": 1.5}, PRESETS["p3_15"] + ("wind", "wind_down"),
-                            {"wind": _wind((0, 1)), "wind_down": _wind((2,))})],
+                            {"wind": _wind((0, 1)), "wind_down": _wind((2,))}),
+                     FdCase("wind_gust", {**_VANES, "turbulence_sigma_mps": 1.5},
+                            PRESETS["p3_15"] + ("wind", "gust", "gust_down"),
+                            {"wind": _wind((0, 1)), "gust": _wind((0, 1)), "gust_down": _wind((2,))})],
     "gnss_horizontal": [FdCase("", {"sensor": "gps", "sigma_m": [1.0, 2.0, 3.0]})],
     "gnss_position": [FdCase("", {"sensor": "gps", "sigma_m": [1.0, 2.0, 3.0]})],
     "height": [FdCase("baro", {"sensor": "baro", "sigma_m": 1.0}),
@@ -172,7 +175,7 @@ FD_CASES = {
 }
 #: the finite-difference step of each state block's components
 FD_STEPS = {"att": [1e-6] * 3, "vel": [1e-3] * 3, "pos": [1e-8, 1e-8, 1e-2], "baro": [1e-2], "pitot_bias": [0.5],
-            "wind": [1e-3] * 2, "wind_down": [1e-3]}
+            "wind": [1e-3] * 2, "wind_down": [1e-3], "gust": [1e-3] * 2, "gust_down": [1e-3]}
 
 
 def _fd_params():
@@ -222,6 +225,19 @@ def test_H_matches_finite_differences(mtype, case):
     m = H.shape[1]
     assert (valid is None or np.all(valid)) and R.shape == (1, m, m)
     assert np.allclose(R[0], R[0].T) and np.all(np.linalg.eigvalsh(R[0]) > 0), R[0]
+
+
+@pytest.mark.parametrize("blocks, white", [((), [1, 1, 1]), (("gust",), [0, 0, 1]),
+                                           (("gust", "gust_down"), [0, 0, 0])])
+def test_a_gust_state_takes_the_gusts_out_of_R(blocks, white):
+    """The air-velocity R with ``turbulence_sigma_mps`` less R without it: the gusts' variance
+    on every axis no gust state carries (N, E: ``gust``; D: ``gust_down``), nothing elsewhere."""
+    lat, lon, h, v, C, _, _ = nominal()
+    values, meta = sensor_values()
+    layout = Layout(PRESETS["p3_15"] + ("wind",) + blocks)
+    R = [unpack(_model_of("air_velocity", FdCase("", {**_VANES, "turbulence_sigma_mps": t}))[1].model(
+         nav(lat, lon, h, v, C), layout, FakeData(values, meta), 0))[2][0] for t in (0.0, 2.0)]
+    np.testing.assert_allclose(R[1] - R[0], 4.0 * np.diag(white), atol=1e-12)
 
 
 def test_every_finite_difference_case_is_a_registered_type():

@@ -71,7 +71,7 @@ class _Stub:
 def test_the_recorder_fills_every_declared_epoch_array():
     B, one = 2, lambda *shape: np.zeros((1, *shape))
     truth = SimpleNamespace(lat_rad=one() + 0.8, lon_rad=one(), h_m=one() + 100, vel_n_mps=one(3),
-                            euler_rad=one(3), quat_nb=np.array([[1.0, 0, 0, 0]]))
+                            euler_rad=one(3), quat_nb=np.array([[1.0, 0, 0, 0]]), wind_steady_n_mps=one(3))
     driver = Driver({"stub": _Stub()}, 0.1, B)
     assert list(driver.rec["stub"].records) == list(EPOCH_ARRAYS)      # one list per declared array
     driver.start(state_from_truth(truth, 0, B), {}, truth, 0)

@@ -1,5 +1,6 @@
-"""The ES-KF's wind state (issue 35): its scenario keys refused when malformed, its model in F
-and Q, and the MIL-HDBK-1797 gust intensities the air-velocity measurement's R takes."""
+"""The ES-KF's wind and gust states (issue 35): their scenario keys refused when malformed,
+their models in F and Q, the gusts leaving R where a state carries them, and MIL-HDBK-1797's
+gust intensities and scale lengths."""
 
 import math
 
@@ -7,7 +8,9 @@ import numpy as np
 import pytest
 import yaml
 
-from navsim.flight.environment import turbulence_sigma_mps
+from navsim.flight.environment import (parse_environment, steady_wind_n_mps, turbulence_scale_m,
+                                       turbulence_sigma_mps, wind_from)
+from navsim.foundations.errors import ScenarioError
 from navsim.navigation.estimators.error_model import Layout, PRESETS, add_markov_decay, process_noise, system_matrix
 from navsim.navigation.estimators.eskf import ErrorStateKF
 from navsim.sensors.catalog import load_spec
@@ -43,6 +46,15 @@ def _scenario(repo_root, **wind_entry):
     ({"measurements": [{"type": "gnss_position", "sensor": "bd", "sigma_m": [8, 8, 8]}],
       "states": ["att", "vel", "pos", "gyro_bias", "accel_bias", "wind"]}, "estimators[0].states",
      "observed by no measurement"),
+    ({"states": ["att", "vel", "pos", "gyro_bias", "accel_bias", "pitot_bias", "wind", "gust"]},
+     "estimators[0].gust", "the 'gust' state needs its model"),
+    ({"gust": {"sigma_mps": 1.5, "tau_s": 20.0}}, "estimators[0].gust", "no gust state"),
+    ({"states": ["att", "vel", "pos", "gyro_bias", "accel_bias", "pitot_bias", "wind", "gust"],
+      "gust": {"sigma_mps": 1.5, "tau_s": -20.0}}, "estimators[0].gust.tau_s", "-20"),
+    ({"states": ["att", "vel", "pos", "gyro_bias", "accel_bias", "pitot_bias", "wind", "gust_down"],
+      "gust": {"sigma_mps": 1.5, "tau_s": 20.0, "sigma_down_mps": -1.0}}, "estimators[0].gust.sigma_down_mps", "-1"),
+    ({"states": ["att", "vel", "pos", "gyro_bias", "accel_bias", "pitot_bias", "wind", "gust"],
+      "gust": {"sigma_mps": 1.5}}, "estimators[0].gust.tau_s", "is missing"),
 ])
 def test_a_malformed_wind_state_is_refused(change, key, words, repo_root, assert_scenario_error):
     assert_scenario_error(_scenario(repo_root, **change), key, words)
@@ -71,6 +83,38 @@ def test_the_wind_states_model_in_F_and_Q():
             np.testing.assert_allclose(np.diag(Q[s, s]), walk ** 2)
         np.testing.assert_allclose(est.noise_sigma0()["wind"], 4.0)
         np.testing.assert_allclose(est.noise_sigma0()["wind_down"], 1.0)
+
+
+def test_the_gust_states_model_in_F_Q_and_R():
+    """A gust state is a first-order Markov process (decay -1 / tau, driven by 2 sigma^2 / tau,
+    started at sigma) with a tau of its own vertically; with it the air-velocity measurement
+    takes the gusts out of R on its axes only."""
+    layout = Layout(PRESETS["p3_15"] + ("wind", "gust"))
+    gust = {"sigma_mps": 1.5, "sigma_down_mps": 1.2, "tau_s": 22.0, "tau_down_s": 11.0}
+    est = ErrorStateKF.from_imu_spec(layout, load_spec("p0_imu"), [], gust=gust,
+                                     wind={"sigma_mps": 4.0, "sigma_down_mps": 4.0, "tau_s": math.inf,
+                                           "walk_mps_per_rts": 0.02, "walk_down_mps_per_rts": 0.02})
+    F = add_markov_decay(np.zeros((1, layout.n, layout.n)), layout, est.noise)[0]
+    Q = process_noise(layout, est.noise)
+    s = layout.slice("gust")
+    np.testing.assert_allclose(np.diag(F[s, s]), -1 / 22.0)
+    np.testing.assert_allclose(np.diag(Q[s, s]), 2 * 1.5 ** 2 / 22.0)
+    np.testing.assert_allclose(est.noise_sigma0()["gust"], 1.5)
+    down = Layout(PRESETS["p3_15"] + ("gust_down",))
+    F = add_markov_decay(np.zeros((1, down.n, down.n)), down, est.noise)[0]
+    assert F[-1, -1] == pytest.approx(-1 / 11.0)
+    assert process_noise(down, est.noise)[-1, -1] == pytest.approx(2 * 1.2 ** 2 / 11.0)
+
+
+def test_gust_scale_lengths_follow_mil_hdbk_1797():
+    """Low altitude: L_u = L_v = h / (0.177 + 0.000823 h)^1.2 (1000 ft at 1000 ft),
+    L_w = h / 2; h at least 10 ft."""
+    L_h, L_w = turbulence_scale_m(1000 * 0.3048)
+    assert L_h == pytest.approx(1000 * 0.3048) and L_w == pytest.approx(500 * 0.3048)
+    L_h, L_w = turbulence_scale_m(30.0)
+    h_ft = 30.0 / 0.3048
+    assert L_h == pytest.approx(0.3048 * h_ft / (0.177 + 0.000823 * h_ft) ** 1.2) and L_h > L_w
+    assert turbulence_scale_m(0.0) == turbulence_scale_m(10 * 0.3048)
 
 
 def test_gust_intensities_follow_mil_hdbk_1797():
@@ -107,3 +151,36 @@ def test_the_wind_estimate_is_recorded_and_converges(repo_root, shipped_flight):
     assert (h.wind_sigma_mps[:, late, :2] < 1.5).all()
     err = h.wind_n_mps[:, late, :2] - np.array([3.0, -5.2])
     assert (np.abs(err) < 3 * h.wind_sigma_mps[:, late, :2] + 0.2).mean() > 0.95
+
+
+@pytest.mark.parametrize("changes, key, words", [
+    ([{"at_s": 0, "force": 3}], "environment.wind_changes[0].at_s", "> 0"),
+    ([{"at_s": 60, "force": 3}, {"at_s": 30, "force": 4}], "environment.wind_changes[1].at_s", "> 60"),
+    ([{"at_s": 60}], "environment.wind_changes[0]", "gives no wind"),
+    ([{"at_s": 60, "force": 9}], "environment.wind_changes[0].force", "9"),
+    ([{"at_s": 60, "speed_mps": -2}], "environment.wind_changes[0].speed_mps", "-2"),
+    ([], "environment.wind_changes", "too short"),
+])
+def test_malformed_wind_changes_are_refused(changes, key, words):
+    with pytest.raises(ScenarioError) as info:
+        parse_environment({"wind": {"force": 3, "from_deg": 270}, "wind_changes": changes}, file="s.yaml")
+    assert info.value.key == key and words in str(info.value)
+
+
+def test_the_steady_wind_between_its_changes():
+    """Held before the first change and after the last; between two, speed and direction linear
+    (the shorter way round: 350 -> 10 deg passes north), a calm end taking the other's direction."""
+    env = parse_environment({"wind": {"speed_mps": 4, "from_deg": 350},
+                             "wind_changes": [{"at_s": 100, "speed_mps": 4, "from_deg": 350},
+                                              {"at_s": 200, "speed_mps": 8, "from_deg": 10},
+                                              {"at_s": 300, "north_mps": 0, "east_mps": 0}]})
+    np.testing.assert_allclose(steady_wind_n_mps(env, 50.0), wind_from(4, 350), atol=1e-12)
+    np.testing.assert_allclose(steady_wind_n_mps(env, 150.0), wind_from(6, 0), atol=1e-12)
+    np.testing.assert_allclose(steady_wind_n_mps(env, 250.0), wind_from(4, 10), atol=1e-12)
+    np.testing.assert_allclose(steady_wind_n_mps(env, 1e4), 0.0, atol=1e-12)
+
+
+def test_a_wind_change_after_the_flight_is_refused(repo_root, assert_scenario_error):
+    data = yaml.safe_load((repo_root / "scenarios" / "p0_matched_ads.yaml").read_text())
+    data["environment"] = {"wind_changes": [{"at_s": 100, "force": 4}, {"at_s": 9000, "force": 5}]}
+    assert_scenario_error(data, "environment.wind_changes[1].at_s", "after the end of the flight")

@@ -17,10 +17,15 @@ pitot_bias 1     the ADS's dynamic-pressure bias, Pa, a random constant (``air_v
 wind       2     the horizontal wind (air-mass velocity N, E), m/s: a random walk or a
                  first-order Markov process (``air_velocity``)
 wind_down  1     the vertical wind, m/s, the same model
+gust       2     the horizontal gusts (N, E), m/s: a first-order Markov process, Dryden's
+                 first-order form (``sigma`` the gusts' std, ``tau = L / V`` their scale length
+                 over the airspeed), observed with the wind by ``air_velocity``
+gust_down  1     the vertical gust, m/s, the same model
 ========== ===== =========================================================================
 
-The sensor-error blocks ``baro`` and ``pitot_bias`` and the wind stay in the filter (they are
-the sensors' errors and the air mass's motion, not fed back). P3's 15 states are ``att vel pos gyro_bias accel_bias``; P0's 16 add ``baro``; P2's 18 are
+The sensor-error blocks ``baro`` and ``pitot_bias`` and the air mass's (wind, gusts) stay in the filter (they are
+the sensors' errors and the air mass's motion, not fed back). A gust state takes the gusts
+out of the ``air_velocity`` measurement's R on its axes, so the wind state is the steady wind. P3's 15 states are ``att vel pos gyro_bias accel_bias``; P0's 16 add ``baro``; P2's 18 are
 ``att vel pos gyro_bias gyro_markov accel_markov``.
 """
 
@@ -34,9 +39,13 @@ import numpy as np
 from navsim.navigation import kernels
 
 BLOCK_SIZES = {"att": 3, "vel": 3, "pos": 3, "gyro_bias": 3, "accel_bias": 3, "baro": 1,
-               "gyro_markov": 3, "accel_markov": 3, "pitot_bias": 1, "wind": 2, "wind_down": 1}
+               "gyro_markov": 3, "accel_markov": 3, "pitot_bias": 1, "wind": 2, "wind_down": 1, "gust": 2, "gust_down": 1}
 #: the wind's blocks and the axes (N, E, D) they hold
 WIND_AXES = {"wind": (0, 1), "wind_down": (2,)}
+#: the gusts' blocks and their axes
+GUST_AXES = {"gust": (0, 1), "gust_down": (2,)}
+#: every block of the air mass's velocity an ``air_velocity`` measurement sees, and its axes
+AIR_MASS_AXES = {**WIND_AXES, **GUST_AXES}
 REQUIRED = ("att", "vel", "pos")
 PRESETS = {"p3_15": ("att", "vel", "pos", "gyro_bias", "accel_bias"),
            "p0_16": ("att", "vel", "pos", "gyro_bias", "accel_bias", "baro"),
@@ -47,7 +56,8 @@ STATE_LABELS = {"att": ["phi_N", "phi_E", "phi_D"], "vel": ["dv_N", "dv_E", "dv_
                 "accel_bias": ["nabla_x", "nabla_y", "nabla_z"], "baro": ["dh_b"],
                 "gyro_markov": ["eps_r_x", "eps_r_y", "eps_r_z"],
                 "accel_markov": ["nabla_r_x", "nabla_r_y", "nabla_r_z"], "pitot_bias": ["dq_c"],
-                "wind": ["w_N", "w_E"], "wind_down": ["w_D"]}
+                "wind": ["w_N", "w_E"], "wind_down": ["w_D"],
+                "gust": ["g_N", "g_E"], "gust_down": ["g_D"]}
 
 
 @dataclass(frozen=True)
@@ -103,6 +113,11 @@ class ProcessNoise:
     wind_down_walk: float = 0.0
     #: the wind's correlation time, s (``inf``: a random walk)
     wind_tau_s: float = math.inf
+    #: the gusts' std, m/s, and correlation time, s, horizontal and vertical
+    gust_sigma: float = 0.0
+    gust_down_sigma: float = 0.0
+    gust_tau_s: float = 1.0
+    gust_down_tau_s: float = 1.0
 
 
 def system_matrix(layout: Layout, lat, h, vel_n, C_nb, f_n) -> np.ndarray:
@@ -133,7 +148,8 @@ def add_markov_decay(F: np.ndarray, layout: Layout, noise: ProcessNoise) -> np.n
     """``F`` with the first-order Markov blocks' decay ``-1 / tau`` on their diagonal (a random
     walk's ``tau`` is infinite: none)."""
     for block, tau in (("gyro_markov", noise.gyro_markov_tau_s), ("accel_markov", noise.accel_markov_tau_s),
-                       ("baro", noise.baro_tau_s), ("wind", noise.wind_tau_s), ("wind_down", noise.wind_tau_s)):
+                       ("baro", noise.baro_tau_s), ("wind", noise.wind_tau_s), ("wind_down", noise.wind_tau_s),
+                       ("gust", noise.gust_tau_s), ("gust_down", noise.gust_down_tau_s)):
         if layout.has(block):
             s = layout.slice(block)
             idx = np.arange(s.start, s.stop)
@@ -160,4 +176,8 @@ def process_noise(layout: Layout, noise: ProcessNoise) -> np.ndarray:
     for block, walk in (("wind", noise.wind_walk), ("wind_down", noise.wind_down_walk)):
         if layout.has(block):
             q[layout.slice(block)] = walk ** 2
+    for block, sigma, tau in (("gust", noise.gust_sigma, noise.gust_tau_s),
+                              ("gust_down", noise.gust_down_sigma, noise.gust_down_tau_s)):
+        if layout.has(block):
+            q[layout.slice(block)] = 2.0 * sigma ** 2 / tau
     return np.diag(q)

@@ -26,6 +26,7 @@ from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.estimators.error_model import (
     BLOCK_SIZES,
+    GUST_AXES,
     WIND_AXES,
     PRESETS,
     Layout,
@@ -81,6 +82,8 @@ class ErrorStateKF:
               "baro": obj({"sigma_m": POS, "tau_s": POS}),
               "wind": obj({"model": {"enum": list(WIND_MODELS)}, "sigma_mps": POS, "sigma_down_mps": POS,
                            "tau_s": POS, "walk_mps_per_rts": POS, "walk_down_mps_per_rts": POS}, ["sigma_mps"]),
+              "gust": obj({"sigma_mps": POS, "sigma_down_mps": POS, "tau_s": POS, "tau_down_s": POS},
+                          ["sigma_mps", "tau_s"]),
               "measurements": {"type": "array", "items": MEASUREMENT}}
 
     def __init__(self, layout: Layout, noise: ProcessNoise, measurements, period_s: float = 1.0,
@@ -98,24 +101,28 @@ class ErrorStateKF:
 
     @classmethod
     def from_imu_spec(cls, layout: Layout, imu_spec, measurements, baro_sigma_m: float = 0.0,
-                      baro_tau_s: float = 300.0, wind: dict | None = None, **kw):
+                      baro_tau_s: float = 300.0, wind: dict | None = None, gust: dict | None = None, **kw):
         """A filter whose noise model and initial bias uncertainty come from an IMU spec (a
         catalog entry of its own: it need not be the spec that corrupted the data); ``wind``
-        the wind states' model (:func:`filter_params`' ``wind``)."""
+        and ``gust`` the air-mass states' models (:func:`filter_params`' ``wind`` and ``gust``)."""
         g, a = imu_spec.gyro, imu_spec.accel
         w = wind or {"walk_mps_per_rts": 0.0, "walk_down_mps_per_rts": 0.0, "tau_s": math.inf, "sigma_mps": 0.0,
                      "sigma_down_mps": 0.0}
+        gu = gust or {"sigma_mps": 0.0, "sigma_down_mps": 0.0, "tau_s": 1.0, "tau_down_s": 1.0}
         noise = ProcessNoise(
             gyro_white=g.noise_density, accel_white=a.noise_density,
             gyro_bias_walk=g.random_walk, accel_bias_walk=a.random_walk,
             gyro_markov_sigma=np.maximum(g.markov_sigma, 1e-12), gyro_markov_tau_s=g.markov_tau_s,
             accel_markov_sigma=np.maximum(a.markov_sigma, 1e-12), accel_markov_tau_s=a.markov_tau_s,
             baro_sigma=baro_sigma_m, baro_tau_s=baro_tau_s, wind_walk=w["walk_mps_per_rts"],
-            wind_down_walk=w["walk_down_mps_per_rts"], wind_tau_s=w["tau_s"])
+            wind_down_walk=w["walk_down_mps_per_rts"], wind_tau_s=w["tau_s"],
+            gust_sigma=gu["sigma_mps"], gust_down_sigma=gu["sigma_down_mps"], gust_tau_s=gu["tau_s"],
+            gust_down_tau_s=gu["tau_down_s"])
         sigma = {"gyro_bias": np.hypot(g.bias_sigma, g.bias), "accel_bias": np.hypot(a.bias_sigma, a.bias),
                  "gyro_markov": g.markov_sigma, "accel_markov": a.markov_sigma,
                  "baro": np.array([baro_sigma_m]), "wind": np.full(2, w["sigma_mps"]),
-                 "wind_down": np.array([w["sigma_down_mps"]])}
+                 "wind_down": np.array([w["sigma_down_mps"]]), "gust": np.full(2, gu["sigma_mps"]),
+                 "gust_down": np.array([gu["sigma_down_mps"]])}
         return cls(layout, noise, measurements, initial_sigma=sigma, **kw)
 
     # --- from a scenario entry -----------------------------------------------------------------
@@ -392,6 +399,7 @@ def filter_params(node: Node) -> dict:
     if "baro" in blocks and params["baro"]["sigma_m"] == 0.0:
         raise node.error("the 'baro' state needs its model", "baro", expected="{sigma_m: ..., tau_s: ...}")
     params["wind"] = _wind(node, blocks)
+    params["gust"] = _gust(node, blocks)
     return params
 
 
@@ -427,9 +435,33 @@ def _wind(node: Node, blocks) -> dict | None:
     return out
 
 
+def _gust(node: Node, blocks) -> dict | None:
+    """``gust: {sigma_mps, tau_s}`` (the gusts' std and correlation time ``L / V``, Dryden's
+    first-order form: :func:`navsim.flight.environment.turbulence_sigma_mps` and
+    :func:`~navsim.flight.environment.turbulence_scale_m` give both for MIL-HDBK-1797's
+    low-altitude model; ``sigma_down_mps`` and ``tau_down_s``, default the horizontal ones, the
+    vertical gust's), the model of the ``gust`` and ``gust_down`` states; None without one."""
+    gust = node.child("gust", None)
+    wanted = [b for b in GUST_AXES if b in blocks]
+    if gust is None:
+        if wanted:
+            raise node.error(f"the '{wanted[0]}' state needs its model", "gust",
+                             expected="{sigma_mps: ..., tau_s: ...}")
+        return None
+    if not wanted:
+        raise node.error("has a gust model but no gust state", "gust", expected="'gust' in the states")
+    sigma = gust.get("sigma_mps", float, exclusive_minimum=0.0, maximum=MAX_WIND_MPS)
+    out = {"sigma_mps": sigma,
+           "sigma_down_mps": gust.get("sigma_down_mps", float, sigma, exclusive_minimum=0.0, maximum=MAX_WIND_MPS),
+           "tau_s": gust.get("tau_s", float, exclusive_minimum=0.0, maximum=MAX_TIME_CONSTANT_S)}
+    out["tau_down_s"] = gust.get("tau_down_s", float, out["tau_s"], exclusive_minimum=0.0, maximum=MAX_TIME_CONSTANT_S)
+    gust.done()
+    return out
+
+
 def filter_options(params: dict) -> dict:
     """The constructor arguments of :func:`filter_params`' values but the states and the IMU."""
     return dict(baro_sigma_m=params["baro"]["sigma_m"], baro_tau_s=params["baro"]["tau_s"],
                 period_s=params["period_s"], discretization=params["discretization"],
                 series_order=params["series_order"], latest_sample=params["latest_sample"],
-                wind=params.get("wind"))
+                wind=params.get("wind"), gust=params.get("gust"))

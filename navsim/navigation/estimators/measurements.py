@@ -54,7 +54,7 @@ from navsim.foundations.config import Node, check_numbers, close_match
 from navsim.foundations.jsonschema import NUM, POS, VEC3, merge_properties
 from navsim.foundations.transform import skew
 from navsim.navigation import magcal
-from navsim.navigation.estimators.error_model import WIND_AXES, Layout
+from navsim.navigation.estimators.error_model import AIR_MASS_AXES, GUST_AXES, Layout
 from navsim.navigation.strapdown import NavState
 from navsim.sensors import registry
 from navsim.sensors.catalog import load_spec
@@ -369,7 +369,9 @@ class AirVelocity:
     Turbulence the filter does not model is white to it: ``turbulence_sigma_mps`` (the gusts'
     std, taken isotropic: the larger of MIL-HDBK-1797's low-altitude intensities,
     :func:`navsim.flight.environment.turbulence_sigma_mps`) adds its variance to ``R`` on
-    every axis.
+    every axis a ``gust`` (``gust_down``) state does not carry. A gust state models them as
+    coloured (Dryden's first-order form, :mod:`~navsim.navigation.estimators.error_model`):
+    its columns are the identity too, and the wind state is then the steady wind.
 
     With a ``pitot_bias`` state in the filter (the dynamic pressure's per-run bias ``b``, Pa, a
     random constant whose initial std is the ADS model's), ``V = V_true + b / (rho V)``: its
@@ -476,26 +478,29 @@ class AirVelocity:
         sv, dv_dqc = self.airspeed_sigma(data, j, bias_state)
         if bias_state:                   # V = V_true + b / (rho V): z = ... - C_nb u b / (rho V)
             H[:, :, layout.slice("pitot_bias").start] = -u_n * dv_dqc[:, None]
-        for block, axes in WIND_AXES.items():       # the wind the filter estimates
+        white = np.full(3, self.turbulence_sigma_mps ** 2)   # the gusts no state carries
+        for block, axes in AIR_MASS_AXES.items():    # the wind and gusts the filter estimates
             if layout.has(block):
                 cols = layout.slice(block)
                 H[:, list(axes), list(range(cols.start, cols.stop))] = 1.0
+                if block in GUST_AXES:
+                    white[list(axes)] = 0.0
         s_across = V * sigma
         R_b = (sv[:, None, None] ** 2 * np.einsum("bi,bj->bij", u, u)
                + s_across[:, None, None] ** 2 * (np.einsum("bi,bj->bij", e_b, e_b) + np.einsum("bi,bj->bij", e_a, e_a)))
-        R = nav.C_nb @ R_b @ np.swapaxes(nav.C_nb, 1, 2) + self.turbulence_sigma_mps ** 2 * np.eye(3)
+        R = nav.C_nb @ R_b @ np.swapaxes(nav.C_nb, 1, 2) + np.diag(white)
         return Linearised(z, H, R, data.valid[:, j])
 
 
 def check_observed_states(node: Node, blocks, entries: list) -> None:
     """A ``pitot_bias`` state needs the one ``air_velocity`` model that observes it, with an
     ADS model whose bias is not zero (its initial std); a wind state an ``air_velocity`` model
-    (nothing else observes the wind)."""
+    (nothing else observes the wind or the gusts)."""
     air = [e for e in entries if e["type"] == "air_velocity"]
-    wind = [b for b in WIND_AXES if b in blocks]
+    wind = [b for b in AIR_MASS_AXES if b in blocks]
     if wind and not air:
         raise node.error(f"the '{wind[0]}' state is observed by no measurement", "states",
-                         expected="an air_velocity measurement with a wind state (or no wind state)")
+                         expected="an air_velocity measurement with a wind or gust state (or no such state)")
     if wind and len({tuple(e["wind_n_mps"]) for e in air}) > 1:
         raise node.error("the air_velocity measurements give different wind_n_mps", "measurements",
                          expected="one wind prior for the one wind state they observe")
