@@ -517,12 +517,23 @@ def sweep(path, workers: int | None = None, *, executor: str = "local", schedule
     -------
     SweepResult
         The rows ``(point, {label: value})`` and each value's 95 % interval
-        (``intervals``); the points none of whose runs succeeded; whether it was interrupted
-        (the points after it are not run).
+        (``intervals``); the points none of whose runs succeeded, or whose flight cannot be
+        flown (their values None, their metrics None; the other points go on); whether it was
+        interrupted (the points after it are not run).
     """
     plan = plan_sweep(path)
     result = SweepResult([], plan.metric)
     for i, (point, sc) in enumerate(zip(plan.points, plan.scenarios)):
+        if i in plan.unflown:
+            result.failed_points[i] = f"the flight cannot be flown: {plan.unflown[i]}"
+            result.rows.append((point, {e.label: None for e in sc.estimators}))
+            result.metrics.append(None)
+            result.intervals.append({})
+            if on_point:
+                on_point(i, point, result.rows[-1][1], None)
+            if progress:
+                progress(1)
+            continue
         res = run(sc, plan.runs or sc.runs, sc.seed, workers or sc.workers, executor=executor, scheduler=scheduler)
         if res.interrupted:
             result.interrupted = True

@@ -288,6 +288,8 @@ def cmd_sensors(args) -> int:
 
 def _point_line(n: int, total: int, point: dict, values: dict, res) -> str:
     what = ", ".join(f"{short_key(k)}={v}" for k, v in point.items())
+    if res is None:
+        return f"point {n + 1}/{total} ({what}): the flight cannot be flown"
     got = ", ".join(f"{lb} {num(v)}" for lb, v in values.items())
     return f"point {n + 1}/{total} ({what}): {got} [{len(res.runs)} runs, {res.record.wall_s:.1f} s]"
 
@@ -309,7 +311,8 @@ def cmd_sweep(args) -> int:
     write_sweep_figure(folder, sweep, f"sweep {Path(args.sweep).name}: {sweep.metric} (vectors by their norm), 95 % intervals over the runs")
     print(f"\nwrote {folder.path}/: sweep.json (every point's metrics), sweep.csv, sweep.png")
     for i, why in sweep.failed_points.items():
-        print(f"error: no run of point {i} succeeded: {why}", file=sys.stderr)
+        print(f"error: point {i}: {why}" if why.startswith("the flight") else f"error: no run of point {i} succeeded: {why}",
+              file=sys.stderr)
     if sweep.interrupted:
         print(f"interrupted after {len(sweep.rows)} of {len(points)} points", file=sys.stderr)
         return 130
@@ -405,7 +408,7 @@ def write_sweep_files(folder: OutputFolder, sweep) -> None:
     each estimator and its interval's ends (empty where there is none)."""
     folder.json("sweep.json", {"metric": sweep.metric, "points": [
         {"point": p, "values": v, "ci95": sweep.intervals[i] if i < len(sweep.intervals) else {},
-         "metrics": m.to_dict()} for i, ((p, v), m) in enumerate(zip(sweep.rows, sweep.metrics))],
+         "metrics": None if m is None else m.to_dict()} for i, ((p, v), m) in enumerate(zip(sweep.rows, sweep.metrics))],
         "failed_points": sweep.failed_points, "interrupted": sweep.interrupted})
     keys = list(sweep.axes())
     labels = list(sweep.rows[0][1]) if sweep.rows else []

@@ -192,6 +192,9 @@ def _sensor_streams(scenario, seed, runs, dt, n):
     others = {c.name: emulate(static, c, seed, runs) for c in scenario.sensors if c.kind != "imu"}
     for data in others.values():
         data.meta["step"] = int(round(1.0 / (data.meta["rate_hz"] * dt)))
+        prepare = get_kind(data.kind).in_loop.prepare
+        if prepare is not None:
+            prepare(data, static)
     return imu_cfg, imu, others
 
 
@@ -306,7 +309,9 @@ def _advance(fleet: _Fleet, loop, inc, rows: np.ndarray, k: int) -> None:
     dv = _matvec(err["accel_matrix"], dv) + err["accel"][:, k]
     dth = quantize_increment(dth, spec.gyro, dt)
     dv = quantize_increment(dv, spec.accel, dt)
-    sample = LoopSample(rows[:, P.COL_LAT], rows[:, P.COL_LON], rows[:, P.COL_H], rows[:, P.COL_VN:P.COL_VD + 1])
+    sample = LoopSample(rows[:, P.COL_LAT], rows[:, P.COL_LON], rows[:, P.COL_H], rows[:, P.COL_VN:P.COL_VD + 1],
+                        rows[:, [P.COL_ROLL, P.COL_PITCH, P.COL_YAW]], rows[:, P.COL_PS], rows[:, P.COL_PT],
+                        rows[:, P.COL_TEMP], rows[:, P.COL_ALPHA], rows[:, P.COL_BETA])
     for data in fleet.sensors.values():
         if k % data.meta["step"] == 0:
             get_kind(data.kind).in_loop.fill(data, k // data.meta["step"], sample)

@@ -25,7 +25,7 @@ import numpy as np
 from navsim.experiment.runner import cached_flight
 from navsim.experiment.scenario import check_scenario, parse_scenario
 from navsim.foundations.config import MAX_RUNS, Node, load_yaml
-from navsim.foundations.errors import ScenarioError
+from navsim.foundations.errors import FlightError, ScenarioError
 from navsim.records.vocabulary import check_metric_path
 
 _INDEX = re.compile(r"^(.*)\[(\d+)\]$")
@@ -145,16 +145,19 @@ class SweepPlan:
     runs: int | None
     metric: str
     path: Path
+    #: point index -> why its flight cannot be flown (the sweep's other points go on)
+    unflown: dict = field(default_factory=dict)
 
 
 def plan_sweep(path) -> SweepPlan:
     """Every point of the sweep file ``path`` parsed, flown (or read from the flight cache) and
     checked against the duration flown, so a bad point stops the sweep before any Monte Carlo
-    starts; a :class:`ScenarioError` names the sweep file and the point."""
+    starts; a :class:`ScenarioError` names the sweep file and the point. A point whose flight
+    cannot be flown (a wind the aircraft cannot make way against) is in ``unflown``."""
     base_path, runs, metric, points = parse_sweep(path)
     base = load_yaml(base_path)
     where = lambda i: f"{path}: point {i} ({points[i]}) of {base_path}"
-    scenarios = []
+    scenarios, unflown = [], {}
     for i, point in enumerate(points):
         data = copy.deepcopy(base)
         for key, value in point.items():
@@ -164,8 +167,10 @@ def plan_sweep(path) -> SweepPlan:
             check_scenario(sc, cached_flight(sc.flight)[0].duration_s)
         except ScenarioError as exc:
             raise (exc.with_file(where(i)) if exc.file in (None, str(base_path)) else exc) from None
+        except FlightError as exc:
+            unflown[i] = str(exc)
         scenarios.append(sc)
-    return SweepPlan(points, scenarios, runs, metric, Path(path))
+    return SweepPlan(points, scenarios, runs, metric, Path(path), unflown)
 
 
 def point_values(plan: SweepPlan, estimators: dict) -> dict:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.foundations import atmosphere as atm
-from navsim.foundations.transform import dcm_from_quat
+from navsim.foundations.transform import dcm_from_euler, dcm_from_quat
 from navsim.sensors.base import SensorData, apply_outages, gauss_markov, normals, sampling
 from navsim.sensors.registry import ErrorTerm, Field, InLoop, Output, SensorKind, register
 
@@ -107,21 +107,13 @@ def emulate_ads(truth, spec: AdsSpec, seed: int, runs, faults=(), name: str = "a
     else:
         pt = sensor(truth.p_total_pa[::step], spec.total_noise, spec.total_bias_sigma)
     temp = sensor(truth.temp_k[::step], spec.temperature_noise, 0.0)
-    pt = np.maximum(pt, ps)          # a pitot never reads below static
-    if spec.formula == "p0":
-        h_p = atm.pressure_altitude_p0_ft(ps) * 0.3048
-        tas = atm.tas_incompressible(pt, ps, temp)
-    else:
-        h_p = atm.pressure_altitude(ps)
-        tas = atm.tas_from_air_data(pt, ps, temp)
-    cas = atm.cas_from_qc(pt - ps)
+    h_p, tas, cas = _air_data(spec.formula, ps, pt, temp)
     C_nb = dcm_from_quat(truth.quat_nb[::step])
     values = {}
     if spec.velocity_axis == "air":
         alpha = sensor(truth.alpha_rad[::step], spec.vane_noise, 0.0)
         beta = sensor(truth.beta_rad[::step], spec.vane_noise, 0.0)
-        dir_b = np.stack([np.cos(alpha) * np.cos(beta), np.sin(beta), np.sin(alpha) * np.cos(beta)], -1)
-        dir_n = np.einsum("mij,bmj->bmi", C_nb, dir_b)
+        dir_n = np.einsum("mij,bmj->bmi", C_nb, _vane_axis(alpha, beta))
         values = {"alpha_rad": alpha, "beta_rad": beta}
     else:
         dir_n = C_nb[None, :, :, 0]                                # body x axis in NED
@@ -135,7 +127,26 @@ def emulate_ads(truth, spec: AdsSpec, seed: int, runs, faults=(), name: str = "a
                       valid=valid,
                       errors={"h_error_m": h_p - truth.h_m[::step], "tas_error_mps": tas - truth.tas_mps[::step],
                               "vel_error_n_mps": vel - truth.vel_n_mps[::step]},
-                      meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed, "formula": spec.formula})
+                      meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed, "formula": spec.formula,
+                            "pitot": spec.pitot, "velocity_axis": spec.velocity_axis,
+                            "wind_estimate_n_mps": np.asarray(wind_estimate_n_mps, float)})
+
+
+def _air_data(formula: str, ps, pt, temp):
+    """What the ADS computes from its static and total pressures and temperature: the pressure
+    altitude, true and calibrated airspeed (``p_total`` below ``p_static`` read as static: no
+    dynamic pressure)."""
+    pt = np.maximum(pt, ps)
+    if formula == "p0":
+        h_p, tas = atm.pressure_altitude_p0_ft(ps) * 0.3048, atm.tas_incompressible(pt, ps, temp)
+    else:
+        h_p, tas = atm.pressure_altitude(ps), atm.tas_from_air_data(pt, ps, temp)
+    return h_p, tas, atm.cas_from_qc(pt - ps)
+
+
+def _vane_axis(alpha, beta):
+    """The air-relative direction in the body of the vanes' angle of attack and sideslip."""
+    return np.stack([np.cos(alpha) * np.cos(beta), np.sin(beta), np.sin(alpha) * np.cos(beta)], -1)
 
 
 def fill_baro_in_loop(data: SensorData, j: int, sample) -> None:
@@ -144,6 +155,45 @@ def fill_baro_in_loop(data: SensorData, j: int, sample) -> None:
     v = data.values
     v["h_baro_m"][:, j] = sample.h_m + data.errors["h_error_m"][:, j]
     v["p_static_pa"][:, j] = atm.pressure(v["h_baro_m"][:, j])
+
+
+def prepare_ads_in_loop(data: SensorData, static) -> None:
+    """An ADS emulated on the closed loop's static record ``static`` (a
+    :class:`~navsim.flight.truth.Truth` at rest: no dynamic pressure, no angles) made ready to
+    fly: each run's drawn sensor errors (static and dynamic or total pressure, temperature,
+    vanes) kept in ``errors`` for :func:`fill_ads_in_loop`."""
+    v = data.values
+    ps, pt = v["p_static_pa"], v["p_total_pa"]
+    e = {"p_static_pa": ps - static.p_static_pa[0], "temp_k": v["temp_k"] - static.temp_k[0],
+         "pitot_pa": pt - ps if data.meta["pitot"] == "differential" else pt - static.p_total_pa[0]}
+    if "alpha_rad" in v:
+        e.update(alpha_rad=v["alpha_rad"].copy(), beta_rad=v["beta_rad"].copy())
+    data.errors = {f"sensor_{k}": x for k, x in e.items()}
+
+
+def fill_ads_in_loop(data: SensorData, j: int, sample) -> None:
+    """Sample ``j`` of an ADS in the closed loop: the runs' true air data in ``sample`` (a
+    :class:`~navsim.sensors.registry.LoopSample`) through each run's own sensor errors
+    (:func:`prepare_ads_in_loop`), and what the ADS computes from them, as :func:`emulate_ads`."""
+    v, e = data.values, {k[len("sensor_"):]: x[:, j] for k, x in data.errors.items()}
+    ps = sample.p_static_pa + e["p_static_pa"]
+    if data.meta["pitot"] == "differential":
+        pt = ps + (sample.p_total_pa - sample.p_static_pa) + e["pitot_pa"]
+    else:
+        pt = sample.p_total_pa + e["pitot_pa"]
+    temp = sample.temp_k + e["temp_k"]
+    h_p, tas, cas = _air_data(data.meta["formula"], ps, pt, temp)
+    C_nb = dcm_from_euler(sample.euler_rad[:, 0], sample.euler_rad[:, 1], sample.euler_rad[:, 2])
+    if "alpha_rad" in e:
+        alpha, beta = sample.alpha_rad + e["alpha_rad"], sample.beta_rad + e["beta_rad"]
+        v["alpha_rad"][:, j], v["beta_rad"][:, j] = alpha, beta
+        dir_n = np.einsum("bij,bj->bi", C_nb, _vane_axis(alpha, beta))
+    else:
+        dir_n = C_nb[:, :, 0]
+    for name, x in (("p_static_pa", ps), ("p_total_pa", pt), ("temp_k", temp), ("h_pressure_m", h_p),
+                    ("cas_mps", cas), ("tas_mps", tas)):
+        v[name][:, j] = x
+    v["vel_n_mps"][:, j] = tas[:, None] * dir_n + data.meta["wind_estimate_n_mps"]
 
 
 BARO = register(SensorKind(
@@ -175,4 +225,4 @@ ADS = register(SensorKind(
              Output("beta_rad", "rad", when=lambda spec: spec.velocity_axis == "air")),
     errors=tuple(ErrorTerm(n) for n in ("static_noise", "static_bias_sigma", "total_noise", "total_bias_sigma",
                                         "temperature_noise", "vane_noise")),
-    emulate=emulate_ads))
+    emulate=emulate_ads, in_loop=InLoop(fill_ads_in_loop, prepare=prepare_ads_in_loop)))

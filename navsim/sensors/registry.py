@@ -160,6 +160,12 @@ class LoopSample(NamedTuple):
     lon_rad: np.ndarray          #: (B,)
     h_m: np.ndarray              #: (B,) height above the ellipsoid
     vel_n_mps: np.ndarray        #: (B, 3) velocity, north-east-down
+    euler_rad: np.ndarray        #: (B, 3) roll, pitch, yaw
+    p_static_pa: np.ndarray      #: (B,) static pressure
+    p_total_pa: np.ndarray       #: (B,) total (pitot) pressure
+    temp_k: np.ndarray           #: (B,) static air temperature
+    alpha_rad: np.ndarray        #: (B,) angle of attack
+    beta_rad: np.ndarray         #: (B,) sideslip
 
 
 class Refusal(NamedTuple):
@@ -179,10 +185,14 @@ class InLoop:
     ``fill(data, j, sample)`` writes sample ``j`` of every output of ``data`` (a
     :class:`~navsim.sensors.base.SensorData`) from the :class:`LoopSample` ``sample`` plus
     ``data.errors``; ``refuse(config) -> Refusal | None`` names a configuration (a
-    :class:`~navsim.sensors.base.SensorConfig`) whose errors do depend on the trajectory."""
+    :class:`~navsim.sensors.base.SensorConfig`) whose errors do depend on the trajectory;
+    ``prepare(data, static)``, where the outputs are not the truth plus ``errors`` (an ADS
+    computes them from its sensors), keeps what ``fill`` adds, from the static record
+    ``static`` they were emulated on."""
 
     fill: Callable
     refuse: Callable | None = None
+    prepare: Callable | None = None
 
 
 @dataclass(frozen=True)

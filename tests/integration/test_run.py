@@ -236,6 +236,24 @@ def test_malformed_scenario_exits_2_from_run_without_traceback(tmp_path):
     assert "estimators[1].type" in proc.stderr and "hint: did you mean 'eskf'?" in proc.stderr
 
 
+def test_a_sweep_point_that_cannot_be_flown_is_reported_and_the_others_run(short, tmp_path, capsys):
+    """A wind above the airspeed at one point (issue 35): that point 'not flown' with the
+    flight's reason, the other run and written; exit 1."""
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(f"scenario: {short.name}\nruns: 2\ngrid:\n  environment.wind.speed_mps: [3, 20]\n"
+                     "metric: rms.pos_m\n")
+    out = tmp_path / "out"
+    assert main(["sweep", str(sweep), "--out", str(out)]) == 1
+    data = json.loads((out / "sweep.json").read_text())
+    fine, unflown = data["points"]
+    assert fine["metrics"]["runs_done"] == 2 and fine["values"]["KF"] > 0
+    assert unflown["metrics"] is None and unflown["values"] == {"free SINS": None, "KF": None}
+    assert "above the airspeed" in data["failed_points"]["1"]
+    text = capsys.readouterr()
+    assert "point 2/2 (wind.speed_mps=20): the flight cannot be flown" in text.out
+    assert "error: point 1: the flight cannot be flown" in text.err and (out / "sweep.png").stat().st_size > 0
+
+
 def test_sweep_grid(short, tmp_path, capsys):
     sweep = tmp_path / "sweep.yaml"
     sweep.write_text(f"""

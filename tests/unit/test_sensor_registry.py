@@ -9,13 +9,15 @@ import numpy as np
 import pytest
 
 import navsim.sensors
+from navsim.flight import FlightConfig, fly, parse_track
+from navsim.flight.environment import parse_environment
 from navsim.flight.truth import Truth
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.sensors import SensorConfig, emulate, load_spec, output_fields, registry
 from navsim.sensors.base import check_faults, parse_faults
 from navsim.sensors.catalog import available as catalog, spec_from_datasheet
 from navsim.sensors.plots import channels
-from navsim.sensors.registry import ErrorTerm, Field, Output, SensorKind
+from navsim.sensors.registry import ErrorTerm, Field, LoopSample, Output, SensorKind
 
 SENSORS = Path(navsim.sensors.__file__).parent
 BUILT_IN = {"imu": "imu", "gnss": "gnss", "baro": "airdata", "ads": "airdata", "radar_altimeter": "radar",
@@ -175,3 +177,34 @@ def test_an_entry_point_registers_its_kind(monkeypatch):
     monkeypatch.setattr(registry.metadata, "entry_points", lambda group: [EntryPoint(object())])
     with pytest.raises(UsageError, match="is not a SensorKind named 'toy'"):
         registry.available()
+
+
+@pytest.mark.parametrize("override", [{}, {"velocity_axis": "air", "vane_noise": "0.5 deg"},
+                                      {"pitot": "absolute", "formula": "p0"}])
+def test_an_ads_in_the_loop_reads_what_it_reads_open_loop(override):
+    """An ADS emulated on the closed loop's static record, its errors kept (``prepare``) and its
+    samples filled from the flown state one by one, gives what it gives emulated on the flight:
+    the same errors drawn, the same air data computed from them."""
+    track = parse_track({"start": {"lat_deg": 37.0, "lon_deg": 118.0, "alt_m": 200, "speed_mps": 14},
+                         "segments": [{"type": "turn", "by_deg": 60, "bank_deg": 25}]})
+    env = parse_environment({"wind": {"force": 3, "from_deg": 200},
+                             "turbulence": {"type": "milspec", "wind20_mps": 10, "severity": 3, "seed": 2}})
+    truth = fly(FlightConfig(track=track, environment=env))
+    spec = load_spec("p0_ads", override)
+    config = SensorConfig("ads", "ads", spec)
+    flown = emulate(truth, config, 3, range(4))
+    static = Truth.static(truth.duration_s, 1.0 / truth.dt_s, 37.0, 118.0, 200.0)
+    loop = emulate(static, config, 3, range(4))
+    kind = registry.get("ads").in_loop
+    kind.prepare(loop, static)
+    step = int(round(1.0 / (spec.rate_hz * truth.dt_s)))
+    for j in range(loop.t_s.size):
+        k = j * step
+        one = lambda x: np.broadcast_to(x[k], (4, *np.shape(x[k])))
+        kind.fill(loop, j, LoopSample(one(truth.lat_rad), one(truth.lon_rad), one(truth.h_m), one(truth.vel_n_mps),
+                                      one(truth.euler_rad), one(truth.p_static_pa), one(truth.p_total_pa),
+                                      one(truth.temp_k), one(truth.alpha_rad), one(truth.beta_rad)))
+    assert set(loop.values) == set(flown.values)
+    for name, v in flown.values.items():
+        np.testing.assert_allclose(loop.values[name], v, rtol=1e-9, atol=1e-9, err_msg=name)
+    assert np.ptp(flown.values["tas_mps"]) > 0.5           # a flight, not a rest: the fill follows it
