@@ -124,10 +124,23 @@ def flight_figures(truth: Truth, figsize=None, footer_in: float = 0.0) -> list:
     return figs
 
 
+def _wind_axis(ax, truth: Truth) -> None:
+    """The air mass's velocity north and east with its gusts (thin) and its steady part (the
+    scenario's wind, dashed)."""
+    t = truth.t_s
+    for j, (name, colour) in enumerate((("north", "tab:blue"), ("east", "tab:orange"))):
+        ax.plot(t, truth.wind_n_mps[:, j], color=colour, lw=0.4, alpha=0.6, label=f"wind {name} (with gusts)")
+        ax.plot(t, truth.wind_steady_n_mps[:, j], color=colour, lw=1.3, ls="--", label=f"steady wind {name}")
+    ax.set_ylabel("wind, m/s")
+    ax.legend(fontsize=7, loc="best", ncol=2)
+
+
 def _time_figure(truth: Truth, names: list[str], figsize, footer_in: float):
-    """Height, speeds, bank and pitch, heading against time, the segments shaded and numbered."""
+    """Height, speeds, bank and pitch, heading and (in wind) the wind against time, the
+    segments shaded and numbered."""
     import matplotlib.pyplot as plt
-    fig, axs = plt.subplots(4, 1, figsize=figsize or (10, 10), sharex=True)
+    windy = bool(np.any(truth.wind_n_mps))
+    fig, axs = plt.subplots(5 if windy else 4, 1, figsize=figsize or (10, 10), sharex=True)
     t = truth.t_s
     axs[0].plot(t, truth.h_m, label="height (ellipsoid)")
     axs[0].plot(t, truth.h_agl_m, "--", lw=0.8, label="above surface")
@@ -144,7 +157,9 @@ def _time_figure(truth: Truth, names: list[str], figsize, footer_in: float):
     axs[2].legend(fontsize=7, loc="best")
     axs[3].plot(t, np.degrees(np.unwrap(truth.euler_rad[:, 2])), label="heading")
     axs[3].set_ylabel("heading, deg")
-    axs[3].set_xlabel("time, s")
+    if windy:
+        _wind_axis(axs[4], truth)
+    axs[-1].set_xlabel("time, s")
     for j, ax in enumerate(axs):
         _segments(truth, ax, label=(j == 0))
         ax.grid(alpha=0.3)

@@ -98,9 +98,11 @@ class RunSamples:
         """Feed the wind estimate's errors ``(B, epochs, 3)`` from the settling time on (NaN on
         an axis not estimated; a closed-loop run's records end at its landing)."""
         hor2 = np.sum(err[..., :2] ** 2, axis=-1)
+        end = np.full(hor2.shape[0], np.nan)
         finite = np.isfinite(hor2)
-        last = hor2.shape[1] - 1 - np.argmax(finite[:, ::-1], axis=1)
-        end = np.where(finite.any(axis=1), hor2[np.arange(len(last)), last], np.nan) if hor2.shape[1] else hor2[:, :0]
+        if hor2.shape[1]:
+            last = hor2.shape[1] - 1 - np.argmax(finite[:, ::-1], axis=1)
+            end = np.where(finite.any(axis=1), hor2[np.arange(len(last)), last], np.nan)
         self._s("wind_axes", 1).add(err ** 2)
         self._s("wind_hor").add(hor2)
         self._s("wind_end").add(np.reshape(end, (-1, 1)))

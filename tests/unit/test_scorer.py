@@ -46,6 +46,9 @@ def history(rng, runs, E=120, nees=True, euler=True):
     nis = {"gnss:bd": np.where(np.arange(E) % 5 == 0, rng.chisquare(3, size=(runs, E)), np.nan),
            "height:ads": rng.chisquare(1, size=(runs, E))}
     nis["gnss:bd"][:, 100:] = np.nan                  # an outage: epochs with no NIS at all
+    wind = err(0.4)
+    wind[..., 2] = np.nan                             # no vertical wind state
+    wind[0, 90:] = np.nan
     return EstimatorHistory(
         label="KF", t_s=t, att_err_rad=att, vel_err_mps=vel, pos_err_m=pos,
         sigma=np.abs(rng.normal(size=(runs, E, 9))) if nees else None,
@@ -54,7 +57,8 @@ def history(rng, runs, E=120, nees=True, euler=True):
         diverged=diverged, gyro_bias=None, accel_bias=None,
         cost={"propagate_s": 0.5, "epoch_s": 0.25, "runs": runs, "epochs": E, "batches": 1},
         euler_err_rad=att[..., ::-1].copy() if euler else None,
-        resets=[[(12.0, "cpf")] if r % 3 == 0 else [] for r in range(runs)] if euler else None)
+        resets=[[(12.0, "cpf")] if r % 3 == 0 else [] for r in range(runs)] if euler else None,
+        wind_err_mps=wind if nees else None)
 
 
 def _rms(x, axis):
@@ -102,6 +106,13 @@ def numpy_scores(h, settle_s, windows) -> dict:
             lo, hi = chi2.ppf([0.025, 0.975], 9 * good.sum()) / good.sum()
             mean = np.nanmean(h.nees[good][:, m], axis=0)
             w["nees"] = {"average": np.nanmean(mean), "fraction_inside": np.mean((mean > lo) & (mean < hi))}
+    if h.wind_err_mps is not None:
+        w = h.wind_err_mps[good][:, after]
+        hor2 = np.sum(w[..., :2] ** 2, axis=-1)
+        fin = np.isfinite(hor2)
+        end = hor2[np.arange(len(hor2)), fin.shape[1] - 1 - np.argmax(fin[:, ::-1], axis=1)]
+        out["wind"] = {"rms_mps": np.sqrt(np.nanmean(hor2)), "final_mps": np.sqrt(np.mean(end)),
+                       "rms_axes_mps": _rms(w[..., :2], (0, 1)).tolist() + [None]}
     if h.nees is not None:
         sel = after & (h.t_s > 0)
         mean = np.nanmean(h.nees[good], axis=0)
@@ -136,6 +147,7 @@ def test_chunk_by_chunk_scores_equal_numpy_over_the_merged_runs(nees, euler, clo
     assert got.diverged_runs == 3 and got.runs_counted == sum(sizes) - 3
     assert set(got.nis or {}) == ({"gnss:bd", "height:ads"} if nees else set())
     assert (got.attitude is not None) == euler and got.windows["never"].quantities == {}
+    assert (got.wind is not None) == nees and (not nees or len(got.interval("wind.rms_mps")) == 2)
     # the chunking does not matter: the merged runs as one chunk give the same numbers
     close_metrics(got.to_dict(), score(merged.histories["KF"], 30.0, windows, runs=merged.runs).to_dict())
 
