@@ -511,7 +511,8 @@ def sweep(path, workers: int | None = None, *, executor: str = "local", schedule
     progress : callable, optional
         ``progress(1)`` after each point.
     on_point : callable, optional
-        ``on_point(index, point, values, result)`` after each point (its :class:`Result`).
+        ``on_point(index, point, values, result)`` after each point (its :class:`Result`;
+        None for a point whose flight cannot be flown).
 
     Returns
     -------
@@ -526,6 +527,7 @@ def sweep(path, workers: int | None = None, *, executor: str = "local", schedule
     for i, (point, sc) in enumerate(zip(plan.points, plan.scenarios)):
         if i in plan.unflown:
             result.failed_points[i] = f"the flight cannot be flown: {plan.unflown[i]}"
+            result.unflown.add(i)
             result.rows.append((point, {e.label: None for e in sc.estimators}))
             result.metrics.append(None)
             result.intervals.append({})

@@ -311,7 +311,7 @@ def cmd_sweep(args) -> int:
     write_sweep_figure(folder, sweep, f"sweep {Path(args.sweep).name}: {sweep.metric} (vectors by their norm), 95 % intervals over the runs")
     print(f"\nwrote {folder.path}/: sweep.json (every point's metrics), sweep.csv, sweep.png")
     for i, why in sweep.failed_points.items():
-        print(f"error: point {i}: {why}" if why.startswith("the flight") else f"error: no run of point {i} succeeded: {why}",
+        print(f"error: point {i}: {why}" if i in sweep.unflown else f"error: no run of point {i} succeeded: {why}",
               file=sys.stderr)
     if sweep.interrupted:
         print(f"interrupted after {len(sweep.rows)} of {len(points)} points", file=sys.stderr)

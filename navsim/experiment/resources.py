@@ -14,18 +14,20 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from navsim.experiment.runner import CHUNK_RUNS, CLOSED_CHUNK_RUNS
 from navsim.flight import properties as P
 from navsim.flight.track import nominal_duration_s
+from navsim.flight.truth import ARRAY_FIELDS as TRUTH_ARRAYS, Truth
 from navsim.foundations.config import MAX_RUNS
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.records.history import ARRAYS
 from navsim.sensors import output_fields
 
-#: the float64 values of one truth sample: the truth's arrays (time, position 3, velocity 3,
-#: quaternion 4, Euler 3, rates 3, specific force 3, air data 5, heights 2, wind 3, angles 2,
-#: throttle) besides the raw properties recorded while flying
-TRUTH_FLOATS = 33
+#: the values of one truth sample: the widths of the truth's arrays (those of a one-sample record)
+#: besides the raw properties recorded while flying
+TRUTH_FLOATS = sum(int(np.prod(np.shape(getattr(Truth.static(0.0, 1.0), f))[1:])) for f in TRUTH_ARRAYS)
 #: the share of the available memory a run may plan to use
 MEMORY_SHARE = 0.8
 _SIZES = {"axis": 3, "state": 9}

@@ -119,6 +119,8 @@ class SweepResult:
     #: each point's label -> the 95 % interval ``[lo, hi]`` of its value (None: none), in the
     #: order of ``rows``
     intervals: list = field(default_factory=list)
+    #: the indices of the points whose flight cannot be flown (a reason in ``failed_points``)
+    unflown: set = field(default_factory=set)
 
     def interval(self, row: int, label: str) -> list[float] | None:
         """The interval of point ``row``'s value of ``label`` (None: none)."""
@@ -182,5 +184,7 @@ def point_values(plan: SweepPlan, estimators: dict) -> dict:
         if isinstance(v, dict):
             raise ScenarioError(f"'{plan.metric}' is a group of metrics ({', '.join(v)})", file=str(plan.path),
                                 key="metric", expected="the path of a number or of a list of three")
-        values[label] = float(np.linalg.norm(v)) if isinstance(v, list) else v
+        if isinstance(v, list):        # a vector by its norm, over the axes it has (None: not estimated)
+            v = float(np.linalg.norm([x for x in v if x is not None]))
+        values[label] = v
     return values

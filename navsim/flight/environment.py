@@ -47,19 +47,22 @@ def turbulence_sigma_mps(wind20_mps: float, h_agl_m: float) -> tuple[float, floa
     return sigma_w / (0.177 + 0.000823 * h_ft) ** 0.4, sigma_w
 
 
-def turbulence_scale_m(h_agl_m: float) -> tuple[float, float]:
-    """The gusts' scale lengths (horizontal, vertical), m, of MIL-HDBK-1797's low-altitude model:
-    ``L_u = L_v = h / (0.177 + 0.000823 h)^1.2``, ``L_w = h / 2``, ``h`` in feet (at least
-    10 ft). Dryden's first-order gust over an airspeed ``V`` has the correlation time ``L / V``."""
+def turbulence_scale_m(h_agl_m: float) -> tuple[float, float, float]:
+    """The gusts' scale lengths (along the wind ``L_u``, across it ``L_v``, vertical ``L_w``), m,
+    of MIL-HDBK-1797's low-altitude model, as JSBSim's ``milspec`` uses them: ``L_u = 2 L_v =
+    h / (0.177 + 0.000823 h)^1.2``, ``L_w = h / 2``, ``h`` in feet (at least 10 ft). Dryden's
+    first-order gust over an airspeed ``V`` has the correlation time ``L / V``."""
     h_ft = max(h_agl_m / 0.3048, 10.0)
-    return 0.3048 * h_ft / (0.177 + 0.000823 * h_ft) ** 1.2, 0.3048 * h_ft / 2.0
+    L_u = 0.3048 * h_ft / (0.177 + 0.000823 * h_ft) ** 1.2
+    return L_u, L_u / 2.0, 0.3048 * h_ft / 2.0
 
 
 def steady_wind_n_mps(env: Environment, t_s: float) -> tuple[float, float, float]:
-    """The steady wind NED at ``t_s``, m/s: ``wind_n_mps`` until the first of ``wind_changes``,
-    their last after it, and between two points the speed and the direction it blows to
-    interpolated linearly (the shorter way round: a wind veering from 270 to 320 deg turns
-    through 295) and the vertical wind too. A gust front is two points a few seconds apart."""
+    """The steady wind NED at ``t_s``, m/s: ``wind_n_mps`` at 0 s, then through each point of
+    ``wind_changes`` in turn, the last held after it; between two points the speed and the
+    direction it blows to are interpolated linearly (the shorter way round: a wind veering from
+    270 to 320 deg turns through 295), and the vertical wind too. A wind held and then changed
+    is the start wind repeated as a point; a gust front is two points a few seconds apart."""
     points = ((0.0, env.wind_n_mps),) + env.wind_changes
     if t_s <= points[0][0] or len(points) == 1:
         return points[0][1]

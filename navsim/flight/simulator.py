@@ -172,7 +172,7 @@ class Watchdog:
         if self.over_wind < self.wind_steps:
             return None
         return (f"the steady wind ({wind:.1f} m/s) is above the airspeed ({row[P.COL_TAS]:.1f} m/s) "
-                f"for {WIND_PERSIST_S:g} s: the aircraft cannot make way against it")
+                f"for {WIND_PERSIST_S:g} s: the aircraft cannot hold its track")
 
 
 def fly(config: FlightConfig | Track, progress=None) -> Truth:

@@ -58,7 +58,7 @@ def _lines(fig, sweep: SweepResult, labels: list, key: str | None) -> None:
     ax.set_ylabel(sweep.metric)
     _log_if_positive(ax, [x for lb in labels for x in _values(sweep, lb)])
     for n in sweep.failed_points:             # a point not flown, or none of whose runs succeeded
-        ax.text(n, 0.03, "not flown" if sweep.failed_points[n].startswith("the flight") else "no run",
+        ax.text(n, 0.03, "not flown" if n in sweep.unflown else "no run",
                 transform=ax.get_xaxis_transform(), ha="center", fontsize=8, color="tab:red")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)

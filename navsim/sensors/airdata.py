@@ -107,6 +107,10 @@ def emulate_ads(truth, spec: AdsSpec, seed: int, runs, faults=(), name: str = "a
     else:
         pt = sensor(truth.p_total_pa[::step], spec.total_noise, spec.total_bias_sigma)
     temp = sensor(truth.temp_k[::step], spec.temperature_noise, 0.0)
+    # the pitot's own error, before a reading below static is read as static (the loop's fill)
+    pitot_error = pt - ps - (truth.p_total_pa[::step] - truth.p_static_pa[::step]) if spec.pitot == "differential" \
+        else pt - truth.p_total_pa[::step]
+    pt = np.maximum(pt, ps)          # a pitot never reads below static
     h_p, tas, cas = _air_data(spec.formula, ps, pt, temp)
     C_nb = dcm_from_quat(truth.quat_nb[::step])
     values = {}
@@ -126,17 +130,15 @@ def emulate_ads(truth, spec: AdsSpec, seed: int, runs, faults=(), name: str = "a
                               **values},
                       valid=valid,
                       errors={"h_error_m": h_p - truth.h_m[::step], "tas_error_mps": tas - truth.tas_mps[::step],
-                              "vel_error_n_mps": vel - truth.vel_n_mps[::step]},
+                              "vel_error_n_mps": vel - truth.vel_n_mps[::step], "pitot_error_pa": pitot_error},
                       meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed, "formula": spec.formula,
                             "pitot": spec.pitot, "velocity_axis": spec.velocity_axis,
                             "wind_estimate_n_mps": np.asarray(wind_estimate_n_mps, float)})
 
 
 def _air_data(formula: str, ps, pt, temp):
-    """What the ADS computes from its static and total pressures and temperature: the pressure
-    altitude, true and calibrated airspeed (``p_total`` below ``p_static`` read as static: no
-    dynamic pressure)."""
-    pt = np.maximum(pt, ps)
+    """What the ADS computes from its static and total pressures (``pt >= ps``) and temperature:
+    the pressure altitude, true and calibrated airspeed."""
     if formula == "p0":
         h_p, tas = atm.pressure_altitude_p0_ft(ps) * 0.3048, atm.tas_incompressible(pt, ps, temp)
     else:
@@ -163,9 +165,8 @@ def prepare_ads_in_loop(data: SensorData, static) -> None:
     fly: each run's drawn sensor errors (static and dynamic or total pressure, temperature,
     vanes) kept in ``errors`` for :func:`fill_ads_in_loop`."""
     v = data.values
-    ps, pt = v["p_static_pa"], v["p_total_pa"]
-    e = {"p_static_pa": ps - static.p_static_pa[0], "temp_k": v["temp_k"] - static.temp_k[0],
-         "pitot_pa": pt - ps if data.meta["pitot"] == "differential" else pt - static.p_total_pa[0]}
+    e = {"p_static_pa": v["p_static_pa"] - static.p_static_pa[0], "temp_k": v["temp_k"] - static.temp_k[0],
+         "pitot_pa": data.errors["pitot_error_pa"]}
     if "alpha_rad" in v:
         e.update(alpha_rad=v["alpha_rad"].copy(), beta_rad=v["beta_rad"].copy())
     data.errors = {f"sensor_{k}": x for k, x in e.items()}
@@ -182,6 +183,7 @@ def fill_ads_in_loop(data: SensorData, j: int, sample) -> None:
     else:
         pt = sample.p_total_pa + e["pitot_pa"]
     temp = sample.temp_k + e["temp_k"]
+    pt = np.maximum(pt, ps)
     h_p, tas, cas = _air_data(data.meta["formula"], ps, pt, temp)
     C_nb = dcm_from_euler(sample.euler_rad[:, 0], sample.euler_rad[:, 1], sample.euler_rad[:, 2])
     if "alpha_rad" in e:

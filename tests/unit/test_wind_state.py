@@ -107,13 +107,13 @@ def test_the_gust_states_model_in_F_Q_and_R():
 
 
 def test_gust_scale_lengths_follow_mil_hdbk_1797():
-    """Low altitude: L_u = L_v = h / (0.177 + 0.000823 h)^1.2 (1000 ft at 1000 ft),
+    """Low altitude: L_u = 2 L_v = h / (0.177 + 0.000823 h)^1.2 (1000 ft at 1000 ft),
     L_w = h / 2; h at least 10 ft."""
-    L_h, L_w = turbulence_scale_m(1000 * 0.3048)
-    assert L_h == pytest.approx(1000 * 0.3048) and L_w == pytest.approx(500 * 0.3048)
-    L_h, L_w = turbulence_scale_m(30.0)
+    L_u, L_v, L_w = turbulence_scale_m(1000 * 0.3048)
+    assert L_u == pytest.approx(1000 * 0.3048) and L_v == pytest.approx(500 * 0.3048) and L_w == pytest.approx(L_v)
+    L_u, L_v, L_w = turbulence_scale_m(30.0)
     h_ft = 30.0 / 0.3048
-    assert L_h == pytest.approx(0.3048 * h_ft / (0.177 + 0.000823 * h_ft) ** 1.2) and L_h > L_w
+    assert L_u == pytest.approx(0.3048 * h_ft / (0.177 + 0.000823 * h_ft) ** 1.2) and L_u > L_w
     assert turbulence_scale_m(0.0) == turbulence_scale_m(10 * 0.3048)
 
 
