@@ -11,11 +11,12 @@ with its header repeated. Nothing is drawn outside the page's margins.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
 from matplotlib.figure import Figure
 from matplotlib.font_manager import FontProperties
 from matplotlib.lines import Line2D
@@ -67,13 +68,12 @@ class Table:
 class _Page:
     fig: Figure
     y_in: float = MARGIN_IN                  #: the cursor, from the top
-    measure: object = field(default=None, repr=False)
 
 
 def _new_page(title: str, continued: bool) -> _Page:
     fig = Figure(figsize=PAGE_IN, dpi=PNG_DPI)
     FigureCanvasAgg(fig)
-    page = _Page(fig, measure=fig.canvas.get_renderer())
+    page = _Page(fig)
     _draw_text(page, title + (" (continued)" if continued else ""), MARGIN_IN, 14, weight="bold")
     page.y_in += 14 * LINE / 72 + 0.1
     return page
@@ -82,9 +82,22 @@ def _new_page(title: str, continued: bool) -> _Page:
 def _width_in(page: _Page, text: str, size: float, weight: str = "normal", family: str = "sans-serif") -> float:
     if not text:
         return 0.0
+    dpi = page.fig.dpi
+    return max(_line_width_px(line, size, weight, family, dpi) for line in text.split("\n")) / dpi
+
+
+@functools.lru_cache(maxsize=1 << 16)
+def _line_width_px(line: str, size: float, weight: str, family: str, dpi: float) -> float:
+    """One line's width in pixels at ``dpi``, as Agg draws it (a table is measured at several
+    sizes and caps: each string once)."""
     prop = FontProperties(size=size, weight=weight, family=family)
-    w = max(page.measure.get_text_width_height_descent(line, prop, ismath=False)[0] for line in text.split("\n"))
-    return w / page.fig.dpi
+    return _renderer(dpi).get_text_width_height_descent(line, prop, ismath=False)[0]
+
+
+@functools.lru_cache(maxsize=4)
+def _renderer(dpi: float) -> RendererAgg:
+    """An Agg renderer at ``dpi``, for measuring text (a page's size does not change it)."""
+    return RendererAgg(1, 1, dpi)
 
 
 def _draw_text(page: _Page, text: str, x_in: float, size: float, ha: str = "left", colour: str = "black",
