@@ -14,21 +14,28 @@ from navsim.report.figures import Page
 from navsim.report.tables import PNG_DPI
 
 
+#: the share of the PNGs this process draws after the PDF while a forked child draws the others:
+#: a page's PNG costs about 1.6 times its PDF page (P0's report, 15 pages: 3.5 s and 2.1 s,
+#: ``benchmarks/report_speed.py``), so the two finish together with a fifth of them here
+PARENT_PNG_SHARE = 0.2
+
+
 def render(folder: OutputFolder, pages: list[Page], fmts, title: str, pdf: str = "report.pdf") -> list[Path]:
     """Each page to ``<name>.png`` and all of them, in order, to ``pdf`` (``title`` in
     its metadata); returns the files written. Where the machine has a second core and ``fork``
-    (Linux), a forked child draws the PNGs while this process draws the PDF (about half the
-    time: a page costs as much to draw for either)."""
+    (Linux), a forked child draws most PNGs while this process draws the PDF and the rest
+    (:data:`PARENT_PNG_SHARE`)."""
     out = folder.path
     pngs = [(out / f"{page.name}.png", page.figure) for page in pages] if "png" in fmts else []
     pdf_path = out / pdf if "pdf" in fmts else None
     folder.record([p for p, _ in pngs] + ([pdf_path] if pdf_path else []))
-    child = _fork_writer(pngs) if pngs and pdf_path and _can_fork() else None
-    if child is None:
-        _write_pngs(pngs)
+    split = len(pngs) - round(PARENT_PNG_SHARE * len(pngs))
+    child = _fork_writer(pngs[:split]) if pngs and pdf_path and _can_fork() else None
+    here = pngs[split:] if child is not None else pngs
     try:
         if pdf_path is not None:
             write_atomic(pdf_path, lambda p: _write_pdf(p, pages, title))
+        _write_pngs(here)
     except BaseException:
         if child is not None:                 # this error is the one reported
             _join_writer(*child, report=False)
