@@ -310,7 +310,7 @@ def _advance(fleet: _Fleet, loop, inc, rows: np.ndarray, k: int) -> None:
     dth = quantize_increment(dth, spec.gyro, dt)
     dv = quantize_increment(dv, spec.accel, dt)
     sample = LoopSample(rows[:, P.COL_LAT], rows[:, P.COL_LON], rows[:, P.COL_H], rows[:, P.COL_VN:P.COL_VD + 1],
-                        rows[:, [P.COL_ROLL, P.COL_PITCH, P.COL_YAW]], rows[:, P.COL_PS], rows[:, P.COL_PT],
+                        rows[:, P.COL_ROLL:P.COL_YAW + 1], rows[:, P.COL_PS], rows[:, P.COL_PT],
                         rows[:, P.COL_TEMP], rows[:, P.COL_ALPHA], rows[:, P.COL_BETA])
     for data in fleet.sensors.values():
         if k % data.meta["step"] == 0:

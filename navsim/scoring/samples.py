@@ -31,7 +31,7 @@ from navsim.scoring.intervals import (
     rms_intervals,
     std_interval,
 )
-from navsim.scoring.stats import RunSums, chi2_band, convergence_time
+from navsim.scoring.stats import RunSums, chi2_band, convergence_time, last_finite
 
 #: the errors scored per axis (as :data:`navsim.scoring.scorer.ERRORS`)
 ERRORS = ("pos_m", "vel_mps", "att_deg")
@@ -101,8 +101,7 @@ class RunSamples:
         end = np.full(hor2.shape[0], np.nan)
         finite = np.isfinite(hor2)
         if hor2.shape[1]:
-            last = hor2.shape[1] - 1 - np.argmax(finite[:, ::-1], axis=1)
-            end = np.where(finite.any(axis=1), hor2[np.arange(len(last)), last], np.nan)
+            end = np.where(finite.any(axis=1), hor2[np.arange(len(end)), last_finite(finite)], np.nan)
         self._s("wind_axes", 1).add(err ** 2)
         self._s("wind_hor").add(hor2)
         self._s("wind_end").add(np.reshape(end, (-1, 1)))
@@ -111,11 +110,12 @@ class RunSamples:
         """The wind estimate's error (:class:`~navsim.records.metrics.WindStats`), None without one."""
         if "wind_hor" not in self.sums:
             return None
-        mean = lambda key: np.sum(self.sums[key].arrays()[0], axis=0) / np.sum(self.sums[key].arrays()[1], axis=0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            axes = np.sqrt(mean("wind_axes"))
-            return WindStats(float(np.sqrt(mean("wind_hor"))), float(np.sqrt(mean("wind_end"))),
-                             [float(a) if np.isfinite(a) else None for a in axes])
+        def rms(key):                  # over every run's sums (an axis not estimated: NaN)
+            s, n = self.sums[key].arrays()
+            with np.errstate(invalid="ignore", divide="ignore"):
+                return np.sqrt(np.sum(s, axis=0) / np.sum(n, axis=0))
+        return WindStats(float(rms("wind_hor")), float(rms("wind_end")),
+                         [float(a) if np.isfinite(a) else None for a in rms("wind_axes")])
 
     def add_normalised(self, z2) -> None:
         """Feed the squared normalised errors ``(e / sigma)^2``, ``(B, epochs, 9)``."""

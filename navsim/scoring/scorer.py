@@ -53,6 +53,7 @@ from navsim.scoring.stats import (
     chi2_band,
     chi2_bands,
     convergence_time,
+    last_finite,
 )
 
 #: diverged runs listed by run in an estimator's ``divergence`` metrics (all are counted)
@@ -221,8 +222,7 @@ class EstimatorScore:
             self._a(("max", name), lambda: Extreme(np.nanmax)).add(np.abs(x), (0, 1))
         self._a("conv", Sum).add(np.sum(h.pos_err_m[good] ** 2, axis=-1), 0)
         # each run's last epoch (a closed-loop run's records end at its own landing)
-        finite = np.isfinite(h.pos_err_m[good][..., 0])
-        last = finite.shape[1] - 1 - np.argmax(finite[:, ::-1], axis=1)
+        last = last_finite(np.isfinite(h.pos_err_m[good][..., 0]))
         rows = np.arange(len(last))
         self.final.append((h.pos_err_m[good][rows, last], h.vel_err_mps[good][rows, last],
                            np.degrees(h.att_err_rad[good][rows, last])))

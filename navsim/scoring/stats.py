@@ -190,6 +190,12 @@ class Extreme:
         self.v = v if self.v is None else self.fn(np.stack([self.v, v]), axis=0)
 
 
+def last_finite(finite: np.ndarray) -> np.ndarray:
+    """Each row's last ``True`` column of ``finite`` ``(B, E)``: a run's last record (a
+    closed-loop run's records end at its landing); the last column for a row with none."""
+    return finite.shape[1] - 1 - np.argmax(finite[:, ::-1], axis=1)
+
+
 def chi2_band(dim: int, runs: int, p: float = 0.95) -> tuple[float, float]:
     """Two-sided band of the average of ``runs`` NEES/NIS of dimension ``dim``."""
     a = (1 - p) / 2
