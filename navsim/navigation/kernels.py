@@ -46,7 +46,8 @@ A_M, E2, OMEGA, GM, J2 = earth.A_M, earth.E2, earth.OMEGA_IE_RPS, earth.GM_M3PS2
 
 
 @njit(cache=True)
-def _radii(lat):
+def radii(lat):
+    """Meridian and transverse radii ``R_M``, ``R_N`` at ``lat`` (:func:`navsim.foundations.earth.radii`), m."""
     s = math.sin(lat)
     w = math.sqrt(1.0 - E2 * s * s)
     return A_M * (1.0 - E2) / (w * w * w), A_M / w
@@ -56,7 +57,7 @@ def _radii(lat):
 def _gravity_n(lat, h, out):
     """Gravity in NED at latitude ``lat`` (rad), height ``h`` (m), into ``out`` (3,):
     :func:`navsim.foundations.earth.gravity_n` for one point."""
-    _, r_n = _radii(lat)
+    _, r_n = radii(lat)
     sl, cl = math.sin(lat), math.cos(lat)
     x = (r_n + h) * cl
     z = (r_n * (1.0 - E2) + h) * sl
@@ -135,7 +136,7 @@ def _refresh(X, b, g):
     """Gravity, rates and radii of run ``b`` into its cache rows of ``X`` (``g`` (3,) scratch)."""
     lat, h, v0, v1 = X[_LAT + b], X[_H + b], X[_V0 + b], X[_V1 + b]
     _gravity_n(lat, h, g)
-    r_m, r_n = _radii(lat)
+    r_m, r_n = radii(lat)
     cl, sl = math.cos(lat), math.sin(lat)
     w_ie0, w_ie2 = OMEGA * cl, -OMEGA * sl
     w_en0, w_en1, w_en2 = v1 / (r_n + h), -v0 / (r_m + h), -v1 * math.tan(lat) / (r_n + h)
@@ -580,21 +581,27 @@ def propagate_covariance(x, P, F, Qc, T, order):
                 xk[i] = xn[i] * s
                 x[b, i] += xk[i]
         _sparse_left(rows, cols, vals, nz, Pb, FX)
-        for i in range(n):
-            for j in range(n):
-                X[i, j] = (FX[i, j] + FX[j, i]) + Qb[i, j]
+        for i in range(n):         # X and P symmetric: the upper triangle, then mirrored
+            for j in range(i, n):
+                v = (FX[i, j] + FX[j, i]) + 0.5 * (Qb[i, j] + Qb[j, i])
+                X[i, j] = v
+                X[j, i] = v
         c = T
         for k in range(1, order + 1):
             for i in range(n):
-                for j in range(n):
+                for j in range(i, n):
                     Pb[i, j] += c * X[i, j]
             if k < order:
                 _sparse_left(rows, cols, vals, nz, X, FX)
                 for i in range(n):
-                    for j in range(n):
-                        X[i, j] = FX[i, j] + FX[j, i]
+                    for j in range(i, n):
+                        v = FX[i, j] + FX[j, i]
+                        X[i, j] = v
+                        X[j, i] = v
                 c = c * T / (k + 1)
-        _symmetrize(Pb)
+        for i in range(n):
+            for j in range(i + 1, n):
+                Pb[j, i] = Pb[i, j]
 
 
 @njit(cache=True)
@@ -734,6 +741,47 @@ def _joseph_run(x, P, z, H, R, valid, y, S, HP, Kt, W, work, index):
     return nis
 
 
+@njit(cache=True)
+def rodrigues(x, y, z, R):
+    """``R = exp([v x])`` of the rotation vector ``v = (x, y, z)``, the compiled twin of
+    :func:`navsim.foundations.transform.rotation` (its series below 0.05 rad, sine and cosine
+    above; NaN for a non-finite vector)."""
+    a2 = x * x + y * y + z * z
+    s = 1.0 - a2 * (1.0 / 6.0) + a2 * a2 * (1.0 / 120.0) - a2 ** 3 * (1.0 / 5040.0)
+    c = 0.5 - a2 * (1.0 / 24.0) + a2 * a2 * (1.0 / 720.0) - a2 ** 3 * (1.0 / 40320.0)
+    if not a2 < 2.5e-3:
+        a = math.sqrt(a2)
+        if math.isfinite(a):
+            s, c = math.sin(a) / a, (1.0 - math.cos(a)) / a2
+        else:
+            s = c = math.nan
+    cx, cy = c * x, c * y
+    R[0, 0], R[1, 1], R[2, 2] = 1.0 - c * (y * y + z * z), 1.0 - c * (x * x + z * z), 1.0 - c * (x * x + y * y)
+    R[0, 1], R[1, 0] = cx * y - s * z, cx * y + s * z
+    R[0, 2], R[2, 0] = cx * z + s * y, cx * z - s * y
+    R[1, 2], R[2, 1] = cy * z - s * x, cy * z + s * x
+
+
+@njit(cache=True)
+def feed_back(x, att, vel, pos, C, vel_n, lat, lon, h):
+    """The error-state filter's navigation feedback of every run, in place: ``C_nb <-
+    exp([phi x]) C_nb``, ``v <- v - dv``, ``(L, lambda, h) <- (L, lambda, h) - dp``, the
+    errors read from ``x`` ``(B, n)`` at the blocks starting at ``att``, ``vel``, ``pos``."""
+    R, T = np.empty((3, 3)), np.empty((3, 3))
+    for b in range(x.shape[0]):
+        rodrigues(x[b, att], x[b, att + 1], x[b, att + 2], R)
+        for i in range(3):
+            for j in range(3):
+                T[i, j] = R[i, 0] * C[b, 0, j] + R[i, 1] * C[b, 1, j] + R[i, 2] * C[b, 2, j]
+        for i in range(3):
+            for j in range(3):
+                C[b, i, j] = T[i, j]
+            vel_n[b, i] -= x[b, vel + i]
+        lat[b] -= x[b, pos]
+        lon[b] -= x[b, pos + 1]
+        h[b] -= x[b, pos + 2]
+
+
 # --- records ---------------------------------------------------------------------------------
 
 
@@ -768,7 +816,7 @@ def nav_errors(lat, lon, h, vel, C, truth, out):
         lat_t, h_t = truth[t, 0], truth[t, 2]
         dlat, dlon, dh = lat[b] - lat_t, lon[b] - truth[t, 1], h[b] - h_t
         out[b, 6], out[b, 7], out[b, 8] = dlat, dlon, dh
-        r_m, r_n = _radii(lat_t)
+        r_m, r_n = radii(lat_t)
         out[b, 9] = dlat * (r_m + h_t)
         out[b, 10] = dlon * (r_n + h_t) * math.cos(lat_t)
         out[b, 11] = -dh
@@ -871,7 +919,7 @@ def covariance_record(P, errors, truth, limits, sigma, nees, code):
     x = np.empty((n, 1))
     for b in range(B):
         t = 0 if truth.shape[0] == 1 else b
-        r_m, r_n = _radii(truth[t, 0])
+        r_m, r_n = radii(truth[t, 0])
         for i in range(n):
             sigma[b, i] = math.sqrt(max(P[b, i, i], 0.0))
         sigma[b, 6] *= r_m + truth[t, 2]
@@ -901,7 +949,7 @@ def error_dynamics(lat, h, vel, C, f, blocks, dlat, dh, F):
     for b in range(B):
         Fb = F[b]
         Fb[:, :] = 0.0
-        r_m, r_n = _radii(lat[b])
+        r_m, r_n = radii(lat[b])
         Rm, Rn = r_m + h[b], r_n + h[b]
         sl, cl, tl = math.sin(lat[b]), math.cos(lat[b]), math.tan(lat[b])
         vn, ve, vd = vel[b, 0], vel[b, 1], vel[b, 2]

@@ -7,6 +7,9 @@ import numpy as np
 import pytest
 from model_result import unpack
 
+from navsim.experiment.driver import run_batch
+from navsim.experiment.runner import cached_flight
+from navsim.experiment.scenario import load_scenario
 from navsim.foundations import earth
 from navsim.foundations.atmosphere import R_AIR
 from navsim.foundations.config import Node
@@ -16,11 +19,14 @@ from navsim.navigation.estimators.error_model import BLOCK_SIZES, PRESETS, Layou
 from navsim.navigation.estimators.eskf import _covariance_series_fits
 from navsim.navigation.estimators.measurements import (
     build_measurements,
+    compiled_form,
     measurement_class,
     measurement_types,
     parse_measurements,
 )
+from navsim.navigation.estimators.factory import build
 from navsim.navigation.strapdown import NavState, rates_n
+from navsim.sensors import emulate
 
 LAYOUT = Layout(PRESETS["p3_15"])
 
@@ -238,6 +244,83 @@ def test_a_gust_state_takes_the_gusts_out_of_R(blocks, white):
     R = [unpack(_model_of("air_velocity", FdCase("", {**_VANES, "turbulence_sigma_mps": t}))[1].model(
          nav(lat, lon, h, v, C), layout, FakeData(values, meta), 0))[2][0] for t in (0.0, 2.0)]
     np.testing.assert_allclose(R[1] - R[0], 4.0 * np.diag(white), atol=1e-12)
+
+
+class BatchData:
+    """Sensor data of ``B`` runs, two samples each (the model reads sample 1)."""
+
+    def __init__(self, values, meta=None):
+        self.values = {k: np.asarray(v) for k, v in values.items()}
+        self.valid = np.ones((len(next(iter(values.values()))), 2), bool)
+        self.valid[::3, 1] = False
+        self.meta = dict(meta or {})
+
+
+def _batch_case(rng, B: int = 7):
+    """``B`` INS states scattered about the nominal one (attitude by up to 0.3 rad, velocity by
+    3 m/s, position by 100 m) and sensor values of each, 2 samples per run."""
+    lat, lon, h, v, C, _, _ = nominal()
+    values, meta = sensor_values()
+    C_b = np.stack([rotation(rng.normal(0, 0.1, 3)) @ C for _ in range(B)])
+    state = NavState(lat + rng.normal(0, 1e-5, B), lon + rng.normal(0, 1e-5, B), h + rng.normal(0, 100.0, B),
+                     v + rng.normal(0, 3.0, (B, 3)), C_b)
+    batch = {}
+    for k, x in values.items():
+        x = np.broadcast_to(np.asarray(x), (B,) + np.shape(x))
+        if x.dtype.kind == "f":          # lat, lon by 1e-5 rad, the others by 1 %
+            x = x + (rng.normal(0, 1e-5, x.shape) if k in ("lat_rad", "lon_rad")
+                     else rng.normal(0, 0.01, x.shape) * np.abs(x))
+        batch[k] = np.stack([x, x], 1)
+    return state, BatchData(batch, meta)
+
+
+@pytest.mark.parametrize("mtype, case", _fd_params())
+def test_every_compiled_model_equals_its_python_model(mtype, case):
+    """The compiled form of every shipped measurement type (``compiled(layout)``, filled for
+    all runs in one call) gives the Python model's ``z``, ``H``, ``R`` and valid runs to 1e-12
+    (of each matrix's largest entry), for a batch of scattered INS states and samples, some
+    runs without a sample; its rows are placed at their offset in the stacked arrays."""
+    if case is None:
+        pytest.skip("no case (test_H_matches_finite_differences fails for it)")
+    entry, model = _model_of(mtype, case)
+    if model.__module__ != "navsim.navigation.estimators.measurements":
+        pytest.skip("not a shipped type")
+    rng = np.random.default_rng(abs(hash(mtype + case.id)) % 2**32)
+    state, data = _batch_case(rng)
+    layout = Layout(case.blocks)
+    lin = model.model(state, layout, data, 1)
+    form = compiled_form(_model_of(mtype, case)[1], layout)
+    assert form is not None, f"{mtype} has no compiled form"
+    B, m, r0 = state.lat_rad.shape[0], lin.H.shape[1], 2
+    z, H, R = np.zeros((B, m + 3)), np.zeros((B, m + 3, layout.n)), np.zeros((B, m + 3, m + 3))
+    valid = form.fill(state, data, 1, r0, z, H, R)
+    assert form.rows == m
+    rows = slice(r0, r0 + m)
+    for got, want in ((z[:, rows], lin.z), (H[:, rows], lin.H), (R[:, rows, rows], lin.R)):
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
+    np.testing.assert_array_equal(valid, np.ones(B, bool) if lin.valid is None else lin.valid)
+    assert not z[:, :r0].any() and not H[:, :r0].any() and not R[:, :r0].any()
+
+
+def test_the_filter_with_compiled_models_equals_the_python_models(repo_root):
+    """P0's matched-ADS ES-KF (GNSS position, air velocity with vanes and a pitot-bias state,
+    height with a baro state) over 60 s of 3 runs: the state and covariance with the compiled
+    models equal those with the Python models to 1e-12 of each diagonal's scale."""
+    scenario = load_scenario(repo_root / "scenarios" / "p0_matched_ads.yaml")
+    truth = cached_flight(scenario.flight)[0].slice(0, 6001)
+    data = {c.name: emulate(truth, c, scenario.seed, range(3)) for c in scenario.sensors}
+    imu = data.pop(next(c.name for c in scenario.sensors if c.kind == "imu"))
+    spec = next(e for e in scenario.estimators if e.type == "eskf")
+    out = []
+    for compiled in (True, False):
+        est = build(spec)
+        est.compiled_models = compiled
+        run_batch(truth, imu, data, {spec.label: est}, scenario.initial, scenario.seed, range(3))
+        out.append((est.x.copy(), est.P.copy()))
+    scale = np.sqrt(np.diagonal(out[1][1], axis1=1, axis2=2))
+    np.testing.assert_allclose(out[0][0] / scale, out[1][0] / scale, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(out[0][1] / (scale[:, :, None] * scale[:, None, :]),
+                               out[1][1] / (scale[:, :, None] * scale[:, None, :]), rtol=0, atol=1e-12)
 
 
 def test_every_finite_difference_case_is_a_registered_type():

@@ -8,6 +8,7 @@ from navsim.experiment.driver import nav_errors
 from navsim.flight import fly, parse_track
 from navsim.foundations import earth
 from navsim.foundations.transform import dcm_from_quat, euler_from_dcm, rotation, wrap_angle
+from navsim.navigation import kernels
 from navsim.navigation.strapdown import BlockStrapdown, state_from_truth
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.imu import emulate_imu
@@ -227,3 +228,25 @@ def test_the_compiled_navigation_errors_equal_their_formulas(imu):
                         truth.h_m[s], truth.euler_rad[s])
     for g, w in zip(got, want):
         np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-15)
+
+
+def test_the_compiled_feedback_equals_the_rotation_and_subtractions():
+    """``feed_back``: ``C <- rotation(phi) C`` (its compiled Rodrigues, below and above the
+    series' 0.05 rad, to 1e-15), the velocity and position less their errors; a NaN error
+    spoils its own run only."""
+    rng = np.random.default_rng(7)
+    B, n = 5, 16
+    x = rng.normal(0, 1e-3, (B, n))
+    x[1, 0:3] = [0.2, -0.1, 0.3]                  # above the series' range
+    x[4, 3] = np.nan
+    C = np.stack([rotation(rng.normal(0, 1, 3)) for _ in range(B)])
+    vel, lat, lon, h = rng.normal(0, 10, (B, 3)), rng.uniform(0, 1, B), rng.uniform(0, 2, B), rng.uniform(0, 500, B)
+    want = (rotation(x[:, 0:3]) @ C, vel - x[:, 3:6], lat - x[:, 6], lon - x[:, 7], h - x[:, 8])
+    got = [a.copy() for a in (C, vel, lat, lon, h)]
+    kernels.feed_back(x, 0, 3, 6, *got)
+    for g, w in zip(got, want):
+        np.testing.assert_allclose(g, w, rtol=0, atol=1e-15 * np.nanmax(np.abs(w)))
+    assert np.isnan(got[1][4, 0]) and np.isfinite(got[1][:4]).all()
+    R = np.empty((3, 3))
+    kernels.rodrigues(np.nan, 0.0, 0.0, R)
+    assert np.isnan(R).any()

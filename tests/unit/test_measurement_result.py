@@ -148,10 +148,13 @@ def test_a_plugin_model_returning_the_former_tuple_is_wrapped_with_a_warning(reg
         P_old, pos_old = _updated(old)
     with warnings.catch_warnings():
         warnings.simplefilter("error", DeprecationWarning)         # the filter reads attributes
-        P_new, pos_new = _updated(GnssPosition("s", np.ones(3)))
+        P_new, pos_new = _updated(_plugin("new_style", lambda lin: lin))
+        P_shipped, pos_shipped = _updated(GnssPosition("s", np.ones(3)))    # its compiled form
     assert P_new[0, 8, 8] < P_new[1, 8, 8] == 9.0 and pos_new[0, 2] != pos_new[1, 2] == H_M   # run 1 has no sample
     np.testing.assert_array_equal(P_old, P_new)
     np.testing.assert_array_equal(pos_old, pos_new)
+    np.testing.assert_allclose(P_shipped, P_new, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(pos_shipped, pos_new, rtol=1e-14, atol=0)
 
 
 def test_a_plugin_model_returning_anything_else_is_a_type_error_naming_its_type(registry):

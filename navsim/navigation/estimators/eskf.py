@@ -21,7 +21,7 @@ import numpy as np
 from navsim.flight.environment import MAX_WIND_MPS
 from navsim.foundations.config import MAX_DURATION_S, MAX_TIME_CONSTANT_S, Node, close_match
 from navsim.foundations.jsonschema import MEASUREMENT, POS, obj
-from navsim.foundations.transform import rotation
+from navsim.navigation import kernels
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.estimators.error_model import (
@@ -38,7 +38,9 @@ from navsim.navigation.estimators.error_model import (
 from navsim.navigation.estimators.measurements import (
     build_measurements,
     check_observed_states,
+    compiled_form,
     parse_measurements,
+    stack_models,
 )
 from navsim.navigation.strapdown import BlockStrapdown, NavState
 from navsim.sensors.catalog import load_spec
@@ -72,6 +74,9 @@ class ErrorStateKF:
         is the Taylor series of its own equation instead (the same to rounding, a third of the
         work: :data:`SERIES_MIN_ORDER`);
         ``van_loan``: exact, about six times slower.
+    compiled_models : bool
+        Evaluate each measurement model by its compiled form where it has one (the shipped
+        types all do; the same numbers to rounding); False: by its Python ``model``.
     """
 
     #: the JSON Schema of its entry's keys (beside ``label`` and ``type``), for ``navsim schema``
@@ -88,12 +93,13 @@ class ErrorStateKF:
 
     def __init__(self, layout: Layout, noise: ProcessNoise, measurements, period_s: float = 1.0,
                  discretization: str = "series", initial_sigma: dict | None = None,
-                 series_order: int = 6, latest_sample: bool = False):
+                 series_order: int = 6, latest_sample: bool = False, compiled_models: bool = True):
         if discretization not in ("series", "van_loan"):
             raise ValueError(f"discretization '{discretization}': expected series or van_loan")
         self.layout, self.noise, self.measurements = layout, noise, list(measurements)
         self.period_s, self.discretization = period_s, discretization
         self.series_order, self.latest_sample = series_order, latest_sample
+        self.compiled_models, self._forms = compiled_models, None
         self.initial_sigma = dict(initial_sigma or {})
         for m in self.measurements:         # the sensor-error states a measurement model observes
             self.initial_sigma.update(getattr(m, "state_sigma", {}))
@@ -187,18 +193,27 @@ class ErrorStateKF:
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self.predict()
         since = self._since(t)
-        taken = [(m, data, j) for m in self.measurements for data, j in [sample(sensors, m.sensor, t, since)]
-                 if j is not None]
+        taken = [(m, c, data, j) for m, c in zip(self.measurements, self._compiled_forms())
+                 for data, j in [sample(sensors, m.sensor, t, since)] if j is not None]
         if self._own_corrections():         # all of them in one compiled call
-            models = [m.model(self.sd.state, self.layout, data, j) for m, data, j in taken]
-            u = kalman.update_in_place(self.x, self.P, models)
+            st = stack_models(taken, self.sd.state, self.layout)
+            u = kalman.update_stacked(self.x, self.P, st.z, st.H, st.R, st.valid, st.ends)
             self.diverged |= u.bad
             out = [Innovation(m.name, m.sensor, t, y, S, nis)
-                   for (m, _, _), y, S, nis in zip(taken, u.y, u.S, u.nis)]
+                   for (m, _, _, _), y, S, nis in zip(taken, u.y, u.S, u.nis)]
         else:
-            out = [self.correct(m, data, j, t) for m, data, j in taken]
+            out = [self.correct(m, data, j, t) for m, _, data, j in taken]
         self.feedback()
         return out
+
+    def _compiled_forms(self) -> list:
+        """Each measurement model's compiled form (None: its Python ``model``), in the order of
+        ``measurements``, built at the first epoch; all None with ``compiled_models`` False or
+        when a subclass corrects one model at a time."""
+        if self._forms is None:
+            own = self.compiled_models and self._own_corrections()
+            self._forms = [compiled_form(m, self.layout) if own else None for m in self.measurements]
+        return self._forms
 
     def _since(self, t: float) -> float | None:
         """The start of the window :func:`~navsim.navigation.estimators.base.sample` reads at the
@@ -314,11 +329,10 @@ class ErrorStateKF:
         """Inject the estimated errors into the mechanization and the IMU compensation."""
         L, x = self.layout, self.x
         s = self.sd.state
-        phi = x[:, L.slice("att")]
-        s.C_nb = rotation(phi) @ s.C_nb
-        s.vel_n_mps = s.vel_n_mps - x[:, L.slice("vel")]
-        p = x[:, L.slice("pos")]
-        s.lat_rad, s.lon_rad, s.h_m = s.lat_rad - p[:, 0], s.lon_rad - p[:, 1], s.h_m - p[:, 2]
+        for name in ("lat_rad", "lon_rad", "h_m", "vel_n_mps", "C_nb"):     # changed in place, as the
+            setattr(s, name, np.ascontiguousarray(getattr(s, name), float))  # strapdown changes them
+        kernels.feed_back(x, L.slice("att").start, L.slice("vel").start, L.slice("pos").start, s.C_nb, s.vel_n_mps,
+                          s.lat_rad, s.lon_rad, s.h_m)
         if L.has("gyro_bias"):
             self.b_gyro = self.b_gyro + x[:, L.slice("gyro_bias")]
         if L.has("accel_bias"):

@@ -129,11 +129,10 @@ class Updates:
 
 def update_in_place(x, P, measurements) -> Updates:
     """Joseph-form updates with each measurement in turn, as :func:`update` applied one after
-    the other, in one compiled call (:func:`navsim.navigation.kernels.joseph_update`). Each
-    measurement is a model's :class:`~navsim.navigation.estimators.measurements.Linearised`, or
-    the plain arrays ``(z, H, R, valid)`` as a tuple (``valid``: the runs that have a sample, or
-    None for all). ``x`` ``(B, n)`` and ``P`` ``(B, n, n)`` are contiguous float arrays, changed
-    in place."""
+    the other, in one compiled call (:func:`update_stacked`). Each measurement is a model's
+    :class:`~navsim.navigation.estimators.measurements.Linearised`, or the plain arrays
+    ``(z, H, R, valid)`` as a tuple (``valid``: the runs that have a sample, or None for all).
+    ``x`` ``(B, n)`` and ``P`` ``(B, n, n)`` are contiguous float arrays, changed in place."""
     B, n = x.shape
     models = [m if isinstance(m, tuple) else (m.z, m.H, m.R, m.valid) for m in measurements]
     ends = np.cumsum([0] + [np.shape(H)[-2] for _, H, _, _ in models])
@@ -144,8 +143,18 @@ def update_in_place(x, P, measurements) -> Updates:
         r = slice(ends[g], ends[g + 1])
         z_all[:, r], H_all[:, r], R_all[:, r, r] = z, H, R
         valid_all[:, g] = True if valid is None else valid
+    return update_stacked(x, P, z_all, H_all, R_all, valid_all, ends)
+
+
+def update_stacked(x, P, z, H, R, valid, ends) -> Updates:
+    """The updates of :func:`update_in_place` from the measurements stacked already: ``z``
+    ``(B, M)``, ``H`` ``(B, M, n)``, ``R`` ``(B, M, M)`` (its diagonal blocks read), ``valid``
+    ``(B, G)``, measurement ``g`` the rows ``ends[g]:ends[g + 1]`` (compiled:
+    :func:`navsim.navigation.kernels.joseph_update`)."""
+    B, M = z.shape
+    G = len(ends) - 1
     y, S, nis, bad = np.empty((B, M)), np.zeros((B, M, M)), np.empty((B, G)), np.zeros(B, bool)
-    kernels.joseph_update(x, P, z_all, H_all, R_all, valid_all, ends, y, S, nis, bad)
+    kernels.joseph_update(x, P, z, H, R, valid, np.asarray(ends, np.int64), y, S, nis, bad)
     cut = [slice(ends[g], ends[g + 1]) for g in range(G)]
     return Updates([y[:, r] for r in cut], [S[:, r, r] for r in cut], [nis[:, g] for g in range(G)], bad)
 

@@ -32,7 +32,11 @@ own the same way::
             ...
             return Linearised(z, H, R, data.valid[:, j])    # (B, m), (B, m, n), (B, m, m), (B,)
 
-Optional: a classmethod ``reads(entry)`` naming the sensor values the model reads (checked
+Optional: a method ``compiled(layout)`` returning the model's :class:`CompiledModel` (a numba
+kernel that fills its rows of every run in one call; the ES-KF then stacks the models of an epoch
+without a Python operation per model, :func:`stack_models`): the shipped types all have one
+(:mod:`navsim.navigation.estimators.compiled_models`); a type without one is evaluated by its
+``model`` (Python speed, the same result). A classmethod ``reads(entry)`` naming the sensor values the model reads (checked
 against what its sensor produces before anything runs), and a ``state_sigma`` mapping of the
 initial std of a sensor-error state block the model observes (``air_velocity``'s
 ``pitot_bias``), which the filter takes as that block's initial uncertainty.
@@ -54,7 +58,8 @@ from navsim.foundations.config import Node, check_numbers, close_match
 from navsim.foundations.jsonschema import NUM, POS, VEC3, merge_properties
 from navsim.foundations.transform import skew
 from navsim.navigation import magcal
-from navsim.navigation.estimators.error_model import AIR_MASS_AXES, GUST_AXES, Layout
+from navsim.navigation.estimators import compiled_models
+from navsim.navigation.estimators.error_model import AIR_MASS_AXES, GUST_AXES, WIND_AXES, Layout
 from navsim.navigation.strapdown import NavState
 from navsim.sensors import registry
 from navsim.sensors.catalog import load_spec
@@ -102,6 +107,93 @@ class Linearised:
 
     def __getitem__(self, i):
         return self._deprecated()[i]
+
+
+@dataclass(frozen=True, eq=False)
+class CompiledModel:
+    """A measurement model's compiled form for one state layout (its ``compiled(layout)``).
+
+    Attributes
+    ----------
+    kernel : numba function
+        ``kernel(lat, lon, h, vel, C, inp, par, cols, r0, z, H, R, valid)``, the signature of
+        :mod:`navsim.navigation.estimators.compiled_models`: fills the model's rows of every run.
+    rows : int
+        Its rows ``m``.
+    params : ndarray of float
+        Its constants (``par``).
+    cols : ndarray of int
+        Its columns in the error state (``cols``; -1: no such state).
+    inputs : callable
+        ``inputs(nav, data, j)`` -> ``(inp (B, k) float array, valid (B,) bool array)``: what the
+        kernel reads of sample ``j``, gathered in Python (a fresh ``valid`` the kernel may narrow).
+    """
+
+    kernel: object
+    rows: int
+    params: np.ndarray
+    cols: np.ndarray
+    inputs: object
+
+    def fill(self, nav: NavState, data, j: int, r0: int, z, H, R) -> np.ndarray:
+        """Rows ``r0:r0 + rows`` of the zeroed ``z``, ``H``, ``R``; returns the valid runs."""
+        inp, valid = self.inputs(nav, data, j)
+        self.kernel(nav.lat_rad, nav.lon_rad, nav.h_m, nav.vel_n_mps, nav.C_nb, np.ascontiguousarray(inp, float),
+                    self.params, self.cols, r0, z, H, R, valid)
+        return valid
+
+
+def _compiled(kernel, rows: int, params, cols, inputs) -> CompiledModel:
+    return CompiledModel(kernel, rows, np.ascontiguousarray(params, float), np.asarray(cols, np.int64), inputs)
+
+
+def compiled_form(model, layout: Layout) -> CompiledModel | None:
+    """``model``'s compiled form for ``layout``, or None (a type without ``compiled``)."""
+    make = getattr(model, "compiled", None)
+    return make(layout) if callable(make) else None
+
+
+@dataclass(frozen=True, eq=False)
+class Stacked:
+    """The models of one epoch stacked for :func:`navsim.navigation.estimators.kalman.update_stacked`:
+    ``z`` ``(B, M)``, ``H`` ``(B, M, n)``, ``R`` ``(B, M, M)`` (block diagonal), ``valid`` ``(B, G)``
+    and ``ends`` ``(G + 1,)``, model ``g`` the rows ``ends[g]:ends[g + 1]``."""
+
+    z: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+    valid: np.ndarray
+    ends: np.ndarray
+
+
+def stack_models(taken: list, nav: NavState, layout: Layout) -> Stacked:
+    """The linearised models of ``taken``, a list of ``(model, compiled, data, j)`` (``compiled``
+    the model's :class:`CompiledModel` or None), stacked: a compiled form fills its rows for
+    every run in one call, a model without one is evaluated by its ``model``."""
+    B, n = nav.lat_rad.shape[0], layout.n
+    lins = [None if c is not None else m.model(nav, layout, data, j) for m, c, data, j in taken]
+    rows = [c.rows if c is not None else lin.H.shape[-2] for (_, c, _, _), lin in zip(taken, lins)]
+    ends = np.cumsum([0] + rows)
+    M = int(ends[-1])
+    z, H, R = np.zeros((B, M)), np.zeros((B, M, n)), np.zeros((B, M, M))
+    valid = np.empty((B, len(taken)), bool)
+    for g, ((_, c, data, j), lin) in enumerate(zip(taken, lins)):
+        r = slice(ends[g], ends[g + 1])
+        if c is not None:
+            valid[:, g] = c.fill(nav, data, j, int(ends[g]), z, H, R)
+        else:
+            z[:, r], H[:, r], R[:, r, r] = lin.z, lin.H, lin.R
+            valid[:, g] = True if lin.valid is None else lin.valid
+    return Stacked(z, H, R, valid, ends)
+
+
+def _columns(data, j: int, keys) -> np.ndarray:
+    """Sample ``j`` of the values ``keys`` ``(B, len(keys))``."""
+    return np.stack([data.values[k][:, j] for k in keys], -1)
+
+
+def _valid(data, j: int) -> np.ndarray:
+    return np.array(data.valid[:, j], bool)
 
 
 def _returns_linearised(name: str, model):
@@ -245,6 +337,15 @@ class GnssPosition:
         H[:, 0, p], H[:, 1, p + 1], H[:, 2, p + 2] = k_n, k_e, -1.0
         return Linearised(z, H, _diag(np.asarray(self.sigma_m, float) ** 2, B), data.valid[:, j])
 
+    def compiled(self, layout: Layout) -> CompiledModel:
+        return _position_fix(np.asarray(self.sigma_m, float)[:3] ** 2, layout)
+
+
+def _position_fix(var, layout: Layout) -> CompiledModel:
+    """The compiled position fix of ``len(var)`` rows (N, E, D)."""
+    return _compiled(compiled_models.position_fix, len(var), var, [layout.slice("pos").start],
+                     lambda nav, data, j: (_columns(data, j, ("lat_rad", "lon_rad", "h_m")), _valid(data, j)))
+
 
 @measurement("velocity")
 @dataclass
@@ -271,6 +372,10 @@ class Velocity:
         s = layout.slice("vel").start
         H[:, [0, 1, 2], [s, s + 1, s + 2]] = 1.0
         return Linearised(z, H, _diag(np.asarray(self.sigma_mps, float) ** 2, B), data.valid[:, j])
+
+    def compiled(self, layout: Layout) -> CompiledModel:
+        return _compiled(compiled_models.velocity, 3, np.asarray(self.sigma_mps, float) ** 2,
+                         [layout.slice("vel").start], lambda nav, data, j: (data.values[self.field][:, j], _valid(data, j)))
 
 
 @measurement("height")
@@ -308,6 +413,11 @@ class Height:
             H[:, 0, layout.slice("baro").start] = -1.0
         return Linearised(z, H, np.full((B, 1, 1), float(self.sigma_m) ** 2), data.valid[:, j])
 
+    def compiled(self, layout: Layout) -> CompiledModel:
+        baro = layout.slice("baro").start if self.use_baro_state and layout.has("baro") else -1
+        return _compiled(compiled_models.height, 1, [float(self.sigma_m) ** 2], [layout.slice("pos").start + 2, baro],
+                         lambda nav, data, j: ((data.values[self.field][:, j] + self.offset_m)[:, None], _valid(data, j)))
+
 
 @measurement("zero_velocity")
 @dataclass
@@ -341,6 +451,12 @@ class ZeroVelocity:
         H[:, np.arange(m), s + np.arange(m)] = 1.0
         sig2 = np.asarray(self.sigma_mps, float)[:m] ** 2
         return Linearised(nav.vel_n_mps[:, :m].copy(), H, _diag(sig2, B), data.valid[:, j])
+
+    def compiled(self, layout: Layout) -> CompiledModel:
+        m = 3 if self.vertical else 2
+        return _compiled(compiled_models.velocity, m, np.asarray(self.sigma_mps, float)[:m] ** 2,
+                         [layout.slice("vel").start],
+                         lambda nav, data, j: (np.zeros((nav.lat_rad.shape[0], m)), _valid(data, j)))
 
 
 @measurement("air_velocity")
@@ -491,6 +607,35 @@ class AirVelocity:
         R = nav.C_nb @ R_b @ np.swapaxes(nav.C_nb, 1, 2) + np.diag(white)
         return Linearised(z, H, R, data.valid[:, j])
 
+    def compiled(self, layout: Layout) -> CompiledModel:
+        """The compiled form (:func:`~navsim.navigation.estimators.compiled_models.air_velocity`)."""
+        s, bias_state = self.spec, layout.has("pitot_bias")
+        var_qc = s.total_noise ** 2 + (s.static_noise ** 2 if s.pitot == "absolute" else 0.0)
+        if not bias_state:
+            var_qc = var_qc + self.state_sigma["pitot_bias"][0] ** 2
+        vanes = s.velocity_axis == "air"
+        white = np.full(3, self.turbulence_sigma_mps ** 2)
+        cols = [layout.slice("vel").start, layout.slice("att").start,
+                layout.slice("pitot_bias").start if bias_state else -1] + [-1] * 6
+        for k, group in enumerate((WIND_AXES, GUST_AXES)):
+            for block, axes in group.items():
+                if layout.has(block):
+                    for a, col in zip(axes, range(layout.slice(block).start, layout.slice(block).stop)):
+                        cols[3 + 3 * k + a] = col
+                        white[a] = 0.0 if group is GUST_AXES else white[a]
+        values = {"vanes": float(vanes), "angle_sigma": s.vane_noise if vanes else self.angle_sigma_rad,
+                  "var_ps": s.static_noise ** 2 + s.static_bias_sigma ** 2, "var_qc": var_qc,
+                  "temperature_noise": s.temperature_noise, "r_air": atmosphere.R_AIR,
+                  **dict(zip(("wind_n", "wind_e", "wind_d"), np.asarray(self.wind_n_mps, float))),
+                  **dict(zip(("white_n", "white_e", "white_d"), white))}
+        keys = ("tas_mps", "p_static_pa", "temp_k") + (("alpha_rad", "beta_rad") if vanes else ())
+
+        def inputs(nav, data, j):
+            inp = np.zeros((nav.lat_rad.shape[0], 5))
+            inp[:, :len(keys)] = _columns(data, j, keys)
+            return inp, _valid(data, j)
+        return _compiled(compiled_models.air_velocity, 3, [values[k] for k in compiled_models.AIR_PARAMS], cols, inputs)
+
 
 def check_observed_states(node: Node, blocks, entries: list) -> None:
     """A ``pitot_bias`` state needs the one ``air_velocity`` model that observes it, with an
@@ -556,6 +701,9 @@ class GnssHorizontal:
         full = GnssPosition(self.sensor, np.r_[self.sigma_m, 1.0]).model(nav, layout, data, j)
         return Linearised(full.z[:, :2], full.H[:, :2], full.R[:, :2, :2], full.valid)
 
+    def compiled(self, layout: Layout) -> CompiledModel:
+        return _position_fix(np.asarray(self.sigma_m, float)[:2] ** 2, layout)
+
 
 @measurement("landmark")
 @dataclass
@@ -593,6 +741,15 @@ class LandmarkFix:
         sigma = self.sigma_m + self.ratio * np.linalg.norm(d, axis=-1)
         R = sigma[:, None, None] ** 2 * np.eye(3)
         return Linearised(fix.z, fix.H, R, fix.valid & (idx >= 0))
+
+    def compiled(self, layout: Layout) -> CompiledModel:
+        def inputs(nav, data, j):
+            idx = data.values["landmark"][:, j]
+            anchors = np.asarray(data.meta.get("landmarks") or [(0.0, 0.0, 0.0)], float)
+            fix = _columns(data, j, ("lat_rad", "lon_rad", "h_m"))
+            return np.concatenate([fix, anchors[np.clip(idx, 0, len(anchors) - 1)]], 1), _valid(data, j) & (idx >= 0)
+        return _compiled(compiled_models.landmark_fix, 3, [self.sigma_m, self.ratio, 1.0, 1.0, 1.0],
+                         [layout.slice("pos").start], inputs)
 
 
 @measurement("mag_heading")
@@ -691,6 +848,16 @@ class MagneticHeading:
         H = np.zeros((B, 1, layout.n))
         H[:, 0, layout.slice("att")] = h_att
         return Linearised(np.where(valid, z, 0.0)[:, None], H, np.full((B, 1, 1), float(self.sigma_rad) ** 2), valid)
+
+    def compiled(self, layout: Layout) -> CompiledModel:
+        """The heading's geometry compiled; the online calibration stays in Python (its fit is
+        fed the samples since the last call)."""
+        def inputs(nav, data, j):
+            date = data.meta.get("date", "2025-01-01")
+            m_b, ok = self._calibrated(nav, data, j, date)
+            return np.concatenate([m_b, self._field_n_T(nav, date)], 1), data.valid[:, j] & ok
+        return _compiled(compiled_models.magnetic_heading, 1, [float(self.sigma_rad) ** 2],
+                         [layout.slice("att").start], inputs)
 
 
 def magnetic_heading(C_nb: np.ndarray, mag_cal_b: np.ndarray, field_n: np.ndarray):
