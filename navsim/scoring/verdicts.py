@@ -117,7 +117,7 @@ def judge(reference: Reference | None, estimators: dict[str, EstimatorMetrics]) 
         out.append(Verdict(c.estimator, c.metric, c.rule, bound, ours, passed,
                            c.tolerance if c.rule == "close" else None, c.claim, c.of,
                            c.bound if c.of is not None else None,
-                           None if interval is None else interval.tolist(), runs,
+                           None if interval is None else _open_ends(interval), runs,
                            True if interval is not None and passed is None else None, needed))
     return out
 
@@ -188,6 +188,13 @@ def undecided_text(v: Verdict) -> str:
     if v.runs_needed and v.runs_needed > DECIDABLE_RUNS:
         return f"undecided at {v.runs} runs (at the bound: >{DECIDABLE_RUNS} runs to decide)"
     return f"undecided at {v.runs} runs" + (f" (~{v.runs_needed} decide)" if v.runs_needed else "")
+
+
+def _open_ends(interval: np.ndarray) -> list:
+    """``interval`` ``(k, 2)`` as a list with an open (non-finite) end as None: what
+    ``metrics.json`` holds (strict JSON has no infinity), so a result read back equals the one
+    in memory."""
+    return [[float(x) if math.isfinite(x) else None for x in row] for row in np.asarray(interval, float).tolist()]
 
 
 def with_interval(value, interval) -> str:

@@ -65,12 +65,12 @@ class AdsSpec:
 
 def emulate_baro(truth, spec: BaroSpec, seed: int, runs, faults=(), name: str = "baro") -> SensorData:
     smp = sampling(truth, spec.rate_hz, seed, runs, name)
-    runs, B, step, t, M, gens = smp.runs, smp.B, smp.step, smp.t, smp.M, smp.gens
+    runs, B, step, t, M = smp.runs, smp.B, smp.step, smp.t, smp.M
     err = np.full((B, M), spec.offset)
     if spec.offset_sigma:
-        err += normals(gens, (1,)) * spec.offset_sigma
+        err += normals(smp.rng("offset"), (1,)) * spec.offset_sigma
     if spec.markov_sigma:
-        err += gauss_markov(gens, M, step * truth.dt_s, [spec.markov_sigma], spec.markov_tau_s)[..., 0]
+        err += gauss_markov(smp.rng("markov"), M, step * truth.dt_s, [spec.markov_sigma], spec.markov_tau_s)[..., 0]
     factor = np.ones(M)
     for f in faults:
         if f.type == "degraded":
@@ -78,7 +78,7 @@ def emulate_baro(truth, spec: BaroSpec, seed: int, runs, faults=(), name: str = 
         elif f.type == "bias":
             err[:, f.active(t)] += f.value
     if spec.noise:
-        err += normals(gens, (M,)) * spec.noise * factor
+        err += normals(smp.rng("noise"), (M,)) * spec.noise * factor
     h = truth.h_m[::step][None] + err
     valid = np.ones((B, M), bool)
     apply_outages(valid, t, faults)
@@ -90,23 +90,24 @@ def emulate_baro(truth, spec: BaroSpec, seed: int, runs, faults=(), name: str = 
 def emulate_ads(truth, spec: AdsSpec, seed: int, runs, faults=(), name: str = "ads",
                 wind_estimate_n_mps=(0.0, 0.0, 0.0)) -> SensorData:
     smp = sampling(truth, spec.rate_hz, seed, runs, name)
-    runs, B, step, t, M, gens = smp.runs, smp.B, smp.step, smp.t, smp.M, smp.gens
+    runs, B, step, t, M = smp.runs, smp.B, smp.step, smp.t, smp.M
 
-    def sensor(x, noise, bias_sigma):
+    def sensor(channel, x, noise, bias_sigma):
+        """``x`` with the channel's per-run bias and white noise, each from its own stream."""
         out = np.broadcast_to(x, (B, M)).copy()
         if bias_sigma:
-            out += normals(gens, (1,)) * bias_sigma
+            out += normals(smp.rng(f"{channel}.bias"), (1,)) * bias_sigma
         if noise:
-            out += normals(gens, (M,)) * noise
+            out += normals(smp.rng(f"{channel}.noise"), (M,)) * noise
         return out
 
-    ps = sensor(truth.p_static_pa[::step], spec.static_noise, spec.static_bias_sigma)
+    ps = sensor("static", truth.p_static_pa[::step], spec.static_noise, spec.static_bias_sigma)
     if spec.pitot == "differential":
         qc_true = truth.p_total_pa[::step] - truth.p_static_pa[::step]
-        pt = ps + sensor(qc_true, spec.total_noise, spec.total_bias_sigma)
+        pt = ps + sensor("total", qc_true, spec.total_noise, spec.total_bias_sigma)
     else:
-        pt = sensor(truth.p_total_pa[::step], spec.total_noise, spec.total_bias_sigma)
-    temp = sensor(truth.temp_k[::step], spec.temperature_noise, 0.0)
+        pt = sensor("total", truth.p_total_pa[::step], spec.total_noise, spec.total_bias_sigma)
+    temp = sensor("temperature", truth.temp_k[::step], spec.temperature_noise, 0.0)
     # the pitot's own error, before a reading below static is read as static (the loop's fill)
     pitot_error = pt - ps - (truth.p_total_pa[::step] - truth.p_static_pa[::step]) if spec.pitot == "differential" \
         else pt - truth.p_total_pa[::step]
@@ -115,8 +116,8 @@ def emulate_ads(truth, spec: AdsSpec, seed: int, runs, faults=(), name: str = "a
     C_nb = dcm_from_quat(truth.quat_nb[::step])
     values = {}
     if spec.velocity_axis == "air":
-        alpha = sensor(truth.alpha_rad[::step], spec.vane_noise, 0.0)
-        beta = sensor(truth.beta_rad[::step], spec.vane_noise, 0.0)
+        alpha = sensor("alpha", truth.alpha_rad[::step], spec.vane_noise, 0.0)
+        beta = sensor("beta", truth.beta_rad[::step], spec.vane_noise, 0.0)
         dir_n = np.einsum("mij,bmj->bmi", C_nb, _vane_axis(alpha, beta))
         values = {"alpha_rad": alpha, "beta_rad": beta}
     else:

@@ -81,12 +81,16 @@ def stream_id(name: str) -> int:
     return zlib.crc32(name.encode())
 
 
-def run_generators(seed: int, runs, name: str) -> list[np.random.Generator]:
-    """One Generator per run for sensor ``name``: child ``stream_id(name)`` of run ``i``'s
-    ``SeedSequence(seed).spawn(...)[i]``. The same run gets the same numbers whatever the batch
-    it is emulated in."""
-    sid = stream_id(name)
-    return [np.random.Generator(np.random.SFC64(np.random.SeedSequence(seed, spawn_key=(int(i), sid))))
+def run_generators(seed: int, runs, name: str, process: str | None = None) -> list[np.random.Generator]:
+    """One Generator per run for sensor ``name``'s error ``process``: the stream of
+    ``SeedSequence(seed, spawn_key=(i, stream_id(name), stream_id(process)))`` for run ``i``
+    (without ``process``: ``(i, stream_id(name))``, a stream of its own such as the initial
+    errors'). Each error process of each run draws from its own stream, so the same run gets
+    the same numbers whatever the batch it is emulated in, a process draws only what it uses
+    (a block can be drawn where it is used), and switching one process off or changing its
+    length leaves every other's draws as they were."""
+    key = (stream_id(name),) if process is None else (stream_id(name), stream_id(process))
+    return [np.random.Generator(np.random.SFC64(np.random.SeedSequence(seed, spawn_key=(int(i),) + key)))
             for i in runs]
 
 
@@ -133,7 +137,8 @@ def decimation(truth_rate_hz: float, rate_hz: float, name: str) -> int:
 
 @dataclass
 class Sampling:
-    """Where a sensor samples the truth: run indices, truth step, times, random streams."""
+    """Where a sensor samples the truth: run indices, truth step, times, and the seed and
+    sensor name of its error processes' random streams (:meth:`rng`)."""
 
     runs: list
     B: int
@@ -141,7 +146,12 @@ class Sampling:
     t: np.ndarray
     M: int
     dt: float
-    gens: list
+    seed: int
+    name: str
+
+    def rng(self, process: str) -> list[np.random.Generator]:
+        """The runs' generators of the sensor's error ``process`` (:func:`run_generators`)."""
+        return run_generators(self.seed, self.runs, self.name, process)
 
 
 def sampling(truth, rate_hz: float, seed: int, runs, name: str) -> Sampling:
@@ -149,8 +159,7 @@ def sampling(truth, rate_hz: float, seed: int, runs, name: str) -> Sampling:
     runs = list(runs)
     step = decimation(truth.meta.get("rate_hz", 1.0 / truth.dt_s), rate_hz, name)
     t = truth.t_s[::step]
-    return Sampling(runs, len(runs), step, t, len(t), step * truth.dt_s,
-                    run_generators(seed, runs, name))
+    return Sampling(runs, len(runs), step, t, len(t), step * truth.dt_s, seed, name)
 
 
 # --- fault windows -------------------------------------------------------------------------------

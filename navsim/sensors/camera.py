@@ -37,7 +37,7 @@ class CameraSpec:
 
 def emulate_camera(truth, spec: CameraSpec, seed: int, runs, faults=(), name: str = "camera") -> SensorData:
     smp = sampling(truth, spec.rate_hz, seed, runs, name)
-    runs, B, step, t, M, gens = smp.runs, smp.B, smp.step, smp.t, smp.M, smp.gens
+    runs, B, step, t, M = smp.runs, smp.B, smp.step, smp.t, smp.M
     lat, lon, h = truth.lat_rad[::step], truth.lon_rad[::step], truth.h_m[::step]
     lat0, lon0 = truth.lat_rad[0], truth.lon_rad[0]
     north, east = earth.local_ne(lat, lon, lat0, lon0)
@@ -56,7 +56,7 @@ def emulate_camera(truth, spec: CameraSpec, seed: int, runs, faults=(), name: st
     valid = np.broadcast_to(landmark >= 0, (B, M)).copy()
     apply_outages(valid, t, faults)
     sigma = np.where(landmark >= 0, spec.noise + spec.noise_ratio * np.where(np.isfinite(best_range), best_range, 0.0), 0.0)
-    err = normals(gens, (M, 3)) * sigma[None, :, None] if np.any(sigma) else np.zeros((B, M, 3))
+    err = normals(smp.rng("noise"), (M, 3)) * sigma[None, :, None] if np.any(sigma) else np.zeros((B, M, 3))
     r_m, r_n = earth.radii(lat)
     return SensorData(name=name, kind="camera", t_s=t,
                       values={"lat_rad": lat + err[..., 0] / (r_m + h),

@@ -56,7 +56,7 @@ def _distance_to_polyline(north, east, down, pts):
 
 def emulate_gnss(truth, spec: GnssSpec, seed: int, runs, faults=(), name: str = "gnss") -> SensorData:
     smp = sampling(truth, spec.rate_hz, seed, runs, name)
-    runs, B, step, t, M, gens = smp.runs, smp.B, smp.step, smp.t, smp.M, smp.gens
+    runs, B, step, t, M = smp.runs, smp.B, smp.step, smp.t, smp.M
     lat0, lon0 = truth.lat_rad[0], truth.lon_rad[0]
     r_m, r_n = earth.radii(truth.lat_rad[::step])
     k_n, k_e = r_m + truth.h_m[::step], (r_n + truth.h_m[::step]) * np.cos(truth.lat_rad[::step])
@@ -102,12 +102,12 @@ def emulate_gnss(truth, spec: GnssSpec, seed: int, runs, faults=(), name: str = 
 
     pos_err = offset_n[None] + pos_bias[None]
     if np.any(spec.position_sigma):
-        pos_err = pos_err + normals(gens, (M, 3)) * spec.position_sigma * factor[None, :, None]
+        pos_err = pos_err + normals(smp.rng("position_noise"), (M, 3)) * spec.position_sigma * factor[None, :, None]
     if np.any(spec.markov_sigma):
-        pos_err = pos_err + gauss_markov(gens, M, step * truth.dt_s, spec.markov_sigma, spec.markov_tau_s)
+        pos_err = pos_err + gauss_markov(smp.rng("position_markov"), M, step * truth.dt_s, spec.markov_sigma, spec.markov_tau_s)
     vel_err = np.broadcast_to(vel_off, (B, M, 3)).copy()
     if np.any(spec.velocity_sigma):
-        vel_err = vel_err + normals(gens, (M, 3)) * spec.velocity_sigma * factor[None, :, None]
+        vel_err = vel_err + normals(smp.rng("velocity_noise"), (M, 3)) * spec.velocity_sigma * factor[None, :, None]
     pos_err = np.broadcast_to(pos_err, (B, M, 3))
 
     lat_t, lon_t, h_t = truth.lat_rad[::step], truth.lon_rad[::step], truth.h_m[::step]

@@ -17,9 +17,10 @@ noise of density ``noise_density`` (std ``density / sqrt(dt)``, less the quantiz
 ``accel_bias`` (``b(t)``), ``gyro_matrix``, ``accel_matrix`` (``I + M``, ``(B, 3, 3)``).
 
 :class:`ImuStream` generates the same numbers block by block (a Monte Carlo chunk asks for the
-samples up to each filter epoch), so that no ``(B, n, 3)`` array is held: each time-varying
-error process draws from its own copy of the run's generator, positioned where the whole
-record starts drawing it, and carries its state from block to block
+samples up to each filter epoch), so that no ``(B, n, 3)`` array is held: each error process
+of each run draws from a random stream of its own (``"gyro.noise"``, ``"accel.markov"``, ...:
+:func:`navsim.sensors.base.run_generators`) only the normals it uses, a block where it is
+used, and carries its state from block to block
 (:func:`navsim.sensors.kernels.bias_block`, :func:`navsim.sensors.kernels.imu_triad`). :func:`emulate_imu` is
 the stream in one block, plus the vibration (band-limited vibration is normalised over the
 whole record, so an IMU with vibration is emulated whole).
@@ -27,7 +28,6 @@ whole record, so an IMU with vibration is emulated whole).
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass, field
 
@@ -126,40 +126,45 @@ def allan_variance(e: AxisErrors, tau_s: np.ndarray) -> np.ndarray:
     return avar
 
 
-def _constants(gens, e: AxisErrors):
-    """The triad's constant errors, drawn from each run's stream in this order: scale factors,
-    misalignments, random-constant bias. Returns ``I + M`` ``(B, 3, 3)`` and the constant bias
-    ``(B, 1, 3)``."""
-    B = len(gens)
+def _constants(rng, B: int, e: AxisErrors):
+    """The triad's constant errors, each drawn from its own stream (``rng(process)``, the runs'
+    generators): scale factors, misalignments, random-constant bias. Returns ``I + M``
+    ``(B, 3, 3)`` and the constant bias ``(B, 1, 3)``."""
     matrix = np.broadcast_to(np.eye(3), (B, 3, 3)).copy()
     if np.any(e.scale_factor) or np.any(e.scale_factor_sigma):
-        sf = e.scale_factor + normals(gens, (3,)) * e.scale_factor_sigma
+        sf = e.scale_factor + normals(rng("scale_factor"), (3,)) * e.scale_factor_sigma
         matrix[:, [0, 1, 2], [0, 1, 2]] += sf
     if e.misalignment_sigma:
-        mis = normals(gens, (3, 3)) * e.misalignment_sigma
+        mis = normals(rng("misalignment"), (3, 3)) * e.misalignment_sigma
         mis[:, [0, 1, 2], [0, 1, 2]] = 0.0
         matrix += mis
     bias = np.broadcast_to(e.bias, (B, 1, 3)).copy()
     if np.any(e.bias_sigma):
-        bias = bias + (normals(gens, (3,)) * e.bias_sigma)[:, None, :]
+        bias = bias + (normals(rng("bias"), (3,)) * e.bias_sigma)[:, None, :]
     return matrix, bias
 
 
+#: the names of a triad's time-varying error processes (their random streams), in
+#: :func:`_processes`' order
+PROCESS_NAMES = ("bias_instability", "markov", "random_walk", "noise")
+
+
 def _processes(e: AxisErrors, dt: float) -> list:
-    """The triad's time-varying errors in the order their normals are drawn, each
-    ``(kind, first_scale, step_scale, a)`` for :func:`navsim.sensors.kernels.bias_block` (kind 0
-    Gauss-Markov, 1 random walk, 2 white noise): bias instability (a Gauss-Markov process
-    whose Allan peak is the flicker floor), Markov bias, random walk, white noise."""
+    """The triad's time-varying errors, each ``(name, kind, first_scale, step_scale, a)`` for
+    :func:`navsim.sensors.kernels.bias_block` (kind 0 Gauss-Markov, 1 random walk, 2 white
+    noise; ``name`` of :data:`PROCESS_NAMES`, its random stream): bias instability (a
+    Gauss-Markov process whose Allan peak is the flicker floor), Markov bias, random walk,
+    white noise."""
     out = []
-    for sigma, tau in gauss_markov_biases(e):
+    for name, (sigma, tau) in zip(PROCESS_NAMES, gauss_markov_biases(e)):
         if np.any(sigma):
             a = math.exp(-dt / tau)
-            out.append((0, _three(sigma), _three(sigma * math.sqrt(1.0 - a * a)), a))
+            out.append((name, 0, _three(sigma), _three(sigma * math.sqrt(1.0 - a * a)), a))
     if np.any(e.random_walk):
-        out.append((1, np.zeros(3), _three(np.asarray(e.random_walk, float) * math.sqrt(dt)), 1.0))
+        out.append(("random_walk", 1, np.zeros(3), _three(np.asarray(e.random_walk, float) * math.sqrt(dt)), 1.0))
     white = white_noise_std(e, dt)
     if np.any(white):
-        out.append((2, np.zeros(3), _three(white), 0.0))
+        out.append(("noise", 2, np.zeros(3), _three(white), 0.0))
     return out
 
 
@@ -216,16 +221,16 @@ class _Normals:
 class _Triad:
     """One triad's errors for ``B`` runs, generated block by block (:class:`ImuStream`)."""
 
-    def __init__(self, gens, e: AxisErrors, dt: float, n: int, block: int, truth_x, incr_x):
+    def __init__(self, rng, B: int, e: AxisErrors, dt: float, n: int, block: int, truth_x, incr_x):
         self.dt, self.n = dt, n
-        self.matrix, self.bias0 = _constants(gens, e)
+        self.matrix, self.bias0 = _constants(rng, B, e)
         self.identity = np.array_equal(self.matrix, np.broadcast_to(np.eye(3), self.matrix.shape))
         self.truth_x = np.ascontiguousarray(truth_x, float)
         self.incr_x = np.ascontiguousarray(incr_x, float)
         self.procs = _processes(e, dt)
-        self.varying = any(kind < 2 for kind, *_ in self.procs)     #: a bias that changes
-        self.streams = []                # filled by ImuStream, one _Normals per process
-        self.state = np.zeros((len(gens), len(self.procs), 4))
+        self.varying = any(kind < 2 for _, kind, *_ in self.procs)     #: a bias that changes
+        self.streams = [_Normals(rng(name), n, block) for name, *_ in self.procs]     #: one per process
+        self.state = np.zeros((B, len(self.procs), 4))
         self.block_size = block
         self.next = 0                    #: the first sample not generated yet
         self.record = False              #: keep the bias at each block's last sample
@@ -243,7 +248,7 @@ class _Triad:
         bias = np.repeat(self.bias0, K, axis=1) if self.varying else self.bias0
         white = np.empty((B, 0, 3))
         scale = np.zeros(3)
-        for p, ((kind, first, step, a), stream) in enumerate(zip(self.procs, self.streams)):
+        for p, ((_, kind, first, step, a), stream) in enumerate(zip(self.procs, self.streams)):
             w, j0 = stream.take(i0, i1)
             if kind == 2:
                 white, scale = w[:, j0:j0 + K], step
@@ -263,16 +268,15 @@ class ImuStream:
     numbers bit for bit, drawn from the same per-run streams, but no ``(B, n, 3)`` arrays
     are held; :meth:`block` gives the increments of the samples ``[i0, i1)``, requests going
     forward. The constants are drawn at construction; each time-varying error process reads
-    its own copy of the run's generator, positioned where the whole-record emulation starts
-    drawing it (the normals before it are drawn and dropped).
+    its own stream (:meth:`streams`).
 
     Parameters
     ----------
     truth : Truth
     spec : ImuSpec
         Its vibration is not emulated here (band-limited vibration is normalised over the whole
-        record): :func:`emulate_imu` adds it after the whole record's triads, from
-        :attr:`gens`, which the last process leaves where the whole record ends.
+        record): :func:`emulate_imu` adds it to the whole record, each vibration from streams of
+        its own (``"vibration0.accel"``, ...).
     seed : int
     runs : iterable of int
     name : str
@@ -301,24 +305,16 @@ class ImuStream:
             self.t_s = np.arange(n) * dt_s
         self.dt_s, self.n = dt_s, n
         self.meta = {"rate_hz": spec.rate_hz, "dt_s": dt_s, "runs": self.runs, "seed": seed}
-        self.gens = gens = run_generators(seed, self.runs, name)
-        self.gyro = _Triad(gens, spec.gyro, dt_s, n, block, truth_x[0], truth_x[1])
-        self._attach(self.gyro, last=False)
-        self.accel = _Triad(gens, spec.accel, dt_s, n, block, truth_x[2], truth_x[3])
-        self._attach(self.accel, last=True)
+        B = len(self.runs)
+        self.gyro = _Triad(self.streams("gyro"), B, spec.gyro, dt_s, n, block, truth_x[0], truth_x[1])
+        self.accel = _Triad(self.streams("accel"), B, spec.accel, dt_s, n, block, truth_x[2], truth_x[3])
         self.need_rate = any(math.isfinite(e.range) or e.quantization for e in (spec.gyro, spec.accel))
 
-    def _attach(self, triad: _Triad, last: bool) -> None:
-        """Give each of the triad's processes its normals: a copy of every run's generator where
-        the whole-record emulation starts drawing that process, the originals then moved past
-        it; the very last process of the IMU reads the originals themselves (nothing is drawn
-        after it)."""
-        for k in range(len(triad.procs)):
-            if last and k == len(triad.procs) - 1:
-                triad.streams.append(_Normals(self.gens, self.n, triad.block_size))
-                return
-            triad.streams.append(_Normals([copy.deepcopy(g) for g in self.gens], self.n, triad.block_size))
-            kernels.skip_normals(typed_generators(self.gens), 3 * self.n)
+    def streams(self, group: str):
+        """``process -> the runs' generators`` of the error processes of ``group`` (``gyro``,
+        ``accel``, ``vibration0``, ...): each its own stream, ``"{group}.{process}"``
+        (:func:`~navsim.sensors.base.run_generators`)."""
+        return lambda process: run_generators(self.seed, self.runs, self.name, f"{group}.{process}")
 
     def block(self, i0: int, i1: int, keep_rates: bool = False):
         """``(dtheta_b_rad, dv_b_mps)`` ``(B, i1 - i0, 3)`` of the samples ``[i0, i1)``, and the
@@ -557,11 +553,13 @@ def error_increments(spec: ImuSpec, seed: int, runs, n: int, dt: float, name: st
 
 
 def _vibrations(stream: "ImuStream", spec: ImuSpec) -> list:
-    """Each vibration's accelerometer and gyro signals ``(B, n, 3)`` (or 0), drawn after the
-    whole record's triads."""
-    return [(_vibration(stream.gens, stream.t_s, stream.dt_s, v, spec.rate_hz, "amplitude"),
-             _vibration(stream.gens, stream.t_s, stream.dt_s, v, spec.rate_hz, "gyro_amplitude"))
-            for v in spec.vibration]
+    """Each vibration's accelerometer and gyro signals ``(B, n, 3)`` (or 0), each from its own
+    stream."""
+    return [(_vibration(stream.streams(f"vibration{k}")("accel"), stream.t_s, stream.dt_s, v, spec.rate_hz,
+                        "amplitude"),
+             _vibration(stream.streams(f"vibration{k}")("gyro"), stream.t_s, stream.dt_s, v, spec.rate_hz,
+                        "gyro_amplitude"))
+            for k, v in enumerate(spec.vibration)]
 
 
 def quantize_increment(incr: np.ndarray, e: AxisErrors, dt: float) -> np.ndarray:

@@ -72,15 +72,6 @@ def draw_normals(gens, out, k0, k1):
 
 
 @njit(cache=True)
-def skip_normals(gens, count):
-    """Draw ``count`` standard normals from each generator of ``gens`` and drop them."""
-    for b in range(len(gens)):
-        g = gens[b]
-        for _ in range(count):
-            g.standard_normal()
-
-
-@njit(cache=True)
 def bias_block(w, j0, first_scale, step_scale, a, kind, state, out):
     """Add one bias process over a block to ``out`` ``(B, K, 3)`` in place, from its standard
     normals ``w`` ``(B, >= j0 + K, 3)`` starting at row ``j0``. ``kind`` 0: first-order

@@ -61,16 +61,16 @@ def field_along(truth, t, date: str) -> np.ndarray:
 def emulate_magnetometer(truth, spec: MagnetometerSpec, seed: int, runs, faults=(),
                          name: str = "magnetometer") -> SensorData:
     smp = sampling(truth, spec.rate_hz, seed, runs, name)
-    runs, B, step, t, M, gens = smp.runs, smp.B, smp.step, smp.t, smp.M, smp.gens
+    runs, B, step, t, M = smp.runs, smp.B, smp.step, smp.t, smp.M
     m_n = field_along(truth, t, spec.date)
     C_nb = dcm_from_quat(truth.quat_nb[::step])
     m_b = np.einsum("nji,nj->ni", C_nb, m_n)
     soft = np.broadcast_to(spec.soft_iron, (B, 3, 3)).copy()
     if spec.soft_iron_sigma:
-        soft += normals(gens, (3, 3)) * spec.soft_iron_sigma
+        soft += normals(smp.rng("soft_iron"), (3, 3)) * spec.soft_iron_sigma
     hard = np.broadcast_to(spec.hard_iron, (B, 1, 3)).copy()
     if np.any(spec.hard_iron_sigma):
-        hard += (normals(gens, (3,)) * spec.hard_iron_sigma)[:, None, :]
+        hard += (normals(smp.rng("hard_iron"), (3,)) * spec.hard_iron_sigma)[:, None, :]
     out = np.einsum("bij,nj->bni", soft, m_b) + hard
     disturbance = np.zeros((M, 3))
     for f in faults:
@@ -78,7 +78,7 @@ def emulate_magnetometer(truth, spec: MagnetometerSpec, seed: int, runs, faults=
             disturbance += f.ramp(t)[:, None] * f.value
     out += disturbance
     if np.any(spec.noise):
-        out += normals(gens, (M, 3)) * spec.noise
+        out += normals(smp.rng("noise"), (M, 3)) * spec.noise
     valid = np.ones((B, M), bool)
     apply_outages(valid, t, faults)
     return SensorData(name=name, kind="magnetometer", t_s=t, values={"mag_b_T": out}, valid=valid,

@@ -36,7 +36,7 @@ class RadarAltimeterSpec:
 def emulate_radar_altimeter(truth, spec: RadarAltimeterSpec, seed: int, runs, faults=(),
                             name: str = "radar_altimeter") -> SensorData:
     smp = sampling(truth, spec.rate_hz, seed, runs, name)
-    runs, B, step, t, M, gens = smp.runs, smp.B, smp.step, smp.t, smp.M, smp.gens
+    runs, B, step, t, M = smp.runs, smp.B, smp.step, smp.t, smp.M
     H = truth.h_agl_m[::step]
     roll, pitch = truth.euler_rad[::step, 0], truth.euler_rad[::step, 1]
     tilt = np.arccos(np.clip(np.cos(roll) * np.cos(pitch), -1.0, 1.0))
@@ -51,9 +51,9 @@ def emulate_radar_altimeter(truth, spec: RadarAltimeterSpec, seed: int, runs, fa
             bias[f.active(t)] += f.value
     err = np.broadcast_to(slant + bias, (B, M)).copy()
     if np.any(sigma):
-        err += normals(gens, (M,)) * (sigma * factor)
+        err += normals(smp.rng("noise"), (M,)) * (sigma * factor)
     if spec.wave_height:
-        err += normals(gens, (M,)) * (spec.wave_height / 4.0)
+        err += normals(smp.rng("waves"), (M,)) * (spec.wave_height / 4.0)
     h = H[None] + err
     valid = (h >= spec.min_range) & (h <= spec.max_range)
     apply_outages(valid, t, faults)

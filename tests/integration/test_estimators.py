@@ -90,7 +90,10 @@ def test_schuler_period_of_a_velocity_error():
 
 
 def test_p3_sins_gps_on_the_p0_track(p0_truth):
-    runs = range(10)
+    """P3's claim, 99 % of the epochs after 100 s within 1 m per axis: the 99th percentile is
+    0.81, 0.83, 0.42 m over 60 runs (seed 1), and 0.73-1.00 m per horizontal axis over groups of
+    10 runs: 30 runs keep it clear of the 1 m it is held to."""
+    runs = range(30)
     imu, sensors = p3_sensors(p0_truth, runs)
     res = run_batch(p0_truth, imu, sensors, {"kf": p3_filter(), "sins": FreeInertial()}, P3_INITIAL, 1, runs)
     kf, free = res["kf"], res["sins"]

@@ -30,7 +30,7 @@ class SonarSpec:
 def emulate_sonar(truth, spec: SonarSpec, seed: int, runs, faults=(), name: str = "sonar") -> SensorData:
     """The range to the ground at the sonar's rate, plus white noise; no output in outages."""
     smp = sampling(truth, spec.rate_hz, seed, runs, name)
-    err = normals(smp.gens, (smp.M,)) * spec.noise
+    err = normals(smp.rng("noise"), (smp.M,)) * spec.noise
     valid = np.ones((smp.B, smp.M), bool)
     apply_outages(valid, smp.t, faults)
     return SensorData(name=name, kind="sonar", t_s=smp.t, values={"range_m": truth.h_agl_m[::smp.step][None] + err},

@@ -209,14 +209,16 @@ def _start(truth, initial):
 
 
 def test_static_attitude_converges_and_is_consistent():
-    """Level from the GNSS velocity at rest: after 40 s the tilt error of 8 runs is inside the
-    covariance, rms(e / sigma) < 1.5 (the unmodelled x/y accelerometer bias makes it a little
-    larger than 1), and at the calibrated accelerometer's floor."""
-    truth, imu, sensors, initial = _static_case(range(8), 60.0)
-    h = run_batch(truth, imu, sensors, {"ekf": _monitored()}, initial, 7, range(8))["ekf"]
+    """Level from the GNSS velocity at rest: after 40 s the tilt error of 64 runs is inside the
+    covariance, rms(e / sigma) < 1.6, and at the calibrated accelerometer's floor. The unmodelled
+    x/y accelerometer bias, a constant per run, makes the ratio larger than 1: measured 1.37 over
+    these 64 runs (seed 7; groups of 8 runs from 0.95 to 1.84, so the 64-run figure spreads by
+    about 0.12): the bound is that plus twice its spread."""
+    truth, imu, sensors, initial = _static_case(range(64), 60.0)
+    h = run_batch(truth, imu, sensors, {"ekf": _monitored()}, initial, 7, range(64))["ekf"]
     late = h.t_s > 40.0
     ratio = h.att_err_rad[:, late] / h.sigma[:, late, :3]
-    assert np.sqrt(np.mean(ratio[..., :2] ** 2)) < 1.5
+    assert np.sqrt(np.mean(ratio[..., :2] ** 2)) < 1.6
     # the floor, (0.5 mg bias + 0.1 mrad misalignment) / g = 0.029 + 0.006 deg per axis, and the
     # filter's own 0.027 deg: all within 3 sigma
     assert np.degrees(np.abs(h.euler_err_rad[:, late, :2])).max() < 3 * np.hypot(0.029 + 0.006, 0.027)

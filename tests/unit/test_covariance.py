@@ -116,7 +116,7 @@ def test_the_linear_forms_of_scale_factors_and_misalignments_are_the_emulators()
     for field, states in (("misalignment_sigma", lambda m: m[[i for i, _ in _OFF_DIAGONAL], [j for _, j in _OFF_DIAGONAL]]),
                           ("scale_factor_sigma", lambda m: np.diagonal(m) - 1.0)):
         e = AxisErrors(**{field: 1e-3 if field == "misalignment_sigma" else np.full(3, 1e-3)})
-        matrix, _ = _constants(run_generators(4, [0, 1], "imu"), e)
+        matrix, _ = _constants(lambda process: run_generators(4, [0, 1], "imu", process), 2, e)
         form = triad_linear("accel", field)(ImuSpec(accel=e))
         for m in matrix:
             np.testing.assert_allclose(form.coupling(motion) @ states(m), m @ x - x, rtol=1e-12, atol=1e-15)
