@@ -27,7 +27,7 @@ from navsim.foundations.transform import rotation
 from navsim.navigation import kernels
 from navsim.navigation.strapdown import NavState, state_from_truth
 from navsim.records.cost import compile_seconds, compute_clock
-from navsim.records.history import EPOCH_ARRAYS, EstimatorHistory, epoch_shape
+from navsim.records.history import EPOCH_ARRAYS, RECORD_DTYPES, EstimatorHistory, epoch_shape
 from navsim.records.states import ATT, BLOCKS, POS, SIGMA_STATES, VEL
 from navsim.sensors.base import Measurements, run_generators
 
@@ -372,8 +372,8 @@ class _Recorder:
                        wind_err_mps=wind - truth.wind_steady_n_mps[k])
         if nees is not None:
             row.update(nees=nees, sigma=sig)
-        for name, v in row.items():
-            self.records[name].append(v)
+        for name, v in row.items():          # in the dtype of the record: the lists hold no more
+            self.records[name].append(np.asarray(v, RECORD_DTYPES[name]))     # than the array
         for key, v, dim in nis:
             self.nis.setdefault(key, []).append((len(self.t) - 1, v))
             self.nis_dim[key] = dim
@@ -419,11 +419,24 @@ class _Recorder:
         self.t.append(t)
         for name, xs in self.records.items():
             if xs or name in _RECORDED:          # the errors always, the others if recorded
-                xs.append(np.full(epoch_shape(name, self.runs), np.nan))
+                xs.append(np.full(epoch_shape(name, self.runs), np.nan, RECORD_DTYPES[name]))
+
+    def _stacked(self, name: str) -> np.ndarray | None:
+        """The epoch records of ``name`` as one ``(B, E, ...)`` array of its record dtype
+        (:data:`~navsim.records.history.RECORD_DTYPES`), the per-epoch arrays dropped as they are
+        copied (the chunk's peak memory: one copy, not two); None if never recorded."""
+        xs = self.records[name]
+        if not xs:
+            return None
+        out = np.empty((xs[0].shape[0], len(xs), *xs[0].shape[1:]), RECORD_DTYPES[name])
+        for e in range(len(xs)):
+            out[:, e] = xs[e]
+            xs[e] = None
+        xs.clear()
+        return out
 
     def history(self, est) -> EstimatorHistory:
         E = len(self.t)
-        stack = lambda xs: np.stack(xs, axis=1)
         nis = {}
         for key, items in self.nis.items():
             arr = np.full((items[0][1].shape[0], E), np.nan)
@@ -436,7 +449,7 @@ class _Recorder:
                 extra = est.solution().extra
             except Exception as exc:  # one estimator's failure must not stop the others
                 self.fail(self.t[-1], exc)
-        arrays = {name: stack(xs) if xs else None for name, xs in self.records.items()}
+        arrays = {name: self._stacked(name) for name in self.records}
         diverged = np.asarray(extra.get("diverged", False)) | ~np.all(np.isfinite(arrays["pos_err_m"]), axis=(1, 2))
         self._flag(self.t[-1], ["flagged by the estimator" if d else None
                                 for d in np.broadcast_to(diverged, (self.runs,))])

@@ -46,7 +46,7 @@ from navsim.foundations.config import (
 )
 from navsim.foundations.errors import ScenarioError
 from navsim.navigation.estimators.factory import parse_estimators
-from navsim.navigation.estimators.measurements import measurement_class
+from navsim.navigation.estimators.measurements import measurement_class, values_read as measurement_values_read
 from navsim.records.reference import Reference
 from navsim.records.vocabulary import check_metric_path
 from navsim.sensors import height_fields, output_fields, parse_sensors, velocity_fields
@@ -302,6 +302,31 @@ def check_scenario(scenario: Scenario, duration_s: float) -> None:
         for key, m in _measurement_entries(est.params, f"estimators[{i}]"):
             _check_field(m, outputs[m["sensor"]], file, key)
             _check_reads(m, outputs[m["sensor"]], file, key)
+
+
+#: the estimator types that read sensors through their measurement models alone (their
+#: ``measurements``, a federated filter's locals'), and those that read none
+MEASUREMENT_READERS = ("eskf", "sage_husa", "fuzzy_adaptive", "two_stage_adaptive", "federated")
+NO_SENSORS = ("sins",)
+
+
+def values_read(scenario) -> dict | None:
+    """Sensor name -> the set of its values the scenario's estimators read (their measurement
+    models' :func:`~navsim.navigation.estimators.measurements.values_read`); None where that is
+    not known: an estimator of another type (it reads sensors by keys of its own) or a model
+    whose type does not say."""
+    out = {c.name: set() for c in scenario.sensors}
+    for est in scenario.estimators:
+        if est.type in NO_SENSORS:
+            continue
+        if est.type not in MEASUREMENT_READERS:
+            return None
+        for _, m in _measurement_entries(est.params, ""):
+            read = measurement_values_read(m)
+            if read is None:
+                return None
+            out[m["sensor"]].update(read)
+    return out
 
 
 def _measurement_entries(params: dict, path: str):

@@ -95,7 +95,9 @@ def fit(fig, top: float = 1.0) -> None:
     labelled = any(ax.get_xlabel() and not ax.get_subplotspec().is_last_row() for ax in axes)
     gap = m["row"] + m["xlabels"] * labelled + m["title"] * titled
     bottom, upper = (FOOTER_IN + m["bottom"]) / h, top - (0.1 + m["title"] * titled) / h
-    left, right = m["left"] / w, 1 - m["right"] / w
+    # an axis labelled on the right (a twin's) needs the left margin's room there
+    on_right = any(ax.yaxis.get_label_position() == "right" and ax.get_ylabel() for ax in axes)
+    left, right = m["left"] / w, 1 - (m["left"] if on_right else m["right"]) / w
     cell_h = ((upper - bottom) * h - (rows - 1) * gap) / rows
     cell_w = ((right - left) * w - (cols - 1) * m["column"]) / cols
     fig.subplots_adjust(left=left, right=right, bottom=bottom, top=upper,

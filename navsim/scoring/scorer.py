@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from navsim.records.cost import sum_cost
-from navsim.records.history import BLOCK_ERRORS, EstimatorHistory
+from navsim.records.history import BLOCK_ERRORS, EstimatorHistory, in_double
 from navsim.records.samples import EstimatorSamples, MetricSamples
 from navsim.records.states import BLOCKS
 from navsim.records.truth import CalibrationHistory
@@ -186,6 +186,7 @@ class EstimatorScore:
         """Feed one chunk's history (``good``: the runs counted, default those not diverged;
         ``runs``: their run numbers, default the runs fed so far counted from 0)."""
         good = ~np.asarray(h.diverged, bool) if good is None else np.asarray(good, bool)
+        h = in_double(h)
         chunk = _Chunk(h, good, self.settle_s)
         if self.passes == 1:
             self._first_pass(chunk, runs)

@@ -9,10 +9,10 @@ import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import lfilter
 
 from navsim.foundations.config import MAX_DURATION_S, Node, check_number, check_numbers
 from navsim.foundations.errors import ScenarioError
+from navsim.sensors.kernels import first_order
 from navsim.sensors.registry import FAULT_TYPES, get as get_kind
 
 
@@ -114,7 +114,8 @@ def gauss_markov(gens, n: int, dt: float, sigma, tau: float) -> np.ndarray:
     w = normals(gens, (n, sigma.size))
     w[:, 0, :] *= sigma
     w[:, 1:, :] *= sigma * math.sqrt(1.0 - a * a)
-    return lfilter([1.0], [1.0, -a], w, axis=1)
+    first_order(w, a)
+    return w
 
 
 def random_walk(gens, n: int, dt: float, density) -> np.ndarray:

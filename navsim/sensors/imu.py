@@ -33,7 +33,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba.typed import List
-from scipy.signal import butter, sosfilt
 
 from navsim.foundations.errors import ScenarioError
 from navsim.foundations.transform import cross, rotation
@@ -377,6 +376,9 @@ def _vibration(gens, t, dt, vib, rate_hz, amp_attr):
     if hi >= 0.5 * rate_hz:
         raise ScenarioError(f"vibration band {lo:g}-{hi:g} Hz reaches the IMU's Nyquist frequency "
                             f"({0.5 * rate_hz:g} Hz)", key="sensors.imu.vibration")
+    # scipy.signal (about 75 MB) only here: a Monte Carlo chunk without band-limited vibration
+    # does not load it (issue 36's 300 MB worker)
+    from scipy.signal import butter, sosfilt
     sos = butter(4, [lo, hi], btype="bandpass", fs=rate_hz, output="sos")
     w = normals(gens, (len(t) + 200, 3))
     x = sosfilt(sos, w, axis=1)[:, 200:, :]

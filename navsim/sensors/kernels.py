@@ -72,6 +72,18 @@ def draw_normals(gens, out, k0, k1):
 
 
 @njit(cache=True)
+def first_order(w, a):
+    """``w[:, j] <- w[:, j] + a w[:, j - 1]`` along the samples of ``w`` ``(B, n, k)``, in place:
+    the first-order recursive filter ``1 / (1 - a z^-1)`` of each run and axis (what
+    ``scipy.signal.lfilter([1], [1, -a], w, axis=1)`` gives, bit for bit)."""
+    B, n, k = w.shape
+    for b in range(B):
+        for j in range(1, n):
+            for i in range(k):
+                w[b, j, i] = w[b, j, i] + a * w[b, j - 1, i]
+
+
+@njit(cache=True)
 def bias_block(w, j0, first_scale, step_scale, a, kind, state, out):
     """Add one bias process over a block to ``out`` ``(B, K, 3)`` in place, from its standard
     normals ``w`` ``(B, >= j0 + K, 3)`` starting at row ``j0``. ``kind`` 0: first-order

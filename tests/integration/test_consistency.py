@@ -20,7 +20,11 @@ def test_a_matched_filter_is_consistent(name):
     result = navsim.run(ROOT / "scenarios" / f"{name}.yaml")
     m = result.metrics.estimators[MATCHED[name]]
     assert result.record.runs == 200
-    assert m.nees.fraction_inside >= 0.9, m.nees
+    # the epochs share each run's random-constant biases, so the fraction of them inside the
+    # band spreads far wider than for independent epochs: p0_matched_ads at 200 runs, seeds 1-11,
+    # 0.875-1.000 (mean 0.94); the average over the epochs sits inside the band at every seed
+    assert m.nees.band[0] <= m.nees.average <= m.nees.band[1], m.nees
+    assert m.nees.fraction_inside >= 0.8, m.nees
     # each navigation error: 200 runs put a consistent filter's mean within about +-0.2 of 1
     assert len(m.nees.per_state) == 9, m.nees.per_state      # att, vel, pos; N, E, D
     assert all(0.8 <= v <= 1.25 for v in m.nees.per_state), m.nees.per_state

@@ -143,3 +143,14 @@ def test_radar_slant_error_grows_with_bank():
     slant = 200.0 / math.cos(math.radians(15.0)) - 200.0
     assert np.mean(banked.values["h_agl_m"] - level.values["h_agl_m"]) == pytest.approx(slant, rel=0.1)
     assert np.std(banked.errors["h_error_m"]) > 1.3 * np.std(level.errors["h_error_m"])
+
+
+def test_the_compiled_first_order_filter_is_lfilters_bit_for_bit():
+    """The Gauss-Markov processes' recursion (navsim.sensors.kernels.first_order) against
+    scipy.signal.lfilter([1], [1, -a]) along the samples."""
+    from scipy.signal import lfilter
+    from navsim.sensors.kernels import first_order
+    w = np.random.default_rng(11).normal(size=(3, 2000, 2))
+    want = lfilter([1.0], [1.0, -0.995], w, axis=1)
+    first_order(w, 0.995)
+    np.testing.assert_array_equal(w, want)

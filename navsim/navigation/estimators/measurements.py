@@ -36,8 +36,11 @@ Optional: a method ``compiled(layout)`` returning the model's :class:`CompiledMo
 kernel that fills its rows of every run in one call; the ES-KF then stacks the models of an epoch
 without a Python operation per model, :func:`stack_models`): the shipped types all have one
 (:mod:`navsim.navigation.estimators.compiled_models`); a type without one is evaluated by its
-``model`` (Python speed, the same result). A classmethod ``reads(entry)`` naming the sensor values the model reads (checked
-against what its sensor produces before anything runs), and a ``state_sigma`` mapping of the
+``model`` (Python speed, the same result). A classmethod ``reads(entry)`` naming the sensor
+values the model reads beyond its ``field`` (checked against what its sensor produces before
+anything runs; a chunk keeps the values no estimator reads in single precision,
+:func:`values_read`; a type without it has every value of its sensor kept), and a
+``state_sigma`` mapping of the
 initial std of a sensor-error state block the model observes (``air_velocity``'s
 ``pitot_bias``), which the filter takes as that block's initial uncertainty.
 """
@@ -301,6 +304,19 @@ def _diag(sig2: np.ndarray, B: int) -> np.ndarray:
     return np.broadcast_to(np.diag(sig2), (B, sig2.size, sig2.size)).copy()
 
 
+#: the values a position fix reads of its sensor
+POSITION_VALUES = ("lat_rad", "lon_rad", "h_m")
+
+
+def values_read(entry: dict) -> tuple | None:
+    """The sensor values the model of ``entry`` reads (its ``field`` and its type's
+    ``reads(entry)``), or None when its type does not say (a plug-in without ``reads``)."""
+    reads = getattr(measurement_class(entry["type"]), "reads", None)
+    if reads is None:
+        return None
+    return tuple(reads(entry)) + ((entry["field"],) if "field" in entry else ())
+
+
 def _height_output(kind: str) -> str:
     """The output a ``height`` measurement of a sensor of ``kind`` reads without a ``field``: the
     first the kind declares with the role ``height`` (:mod:`navsim.sensors.registry`), else ``h_m``."""
@@ -323,6 +339,10 @@ class GnssPosition:
     @classmethod
     def from_entry(cls, entry: dict):
         return cls(entry["sensor"], np.array(entry["sigma_m"]))
+
+    @classmethod
+    def reads(cls, entry: dict) -> tuple:
+        return POSITION_VALUES
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         B = nav.lat_rad.shape[0]
@@ -365,6 +385,10 @@ class Velocity:
     def from_entry(cls, entry: dict):
         return cls(entry["sensor"], np.array(entry["sigma_mps"]), field=entry["field"])
 
+    @classmethod
+    def reads(cls, entry: dict) -> tuple:
+        return ()                        # its field alone
+
     def model(self, nav: NavState, layout: Layout, data, j: int):
         B = nav.lat_rad.shape[0]
         z = nav.vel_n_mps - data.values[self.field][:, j]
@@ -403,6 +427,10 @@ class Height:
     def from_entry(cls, entry: dict):
         return cls(entry["sensor"], entry["sigma_m"], field=entry["field"], use_baro_state=entry["baro_state"],
                    offset_m=entry["offset_m"])
+
+    @classmethod
+    def reads(cls, entry: dict) -> tuple:
+        return ()                        # its field alone
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         B = nav.lat_rad.shape[0]
@@ -443,6 +471,10 @@ class ZeroVelocity:
     @classmethod
     def from_entry(cls, entry: dict):
         return cls(entry["sensor"], np.array(entry["sigma_mps"]), vertical=entry["axes"] == "ned")
+
+    @classmethod
+    def reads(cls, entry: dict) -> tuple:
+        return ()                        # its sensor only times it
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         B, m = nav.lat_rad.shape[0], 3 if self.vertical else 2
@@ -697,6 +729,10 @@ class GnssHorizontal:
     def from_entry(cls, entry: dict):
         return cls(entry["sensor"], np.array(entry["sigma_m"]))
 
+    @classmethod
+    def reads(cls, entry: dict) -> tuple:
+        return POSITION_VALUES
+
     def model(self, nav: NavState, layout: Layout, data, j: int):
         full = GnssPosition(self.sensor, np.r_[self.sigma_m, 1.0]).model(nav, layout, data, j)
         return Linearised(full.z[:, :2], full.H[:, :2], full.R[:, :2, :2], full.valid)
@@ -728,6 +764,10 @@ class LandmarkFix:
     @classmethod
     def from_entry(cls, entry: dict):
         return cls(entry["sensor"], entry["sigma_m"], entry["ratio"])
+
+    @classmethod
+    def reads(cls, entry: dict) -> tuple:
+        return POSITION_VALUES + ("landmark",)
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         fix = GnssPosition(self.sensor, np.ones(3)).model(nav, layout, data, j)
@@ -814,6 +854,10 @@ class MagneticHeading:
                    forgetting=entry["forgetting"], min_turns=entry["min_turns"],
                    field_n_T=None if field is None else np.asarray(field, float) * 1e-6,
                    online=entry.get("calibration", "online") == "online")
+
+    @classmethod
+    def reads(cls, entry: dict) -> tuple:
+        return ("mag_b_T",)
 
     def _field_n_T(self, nav: NavState, date: str, grid: bool = True) -> np.ndarray:
         """The filter's Earth field at the INS position ``(B, 3)``."""
