@@ -284,7 +284,8 @@ class Driver:
         return {"propagate_s": r.propagate_s, "epoch_s": r.epoch_s, "steps": r.steps, "epochs": r.epochs}
 
     def histories(self) -> dict[str, EstimatorHistory]:
-        """Label -> :class:`EstimatorHistory` of the records so far."""
+        """Label -> :class:`EstimatorHistory` of the records so far, once: the recorders hand
+        their records over (``_Recorder._stacked``); call it at the end of the batch."""
         return {label: r.history(self.estimators[label]) for label, r in self.rec.items()}
 
 
@@ -424,7 +425,8 @@ class _Recorder:
     def _stacked(self, name: str) -> np.ndarray | None:
         """The epoch records of ``name`` as one ``(B, E, ...)`` array of its record dtype
         (:data:`~navsim.records.history.RECORD_DTYPES`), the per-epoch arrays dropped as they are
-        copied (the chunk's peak memory: one copy, not two); None if never recorded."""
+        copied (the chunk's peak memory: one copy, not two); None if never recorded. The records
+        are handed over once: :meth:`history` is the recorder's last call."""
         xs = self.records[name]
         if not xs:
             return None

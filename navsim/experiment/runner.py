@@ -39,7 +39,7 @@ from navsim.records.chunk import ChunkPart, merge_parts
 from navsim.records.history import EPOCH_ARRAYS
 from navsim.records.truth import CalibrationHistory, TruthBias
 from navsim.sensors import emulate
-from navsim.sensors.base import SensorData
+from navsim.sensors.base import RANDOM_STREAMS, SensorData
 from navsim.sensors.imu import ImuStream, emulate_imu, seen_bias
 from navsim.version import __version__
 
@@ -87,14 +87,16 @@ def scenario_hash(scenario) -> str:
     h.update(json.dumps(plain([scenario.sensors, scenario.estimators, scenario.initial]), sort_keys=True,
                         default=str).encode())
     h.update(__version__.encode())
+    h.update(f"streams {RANDOM_STREAMS}".encode())
     h.update(flight_key(scenario.flight).encode())
     return h.hexdigest()[:20]
 
 
 def data_key(scenario, seed: int) -> str:
     """Hash of what makes a run's flights and sensor data: the sensors and initial errors as
-    resolved (catalog and model files read), the seed and the flight; in a closed loop also the
-    estimators and the loop (the flight follows the estimator it flies on). Two results with one
+    resolved (catalog and model files read), the seed, the flight and how the random streams are
+    drawn (:data:`~navsim.sensors.base.RANDOM_STREAMS`); in a closed loop also the estimators and
+    the loop (the flight follows the estimator it flies on). Two results with one
     data key have the same run ``j`` whatever their estimators: :func:`navsim.compare` pairs them.
 
     Returns
@@ -102,7 +104,7 @@ def data_key(scenario, seed: int) -> str:
     str
         20 hex digits.
     """
-    parts = [scenario.sensors, scenario.initial, int(seed), flight_key(scenario.flight)]
+    parts = [scenario.sensors, scenario.initial, int(seed), flight_key(scenario.flight), RANDOM_STREAMS]
     if scenario.closed_loop is not None:
         parts += [scenario.estimators, scenario.closed_loop]
     return hashlib.sha256(json.dumps(plain(parts), sort_keys=True, default=str).encode()).hexdigest()[:20]
@@ -237,6 +239,8 @@ def emulated(truth, config, seed: int, runs, read: set | None) -> SensorData:
     air data once (65 MB, its pressures, temperature and airspeeds at 10 Hz in single
     precision), not beside their true errors and the emulator's temporaries of every run (150 MB)."""
     runs = list(runs)
+    if not runs:
+        return replace(emulate(truth, config, seed, runs), errors={})
     out, valid, first = {}, None, None
     for i in range(0, len(runs), EMULATE_RUNS):
         d = emulate(truth, config, seed, runs[i:i + EMULATE_RUNS])

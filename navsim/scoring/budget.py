@@ -325,7 +325,7 @@ def epoch_mean_squares(histories: dict) -> dict[str, tuple[np.ndarray, np.ndarra
     out = {}
     for label, h in histories.items():
         good = ~np.asarray(h.diverged, bool)
-        e = np.concatenate([h.att_err_rad, h.vel_err_mps, h.pos_err_m], axis=-1)[good]
+        e = np.concatenate([h.att_err_rad, h.vel_err_mps, h.pos_err_m], axis=-1)[good].astype(np.float64)
         ms = np.full((len(h.t_s), 9), np.nan)
         if len(e):
             with np.errstate(invalid="ignore"):

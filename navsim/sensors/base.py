@@ -81,6 +81,11 @@ def stream_id(name: str) -> int:
     return zlib.crc32(name.encode())
 
 
+#: the version of how the random streams are drawn (2: one stream per error process, 2026-12-04):
+#: results and chunk stores keyed with another are not the same data (``data_key``)
+RANDOM_STREAMS = 2
+
+
 def run_generators(seed: int, runs, name: str, process: str | None = None) -> list[np.random.Generator]:
     """One Generator per run for sensor ``name``'s error ``process``: the stream of
     ``SeedSequence(seed, spawn_key=(i, stream_id(name), stream_id(process)))`` for run ``i``

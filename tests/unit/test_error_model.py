@@ -2,6 +2,7 @@
 every registered measurement type's H against finite differences of its ``z``."""
 
 import dataclasses
+import zlib
 
 import numpy as np
 import pytest
@@ -18,6 +19,8 @@ from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.error_model import BLOCK_SIZES, PRESETS, Layout, system_matrix
 from navsim.navigation.estimators.eskf import _covariance_series_fits
 from navsim.navigation.estimators.measurements import (
+    GnssPosition,
+    _own,
     build_measurements,
     compiled_form,
     measurement_class,
@@ -285,7 +288,7 @@ def test_every_compiled_model_equals_its_python_model(mtype, case):
     entry, model = _model_of(mtype, case)
     if model.__module__ != "navsim.navigation.estimators.measurements":
         pytest.skip("not a shipped type")
-    rng = np.random.default_rng(abs(hash(mtype + case.id)) % 2**32)
+    rng = np.random.default_rng(zlib.crc32((mtype + case.id).encode()))
     state, data = _batch_case(rng)
     layout = Layout(case.blocks)
     lin = model.model(state, layout, data, 1)
@@ -460,3 +463,22 @@ def test_the_bias_sigma_is_the_sigma_of_the_estimated_sum():
     T = np.zeros((3, 18))
     T[:, layout.slice("accel_markov")] = np.eye(3)             # no constant accelerometer block in p2_18
     np.testing.assert_allclose(accel, np.sqrt(np.diagonal(T @ P @ T.T, axis1=1, axis2=2)), rtol=1e-12)
+
+
+def test_a_subclass_that_changes_the_model_inherits_no_compiled_form_nor_reads():
+    """A plug-in subclassing a shipped type with its own ``model`` is evaluated by that model
+    (its parent's kernel would compute the parent's) and its sensor's values are all kept in
+    double (its parent's ``reads`` need not cover what it reads); one that keeps the model
+    keeps both."""
+    class Scaled(GnssPosition):
+        def model(self, nav, layout, data, j):
+            lin = super().model(nav, layout, data, j)
+            return dataclasses.replace(lin, z=2.0 * lin.z)
+
+    class Same(GnssPosition):
+        pass
+
+    layout = Layout(PRESETS["p3_15"])
+    assert compiled_form(Scaled("gps", np.ones(3)), layout) is None
+    assert compiled_form(Same("gps", np.ones(3)), layout) is not None
+    assert _own(Scaled, "reads") is None and _own(Same, "reads") is not None

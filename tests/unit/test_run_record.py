@@ -52,3 +52,16 @@ def test_an_older_file_reads_and_keeps_its_unknown_keys():
 def test_not_a_mapping_is_refused(raw):
     with pytest.raises(TypeError, match="not a mapping"):
         RunRecord.from_dict(raw)
+
+
+def test_results_of_other_random_streams_are_not_the_same_data(repo_root, monkeypatch):
+    """A result or chunk store made with the former random streams (one per sensor) is not
+    paired run by run with one of the streams per error process, nor resumed by it: the data key
+    and the scenario hash name the streams' version."""
+    from navsim.experiment import runner
+    from navsim.experiment.scenario import load_scenario
+    scenario = load_scenario(repo_root / "scenarios" / "p3_sins_gps.yaml")
+    now = runner.data_key(scenario, 1), runner.scenario_hash(scenario)
+    monkeypatch.setattr(runner, "RANDOM_STREAMS", runner.RANDOM_STREAMS - 1)
+    before = runner.data_key(scenario, 1), runner.scenario_hash(scenario)
+    assert now[0] != before[0] and now[1] != before[1]

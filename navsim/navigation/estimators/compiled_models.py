@@ -12,7 +12,8 @@ Every kernel has one signature::
 state (``-1``: no such state); ``r0``: its first row in the stacked ``z`` ``(B, M)``, ``H``
 ``(B, M, n)`` and ``R`` ``(B, M, M)``, which arrive zeroed: a kernel writes its nonzero entries
 only; ``valid`` ``(B,)``: the runs with a sample, which a kernel may narrow. The formulas are
-those of the Python models, term for term (the same to rounding: a test holds them to 1e-12).
+those of the Python models, term for term (the same to rounding: a test holds them to 1e-12),
+with numpy's error model: a division by zero gives inf or NaN as in the Python models.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from navsim.foundations.compiled import njit
 from navsim.navigation.kernels import radii
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def position_fix(lat, lon, h, vel, C, inp, par, cols, r0, z, H, R, valid):
     """INS minus a position ``inp`` ``(lat, lon, h)``, NED metres, the first ``len(par)`` rows
     (``par`` the variances, ``cols[0]`` the position block): ``gnss_position``, ``gnss_horizontal``."""
@@ -41,7 +42,7 @@ def position_fix(lat, lon, h, vel, C, inp, par, cols, r0, z, H, R, valid):
             R[b, r0 + i, r0 + i] = par[i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def landmark_fix(lat, lon, h, vel, C, inp, par, cols, r0, z, H, R, valid):
     """INS minus the camera's position fix ``inp[:, :3]`` ``(lat, lon, h)``, NED metres, with
     the std ``par[0] + par[1] * range`` to the anchor ``inp[:, 3:6]`` ``(lat, lon in degrees,
@@ -57,7 +58,7 @@ def landmark_fix(lat, lon, h, vel, C, inp, par, cols, r0, z, H, R, valid):
             R[b, r0 + i, r0 + i] = sigma * sigma
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def velocity(lat, lon, h, vel, C, inp, par, cols, r0, z, H, R, valid):
     """INS minus a NED velocity ``inp``, the first ``len(par)`` axes (``par`` the variances,
     ``cols[0]`` the velocity block): ``velocity``, ``zero_velocity`` (``inp`` zeros)."""
@@ -69,7 +70,7 @@ def velocity(lat, lon, h, vel, C, inp, par, cols, r0, z, H, R, valid):
             R[b, r0 + i, r0 + i] = par[i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def height(lat, lon, h, vel, C, inp, par, cols, r0, z, H, R, valid):
     """INS height minus ``inp[:, 0]``, m (``par[0]`` its variance; ``cols`` the height's column
     and the baro state's, or -1)."""
@@ -81,7 +82,7 @@ def height(lat, lon, h, vel, C, inp, par, cols, r0, z, H, R, valid):
         R[b, r0, r0] = par[0]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def magnetic_heading(lat, lon, h, vel, C, inp, par, cols, r0, z, H, R, valid):
     """INS minus magnetic heading, rad, from the calibrated sample ``inp[:, :3]`` (body) and
     the filter's Earth field ``inp[:, 3:6]`` (NED); ``par[0]`` its variance, ``cols[0]`` the
@@ -105,7 +106,7 @@ AIR_PARAMS = ("vanes", "angle_sigma", "var_ps", "var_qc", "temperature_noise", "
               "wind_d", "white_n", "white_e", "white_d")
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def air_velocity(lat, lon, h, vel, C, inp, par, cols, r0, z, H, R, valid):
     """INS velocity minus the air data's ground velocity ``C u V + w``
     (:class:`~navsim.navigation.estimators.measurements.AirVelocity`). ``inp``: ``V``, ``p_s``,

@@ -177,6 +177,7 @@ class ErrorStateKF:
         self._reset_accumulators()
         self.diverged = np.zeros(B, bool)
         self._t_prev = -np.inf              # the last epoch (latest_sample: the window's start)
+        self._forms = None                  # the compiled forms, built at the first epoch
 
     def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
         """Mechanize the increments ``(B, K, 3)`` less the estimated biases."""

@@ -150,10 +150,18 @@ def _compiled(kernel, rows: int, params, cols, inputs) -> CompiledModel:
     return CompiledModel(kernel, rows, np.ascontiguousarray(params, float), np.asarray(cols, np.int64), inputs)
 
 
+def _own(cls: type, attr: str):
+    """``cls``'s ``attr`` where the class that defines its ``model`` defines it too, else None:
+    a subclass that changes ``model`` does not inherit its parent's compiled form or reads."""
+    home = next((c for c in cls.__mro__ if "model" in c.__dict__), cls)
+    return getattr(cls, attr) if attr in home.__dict__ else None
+
+
 def compiled_form(model, layout: Layout) -> CompiledModel | None:
-    """``model``'s compiled form for ``layout``, or None (a type without ``compiled``)."""
-    make = getattr(model, "compiled", None)
-    return make(layout) if callable(make) else None
+    """``model``'s compiled form for ``layout``, or None (a type without ``compiled``, or whose
+    ``model`` is not the one its ``compiled`` mirrors)."""
+    make = _own(type(model), "compiled")
+    return make(model, layout) if callable(make) else None
 
 
 @dataclass(frozen=True, eq=False)
@@ -311,7 +319,7 @@ POSITION_VALUES = ("lat_rad", "lon_rad", "h_m")
 def values_read(entry: dict) -> tuple | None:
     """The sensor values the model of ``entry`` reads (its ``field`` and its type's
     ``reads(entry)``), or None when its type does not say (a plug-in without ``reads``)."""
-    reads = getattr(measurement_class(entry["type"]), "reads", None)
+    reads = _own(measurement_class(entry["type"]), "reads")
     if reads is None:
         return None
     return tuple(reads(entry)) + ((entry["field"],) if "field" in entry else ())
