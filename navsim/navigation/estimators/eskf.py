@@ -211,8 +211,8 @@ class ErrorStateKF:
         """Each measurement model's compiled form (None: its Python ``model``), in the order of
         ``measurements``, built at the first epoch; all None with ``compiled_models`` False or
         when a subclass corrects one model at a time."""
-        if self._forms is None:
-            own = self.compiled_models and self._own_corrections()
+        if getattr(self, "_forms", None) is None:     # a subclass may not have called __init__
+            own = getattr(self, "compiled_models", True) and self._own_corrections()
             self._forms = [compiled_form(m, self.layout) if own else None for m in self.measurements]
         return self._forms
 
