@@ -35,27 +35,9 @@ driver, chunks, executors, closed loop, sweep) -> :mod:`navsim.scoring` (typed m
 :mod:`navsim.replay` (PX4 logs) -> :mod:`navsim.report` -> :mod:`navsim.api` -> :mod:`navsim.cli`.
 """
 
-import importlib
-from typing import TYPE_CHECKING
-
-from navsim.version import __version__
-
-if TYPE_CHECKING:          # the names for type checkers and readers; at run time see __getattr__
-    from navsim.api import (Result, budget, compare, load_scenario, open_result, report_figures, run,
-                            sweep, write_budget, write_comparison, write_report)
+from navsim.api import (Result, budget, compare, load_scenario, open_result, report_figures, run,  # noqa: E402
+                        sweep, write_budget, write_comparison, write_report)
+from navsim.version import __version__  # noqa: E402
 
 __all__ = ["Result", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "report_figures", "run", "sweep", "write_report",
            "__version__"]
-
-
-def __getattr__(name: str):
-    """The API's names (:mod:`navsim.api`), imported at their first use: a Monte Carlo worker
-    imports ``navsim.experiment`` alone, without the report's matplotlib or the scoring's
-    scipy.stats (PEP 562)."""
-    if name in __all__:
-        return getattr(importlib.import_module("navsim.api"), name)
-    raise AttributeError(f"module 'navsim' has no attribute '{name}'")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(__all__))

@@ -7,6 +7,8 @@ import math
 
 import pytest
 
+from navsim.experiment import runner
+from navsim.experiment.scenario import load_scenario
 from navsim.foundations.outputs import strict_json
 from navsim.records.run import RunRecord
 
@@ -58,8 +60,6 @@ def test_results_of_other_random_streams_are_not_the_same_data(repo_root, monkey
     """A result or chunk store made with the former random streams (one per sensor) is not
     paired run by run with one of the streams per error process, nor resumed by it: the data key
     and the scenario hash name the streams' version."""
-    from navsim.experiment import runner
-    from navsim.experiment.scenario import load_scenario
     scenario = load_scenario(repo_root / "scenarios" / "p3_sins_gps.yaml")
     now = runner.data_key(scenario, 1), runner.scenario_hash(scenario)
     monkeypatch.setattr(runner, "RANDOM_STREAMS", runner.RANDOM_STREAMS - 1)

@@ -6,12 +6,14 @@ import math
 import allantools
 import numpy as np
 import pytest
+from scipy.signal import lfilter
 
 from navsim.flight.truth import Truth
 from navsim.sensors import load_spec
 from navsim.sensors.base import gauss_markov, run_generators
 from navsim.sensors.catalog import available
 from navsim.sensors.imu import FLICKER_FLOOR, GM_ALLAN_PEAK, allan_variance, emulate_imu, gm_allan_peak
+from navsim.sensors.kernels import first_order
 from navsim.sensors.radar import emulate_radar_altimeter
 from navsim.sensors.specs import AxisErrors, ImuSpec, RadarAltimeterSpec
 
@@ -148,8 +150,6 @@ def test_radar_slant_error_grows_with_bank():
 def test_the_compiled_first_order_filter_is_lfilters_bit_for_bit():
     """The Gauss-Markov processes' recursion (navsim.sensors.kernels.first_order) against
     scipy.signal.lfilter([1], [1, -a]) along the samples."""
-    from scipy.signal import lfilter
-    from navsim.sensors.kernels import first_order
     w = np.random.default_rng(11).normal(size=(3, 2000, 2))
     want = lfilter([1.0], [1.0, -0.995], w, axis=1)
     first_order(w, 0.995)

@@ -31,6 +31,7 @@ epoch, so their innovations keep showing the fault until it ends).
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2
 
 from navsim.foundations.config import MAX_WINDOW, Node
 from navsim.foundations.jsonschema import MEASUREMENT, NUM, POS, obj
@@ -172,7 +173,7 @@ class FederatedKF(ErrorStateKF):
         per_dof = np.where(has, nis_sum / np.maximum(dof, 1), 1.0)
         self.nis_avg[i] = np.where(has, self.nis_avg[i] + (per_dof - self.nis_avg[i]) / w, self.nis_avg[i])
         d = max(float(np.max(dof)), 1.0) * w
-        limit = _chi2_ppf(self.isolation.get("p", 0.999), d) / d
+        limit = chi2.ppf(self.isolation.get("p", 0.999), d) / d
         self.active[i] = self.nis_avg[i] <= limit
 
     def _fuse(self) -> None:
@@ -217,10 +218,3 @@ class FederatedKF(ErrorStateKF):
         sol.extra["active"] = self.active.copy()
         return sol
 
-
-def _chi2_ppf(p: float, dof: float) -> float:
-    """The ``p`` quantile of ``chi2(dof)``. scipy.stats (about 70 MB) is imported here, at the
-    first fault-isolation test, so that a Monte Carlo worker without a federated filter does not
-    load it (issue 36's 300 MB worker)."""
-    from scipy.stats import chi2
-    return float(chi2.ppf(p, dof))

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from navsim.navigation import kernels
 
@@ -47,8 +48,7 @@ def discretize_van_loan(F: np.ndarray, Qc: np.ndarray, T: float):
     A[:, :n, :n] = -F
     A[:, :n, n:] = Qc
     A[:, n:, n:] = np.swapaxes(F, -1, -2)
-    from scipy.linalg import expm      # only here: a worker on the series does not load scipy (30 MB)
-    E = expm(A * T)
+    E = scipy.linalg.expm(A * T)
     Phi = np.swapaxes(E[:, n:, n:], -1, -2)
     Qd = Phi @ E[:, :n, n:]
     return Phi, symmetrize(Qd)
