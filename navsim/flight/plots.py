@@ -12,6 +12,49 @@ from navsim.foundations.earth import local_ne
 from navsim.foundations.outputs import write_atomic
 
 
+#: the most samples of a flight's 100 Hz record a line draws: a page's axes are about 800 pixels
+#: wide, and drawing 50 000 points a line took most of a flight page's time
+PLOT_POINTS = 2000
+
+#: a flight page's margins around its axes, inches (fixed, not measured): left (tick labels and
+#: y label), right, below (tick labels and x label), between two rows, above the first row
+#: (the segments' numbers)
+MARGIN_IN = {"left": 0.95, "right": 0.3, "bottom": 0.55, "row": 0.2, "numbers": 0.2}
+
+
+def drawn(y: np.ndarray, points: int = PLOT_POINTS) -> np.ndarray:
+    """The indices of a record's samples to draw, in order: all of them up to ``points``; else
+    the first and the last sample and the smallest and largest of ``y`` in each of
+    ``points / 2`` equal runs of samples (a spike stays drawn)."""
+    n = len(y)
+    if n <= points:
+        return np.arange(n)
+    k = -(-n // (points // 2))
+    bins = n // k
+    body = np.asarray(y[:bins * k]).reshape(bins, k)
+    start = np.arange(bins) * k
+    idx = np.concatenate([[0], start + np.argmin(body, axis=1), start + np.argmax(body, axis=1), [n - 1]])
+    return np.unique(idx)
+
+
+def _plot(ax, t: np.ndarray, y: np.ndarray, *args, **kw):
+    """``ax.plot(t, y, ...)`` of the samples :func:`drawn` picks."""
+    k = drawn(y)
+    return ax.plot(t[k], y[k], *args, **kw)
+
+
+def _fixed_layout(fig, top_in: float, footer_in: float) -> None:
+    """The figure's column of axes between fixed margins (:data:`MARGIN_IN`), ``top_in`` free
+    above it and ``footer_in`` below (``tight_layout`` measured every label)."""
+    w, h = fig.get_size_inches()
+    m = MARGIN_IN
+    rows = len(fig.axes)
+    top, bottom = 1 - (top_in + m["numbers"]) / h, (footer_in + m["bottom"]) / h
+    cell = ((top - bottom) * h - (rows - 1) * m["row"]) / rows
+    fig.subplots_adjust(left=m["left"] / w, right=1 - m["right"] / w, top=top, bottom=bottom,
+                        hspace=m["row"] / cell)
+
+
 def _segments(truth: Truth, ax, label: bool = True) -> None:
     """Shade alternate segments and number them along the top of ``ax`` (the numbers of
     :func:`segment_names`)."""
@@ -84,11 +127,13 @@ def flight_figures(truth: Truth, figsize=None, footer_in: float = 0.0) -> list:
     figs = []
 
     names = segment_names(truth)
+    every = np.unique(np.r_[np.arange(0, len(h), -(-len(h) // PLOT_POINTS)), len(h) - 1])   # a track is smooth
+    t_k, east_k, north_k, h_k = truth.t_s[every], east[every], north[every], h[every]
     fig = plt.figure(figsize=figsize or (8, 6.5))
     ax = fig.add_subplot(projection="3d")
     for j, (_, _, a, b) in enumerate(spans):
-        m = (truth.t_s >= a) & (truth.t_s <= b)
-        ax.plot(east[m], north[m], h[m], color=colors[j], lw=1.5, label=names[j])
+        m = (t_k >= a) & (t_k <= b)
+        ax.plot(east_k[m], north_k[m], h_k[m], color=colors[j], lw=1.5, label=names[j])
     for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
         axis.set_major_locator(MaxNLocator(5))
     # same scale on both horizontal axes, so turns look like turns
@@ -105,8 +150,8 @@ def flight_figures(truth: Truth, figsize=None, footer_in: float = 0.0) -> list:
 
     fig, ax = plt.subplots(figsize=figsize or (7.5, 7))
     for j, (_, _, a, b) in enumerate(spans):
-        m = (truth.t_s >= a) & (truth.t_s <= b)
-        ax.plot(east[m], north[m], color=colors[j], lw=1.5, label=names[j])
+        m = (t_k >= a) & (t_k <= b)
+        ax.plot(east_k[m], north_k[m], color=colors[j], lw=1.5, label=names[j])
     _number_segments(ax, east, north, truth)
     ax.plot(east[0], north[0], "k^", ms=8, label="start")
     ax.plot(east[-1], north[-1], "ks", ms=7, label="end")
@@ -117,7 +162,7 @@ def flight_figures(truth: Truth, figsize=None, footer_in: float = 0.0) -> list:
     ax.set_title(f"{truth.meta.get('track', '')}: ground track "
                  f"(origin {np.degrees(truth.lat_rad[0]):.4f}°N, {np.degrees(truth.lon_rad[0]):.4f}°E)")
     ax.legend(fontsize=7, loc="best", ncol=2)
-    fig.tight_layout(rect=(0, footer_in / fig.get_figheight(), 1, 1))
+    _fixed_layout(fig, 0.3, footer_in)
     figs.append(("ground", fig))
 
     figs.append(("time", _time_figure(truth, names, figsize, footer_in)))
@@ -129,8 +174,8 @@ def _wind_axis(ax, truth: Truth) -> None:
     scenario's wind, dashed)."""
     t = truth.t_s
     for j, (name, colour) in enumerate((("north", "tab:blue"), ("east", "tab:orange"))):
-        ax.plot(t, truth.wind_n_mps[:, j], color=colour, lw=0.4, alpha=0.6, label=f"wind {name} (with gusts)")
-        ax.plot(t, truth.wind_steady_n_mps[:, j], color=colour, lw=1.3, ls="--", label=f"steady wind {name}")
+        _plot(ax, t, truth.wind_n_mps[:, j], color=colour, lw=0.4, alpha=0.6, label=f"wind {name} (with gusts)")
+        _plot(ax, t, truth.wind_steady_n_mps[:, j], color=colour, lw=1.3, ls="--", label=f"steady wind {name}")
     ax.set_ylabel("wind, m/s")
     ax.legend(fontsize=7, loc="best", ncol=2)
 
@@ -142,20 +187,19 @@ def _time_figure(truth: Truth, names: list[str], figsize, footer_in: float):
     windy = bool(np.any(truth.wind_n_mps))
     fig, axs = plt.subplots(5 if windy else 4, 1, figsize=figsize or (10, 10), sharex=True)
     t = truth.t_s
-    axs[0].plot(t, truth.h_m, label="height (ellipsoid)")
-    axs[0].plot(t, truth.h_agl_m, "--", lw=0.8, label="above surface")
+    _plot(axs[0], t, truth.h_m, label="height (ellipsoid)")
+    _plot(axs[0], t, truth.h_agl_m, "--", lw=0.8, label="above surface")
     axs[0].set_ylabel("height, m")
     axs[0].legend(fontsize=7, loc="best")
-    axs[1].plot(t, truth.tas_mps, label="true airspeed")
-    axs[1].plot(t, np.hypot(truth.vel_n_mps[:, 0], truth.vel_n_mps[:, 1]), lw=0.8,
-                label="ground speed")
+    _plot(axs[1], t, truth.tas_mps, label="true airspeed")
+    _plot(axs[1], t, np.hypot(truth.vel_n_mps[:, 0], truth.vel_n_mps[:, 1]), lw=0.8, label="ground speed")
     axs[1].set_ylabel("speed, m/s")
     axs[1].legend(fontsize=7, loc="best")
-    axs[2].plot(t, np.degrees(truth.euler_rad[:, 0]), label="roll (bank)")
-    axs[2].plot(t, np.degrees(truth.euler_rad[:, 1]), label="pitch")
+    _plot(axs[2], t, np.degrees(truth.euler_rad[:, 0]), label="roll (bank)")
+    _plot(axs[2], t, np.degrees(truth.euler_rad[:, 1]), label="pitch")
     axs[2].set_ylabel("angle, deg")
     axs[2].legend(fontsize=7, loc="best")
-    axs[3].plot(t, np.degrees(np.unwrap(truth.euler_rad[:, 2])), label="heading")
+    _plot(axs[3], t, np.degrees(np.unwrap(truth.euler_rad[:, 2])), label="heading")
     axs[3].set_ylabel("heading, deg")
     if windy:
         _wind_axis(axs[4], truth)
@@ -169,5 +213,5 @@ def _time_figure(truth: Truth, names: list[str], figsize, footer_in: float):
     wrap = int(130 * fig.get_figwidth() / 10)
     lines = textwrap.wrap(listed, wrap)
     fig.text(0.5, 1 - 0.35 / height_in, "\n".join(lines), ha="center", va="top", fontsize=7.5)
-    fig.tight_layout(rect=(0, footer_in / height_in, 1, 1 - (0.45 + 0.14 * len(lines)) / height_in))
+    _fixed_layout(fig, 0.45 + 0.14 * len(lines), footer_in)
     return fig

@@ -849,17 +849,18 @@ def _covariance_code(P, symmetry_tol, psd_tol, s, L):
             if not math.isfinite(P[i, j]):
                 return 1
     negative = False
-    for i in range(n):
+    for i in range(n):             # s: the reciprocal scales
         d = P[i, i]
-        s[i] = math.sqrt(d) if d > 0 else 1.0
+        s[i] = 1.0 / math.sqrt(d) if d > 0 else 1.0
         negative = negative or d < 0
     asym, big = 0.0, 1.0
-    for i in range(n):
-        for j in range(n):
-            a = P[i, j] / (s[i] * s[j])
-            asym = max(asym, abs(a - P[j, i] / (s[j] * s[i])))
-            big = max(big, abs(a))
-            L[i, j] = 0.5 * (a + P[j, i] / (s[j] * s[i])) + (psd_tol if i == j else 0.0)
+    for i in range(n):             # the lower triangle, which the Cholesky factor reads
+        for j in range(i + 1):
+            w = s[i] * s[j]
+            a, at = P[i, j] * w, P[j, i] * w
+            asym = max(asym, abs(a - at))
+            big = max(big, abs(a), abs(at))
+            L[i, j] = 0.5 * (a + at) + (psd_tol if i == j else 0.0)
     if asym > symmetry_tol * big:
         return 2
     if negative or not _cholesky_in_place(L):

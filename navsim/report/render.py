@@ -19,6 +19,10 @@ from navsim.report.tables import PNG_DPI
 #: ``benchmarks/report_speed.py``), so the two finish together with a fifth of them here
 PARENT_PNG_SHARE = 0.2
 
+#: zlib's level for the PNGs and the PDF's streams: 1 instead of matplotlib's 6 writes P0's
+#: report in 0.6 s less CPU for 8 % larger PNGs and a 20 % larger PDF
+COMPRESS_LEVEL = 1
+
 
 def render(folder: OutputFolder, pages: list[Page], fmts, title: str, pdf: str = "report.pdf") -> list[Path]:
     """Each page to ``<name>.png`` and all of them, in order, to ``pdf`` (``title`` in
@@ -47,12 +51,13 @@ def render(folder: OutputFolder, pages: list[Page], fmts, title: str, pdf: str =
 
 def _write_pngs(pngs: list) -> None:
     for path, fig in pngs:
-        write_atomic(path, lambda p, fig=fig: fig.savefig(p, dpi=PNG_DPI))
+        write_atomic(path, lambda p, fig=fig: fig.savefig(p, dpi=PNG_DPI, pil_kwargs={"compress_level": COMPRESS_LEVEL}))
 
 
 def _write_pdf(path: Path, pages: list[Page], title: str) -> None:
+    from matplotlib import rc_context
     from matplotlib.backends.backend_pdf import PdfPages
-    with PdfPages(path) as pdf:
+    with rc_context({"pdf.compression": COMPRESS_LEVEL}), PdfPages(path) as pdf:
         for page in pages:
             pdf.savefig(page.figure)
         pdf.infodict()["Title"] = title

@@ -86,12 +86,19 @@ def _width_in(page: _Page, text: str, size: float, weight: str = "normal", famil
     return max(_line_width_px(line, size, weight, family, dpi) for line in text.split("\n")) / dpi
 
 
-@functools.lru_cache(maxsize=1 << 16)
 def _line_width_px(line: str, size: float, weight: str, family: str, dpi: float) -> float:
-    """One line's width in pixels at ``dpi``, as Agg draws it (a table is measured at several
-    sizes and caps: each string once)."""
+    """One line's width in pixels at ``dpi``: the sum of its characters' widths as Agg draws
+    each alone. Kerning is left out, so a line comes out 0-1.5 % wider than Agg draws it (the
+    report's fonts, measured on its table cells; 4 % on a line of kerned pairs such as AV and
+    Ty), never narrower; measuring every trial line of a wrap whole
+    took 0.2 ms plus 11 us a character, most of the time of building P0's report pages."""
+    return sum(_char_width_px(c, size, weight, family, dpi) for c in line)
+
+
+@functools.lru_cache(maxsize=1 << 14)
+def _char_width_px(char: str, size: float, weight: str, family: str, dpi: float) -> float:
     prop = FontProperties(size=size, weight=weight, family=family)
-    return _renderer(dpi).get_text_width_height_descent(line, prop, ismath=False)[0]
+    return _renderer(dpi).get_text_width_height_descent(char, prop, ismath=False)[0]
 
 
 @functools.lru_cache(maxsize=4)
