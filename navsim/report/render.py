@@ -51,7 +51,8 @@ def render(folder: OutputFolder, pages: list[Page], fmts, title: str, pdf: str =
 
 def _write_pngs(pngs: list) -> None:
     for path, fig in pngs:
-        write_atomic(path, lambda p, fig=fig: fig.savefig(p, dpi=PNG_DPI, pil_kwargs={"compress_level": COMPRESS_LEVEL}))
+        write_atomic(path, lambda p, fig=fig: fig.savefig(p, dpi=PNG_DPI,
+                                                         pil_kwargs={"compress_level": COMPRESS_LEVEL}))
 
 
 def _write_pdf(path: Path, pages: list[Page], title: str) -> None:

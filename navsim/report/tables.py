@@ -90,8 +90,9 @@ def _line_width_px(line: str, size: float, weight: str, family: str, dpi: float)
     """One line's width in pixels at ``dpi``: the sum of its characters' widths as Agg draws
     each alone. Kerning is left out, so a line comes out 0-1.5 % wider than Agg draws it (the
     report's fonts, measured on its table cells; 4 % on a line of kerned pairs such as AV and
-    Ty), never narrower; measuring every trial line of a wrap whole
-    took 0.2 ms plus 11 us a character, most of the time of building P0's report pages."""
+    Ty), not narrower on any line measured (``tests/unit/test_report_text.py``). Measuring every
+    trial line of a wrap whole took 0.2 ms plus 11 us a character, most of the time of building
+    P0's report pages."""
     return sum(_char_width_px(c, size, weight, family, dpi) for c in line)
 
 
