@@ -583,7 +583,7 @@ def propagate_covariance(x, P, F, Qc, T, order):
         _sparse_left(rows, cols, vals, nz, Pb, FX)
         for i in range(n):         # X and P symmetric: the upper triangle, then mirrored
             for j in range(i, n):
-                v = (FX[i, j] + FX[j, i]) + 0.5 * (Qb[i, j] + Qb[j, i])
+                v = (FX[i, j] + FX[j, i]) + Qb[i, j]
                 X[i, j] = v
                 X[j, i] = v
         c = T

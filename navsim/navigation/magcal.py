@@ -55,7 +55,7 @@ import itertools
 
 import numpy as np
 
-from navsim.sensors.magnetometer import wmm_field_n_T
+from navsim.sensors.magnetometer import WMM_DATE, wmm_field_n_T
 
 N_PARAMS = 9
 #: the monomials of degree <= 2 of (x, y, z) the regressors are written in: 1, x, y, z, x^2,
@@ -243,7 +243,7 @@ def calibration_history(truth, data, noise_T: float, forgetting: float = 1.0, ev
 
     Returns ``t_s`` ``(E,)``, ``turns`` ``(E,)`` (full turns of the true heading),
     ``hard_iron_err`` and ``soft_iron_err`` ``(B, E)`` (:func:`calibration_errors`, fractions)."""
-    field0 = field_model_n_T(truth.lat_rad[:1], truth.lon_rad[:1], truth.h_m[:1], data.meta.get("date", "2025-01-01"),
+    field0 = field_model_n_T(truth.lat_rad[:1], truth.lon_rad[:1], truth.h_m[:1], data.meta.get("date", WMM_DATE),
                              grid=False)
     B = data.valid.shape[0]
     fit = EllipsoidRLS(np.full(B, np.linalg.norm(field0)), noise_T, forgetting)

@@ -17,7 +17,7 @@ rate are included. Arrays broadcast over the leading run axis. The per-interval 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -37,6 +37,13 @@ class NavState:
     def copy(self) -> "NavState":
         return NavState(self.lat_rad.copy(), self.lon_rad.copy(), self.h_m.copy(),
                         self.vel_n_mps.copy(), self.C_nb.copy())
+
+    def contiguous(self) -> "NavState":
+        """Each field made a contiguous float array, in place (what the compiled kernels change
+        in place: the strapdown, the filters' feedback); returns itself."""
+        for f in fields(self):
+            setattr(self, f.name, np.ascontiguousarray(getattr(self, f.name), float))
+        return self
 
 
 def rates_n(lat, h, vel_n):
@@ -110,8 +117,7 @@ class BlockStrapdown:
         if self._k == 0:              # no previous interval: no coning/sculling terms
             self.dtheta_prev = np.array(dtheta_b[:, 0] - bg * dt, float)
             self.dv_prev = np.array(dv_b[:, 0] - ba * dt, float)
-        for name in ("lat_rad", "lon_rad", "h_m", "vel_n_mps", "C_nb"):
-            setattr(s, name, np.ascontiguousarray(getattr(s, name), float))
+        s.contiguous()
         kernels.strapdown_block(s.lat_rad, s.lon_rad, s.h_m, s.vel_n_mps, s.C_nb, self.dtheta_prev,
                                 self.dv_prev, self._cache, _rows_in_order(dtheta_b), _rows_in_order(dv_b),
                                 bg, ba, float(dt), self._k, self.gravity_every, self.sum_C_nb, self.sum_dv_n_mps)

@@ -13,10 +13,12 @@ recorded of the truth beside them (``TruthBias``, ``CalibrationHistory``),
 
 from navsim.records.chunk import CALIBRATION_SHARED, ChunkPart, merge_parts
 from navsim.records.cost import compile_seconds, compute_clock, sum_cost
-from navsim.records.history import ARRAY_FIELDS, ARRAYS, EPOCH_ARRAYS, RECORD_DTYPES, RUN_LISTS, EstimatorHistory, merge_histories
+from navsim.records.history import (ARRAY_FIELDS, ARRAYS, EPOCH_ARRAYS, RECORD_DTYPES, RUN_LISTS, EstimatorHistory,
+                                    merge_histories)
 from navsim.records.states import SIGMA_STATES
 from navsim.records.truth import CalibrationHistory, TruthBias
 
 __all__ = ["CALIBRATION_SHARED", "ChunkPart", "merge_parts", "compile_seconds", "compute_clock", "sum_cost",
-           "ARRAY_FIELDS", "ARRAYS", "EPOCH_ARRAYS", "RECORD_DTYPES", "RUN_LISTS", "EstimatorHistory", "merge_histories",
+           "ARRAY_FIELDS", "ARRAYS", "EPOCH_ARRAYS", "RECORD_DTYPES", "RUN_LISTS", "EstimatorHistory",
+           "merge_histories",
            "SIGMA_STATES", "CalibrationHistory", "TruthBias"]

@@ -15,12 +15,12 @@ from navsim.report.tables import PNG_DPI
 
 
 #: the share of the PNGs this process draws after the PDF while a forked child draws the others:
-#: a page's PNG costs about 1.6 times its PDF page (P0's report, 15 pages: 3.5 s and 2.1 s,
-#: ``benchmarks/report_speed.py``), so the two finish together with a fifth of them here
+#: a page's PNG costs about 1.4 times its PDF page (P0's report, 15 pages: 2.4 s and 1.6-1.8 s),
+#: and P0's report measured 3.2-3.4 s with a fifth of them here, 3.4-3.5 s with 15 % or 10 %
 PARENT_PNG_SHARE = 0.2
 
 #: zlib's level for the PNGs and the PDF's streams: 1 instead of matplotlib's 6 writes P0's
-#: report in 0.6 s less CPU for 8 % larger PNGs and a 20 % larger PDF
+#: report in 0.6 s less CPU for 9 % larger PNGs and a 20 % larger PDF
 COMPRESS_LEVEL = 1
 
 

@@ -104,7 +104,8 @@ def emulate_gnss(truth, spec: GnssSpec, seed: int, runs, faults=(), name: str = 
     if np.any(spec.position_sigma):
         pos_err = pos_err + normals(smp.rng("position_noise"), (M, 3)) * spec.position_sigma * factor[None, :, None]
     if np.any(spec.markov_sigma):
-        pos_err = pos_err + gauss_markov(smp.rng("position_markov"), M, step * truth.dt_s, spec.markov_sigma, spec.markov_tau_s)
+        pos_err = pos_err + gauss_markov(smp.rng("position_markov"), M, step * truth.dt_s, spec.markov_sigma,
+                                         spec.markov_tau_s)
     vel_err = np.broadcast_to(vel_off, (B, M, 3)).copy()
     if np.any(spec.velocity_sigma):
         vel_err = vel_err + normals(smp.rng("velocity_noise"), (M, 3)) * spec.velocity_sigma * factor[None, :, None]

@@ -21,6 +21,10 @@ from navsim.sensors.base import SensorData, apply_outages, normals, sampling, tr
 from navsim.sensors.registry import ErrorTerm, Field, Output, SensorKind, register
 
 
+#: the date of the WMM field where a magnetometer's spec or data does not give one
+WMM_DATE = "2025-01-01"
+
+
 @dataclass(frozen=True)
 class MagnetometerSpec:
     """Magnetometer: WMM Earth field, hard-iron offset, soft-iron matrix, white noise (tesla)."""
@@ -31,7 +35,7 @@ class MagnetometerSpec:
     soft_iron: np.ndarray = field(default_factory=lambda: np.eye(3))   #: fixed matrix
     soft_iron_sigma: float = 0.0              #: random deviation of the matrix per run
     noise: np.ndarray = zeros3()              #: white noise std, T
-    date: str = "2025-01-01"                  #: epoch of the WMM field
+    date: str = WMM_DATE                      #: epoch of the WMM field
 
 WMM_SPACING_S = 10.0      #: the field is evaluated this often along the track and interpolated
 

@@ -62,8 +62,9 @@ def per_sample(est):
 def test_p0_histories_of_the_kernel_equal_the_per_sample_reference(shipped_flight):
     """Both P0 estimators (free SINS, 16-state ES-KF) over the 500 s p0 track, 3 runs: every
     array of the histories (errors, sigmas, NEES, NIS, biases, Euler errors) agrees to 1e-9 of
-    that array's largest value (to its last place for the records kept in single precision); the free SINS drifts by hundreds of metres, so agreement is
-    not two integrators standing still."""
+    that array's largest value (to its last place for the records kept in single precision);
+    the free SINS drifts by hundreds of metres, so agreement is not two integrators standing
+    still."""
     scenario, truth, _ = shipped_flight("p0_bd_sins_ads")
     imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
     imu = emulate_imu(truth, imu_cfg.spec, scenario.seed, RUNS, name=imu_cfg.name, keep_rates=False)

@@ -18,7 +18,7 @@ import numpy as np
 from navsim.foundations import earth
 from navsim.foundations.transform import cross, dcm_from_quat, quat_multiply
 from navsim.navigation.strapdown import NavState
-from navsim.sensors.magnetometer import wmm_field_n_T
+from navsim.sensors.magnetometer import WMM_DATE, wmm_field_n_T
 
 UT = 1e-6       #: tesla per microtesla (the filters keep the magnetic field in uT)
 
@@ -130,7 +130,7 @@ def reference_field_uT(frame: LocalFrame, mag_data, field_n_T=None) -> np.ndarra
     B = frame.lat0.shape[0]
     if field_n_T is not None:
         return np.broadcast_to(np.asarray(field_n_T, float) / UT, (B, 3)).copy()
-    date = (mag_data.meta.get("date") if mag_data is not None else None) or "2025-01-01"
+    date = (mag_data.meta.get("date") if mag_data is not None else None) or WMM_DATE
     f = [wmm_field_n_T(round(float(np.degrees(a)), 4), round(float(np.degrees(b)), 4),
                        round(float(c), 0), date) for a, b, c in zip(frame.lat0, frame.lon0, frame.h0)]
     return np.asarray(f) / UT

@@ -329,9 +329,7 @@ class ErrorStateKF:
     def feedback(self) -> None:
         """Inject the estimated errors into the mechanization and the IMU compensation."""
         L, x = self.layout, self.x
-        s = self.sd.state
-        for name in ("lat_rad", "lon_rad", "h_m", "vel_n_mps", "C_nb"):     # changed in place, as the
-            setattr(s, name, np.ascontiguousarray(getattr(s, name), float))  # strapdown changes them
+        s = self.sd.state.contiguous()      # changed in place, as the strapdown changes it
         kernels.feed_back(x, L.slice("att").start, L.slice("vel").start, L.slice("pos").start, s.C_nb, s.vel_n_mps,
                           s.lat_rad, s.lon_rad, s.h_m)
         if L.has("gyro_bias"):

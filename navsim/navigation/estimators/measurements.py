@@ -66,6 +66,7 @@ from navsim.navigation.estimators.error_model import AIR_MASS_AXES, GUST_AXES, W
 from navsim.navigation.strapdown import NavState
 from navsim.sensors import registry
 from navsim.sensors.catalog import load_spec
+from navsim.sensors.magnetometer import WMM_DATE
 from navsim.sensors.specs import AdsSpec
 
 _MEASUREMENTS: dict[str, type] = {}
@@ -372,7 +373,7 @@ class GnssPosition:
 def _position_fix(var, layout: Layout) -> CompiledModel:
     """The compiled position fix of ``len(var)`` rows (N, E, D)."""
     return _compiled(compiled_models.position_fix, len(var), var, [layout.slice("pos").start],
-                     lambda nav, data, j: (_columns(data, j, ("lat_rad", "lon_rad", "h_m")), _valid(data, j)))
+                     lambda nav, data, j: (_columns(data, j, POSITION_VALUES), _valid(data, j)))
 
 
 @measurement("velocity")
@@ -407,7 +408,8 @@ class Velocity:
 
     def compiled(self, layout: Layout) -> CompiledModel:
         return _compiled(compiled_models.velocity, 3, np.asarray(self.sigma_mps, float) ** 2,
-                         [layout.slice("vel").start], lambda nav, data, j: (data.values[self.field][:, j], _valid(data, j)))
+                         [layout.slice("vel").start],
+                         lambda nav, data, j: (data.values[self.field][:, j], _valid(data, j)))
 
 
 @measurement("height")
@@ -452,7 +454,8 @@ class Height:
     def compiled(self, layout: Layout) -> CompiledModel:
         baro = layout.slice("baro").start if self.use_baro_state and layout.has("baro") else -1
         return _compiled(compiled_models.height, 1, [float(self.sigma_m) ** 2], [layout.slice("pos").start + 2, baro],
-                         lambda nav, data, j: ((data.values[self.field][:, j] + self.offset_m)[:, None], _valid(data, j)))
+                         lambda nav, data, j: ((data.values[self.field][:, j] + self.offset_m)[:, None],
+                                               _valid(data, j)))
 
 
 @measurement("zero_velocity")
@@ -579,8 +582,7 @@ class AirVelocity:
     def reads(cls, entry: dict) -> tuple:
         """The sensor values the model of ``entry`` reads: the vanes' angles when its ADS model
         has vanes, the air data always (checked against the sensor before anything runs)."""
-        vanes = _ads_spec(entry["model"], entry["override"]).velocity_axis == "air"
-        return ("tas_mps", "p_static_pa", "temp_k") + (("alpha_rad", "beta_rad") if vanes else ())
+        return _air_values(_ads_spec(entry["model"], entry["override"]).velocity_axis == "air")
 
     def axes_b(self, data, j: int) -> tuple:
         """The air axes in the body ``(B, 3)`` each (along the airspeed, the sideslip's and the
@@ -612,12 +614,19 @@ class AirVelocity:
         s, v = self.spec, data.values
         V, ps, T = v["tas_mps"][:, j], v["p_static_pa"][:, j], v["temp_k"][:, j]
         dv_dqc = 1.0 / (ps / (atmosphere.R_AIR * T) * np.maximum(V, 1.0))
+        var_ps, var_qc = self.pressure_variances(bias_state)
+        density = 0.5 * V * np.sqrt(var_ps / ps ** 2 + (s.temperature_noise / T) ** 2)
+        return np.hypot(np.sqrt(var_qc) * dv_dqc, density), dv_dqc
+
+    def pressure_variances(self, bias_state: bool) -> tuple[float, float]:
+        """The variances of the static pressure and of the dynamic pressure by the filter's
+        ADS model, Pa^2 (the dynamic pressure's bias in it unless a ``bias_state`` carries it)."""
+        s = self.spec
         var_ps = s.static_noise ** 2 + s.static_bias_sigma ** 2
         var_qc = s.total_noise ** 2 + (s.static_noise ** 2 if s.pitot == "absolute" else 0.0)
         if not bias_state:
             var_qc = var_qc + self.state_sigma["pitot_bias"][0] ** 2
-        density = 0.5 * V * np.sqrt(var_ps / ps ** 2 + (s.temperature_noise / T) ** 2)
-        return np.hypot(np.sqrt(var_qc) * dv_dqc, density), dv_dqc
+        return var_ps, var_qc
 
     def model(self, nav: NavState, layout: Layout, data, j: int):
         B = nav.lat_rad.shape[0]
@@ -650,9 +659,7 @@ class AirVelocity:
     def compiled(self, layout: Layout) -> CompiledModel:
         """The compiled form (:func:`~navsim.navigation.estimators.compiled_models.air_velocity`)."""
         s, bias_state = self.spec, layout.has("pitot_bias")
-        var_qc = s.total_noise ** 2 + (s.static_noise ** 2 if s.pitot == "absolute" else 0.0)
-        if not bias_state:
-            var_qc = var_qc + self.state_sigma["pitot_bias"][0] ** 2
+        var_ps, var_qc = self.pressure_variances(bias_state)
         vanes = s.velocity_axis == "air"
         white = np.full(3, self.turbulence_sigma_mps ** 2)
         cols = [layout.slice("vel").start, layout.slice("att").start,
@@ -664,17 +671,23 @@ class AirVelocity:
                         cols[3 + 3 * k + a] = col
                         white[a] = 0.0 if group is GUST_AXES else white[a]
         values = {"vanes": float(vanes), "angle_sigma": s.vane_noise if vanes else self.angle_sigma_rad,
-                  "var_ps": s.static_noise ** 2 + s.static_bias_sigma ** 2, "var_qc": var_qc,
+                  "var_ps": var_ps, "var_qc": var_qc,
                   "temperature_noise": s.temperature_noise, "r_air": atmosphere.R_AIR,
                   **dict(zip(("wind_n", "wind_e", "wind_d"), np.asarray(self.wind_n_mps, float))),
                   **dict(zip(("white_n", "white_e", "white_d"), white))}
-        keys = ("tas_mps", "p_static_pa", "temp_k") + (("alpha_rad", "beta_rad") if vanes else ())
+        keys = _air_values(vanes)
 
         def inputs(nav, data, j):
             inp = np.zeros((nav.lat_rad.shape[0], 5))
             inp[:, :len(keys)] = _columns(data, j, keys)
             return inp, _valid(data, j)
         return _compiled(compiled_models.air_velocity, 3, [values[k] for k in compiled_models.AIR_PARAMS], cols, inputs)
+
+
+def _air_values(vanes: bool) -> tuple:
+    """The ADS values the air-velocity model reads: airspeed, static pressure, temperature, and
+    the vanes' angles where it has vanes."""
+    return ("tas_mps", "p_static_pa", "temp_k") + (("alpha_rad", "beta_rad") if vanes else ())
 
 
 def check_observed_states(node: Node, blocks, entries: list) -> None:
@@ -794,7 +807,7 @@ class LandmarkFix:
         def inputs(nav, data, j):
             idx = data.values["landmark"][:, j]
             anchors = np.asarray(data.meta.get("landmarks") or [(0.0, 0.0, 0.0)], float)
-            fix = _columns(data, j, ("lat_rad", "lon_rad", "h_m"))
+            fix = _columns(data, j, POSITION_VALUES)
             return np.concatenate([fix, anchors[np.clip(idx, 0, len(anchors) - 1)]], 1), _valid(data, j) & (idx >= 0)
         return _compiled(compiled_models.landmark_fix, 3, [self.sigma_m, self.ratio, 1.0, 1.0, 1.0],
                          [layout.slice("pos").start], inputs)
@@ -891,11 +904,17 @@ class MagneticHeading:
         hard, soft, ok = self._fit.estimate()
         return magcal.calibrate(mag[:, j], hard, soft), ok & (self._turns >= self.min_turns)
 
+    def _sample(self, nav: NavState, data, j: int) -> tuple:
+        """Sample ``j`` calibrated ``(B, 3)`` (body, T), the filter's Earth field ``(B, 3)``
+        (NED, T) and the runs whose calibration is usable ``(B,)``."""
+        date = data.meta.get("date", WMM_DATE)
+        m_b, ok = self._calibrated(nav, data, j, date)
+        return m_b, self._field_n_T(nav, date), ok
+
     def model(self, nav: NavState, layout: Layout, data, j: int):
         B = nav.lat_rad.shape[0]
-        date = data.meta.get("date", "2025-01-01")
-        m_b, ok = self._calibrated(nav, data, j, date)
-        z, h_att = magnetic_heading(nav.C_nb, m_b, self._field_n_T(nav, date))
+        m_b, field_n, ok = self._sample(nav, data, j)
+        z, h_att = magnetic_heading(nav.C_nb, m_b, field_n)
         valid = data.valid[:, j] & ok & np.isfinite(z)
         H = np.zeros((B, 1, layout.n))
         H[:, 0, layout.slice("att")] = h_att
@@ -905,9 +924,8 @@ class MagneticHeading:
         """The heading's geometry compiled; the online calibration stays in Python (its fit is
         fed the samples since the last call)."""
         def inputs(nav, data, j):
-            date = data.meta.get("date", "2025-01-01")
-            m_b, ok = self._calibrated(nav, data, j, date)
-            return np.concatenate([m_b, self._field_n_T(nav, date)], 1), data.valid[:, j] & ok
+            m_b, field_n, ok = self._sample(nav, data, j)
+            return np.concatenate([m_b, field_n], 1), data.valid[:, j] & ok
         return _compiled(compiled_models.magnetic_heading, 1, [float(self.sigma_rad) ** 2],
                          [layout.slice("att").start], inputs)
 
