@@ -5,7 +5,9 @@ YAML is read with a ``yaml.SafeLoader`` subclass (YAML 1.2 booleans) and nothing
 
 from __future__ import annotations
 
+import copy
 import difflib
+import hashlib
 import logging
 import math
 import os
@@ -125,11 +127,20 @@ def _check_size(root, path: str) -> None:
     walk(root, 0)
 
 
+#: parsed texts by their digest: a scenario's parse reads the same datasheets and track files
+#: again for each sensor and check, and PyYAML's pure-Python parser takes 3 ms a datasheet; a
+#: copy is handed out, so a caller may change what it gets. At most 256 texts of 64 kB each
+#: (the largest shipped file is 4 kB).
+_PARSED: dict[bytes, Any] = {}
+_PARSED_MAX, _PARSED_MAX_BYTES = 256, 65_536
+
+
 def load_yaml(path: str | Path) -> Any:
     """Read a YAML file with the safe loader (:class:`SafeLoader`: no object construction, YAML
     1.2 booleans, unique keys); a file that cannot be read, is not UTF-8 text, is not valid
     YAML, is nested deeper than :data:`MAX_DEPTH` or expands to more than :data:`MAX_VALUES`
-    values raises :class:`ScenarioError`."""
+    values raises :class:`ScenarioError`. A text parsed before (the same bytes) is not parsed
+    again."""
     path = Path(path)
     try:
         if path.is_dir():
@@ -145,6 +156,18 @@ def load_yaml(path: str | Path) -> Any:
     except UnicodeDecodeError as exc:
         raise ScenarioError(f"is not UTF-8 text (byte {exc.start})", file=str(path),
                             expected="a YAML text file") from None
+    if len(raw) > _PARSED_MAX_BYTES:
+        return _parse_yaml(text, path)
+    key = hashlib.blake2b(raw, digest_size=20).digest()
+    if key not in _PARSED:
+        if len(_PARSED) >= _PARSED_MAX:
+            _PARSED.pop(next(iter(_PARSED)))
+        _PARSED[key] = _parse_yaml(text, path)
+    return copy.deepcopy(_PARSED[key])
+
+
+def _parse_yaml(text: str, path: Path) -> Any:
+    """:func:`load_yaml`'s parse and checks of ``text`` (read from ``path``)."""
     try:
         data = yaml.load(text, Loader=SafeLoader)  # noqa: S506 (a SafeLoader subclass)
     except RecursionError:

@@ -63,7 +63,7 @@ def load_datasheet(name: str, key: str = "model", file: str | None = None) -> tu
     path = resolve_file(name, catalog=CATALOG_DIR, file=file, key=key, what="in the sensor catalog",
                         choices=available)
     data = load_yaml(path)
-    if not isinstance(data, dict) or data.get("kind") not in registry.available():
+    if not isinstance(data, dict) or not isinstance(data.get("kind"), str) or not registry.known(data["kind"]):
         raise ScenarioError("needs 'kind'", file=str(path), key="kind",
                             expected="one of " + ", ".join(registry.available()),
                             hint=close_match(str(data.get("kind")), registry.available())
@@ -74,7 +74,7 @@ def load_datasheet(name: str, key: str = "model", file: str | None = None) -> tu
 def spec_from_datasheet(data: dict, file: str | None = None, path: str = ""):
     """Build the SI spec of a datasheet mapping (catalog entry, possibly with overrides)."""
     kind = data.get("kind")
-    if kind not in registry.available():
+    if not isinstance(kind, str) or not registry.known(kind):
         raise ScenarioError(f"is '{kind}'", file=file, key=_join(path, "kind"),
                             expected="one of " + ", ".join(registry.available()),
                             hint=close_match(str(kind), registry.available()))

@@ -178,6 +178,23 @@ def test_a_large_file_is_refused(tmp_path):
         load_yaml(path)
 
 
+def test_a_file_parsed_again_gives_its_new_text_and_a_fresh_copy(tmp_path):
+    """Parses are kept by the text's digest: a file rewritten at once with other bytes of the
+    same size (within one timestamp tick) is read as it is now, and changing what one call
+    returned does not change what the next returns; a broken text is refused every time."""
+    path = tmp_path / "a.yaml"
+    path.write_text("a: {b: 1}\n")
+    first = load_yaml(path)
+    first["a"]["b"] = 99
+    assert load_yaml(path) == {"a": {"b": 1}}
+    path.write_text("a: {b: 2}\n")
+    assert load_yaml(path) == {"a": {"b": 2}}
+    path.write_text("a: {b: [}\n")
+    for _ in range(2):
+        with pytest.raises(ScenarioError, match="not valid YAML"):
+            load_yaml(path)
+
+
 # --- 6. a flight-only scenario ----------------------------------------------------------------
 
 

@@ -34,9 +34,9 @@ from navsim.navigation.estimators.attitude import (
     LocalFrame,
     quat_of_dcm,
     reference_field_uT,
-    rk4_step,
     rotate_n_to_b,
 )
+from navsim.navigation.estimators.attitude_kernels import cpf_block
 from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.strapdown import NavState
@@ -59,7 +59,8 @@ class ComplementaryCore:
         B = q0.shape[0]
         self.q, self.frame = q0.copy(), frame
         self.b = np.zeros((B, 3))
-        self.f_lp = None
+        self.f_lp = np.zeros((B, 3))          #: the low-passed specific force, m/s^2
+        self._lp_started = False
         self.e_mag = np.zeros((B, 3))
         self.a_n = np.zeros((B, 3))
         self._v_prev = self._t_prev = None
@@ -68,19 +69,17 @@ class ComplementaryCore:
         self.heading_t = np.zeros(B)          #: when it last had a heading reference, s
         self.field_uT = None
 
-    def step(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
-        f = dv_b / dt
-        self.f_lp = f.copy() if self.f_lp is None else self.f_lp + (f - self.f_lp) * min(dt / self.accel_tau_s, 1.0)
-        f_ref_n = self.a_n - self.frame.g_n
-        f_ref_b = rotate_n_to_b(self.q, f_ref_n)
-        nm, nr = np.linalg.norm(self.f_lp, axis=-1), np.linalg.norm(f_ref_b, axis=-1)
-        use = (np.abs(nm - nr) <= self.acc_gate * np.linalg.norm(self.frame.g_n, axis=-1)) & (nm > 0) & (nr > 0)
-        safe = lambda n: np.where(use, n, 1.0)[:, None]          # free fall, a zeroed sample: no NaN
-        e_acc = np.where(use[:, None], cross(self.f_lp / safe(nm), f_ref_b / safe(nr)), 0.0)
-        w = dtheta_b / dt - self.b - rotate_n_to_b(self.q, self.frame.w_ie_n)
-        w = w + self.kp_acc * e_acc + self.kp_mag * self.e_mag
-        self.b = self.b - self.ki * (e_acc + self.e_mag) * dt
-        self.q = rk4_step(self.q, w, dt)
+    def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
+        """The ``K`` IMU intervals of ``(B, K, 3)`` increments, compiled
+        (:func:`~navsim.navigation.estimators.attitude_kernels.cpf_block`): the specific force
+        low-passed (``accel_tau_s``) and checked against the reference (``acc_gate``), the
+        corrected rate integrated by :func:`~navsim.navigation.estimators.attitude.rk4_step`."""
+        if dtheta_b.shape[1] == 0:
+            return
+        gains = np.array([self.kp_acc, self.kp_mag, self.ki, self.accel_tau_s, self.acc_gate])
+        cpf_block(self.q, self.b, self.f_lp, self._lp_started, self.a_n, self.e_mag, self.frame.g_n,
+                  self.frame.w_ie_n, gains, dtheta_b, dv_b, dt)
+        self._lp_started = True
 
     def aid(self, t: float, sensors: dict, mag: str | None, gnss: str | None, field_n_T=None,
             t_prev: float | None = None) -> None:
@@ -172,9 +171,8 @@ class ComplementaryFilter:
         self.t_prev = -self.period_s
 
     def propagate(self, dtheta_b, dv_b, dt: float) -> None:
-        """The ``K`` IMU intervals of ``(B, K, 3)`` increments, one at a time."""
-        for j in range(dtheta_b.shape[1]):
-            self.core.step(dtheta_b[:, j], dv_b[:, j], dt)
+        """The ``K`` IMU intervals of ``(B, K, 3)`` increments."""
+        self.core.propagate(dtheta_b, dv_b, dt)
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self.core.aid(t, sensors, self.mag, self.gnss, self.field_n_T, self.t_prev)

@@ -80,6 +80,7 @@ from navsim.navigation.estimators.attitude import (
     rotate_n_to_b,
     xi,
 )
+from navsim.navigation.estimators.attitude_kernels import cpf_ekf_block
 from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema, cpf_ekf_options
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.estimators.cpf import ComplementaryCore
@@ -231,28 +232,13 @@ class CpfEkf:
         return P
 
     def propagate(self, dtheta_b, dv_b, dt: float) -> None:
-        """The ``K`` IMU intervals of ``(B, K, 3)`` increments, one at a time (RK4 attitude,
-        velocity and position; the CPF beside)."""
-        for j in range(dtheta_b.shape[1]):
-            self._step(dtheta_b[:, j], dv_b[:, j], dt)
-
-    def _step(self, dtheta_b, dv_b, dt: float) -> None:
-        x = self.x
-        q = x[:, Q]
-        w_b = dtheta_b / dt - x[:, WB] - rotate_n_to_b(q, self.frame.w_ie_n)
-        f_b = dv_b / dt
-        f_b[:, 2] -= x[:, AZ]
-        q_new = rk4_step(q, w_b, dt)
-        v = x[:, V]
-        a_n = rotate_b_to_n(normalize(q + q_new), f_b) + self.frame.g_n - 2.0 * cross(self.frame.w_ie_n, v)
-        v_new = v + a_n * dt
-        x[:, S] += 0.5 * (v + v_new) * dt
-        x[:, V] = v_new
-        x[:, Q] = q_new
-        self._sum_w += w_b * dt
-        self._sum_f += f_b * dt
-        self._elapsed += dt
-        self.cpf.step(dtheta_b, dv_b, dt)
+        """The ``K`` IMU intervals of ``(B, K, 3)`` increments (RK4 attitude, velocity and
+        position, compiled: :func:`~navsim.navigation.estimators.attitude_kernels.cpf_ekf_block`;
+        the CPF beside)."""
+        cpf_ekf_block(self.x, self._sum_w, self._sum_f, self.frame.g_n, self.frame.w_ie_n, dtheta_b, dv_b, dt)
+        for _ in range(dtheta_b.shape[1]):
+            self._elapsed += dt                   # summed as the samples come (not K dt)
+        self.cpf.propagate(dtheta_b, dv_b, dt)
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
         self._predict()

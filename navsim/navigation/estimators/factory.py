@@ -59,7 +59,7 @@ def parse_estimators(data, sensors: dict, file: str | None = None, path: str = "
             raise node.error(f"'{label}' is used twice", "label", expected="a unique label")
         labels.add(label)
         kind = node.get("type", str)
-        if kind not in base.available():
+        if not base.known(kind):
             raise node.error(f"'{kind}' is not a registered estimator", "type",
                              expected="one of " + ", ".join(base.available()),
                              hint=close_match(kind, base.available()))

@@ -1,0 +1,136 @@
+"""P4's per-sample propagation, compiled: the CPF-EKF's state prediction and the complementary
+filter's step over a block of ``K`` IMU intervals, one loop per run (numba, cached).
+
+The formulas are those of :mod:`.attitude` (``rk4_step``, ``rotate_b_to_n``,
+``rotate_n_to_b``), :meth:`.cpf.ComplementaryCore.step` and the CPF-EKF's ``_step``, written
+per run with the same order of operations; a test holds them to the numpy forms to 1e-12. A
+run's arithmetic never depends on the other runs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from navsim.foundations.compiled import njit
+
+_OPTIONS = dict(cache=True, error_model="numpy")     # a diverged run gives NaN, as numpy does
+
+
+@njit(inline="always", **_OPTIONS)
+def _cross(a0, a1, a2, b0, b1, b2):
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@njit(inline="always", **_OPTIONS)
+def _rotate(w, u0, u1, u2, v0, v1, v2):
+    """``v + 2 w (u x v) + 2 u x (u x v)``: ``C_nb v`` with ``u`` the vector part of ``q_nb``,
+    ``C_bn v`` with its negative."""
+    t0, t1, t2 = _cross(u0, u1, u2, v0, v1, v2)
+    t0, t1, t2 = 2.0 * t0, 2.0 * t1, 2.0 * t2
+    c0, c1, c2 = _cross(u0, u1, u2, t0, t1, t2)
+    return v0 + w * t0 + c0, v1 + w * t1 + c1, v2 + w * t2 + c2
+
+
+@njit(**_OPTIONS)
+def _rk4(q, w0, w1, w2, dt, out):
+    """One Runge-Kutta step of ``q_dot = q * [0, w] / 2`` (as :func:`.attitude.rk4_step`) into
+    ``out`` (4,), renormalised."""
+    h = 0.5 * dt
+    wx, wy, wz = w0 * h, w1 * h, w2 * h
+    a2 = wx * wx + wy * wy + wz * wz
+    q0, q1, q2, q3 = q[0], q[1], q[2], q[3]
+    c0 = 1.0 - 0.5 * a2 + a2 * a2 / 24.0
+    c1 = 1.0 - a2 / 6.0
+    out[0] = c0 * q0 + c1 * (-q1 * wx - q2 * wy - q3 * wz)
+    out[1] = c0 * q1 + c1 * (q0 * wx + q2 * wz - q3 * wy)
+    out[2] = c0 * q2 + c1 * (q0 * wy - q1 * wz + q3 * wx)
+    out[3] = c0 * q3 + c1 * (q0 * wz + q1 * wy - q2 * wx)
+    n = math.sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3])
+    for i in range(4):
+        out[i] = out[i] / n
+
+
+@njit(**_OPTIONS)
+def cpf_ekf_block(x, sum_w, sum_f, g_n, w_ie_n, dth, dv, dt):
+    """The CPF-EKF's state over the block: ``x`` ``(B, 20)`` (quaternion 0:4, velocity 4:7,
+    position 7:10, z-accelerometer bias 10, gyro bias 14:17) and the sums of the corrected rate
+    and specific force times ``dt`` ``(B, 3)`` the covariance prediction averages, in place."""
+    q_new, q_mid = np.empty(4), np.empty(4)
+    for b in range(x.shape[0]):
+        for j in range(dth.shape[1]):
+            q = x[b, 0:4]
+            r0, r1, r2 = _rotate(q[0], -q[1], -q[2], -q[3], w_ie_n[b, 0], w_ie_n[b, 1], w_ie_n[b, 2])
+            w0 = dth[b, j, 0] / dt - x[b, 14] - r0
+            w1 = dth[b, j, 1] / dt - x[b, 15] - r1
+            w2 = dth[b, j, 2] / dt - x[b, 16] - r2
+            f0, f1, f2 = dv[b, j, 0] / dt, dv[b, j, 1] / dt, dv[b, j, 2] / dt - x[b, 10]
+            _rk4(q, w0, w1, w2, dt, q_new)
+            for i in range(4):
+                q_mid[i] = q[i] + q_new[i]
+            n = math.sqrt(q_mid[0] * q_mid[0] + q_mid[1] * q_mid[1] + q_mid[2] * q_mid[2] + q_mid[3] * q_mid[3])
+            a0, a1, a2 = _rotate(q_mid[0] / n, q_mid[1] / n, q_mid[2] / n, q_mid[3] / n, f0, f1, f2)
+            v0, v1, v2 = x[b, 4], x[b, 5], x[b, 6]
+            c0, c1, c2 = _cross(w_ie_n[b, 0], w_ie_n[b, 1], w_ie_n[b, 2], v0, v1, v2)
+            a0, a1, a2 = a0 + g_n[b, 0] - 2.0 * c0, a1 + g_n[b, 1] - 2.0 * c1, a2 + g_n[b, 2] - 2.0 * c2
+            n0, n1, n2 = v0 + a0 * dt, v1 + a1 * dt, v2 + a2 * dt
+            x[b, 7] += 0.5 * (v0 + n0) * dt
+            x[b, 8] += 0.5 * (v1 + n1) * dt
+            x[b, 9] += 0.5 * (v2 + n2) * dt
+            x[b, 4], x[b, 5], x[b, 6] = n0, n1, n2
+            for i in range(4):
+                x[b, i] = q_new[i]
+            sum_w[b, 0] += w0 * dt
+            sum_w[b, 1] += w1 * dt
+            sum_w[b, 2] += w2 * dt
+            sum_f[b, 0] += f0 * dt
+            sum_f[b, 1] += f1 * dt
+            sum_f[b, 2] += f2 * dt
+
+
+@njit(**_OPTIONS)
+def _accel_error(q, f_lp, a_n, g_n, acc_gate):
+    """The CPF's accelerometer error ``f_lp / |f_lp| x f_ref_b / |f_ref_b|`` (zero where the
+    gate rejects the sample or either is zero)."""
+    r0, r1, r2 = _rotate(q[0], -q[1], -q[2], -q[3], a_n[0] - g_n[0], a_n[1] - g_n[1], a_n[2] - g_n[2])
+    nm = math.sqrt(f_lp[0] * f_lp[0] + f_lp[1] * f_lp[1] + f_lp[2] * f_lp[2])
+    nr = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    ng = math.sqrt(g_n[0] * g_n[0] + g_n[1] * g_n[1] + g_n[2] * g_n[2])
+    if abs(nm - nr) <= acc_gate * ng and nm > 0.0 and nr > 0.0:
+        return _cross(f_lp[0] / nm, f_lp[1] / nm, f_lp[2] / nm, r0 / nr, r1 / nr, r2 / nr)
+    return 0.0, 0.0, 0.0
+
+
+@njit(**_OPTIONS)
+def cpf_block(q, bias, f_lp, started, a_n, e_mag, g_n, w_ie_n, gains, dth, dv, dt):
+    """The complementary filter over the block (as :meth:`.cpf.ComplementaryCore.step`):
+    ``q`` ``(B, 4)``, the gyro bias ``bias`` and the low-passed specific force ``f_lp``
+    ``(B, 3)`` in place; ``started`` False takes the first sample as ``f_lp``. ``gains``:
+    ``kp_acc, kp_mag, ki, accel_tau_s, acc_gate``."""
+    kp_acc, kp_mag, ki, tau, acc_gate = gains[0], gains[1], gains[2], gains[3], gains[4]
+    k_lp = min(dt / tau, 1.0)
+    q_new = np.empty(4)
+    for b in range(q.shape[0]):
+        for j in range(dth.shape[1]):
+            f0, f1, f2 = dv[b, j, 0] / dt, dv[b, j, 1] / dt, dv[b, j, 2] / dt
+            if not started and j == 0:
+                f_lp[b, 0], f_lp[b, 1], f_lp[b, 2] = f0, f1, f2
+            else:
+                f_lp[b, 0] += (f0 - f_lp[b, 0]) * k_lp
+                f_lp[b, 1] += (f1 - f_lp[b, 1]) * k_lp
+                f_lp[b, 2] += (f2 - f_lp[b, 2]) * k_lp
+            e0, e1, e2 = _accel_error(q[b], f_lp[b], a_n[b], g_n[b], acc_gate)
+            r0, r1, r2 = _rotate(q[b, 0], -q[b, 1], -q[b, 2], -q[b, 3], w_ie_n[b, 0], w_ie_n[b, 1], w_ie_n[b, 2])
+            w0 = dth[b, j, 0] / dt - bias[b, 0] - r0 + kp_acc * e0 + kp_mag * e_mag[b, 0]
+            w1 = dth[b, j, 1] / dt - bias[b, 1] - r1 + kp_acc * e1 + kp_mag * e_mag[b, 1]
+            w2 = dth[b, j, 2] / dt - bias[b, 2] - r2 + kp_acc * e2 + kp_mag * e_mag[b, 2]
+            bias[b, 0] = bias[b, 0] - ki * (e0 + e_mag[b, 0]) * dt
+            bias[b, 1] = bias[b, 1] - ki * (e1 + e_mag[b, 1]) * dt
+            bias[b, 2] = bias[b, 2] - ki * (e2 + e_mag[b, 2]) * dt
+            _rk4(q[b], w0, w1, w2, dt, q_new)
+            for i in range(4):
+                q[b, i] = q_new[i]
+
+
+__all__ = ["cpf_block", "cpf_ekf_block"]
