@@ -282,7 +282,8 @@ class ImuStream:
         The sensor's name (its random streams).
     block : int
         Samples of normals drawn per process and run at a time (memory ``B x block x 24`` bytes
-        per process: 12 MB for 250 runs; 5000 took 34 MB more in a P0 chunk and was no faster).
+        per process: 3 MB for 250 runs). In a P0 chunk of 250 runs, 2000 peaked 16 MB higher and
+        was no faster (2.2 against 3.5 ms per run for the sensors, ``benchmarks/filter_speed.py``).
     truth_x : tuple, optional
         ``(omega, incr_g, f, incr_a)`` ``(n, 3)`` instead of the truth's (zeros: the errors alone).
 
@@ -290,7 +291,7 @@ class ImuStream:
     build it where it is used, as a chunk does.
     """
 
-    def __init__(self, truth, spec: ImuSpec, seed: int, runs, name: str = "imu", block: int = 2000,
+    def __init__(self, truth, spec: ImuSpec, seed: int, runs, name: str = "imu", block: int = 500,
                  truth_x: tuple | None = None, dt_s: float | None = None, n: int | None = None):
         self.runs = list(runs)
         self.spec, self.name, self.seed = spec, name, seed
