@@ -426,10 +426,23 @@ def resolved_scenario(result: Result) -> dict:
 
 
 def write_report(result: Result, out=None, *, force: bool = False) -> list[Path]:
-    """``report.pdf`` and its PNGs for ``result`` into ``out`` (default: the folder the run was
-    written to); also writes the run's ``metrics.json``, ``run.json`` and
-    ``scenario.resolved.yaml`` there when it is another folder. Returns the report's files.
-    The folder is locked meanwhile; ``force``: as :func:`run`'s."""
+    """``report.pdf`` and its PNGs for ``result``; also writes the run's ``metrics.json``,
+    ``run.json`` and ``scenario.resolved.yaml`` there when it is another folder than the run's.
+
+    Parameters
+    ----------
+    result : Result
+        A run (:func:`run`, :func:`open_result`).
+    out : path, optional
+        The folder (default: the one the run was written to); locked meanwhile.
+    force : bool
+        As :func:`run`'s: write into a non-empty folder that is not navsim's.
+
+    Returns
+    -------
+    list of Path
+        The report's files.
+    """
     if out is None and result.folder is None:
         raise UsageError("write_report needs a folder: out=... (the run was held in memory)")
     with OutputFolder(Path(out) if out is not None else result.folder, force=force) as folder:
@@ -447,9 +460,19 @@ def _write_report_into(folder: OutputFolder, result: Result) -> list[Path]:
 
 
 def report_figures(result: Result) -> list:
-    """The report's pages in order, for a notebook: :class:`navsim.report.figures.Page` objects
-    (``name``: the PNG's stem, ``title``: its line in the contents, ``figure``: the matplotlib
-    figure); nothing is written. Close them with ``matplotlib.pyplot.close(page.figure)``."""
+    """The report's pages in order, for a notebook; nothing is written.
+
+    Parameters
+    ----------
+    result : Result
+        A run (:func:`run`, :func:`open_result`).
+
+    Returns
+    -------
+    list of navsim.report.figures.Page
+        ``name``: the PNG's stem, ``title``: its line in the contents, ``figure``: the
+        matplotlib figure. Close them with ``matplotlib.pyplot.close(page.figure)``.
+    """
     return _report_pages(result.scenario, _truth(result), result, result.metrics, result.record, result.loop,
                          result.reference, result.sightings)
 
@@ -647,7 +670,22 @@ def _estimator_pairs(ra: ResultFiles, rb: ResultFiles, one: bool, estimators) ->
 
 def write_comparison(comparisons: list[Comparison], folder: OutputFolder, fmts=("pdf", "png")) -> list[Path]:
     """``compare.json``, ``compare.csv`` and the page of each comparison (``compare.pdf``, a PNG
-    each, its runs' differences drawn) into ``folder``; returns the files written."""
+    each, its runs' differences drawn).
+
+    Parameters
+    ----------
+    comparisons : list of Comparison
+        What :func:`compare` returned.
+    folder : navsim.foundations.outputs.OutputFolder
+        The open output folder written into.
+    fmts : sequence of {"pdf", "png"}
+        The page formats.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
     folder.json("compare.json", {"comparisons": [c.to_dict() for c in comparisons], **provenance()})
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -839,8 +877,22 @@ def _what_ifs(samples: dict, by_source: dict, scaled_runs) -> list[WhatIf]:
 
 def write_budget(result: Budget, folder: OutputFolder, metrics=None, fmts=("pdf", "png")) -> list[Path]:
     """``budget.json``, ``budget.csv`` (one row per estimator, metric and line) and the budget's
-    pages (``budget.pdf``, a PNG each: a sorted bar chart per estimator and metric of
-    ``metrics``, default :data:`~navsim.scoring.budget.DEFAULT_METRICS`) into ``folder``."""
+    pages (``budget.pdf``, a PNG each: a sorted bar chart per estimator and metric).
+
+    Parameters
+    ----------
+    result : Budget
+        What :func:`budget` returned.
+    metrics : sequence of str, optional
+        The metrics drawn (default :data:`~navsim.scoring.budget.DEFAULT_METRICS`).
+    folder, fmts
+        As :func:`write_comparison`'s: the open output folder, the page formats.
+
+    Returns
+    -------
+    list of Path
+        ``budget.json``, ``budget.csv`` and the pages written.
+    """
     folder.json("budget.json", {**result.to_dict(), **provenance()})
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")

@@ -1,3 +1,3 @@
 """navsim's version, declared once (``pyproject.toml`` reads the same number)."""
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"

@@ -28,13 +28,17 @@ from navsim.navigation import kernels
 
 @dataclass
 class NavState:
-    lat_rad: np.ndarray      #: (B,)
-    lon_rad: np.ndarray      #: (B,)
-    h_m: np.ndarray          #: (B,)
-    vel_n_mps: np.ndarray    #: (B, 3)
-    C_nb: np.ndarray         #: (B, 3, 3)
+    """The navigation state of ``B`` runs: geodetic position (WGS-84), velocity in NED and the
+    body-to-NED direction-cosine matrix."""
+
+    lat_rad: np.ndarray      #: (B,) latitude, rad
+    lon_rad: np.ndarray      #: (B,) longitude, rad
+    h_m: np.ndarray          #: (B,) height above the ellipsoid, m
+    vel_n_mps: np.ndarray    #: (B, 3) velocity north, east, down, m/s
+    C_nb: np.ndarray         #: (B, 3, 3) body (FRD) to NED, dimensionless
 
     def copy(self) -> "NavState":
+        """A copy whose arrays are copies."""
         return NavState(self.lat_rad.copy(), self.lon_rad.copy(), self.h_m.copy(),
                         self.vel_n_mps.copy(), self.C_nb.copy())
 

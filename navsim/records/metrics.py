@@ -149,9 +149,9 @@ class HorizontalStats(_Record):
     with no record there, a closed-loop run landed before it, is left out) and each run's
     largest in the window (``max``: the drift's worst, as an RMS over the runs)."""
 
-    rms: float
-    final: float | None = None
-    max: float | None = None
+    rms: float                      #: m
+    final: float | None = None      #: m
+    max: float | None = None        #: m
 
 
 @dataclass(frozen=True)
@@ -187,14 +187,14 @@ class Window(_Record):
 class Nees(_Record):
     """The average over runs of the NEES of the 9 navigation errors against its chi-square band."""
 
-    average: float               #: over the epochs from the settling time on
-    band: list[float]            #: two-sided 95 % band of the average over the runs counted
-    fraction_inside: float       #: of the epochs whose average is inside its own band
-    dim: int
-    average_from_start: float    #: over every epoch after the first
+    average: float               #: dimensionless, over the epochs from the settling time on
+    band: list[float]            #: two-sided 95 % band of the average over the runs counted, dimensionless
+    fraction_inside: float       #: fraction of the epochs whose average is inside its own band
+    dim: int                     #: the states it is taken over (9)
+    average_from_start: float    #: dimensionless, over every epoch after the first
     #: the mean of (error / sigma)^2 of each navigation error from the settling time on, over
     #: runs and epochs, in the order of :data:`~navsim.records.states.SIGMA_STATES`
-    #: (att, vel, pos; N, E, D): 1 where the sigma describes the error
+    #: (att, vel, pos; N, E, D): 1 where the sigma describes the error (dimensionless)
     per_state: list[float] | None = None
 
 
@@ -202,10 +202,10 @@ class Nees(_Record):
 class Nis(_Record):
     """The average NIS of one measurement against its chi-square band."""
 
-    average: float
-    band: list[float]
-    dim: int
-    fraction_inside: float
+    average: float                #: dimensionless (its expected value is ``dim``)
+    band: list[float]             #: two-sided 95 % band of the average, dimensionless
+    dim: int                      #: the measurement's rows
+    fraction_inside: float        #: fraction of the epochs whose average is inside its band
 
 
 @dataclass(frozen=True)
@@ -216,7 +216,7 @@ class Sighting(_Record):
     t_s: float
     sigma_m: float               #: the camera's fix noise per axis there
     rms_ne_m: list[float]        #: RMS over runs of the north and east errors
-    max_ratio: float             #: the largest |error| / sigma
+    max_ratio: float             #: the largest abs(error) / sigma
     rms_before_m: float          #: RMS horizontal error just before the sighting
 
 

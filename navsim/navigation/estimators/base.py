@@ -53,9 +53,12 @@ ENTRY_POINT_GROUP = "navsim.estimators"
 
 @dataclass
 class Innovation:
+    """One measurement's innovations at one epoch, over the runs: what ``epoch`` returns for each
+    sensor sample it used (the driver records the NIS against its chi-square band)."""
+
     measurement: str           #: name of the measurement model
-    sensor: str
-    t_s: float
+    sensor: str                #: name of the sensor in the scenario
+    t_s: float                 #: the epoch, s
     y: np.ndarray              #: (B, m) innovation
     S: np.ndarray              #: (B, m, m) its covariance
     nis: np.ndarray            #: (B,) normalised innovation squared (NaN where no sample)
@@ -63,7 +66,11 @@ class Innovation:
 
 @dataclass
 class Solution:
-    nav: NavState
+    """An estimator's answer at an epoch, over the runs: the navigation state, its covariance
+    and the estimated sensor errors (None where the estimator has none); ``extra`` holds what
+    only this estimator reports (``diverged`` (B,) bool, the full ``P``, resets, ...)."""
+
+    nav: NavState                            #: the estimated navigation state, (B,) runs
     P_nav: np.ndarray | None = None          #: (B, 9, 9): att (rad), vel (m/s), pos (rad, rad, m)
     gyro_bias: np.ndarray | None = None      #: (B, 3) estimated, rad/s
     accel_bias: np.ndarray | None = None     #: (B, 3) estimated, m/s^2
@@ -71,7 +78,7 @@ class Solution:
     accel_bias_sigma: np.ndarray | None = None   #: (B, 3) 1-sigma of ``accel_bias``, m/s^2 (NaN: not a state)
     wind_n_mps: np.ndarray | None = None     #: (B, 3) estimated wind NED, m/s (NaN: an axis not estimated)
     wind_sigma_mps: np.ndarray | None = None     #: (B, 3) its 1-sigma, m/s
-    extra: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)    #: estimator-specific outputs, each (B, ...)
 
 
 @runtime_checkable
@@ -80,13 +87,21 @@ class Estimator(Protocol):
 
     period_s: float
 
-    def initialize(self, nav0: NavState, sigma0: dict) -> None: ...
+    def initialize(self, nav0: NavState, sigma0: dict) -> None:
+        """Start from ``nav0`` (the perturbed initial state, ``B`` runs) with the initial
+        1-sigma ``sigma0``: ``att`` (rad), ``vel`` (m/s), ``pos`` (rad, rad, m), each (B, 3)."""
 
-    def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None: ...
+    def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
+        """Take ``K`` IMU intervals: the increments ``dtheta_b`` (rad) and ``dv_b`` (m/s), each
+        (B, K, 3) in the body frame, ``dt`` (s) each."""
 
-    def epoch(self, t: float, sensors: dict) -> list: ...
+    def epoch(self, t: float, sensors: dict) -> list:
+        """The filter epoch at ``t`` (s): predict, take the sensors' samples (``sensors``: name
+        -> :class:`~navsim.sensors.base.Measurements`) and return their
+        :class:`Innovation` objects."""
 
-    def solution(self) -> Solution: ...
+    def solution(self) -> Solution:
+        """The current :class:`Solution` (the driver records it at every epoch)."""
 
 
 #: the methods an :class:`Estimator` class must have
