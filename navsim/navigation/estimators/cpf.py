@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from navsim.foundations.config import Node
-from navsim.foundations.transform import cross, dcm_from_quat, euler_from_quat
+from navsim.foundations.transform import dcm_from_quat, euler_from_quat
 from navsim.navigation.estimators.attitude import (
     UT,
     LocalFrame,
@@ -36,8 +36,8 @@ from navsim.navigation.estimators.attitude import (
     reference_field_uT,
     rotate_n_to_b,
 )
-from navsim.navigation.estimators.attitude_kernels import cpf_block
 from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema
+from navsim.navigation.estimators.attitude_kernels import cpf_block
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.strapdown import NavState
 

@@ -75,13 +75,10 @@ from navsim.navigation.estimators.attitude import (
     psi,
     quat_of_dcm,
     reference_field_uT,
-    rk4_step,
-    rotate_b_to_n,
-    rotate_n_to_b,
     xi,
 )
-from navsim.navigation.estimators.attitude_kernels import cpf_ekf_block
 from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema, cpf_ekf_options
+from navsim.navigation.estimators.attitude_kernels import cpf_ekf_block
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.estimators.cpf import ComplementaryCore
 from navsim.navigation.strapdown import NavState
