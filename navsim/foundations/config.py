@@ -13,6 +13,7 @@ import math
 import os
 import re
 import tempfile
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -129,10 +130,11 @@ def _check_size(root, path: str) -> None:
 
 #: parsed texts by their digest: a scenario's parse reads the same datasheets and track files
 #: again for each sensor and check, and PyYAML's pure-Python parser takes 3 ms a datasheet; a
-#: copy is handed out, so a caller may change what it gets. At most 256 texts of 64 kB each
-#: (the largest shipped file is 4 kB).
+#: copy is handed out, so a caller may change what it gets. At most 256 texts, each of at most
+#: 64 kB (the largest shipped file is 4 kB).
 _PARSED: dict[bytes, Any] = {}
 _PARSED_MAX, _PARSED_MAX_BYTES = 256, 65_536
+_PARSED_LOCK = threading.Lock()             # a notebook's threads may parse at once
 
 
 def load_yaml(path: str | Path) -> Any:
@@ -159,11 +161,15 @@ def load_yaml(path: str | Path) -> Any:
     if len(raw) > _PARSED_MAX_BYTES:
         return _parse_yaml(text, path)
     key = hashlib.blake2b(raw, digest_size=20).digest()
-    if key not in _PARSED:
-        if len(_PARSED) >= _PARSED_MAX:
-            _PARSED.pop(next(iter(_PARSED)))
-        _PARSED[key] = _parse_yaml(text, path)
-    return copy.deepcopy(_PARSED[key])
+    with _PARSED_LOCK:
+        data = _PARSED.get(key)
+    if data is None:
+        data = _parse_yaml(text, path)
+        with _PARSED_LOCK:
+            if len(_PARSED) >= _PARSED_MAX:
+                _PARSED.pop(next(iter(_PARSED)))
+            _PARSED[key] = data
+    return copy.deepcopy(data)
 
 
 def _parse_yaml(text: str, path: Path) -> Any:

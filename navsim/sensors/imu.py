@@ -282,8 +282,8 @@ class ImuStream:
         The sensor's name (its random streams).
     block : int
         Samples of normals drawn per process and run at a time (memory ``B x block x 24`` bytes
-        per process: 3 MB for 250 runs). In a P0 chunk of 250 runs, 2000 peaked 16 MB higher and
-        was no faster (2.2 against 3.5 ms per run for the sensors, ``benchmarks/filter_speed.py``).
+        per process: 3 MB for 250 runs; larger blocks cost memory and were not faster:
+        docs/performance.md).
     truth_x : tuple, optional
         ``(omega, incr_g, f, incr_a)`` ``(n, 3)`` instead of the truth's (zeros: the errors alone).
 

@@ -1,13 +1,13 @@
 """P4's compiled per-sample propagation against the same formulas written with numpy (one
-sample at a time over the batch, as P4's equations read), and a batch of 3 against 3 single
-runs bit for bit."""
+sample at a time over the batch, as P4's equations read), bit for bit, and a batch of 3 against
+3 single runs bit for bit."""
 
 import numpy as np
 import pytest
 
 from navsim.foundations.transform import cross
 from navsim.navigation.estimators.attitude import LocalFrame, normalize, rk4_step, rotate_b_to_n, rotate_n_to_b
-from navsim.navigation.estimators.attitude_kernels import cpf_block, cpf_ekf_block
+from navsim.navigation.estimators.attitude_kernels import GAIN_NAMES, cpf_block, cpf_ekf_block
 
 GAINS = dict(kp_acc=0.5, kp_mag=0.4, ki=0.05, accel_tau_s=0.2, acc_gate=0.1)
 
@@ -71,7 +71,7 @@ def test_cpf_ekf_prediction_equals_the_numpy_form(seed):
     got_w, got_f = sums[0].copy(), sums[1].copy()
     cpf_ekf_block(x, got_w, got_f, frame.g_n, frame.w_ie_n, dth, dv, dt)
     for got, ref in ((x, ref_x), (got_w, ref_w), (got_f, ref_f)):
-        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+        np.testing.assert_array_equal(got, ref)
     # the sample-by-sample position integration did move the state (the check is not vacuous)
     assert np.abs(ref_x[:, 7:10]).max() > 1.0
 
@@ -83,7 +83,7 @@ def test_cpf_step_equals_the_numpy_form_gate_open_and_closed(seed):
     ref = dict(q=q.copy(), b=rng.normal(size=(B, 3)) * 1e-3, f_lp=None, a_n=rng.normal(size=(B, 3)) * 0.2,
                e_mag=rng.normal(size=(B, 3)) * 0.01)
     q_k, b_k, f_lp = ref["q"].copy(), ref["b"].copy(), np.zeros((B, 3))
-    gains = np.array(list(GAINS.values()))
+    gains = np.array([GAINS[k] for k in GAIN_NAMES])
     half = dth.shape[1] // 2                      # two blocks: the low-pass starts in the first only
     for block in (slice(0, half), slice(half, None)):
         cpf_block(q_k, b_k, f_lp, block.start > 0, ref["a_n"], ref["e_mag"], frame.g_n, frame.w_ie_n, gains,
@@ -91,7 +91,7 @@ def test_cpf_step_equals_the_numpy_form_gate_open_and_closed(seed):
     for j in range(dth.shape[1]):
         _cpf_step(ref, frame, dth[:, j], dv[:, j], dt)
     for got, key in ((q_k, "q"), (b_k, "b"), (f_lp, "f_lp")):
-        np.testing.assert_allclose(got, ref[key], rtol=1e-12, atol=1e-14)
+        np.testing.assert_array_equal(got, ref[key])
     # the gate: open where the specific force is 1 g, closed in the runs pulling 1.3 g
     f_ref_b = rotate_n_to_b(ref["q"], ref["a_n"] - frame.g_n)
     gap = np.abs(np.linalg.norm(ref["f_lp"], axis=-1) - np.linalg.norm(f_ref_b, axis=-1))
@@ -100,7 +100,7 @@ def test_cpf_step_equals_the_numpy_form_gate_open_and_closed(seed):
 
 def test_a_batch_of_three_equals_three_single_runs_bit_for_bit():
     rng, frame, q, dth, dv, dt = _inputs(5, B=3)
-    gains = np.array(list(GAINS.values()))
+    gains = np.array([GAINS[k] for k in GAIN_NAMES])
     state = [q.copy(), rng.normal(size=(3, 3)) * 1e-3, np.zeros((3, 3))]
     a_n, e_mag = rng.normal(size=(3, 3)) * 0.2, rng.normal(size=(3, 3)) * 0.01
     batch = [s.copy() for s in state]
@@ -109,5 +109,18 @@ def test_a_batch_of_three_equals_three_single_runs_bit_for_bit():
         one = [s[b:b + 1].copy() for s in state]
         cpf_block(*one, False, a_n[b:b + 1], e_mag[b:b + 1], frame.g_n[b:b + 1], frame.w_ie_n[b:b + 1], gains,
                   dth[b:b + 1], dv[b:b + 1], dt)
+        for got, whole in zip(one, batch):
+            assert np.array_equal(got[0], whole[b])
+
+
+def test_the_ekf_prediction_of_a_batch_equals_its_single_runs_bit_for_bit():
+    rng, frame, q, dth, dv, dt = _inputs(6, B=3)
+    x = np.concatenate([q, rng.normal(size=(3, 16))], axis=1)
+    sums = rng.normal(size=(2, 3, 3))
+    batch = [x.copy(), sums[0].copy(), sums[1].copy()]
+    cpf_ekf_block(*batch, frame.g_n, frame.w_ie_n, dth, dv, dt)
+    for b in range(3):
+        one = [x[b:b + 1].copy(), sums[0, b:b + 1].copy(), sums[1, b:b + 1].copy()]
+        cpf_ekf_block(*one, frame.g_n[b:b + 1], frame.w_ie_n[b:b + 1], dth[b:b + 1], dv[b:b + 1], dt)
         for got, whole in zip(one, batch):
             assert np.array_equal(got[0], whole[b])

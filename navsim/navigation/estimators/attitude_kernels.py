@@ -1,10 +1,11 @@
 """P4's per-sample propagation, compiled: the CPF-EKF's state prediction and the complementary
 filter's step over a block of ``K`` IMU intervals, one loop per run (numba, cached).
 
-The formulas are those of :mod:`.attitude` (``rk4_step``, ``rotate_b_to_n``,
-``rotate_n_to_b``), :meth:`.cpf.ComplementaryCore.step` and the CPF-EKF's ``_step``, written
-per run with the same order of operations; a test holds them to the numpy forms to 1e-12. A
-run's arithmetic never depends on the other runs.
+The formulas are P4's (eq. 5-7 and the CPF's Mahony step), written per run in the order of
+operations of :mod:`.attitude`'s numpy forms (``rk4_step``, ``rotate_b_to_n``,
+``rotate_n_to_b``); ``tests/unit/test_attitude_kernels.py`` holds them to the same formulas
+written with numpy, one sample at a time over the batch, bit for bit. A run's arithmetic never
+depends on the other runs.
 """
 
 from __future__ import annotations
@@ -16,6 +17,12 @@ import numpy as np
 from navsim.foundations.compiled import njit
 
 _OPTIONS = dict(cache=True, error_model="numpy")     # a diverged run gives NaN, as numpy does
+
+#: the CPF-EKF's state layout the kernel reads (:mod:`.cpf_ekf` builds its slices from these):
+#: the quaternion (4), velocity (3), position (3), the z-accelerometer bias, the gyro bias (3)
+Q0, V0, S0, AZ, WB0 = 0, 4, 7, 10, 14
+#: the complementary filter's gains in the order :func:`cpf_block` reads them
+GAIN_NAMES = ("kp_acc", "kp_mag", "ki", "accel_tau_s", "acc_gate")
 
 
 @njit(inline="always", **_OPTIONS)
@@ -54,33 +61,33 @@ def _rk4(q, w0, w1, w2, dt, out):
 
 @njit(**_OPTIONS)
 def cpf_ekf_block(x, sum_w, sum_f, g_n, w_ie_n, dth, dv, dt):
-    """The CPF-EKF's state over the block: ``x`` ``(B, 20)`` (quaternion 0:4, velocity 4:7,
-    position 7:10, z-accelerometer bias 10, gyro bias 14:17) and the sums of the corrected rate
-    and specific force times ``dt`` ``(B, 3)`` the covariance prediction averages, in place."""
+    """The CPF-EKF's state over the block: ``x`` ``(B, 20)`` (the layout :data:`Q0`, :data:`V0`,
+    :data:`S0`, :data:`AZ`, :data:`WB0`) and the sums of the corrected rate and specific force
+    times ``dt`` ``(B, 3)`` the covariance prediction averages, in place."""
     q_new, q_mid = np.empty(4), np.empty(4)
     for b in range(x.shape[0]):
         for j in range(dth.shape[1]):
-            q = x[b, 0:4]
+            q = x[b, Q0:Q0 + 4]
             r0, r1, r2 = _rotate(q[0], -q[1], -q[2], -q[3], w_ie_n[b, 0], w_ie_n[b, 1], w_ie_n[b, 2])
-            w0 = dth[b, j, 0] / dt - x[b, 14] - r0
-            w1 = dth[b, j, 1] / dt - x[b, 15] - r1
-            w2 = dth[b, j, 2] / dt - x[b, 16] - r2
-            f0, f1, f2 = dv[b, j, 0] / dt, dv[b, j, 1] / dt, dv[b, j, 2] / dt - x[b, 10]
+            w0 = dth[b, j, 0] / dt - x[b, WB0] - r0
+            w1 = dth[b, j, 1] / dt - x[b, WB0 + 1] - r1
+            w2 = dth[b, j, 2] / dt - x[b, WB0 + 2] - r2
+            f0, f1, f2 = dv[b, j, 0] / dt, dv[b, j, 1] / dt, dv[b, j, 2] / dt - x[b, AZ]
             _rk4(q, w0, w1, w2, dt, q_new)
             for i in range(4):
                 q_mid[i] = q[i] + q_new[i]
             n = math.sqrt(q_mid[0] * q_mid[0] + q_mid[1] * q_mid[1] + q_mid[2] * q_mid[2] + q_mid[3] * q_mid[3])
             a0, a1, a2 = _rotate(q_mid[0] / n, q_mid[1] / n, q_mid[2] / n, q_mid[3] / n, f0, f1, f2)
-            v0, v1, v2 = x[b, 4], x[b, 5], x[b, 6]
+            v0, v1, v2 = x[b, V0], x[b, V0 + 1], x[b, V0 + 2]
             c0, c1, c2 = _cross(w_ie_n[b, 0], w_ie_n[b, 1], w_ie_n[b, 2], v0, v1, v2)
             a0, a1, a2 = a0 + g_n[b, 0] - 2.0 * c0, a1 + g_n[b, 1] - 2.0 * c1, a2 + g_n[b, 2] - 2.0 * c2
             n0, n1, n2 = v0 + a0 * dt, v1 + a1 * dt, v2 + a2 * dt
-            x[b, 7] += 0.5 * (v0 + n0) * dt
-            x[b, 8] += 0.5 * (v1 + n1) * dt
-            x[b, 9] += 0.5 * (v2 + n2) * dt
-            x[b, 4], x[b, 5], x[b, 6] = n0, n1, n2
+            x[b, S0] += 0.5 * (v0 + n0) * dt
+            x[b, S0 + 1] += 0.5 * (v1 + n1) * dt
+            x[b, S0 + 2] += 0.5 * (v2 + n2) * dt
+            x[b, V0], x[b, V0 + 1], x[b, V0 + 2] = n0, n1, n2
             for i in range(4):
-                x[b, i] = q_new[i]
+                x[b, Q0 + i] = q_new[i]
             sum_w[b, 0] += w0 * dt
             sum_w[b, 1] += w1 * dt
             sum_w[b, 2] += w2 * dt
@@ -106,8 +113,8 @@ def _accel_error(q, f_lp, a_n, g_n, acc_gate):
 def cpf_block(q, bias, f_lp, started, a_n, e_mag, g_n, w_ie_n, gains, dth, dv, dt):
     """The complementary filter over the block (as :meth:`.cpf.ComplementaryCore.step`):
     ``q`` ``(B, 4)``, the gyro bias ``bias`` and the low-passed specific force ``f_lp``
-    ``(B, 3)`` in place; ``started`` False takes the first sample as ``f_lp``. ``gains``:
-    ``kp_acc, kp_mag, ki, accel_tau_s, acc_gate``."""
+    ``(B, 3)`` in place; ``started`` False takes the first sample as ``f_lp``. ``gains``: the
+    values of :data:`GAIN_NAMES`, in that order."""
     kp_acc, kp_mag, ki, tau, acc_gate = gains[0], gains[1], gains[2], gains[3], gains[4]
     k_lp = min(dt / tau, 1.0)
     q_new = np.empty(4)
@@ -133,4 +140,4 @@ def cpf_block(q, bias, f_lp, started, a_n, e_mag, g_n, w_ie_n, gains, dth, dv, d
                 q[b, i] = q_new[i]
 
 
-__all__ = ["cpf_block", "cpf_ekf_block"]
+__all__ = ["AZ", "GAIN_NAMES", "Q0", "S0", "V0", "WB0", "cpf_block", "cpf_ekf_block"]

@@ -59,9 +59,9 @@ class Innovation:
     measurement: str           #: name of the measurement model
     sensor: str                #: name of the sensor in the scenario
     t_s: float                 #: the epoch, s
-    y: np.ndarray              #: (B, m) innovation
-    S: np.ndarray              #: (B, m, m) its covariance
-    nis: np.ndarray            #: (B,) normalised innovation squared (NaN where no sample)
+    y: np.ndarray              #: (B, m) innovation, in the measurement's units
+    S: np.ndarray              #: (B, m, m) its covariance, in the measurement's units squared
+    nis: np.ndarray            #: (B,) normalised innovation squared, dimensionless (NaN where no sample)
 
 
 @dataclass
@@ -89,7 +89,9 @@ class Estimator(Protocol):
 
     def initialize(self, nav0: NavState, sigma0: dict) -> None:
         """Start from ``nav0`` (the perturbed initial state, ``B`` runs) with the initial
-        1-sigma ``sigma0``: ``att`` (rad), ``vel`` (m/s), ``pos`` (rad, rad, m), each (B, 3)."""
+        1-sigma ``sigma0``: ``att`` (rad), ``vel`` (m/s), ``pos`` (rad, rad, m), each ``(3,)``
+        and the same for every run, plus the keys of the estimator's own ``noise_sigma0()``
+        where it has one."""
 
     def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
         """Take ``K`` IMU intervals: the increments ``dtheta_b`` (rad) and ``dv_b`` (m/s), each

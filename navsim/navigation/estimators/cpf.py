@@ -37,7 +37,7 @@ from navsim.navigation.estimators.attitude import (
     rotate_n_to_b,
 )
 from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema
-from navsim.navigation.estimators.attitude_kernels import cpf_block
+from navsim.navigation.estimators.attitude_kernels import GAIN_NAMES, cpf_block
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.strapdown import NavState
 
@@ -73,10 +73,10 @@ class ComplementaryCore:
         """The ``K`` IMU intervals of ``(B, K, 3)`` increments, compiled
         (:func:`~navsim.navigation.estimators.attitude_kernels.cpf_block`): the specific force
         low-passed (``accel_tau_s``) and checked against the reference (``acc_gate``), the
-        corrected rate integrated by :func:`~navsim.navigation.estimators.attitude.rk4_step`."""
+        corrected rate integrated by a fourth-order Runge-Kutta step (P4's eq. 5)."""
         if dtheta_b.shape[1] == 0:
             return
-        gains = np.array([self.kp_acc, self.kp_mag, self.ki, self.accel_tau_s, self.acc_gate])
+        gains = np.array([getattr(self, name) for name in GAIN_NAMES], float)
         cpf_block(self.q, self.b, self.f_lp, self._lp_started, self.a_n, self.e_mag, self.frame.g_n,
                   self.frame.w_ie_n, gains, dtheta_b, dv_b, dt)
         self._lp_started = True

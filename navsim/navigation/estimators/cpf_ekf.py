@@ -78,13 +78,14 @@ from navsim.navigation.estimators.attitude import (
     xi,
 )
 from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema, cpf_ekf_options
-from navsim.navigation.estimators.attitude_kernels import cpf_ekf_block
+from navsim.navigation.estimators.attitude_kernels import AZ, Q0, S0, V0, WB0, cpf_ekf_block
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.estimators.cpf import ComplementaryCore
 from navsim.navigation.strapdown import NavState
 
 N_STATES = 20
-Q, V, S, AZ, MB, WB, ME = slice(0, 4), slice(4, 7), slice(7, 10), 10, slice(11, 14), slice(14, 17), slice(17, 20)
+Q, V, S, MB, WB, ME = (slice(Q0, Q0 + 4), slice(V0, V0 + 3), slice(S0, S0 + 3), slice(11, 14), slice(WB0, WB0 + 3),
+                       slice(17, 20))
 MONITORS = ("cpf", "innovation", "none")
 INITIAL_DEFAULTS = {"gyro_bias_rad_s": np.radians(1.0), "accel_z_bias_mps2": 0.2, "mag_bias_uT": 5.0,
                     "field_uT": 0.05}
@@ -392,10 +393,10 @@ class CpfEkf:
     def _reset(self, hit: np.ndarray, t: float, cause: str) -> None:
         """Re-initialise the EKF of the runs ``hit`` from the CPF's attitude (P4)."""
         q = self.cpf.q
-        self.x[hit, 0:4] = q[hit]
-        self.x[hit, 14:17] = self.cpf.b[hit]            # its covariance re-initialised below
+        self.x[hit, Q] = q[hit]
+        self.x[hit, WB] = self.cpf.b[hit]            # its covariance re-initialised below
         if self.field_ready:
-            self.x[hit, 17:20] = self.field_ref[hit]
+            self.x[hit, ME] = self.field_ref[hit]
         keep = self.P.copy()
         P0 = self._initial_P(self.x[:, Q], reset=True)
         # the accelerometer and magnetometer bias estimates are kept, with the uncertainty they had
