@@ -35,30 +35,9 @@ driver, chunks, executors, closed loop, sweep) -> :mod:`navsim.scoring` (typed m
 :mod:`navsim.replay` (PX4 logs) -> :mod:`navsim.report` -> :mod:`navsim.api` -> :mod:`navsim.cli`.
 """
 
-from typing import TYPE_CHECKING
+from navsim.api import (Result, budget, compare, load_scenario, open_result, report_figures, run,  # noqa: E402
+                        sweep, write_budget, write_comparison, write_report)
+from navsim.version import __version__  # noqa: E402
 
-from navsim.version import __version__
-
-if TYPE_CHECKING:          # the names for type checkers and editors; at run time see __getattr__
-    from navsim.api import (Result, budget, compare, load_scenario, open_result, report_figures, run, sweep,
-                            write_budget, write_comparison, write_report)
-
-#: the Python API's names, imported from :mod:`navsim.api` when first asked for (PEP 562): a
-#: process that imports only a part of the package (a Monte Carlo worker imports
-#: ``navsim.experiment.runner``) does not load the report's and the statistics' libraries
-#: (matplotlib, scipy.stats; what that saves a chunk worker: docs/performance.md). The import
-#: in ``__getattr__`` dodges no cycle: the package's top imports the layer below it, the API.
-_API = ("Result", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result",
-        "report_figures", "run", "sweep", "write_report")
-__all__ = [*_API, "__version__"]
-
-
-def __getattr__(name: str):
-    if name in _API:
-        from navsim import api
-        return getattr(api, name)
-    raise AttributeError(f"module 'navsim' has no attribute '{name}'")
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *_API])
+__all__ = ["Result", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "report_figures", "run", "sweep", "write_report",
+           "__version__"]

@@ -3,8 +3,6 @@ too (so that no import is put in a function to dodge one); no function is longer
 :data:`LONGEST` lines."""
 
 import ast
-import subprocess
-import sys
 from pathlib import Path
 
 import navsim
@@ -153,16 +151,3 @@ def test_no_function_is_longer_than_the_limit(tmp_path):
     body = "\n".join(f"    x{i} = {i}" for i in range(LONGEST))
     (tmp_path / "m.py").write_text(f"class A:\n    def f(self):\n    {body.replace(chr(10), chr(10) + '    ')}\n")
     assert [n for _, n in long_functions(tmp_path / "m.py", LONGEST)] == [f"{tmp_path.name}/m.py:f"]
-
-
-
-def test_a_worker_imports_neither_the_report_nor_the_statistics():
-    """A Monte Carlo worker imports ``navsim.experiment.runner``: ``import navsim`` loads the
-    API (with matplotlib and scipy.stats, about 70 MB a worker) only when one of its names is
-    used, and the chunk's modules import neither (docs/performance.md)."""
-    code = ("import sys, navsim.experiment.runner, navsim.navigation.estimators; "
-            "print(sorted(m for m in ('matplotlib', 'scipy.stats', 'navsim.api', 'navsim.report') "
-            "if m in sys.modules)); import navsim; navsim.run; print('navsim.api' in sys.modules)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split("\n")
-    assert out[0] == "[]", out[0]
-    assert out[1] == "True"
