@@ -45,7 +45,7 @@ from navsim.experiment.runner import (
 from navsim.experiment import resources
 from navsim.experiment.budget import GROUPS as BUDGET_GROUPS, alone, budget_sources, find_source, scaled
 from navsim.experiment.budget import check_method, covariance_contributions, linear_sources
-from navsim.experiment.results import ResultFiles, check_comparable, pairing, read_result
+from navsim.experiment.results import ResultFiles, check_comparable, check_not_being_written, pairing, read_result
 from navsim.experiment.scenario import Scenario, check_scenario, load_scenario as _load_file, parse_scenario
 from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
 from navsim.foundations.errors import ScenarioError, UsageError
@@ -253,7 +253,7 @@ def run(scenario, runs: int | None = None, seed: int | None = None, workers: int
     how = _How(runs, seed, workers, executor, scheduler, chunk_runs, resume, progress, flight)
     if out is None:
         return _run(scenario, how, None)
-    with OutputFolder(Path(out), force=force) as folder:
+    with OutputFolder(Path(out), command="run", force=force) as folder:
         return _run(scenario, how, folder)
 
 
@@ -445,7 +445,7 @@ def write_report(result: Result, out=None, *, force: bool = False) -> list[Path]
     """
     if out is None and result.folder is None:
         raise UsageError("write_report needs a folder: out=... (the run was held in memory)")
-    with OutputFolder(Path(out) if out is not None else result.folder, force=force) as folder:
+    with OutputFolder(Path(out) if out is not None else result.folder, command="run", force=force) as folder:
         return _write_report_into(folder, result)
 
 
@@ -490,6 +490,7 @@ def open_result(folder) -> Result:
     runs are loaded (from ``runs.npz`` or the first stored chunks); the store
     (:attr:`Result.store`) reads every chunk, one at a time."""
     folder = Path(folder)
+    check_not_being_written(folder)
     try:
         metrics = RunMetrics.from_dict(json.loads((folder / "metrics.json").read_text()))
         record = RunRecord.from_dict(json.loads((folder / "run.json").read_text()))

@@ -117,7 +117,7 @@ _OPEN: list = []
 def _open_folder(args, default: Path) -> OutputFolder:
     """The command's output folder (``--out``, else ``default``), locked until the command
     ends; ``--force`` writes into a folder that is not navsim's."""
-    folder = OutputFolder(Path(args.out) if args.out else default, force=args.force)
+    folder = OutputFolder(Path(args.out) if args.out else default, command=args.command, force=args.force)
     _OPEN.append(folder)
     return folder
 
@@ -177,7 +177,7 @@ def _fly_or_save(scenario, scenario_file, out: OutputFolder):
         return cached_flight(scenario.flight, progress=update)
     except FlightError as exc:
         out.clear_earlier()               # an earlier run's results do not stand beside this failure
-        with OutputFolder(out.path / "flight", force=True) as folder:    # inside the locked folder
+        with OutputFolder(out.path / "flight", command="fly", force=True) as folder:    # inside the locked folder
             folder.clear_earlier()
             save_flight(folder, getattr(exc, "truth", None), scenario_file, scenario, time.perf_counter() - t0, exc)
         print(f"the part flown is saved in {folder.path}/", file=sys.stderr)

@@ -18,6 +18,7 @@ from pathlib import Path
 import yaml
 
 from navsim.foundations.errors import UsageError
+from navsim.foundations.outputs import writer
 from navsim.records.metrics import RunMetrics
 from navsim.records.run import RunRecord
 from navsim.records.samples import SAMPLES_FILE, EstimatorSamples, load_samples
@@ -59,12 +60,77 @@ def _version(text: str) -> tuple:
     return tuple(out)
 
 
+def check_not_being_written(folder: Path) -> None:
+    """A :class:`UsageError` when a navsim process is writing ``folder`` now (its lock held):
+    its files are not a result yet."""
+    busy = writer(Path(folder))
+    if busy is not None:
+        raise UsageError(f"{folder}: being written by another navsim ({busy}); its result is not complete: "
+                         "wait for that command to finish, then read it")
+
+
+def read_record(path: Path) -> RunRecord:
+    """``run.json`` at ``path``, each field of the type :class:`RunRecord` declares; a file that
+    is not JSON or not a record is a :class:`UsageError` naming the file and the key."""
+    hint = "hint: navsim run writes it; run the scenario again (or undo the edit)"
+    try:
+        raw = json.loads(Path(path).read_bytes())
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise UsageError(f"{path}: not JSON ({exc}); {hint}") from None
+    if not isinstance(raw, dict):
+        raise UsageError(f"{path}: holds {type(raw).__name__}, not a mapping; {hint}")
+    try:
+        record = RunRecord.from_dict(raw)
+    except (ValueError, TypeError, AttributeError) as exc:
+        raise UsageError(f"{path}: failed_runs: {exc} (expected run number -> why); {hint}") from None
+    hints = typing.get_type_hints(RunRecord)
+    for f in dataclasses.fields(record):
+        try:
+            check_typed(hints[f.name], getattr(record, f.name), f.name)
+        except MetricsError as exc:
+            raise UsageError(f"{path}: {exc}; {hint}") from None
+    return record
+
+
+def read_files(folder: Path) -> tuple[RunMetrics, RunRecord, dict]:
+    """``metrics.json``, ``run.json`` and ``scenario.resolved.yaml`` of a result folder, checked;
+    :class:`UsageError` naming the file (and the key) missing or damaged; ``OSError`` where one
+    cannot be read."""
+    missing = [n for n in ("metrics.json", "run.json", "scenario.resolved.yaml") if not (folder / n).is_file()]
+    if missing:
+        raise UsageError(f"{folder}: not a navsim result (no {', '.join(missing)}); "
+                         "hint: pass the folder navsim run wrote (its --out)")
+    metrics, record = read_metrics(folder / "metrics.json"), read_record(folder / "run.json")
+    try:
+        resolved = yaml.safe_load((folder / "scenario.resolved.yaml").read_bytes())
+    except yaml.YAMLError as exc:
+        raise UsageError(f"{folder}/scenario.resolved.yaml: not YAML ({exc}); hint: run the scenario again") from None
+    if not isinstance(resolved, dict):
+        raise UsageError(f"{folder}/scenario.resolved.yaml: expected a mapping; hint: run the scenario again")
+    return metrics, record, resolved
+
+
+def check_version(folder, record: RunRecord) -> None:
+    """:class:`UsageError` for a result written by a navsim before :data:`SAMPLES_SINCE` or
+    after this one (:data:`navsim.version.__version__`: its files may hold what this one does
+    not read)."""
+    version = str(record.versions.get("navsim", "unknown"))
+    since = ".".join(map(str, SAMPLES_SINCE))
+    if _version(version) < SAMPLES_SINCE:
+        raise UsageError(f"{folder}: written by navsim {version}, before the per-run samples a comparison reads "
+                         f"(navsim {since}); hint: run its scenario again with this navsim")
+    if _version(version) > _version(__version__):
+        raise UsageError(f"{folder}: written by navsim {version}, newer than this navsim {__version__}; hint: "
+                         "compare it with that navsim, or run its scenario again with this one")
+
+
 def read_result(folder) -> ResultFiles:
     """The files of the result in ``folder``; :class:`UsageError` for a folder that is not a
     result or was written by a navsim before :data:`SAMPLES_SINCE`."""
     folder = Path(folder)
     if not folder.is_dir():
         raise UsageError(f"{folder}: no such folder (expected a result folder of navsim run)")
+    check_not_being_written(folder)
     missing = [n for n in ("metrics.json", "run.json", "scenario.resolved.yaml") if not (folder / n).is_file()]
     if missing:
         raise UsageError(f"{folder}: not a navsim result (no {', '.join(missing)}); "

@@ -10,6 +10,12 @@ goes with the last :class:`OutputFolder` of this process on the folder (re-entra
 on an error, or with the process itself. A folder that is not empty and not navsim's (no
 manifest, no navsim ``run.json``) is refused unless ``force``.
 
+A folder holds one command's result: the manifest names the command that wrote it
+(:data:`COMMANDS`), and another command writing there is refused (a :class:`UsageError` naming
+what is there, even with ``force``), so that no command removes the files of another: ``navsim
+compare --out`` into a run's folder leaves the run as it was. The same command writing again
+replaces its own earlier files.
+
 The manifest ``.navsim-files.json`` lists each file navsim wrote with its identity (size,
 ``mtime_ns``, inode, device); a new run in the same folder first removes the listed files that
 are still regular files with that identity (never through a link) and nothing else; an old
@@ -26,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import fnmatch
 import json
 import logging
 import math
@@ -52,8 +59,18 @@ except ImportError:                      # not POSIX: an exclusive create and a 
 log = logging.getLogger(__name__)
 MANIFEST = ".navsim-files.json"
 LOCK = ".navsim.lock"
-#: the manifest's format: 2 lists each file's identity (1, a plain list of names, is only read)
-MANIFEST_FORMAT = 2
+#: the manifest's format: 3 names the command that wrote the folder; 2 lists each file's identity
+#: without it; 1, a plain list of names (2 and 1 are only read)
+MANIFEST_FORMAT = 3
+#: the commands whose results an output folder holds, each its own (``navsim.write_report`` and
+#: ``navsim.run`` write a run's result, ``"run"``; a run's failed flight goes to ``flight/``, ``"fly"``)
+COMMANDS = ("run", "fly", "sensors", "sweep", "compare", "budget", "replay")
+#: how the result of a folder written before format 3 is told: the first of these files its
+#: manifest lists (navsim 0.3.0 and older wrote no command into it)
+LEGACY_SIGNATURES = (("compare.json", "compare"), ("budget.json", "budget"), ("sweep.json", "sweep"),
+                     ("truth.npz", "fly"), ("replay.pdf", "replay"), ("sensor_*.png", "sensors"),
+                     ("run.json", "run"),
+                     ("metrics.json", "run"))
 #: the identity of a file navsim wrote, as the manifest records it
 IDENTITY = ("size", "mtime_ns", "ino", "dev")
 #: how many of a foreign folder's files a refusal names
@@ -261,6 +278,7 @@ class _Held:
     mine: set = field(default_factory=set)
     legacy: list = field(default_factory=list)
     created: list = field(default_factory=list)
+    command: str = "run"
     saved: bool = False
     #: the thread that holds it: another thread of this process is refused as another process is
     thread: int = field(default_factory=threading.get_ident)
@@ -296,11 +314,7 @@ def _release(key: str, folder: Path) -> None:
             _save(folder, held)
     finally:
         del _HELD[key]
-        if _same_file(held.fd, folder / LOCK):
-            with contextlib.suppress(OSError):
-                (folder / LOCK).unlink()
-        with contextlib.suppress(OSError):
-            os.close(held.fd)
+        _give_back(folder, held.fd)
         for made in reversed(held.created):  # folders made for a command that wrote nothing
             with contextlib.suppress(OSError):
                 made.rmdir()
@@ -309,30 +323,86 @@ def _release(key: str, folder: Path) -> None:
 # --- the manifest --------------------------------------------------------------------------------
 
 
-def _read_manifest(folder: Path) -> tuple[dict, list]:
-    """``(entries, legacy names)`` of the folder's manifest: format 2's ``{name: identity}``,
-    or the names of an old plain list (not verifiable: never removed)."""
+@dataclass
+class Manifest:
+    """What a folder's manifest says: the files navsim wrote (name -> identity; None: not
+    verifiable), the names of a format-1 list (never removed), and the command whose result the
+    folder holds (None: no manifest, or one that does not tell)."""
+
+    entries: dict = field(default_factory=dict)
+    legacy: list = field(default_factory=list)
+    command: str | None = None
+
+
+def _legacy_command(names) -> str | None:
+    """The command whose files ``names`` are, by :data:`LEGACY_SIGNATURES`."""
+    names = set(names)
+    return next((cmd for pattern, cmd in LEGACY_SIGNATURES if fnmatch.filter(names, pattern)), None)
+
+
+def read_manifest(folder: Path) -> Manifest:
+    """The folder's manifest (an empty one where there is none or it cannot be read); a
+    manifest before format 3 names its command by the files it lists (:data:`LEGACY_SIGNATURES`)."""
     path = folder / MANIFEST
     if identity(path) is None:
-        return {}, []
+        return Manifest()
     try:
         data = json.loads(_read(path).decode(errors="replace"))
     except ValueError:
-        return {}, []
+        return Manifest()
     if isinstance(data, list):
-        return {}, [n for n in data if isinstance(n, str) and plain_name(n)]
+        names = [n for n in data if isinstance(n, str) and plain_name(n)]
+        return Manifest(legacy=names, command=_legacy_command(names))
     files = data.get("files") if isinstance(data, dict) else None
     if not isinstance(files, dict):
-        return {}, []
+        return Manifest()
     ok = lambda i: isinstance(i, dict) and set(i) == set(IDENTITY) and all(type(i[k]) is int for k in IDENTITY)
-    return {n: (i if ok(i) else None) for n, i in files.items() if isinstance(n, str) and plain_name(n)}, []
+    entries = {n: (i if ok(i) else None) for n, i in files.items() if isinstance(n, str) and plain_name(n)}
+    command = data.get("command")
+    return Manifest(entries, command=command if command in COMMANDS else _legacy_command(entries))
+
+
+def folder_command(folder: Path) -> str | None:
+    """The command whose result ``folder`` holds: its manifest's, else that of a navsim
+    ``run.json`` there (``"run"``); None: neither."""
+    command = read_manifest(folder).command
+    if command is None and _is_navsim_run(folder / "run.json"):
+        command = _legacy_command(os.listdir(folder)) or "run"
+    return command
+
+
+def writer(folder: Path) -> str | None:
+    """The navsim process writing ``folder`` now, in words (pid, host, start, command); None when
+    none holds its lock (or this process does). Read-only: the lock is tested, never taken."""
+    if os.path.realpath(folder) in _HELD:
+        return None
+    path = folder / LOCK
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_CLOEXEC", 0))
+    except OSError:
+        return None
+    try:
+        raw = os.pread(fd, READ_LIMIT, 0)
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            except BlockingIOError:
+                return _holder_text(raw)[1]
+            except OSError:                  # no flock here: the holder's pid tells
+                pass
+            else:
+                return None
+        h, text = _holder_text(raw)
+        return text if h.get("host") == socket.gethostname() and _pid_alive(h.get("pid")) else None
+    finally:
+        os.close(fd)
 
 
 def _save(folder: Path, held: _Held) -> None:
     """Write the manifest, with the identity of each file this process wrote as it is now."""
     for name in held.mine:
         held.entries[name] = identity(folder / name)
-    data = {"format": MANIFEST_FORMAT, "files": dict(sorted(held.entries.items()))}
+    data = {"format": MANIFEST_FORMAT, "command": held.command, "files": dict(sorted(held.entries.items()))}
     write_atomic(folder / MANIFEST, lambda p: p.write_text(json.dumps(data, indent=1)))
     held.saved = True
 
@@ -391,6 +461,56 @@ def _make_folders(path: Path) -> list[Path]:
     return missing
 
 
+def _refuse_other(folder: Path, command: str, theirs: str) -> UsageError:
+    names = sorted(n for n in os.listdir(folder) if n not in (LOCK, MANIFEST))
+    shown = ", ".join(names[:SHOWN_FILES]) + (f" and {len(names) - SHOWN_FILES} more"
+                                               if len(names) > SHOWN_FILES else "")
+    return UsageError(f"{folder}: holds the result of `navsim {theirs}` ({shown or 'no file now'}); `navsim "
+                      f"{command}` does not write into another command's folder, and nothing there was touched: "
+                      "choose a folder of its own with --out (out=... in Python)")
+
+
+def _open(path: Path, command: str, force: bool) -> _Held:
+    """Lock a folder no user of this process holds; refuse another command's result, or a
+    folder not navsim's without ``force``."""
+    foreign = [] if force else foreign_files(path)
+    if foreign:
+        raise _refuse_foreign(path, foreign)
+    created = _make_folders(path)
+    try:
+        fd = _take_lock(path)
+    except BaseException as exc:             # the folders made for it go again, whatever failed
+        _unmake(path, created)
+        if isinstance(exc, OSError):
+            raise OutputError(exc.filename or path / LOCK, exc) from None
+        raise
+    manifest = read_manifest(path)
+    theirs = manifest.command if manifest.command is not None else folder_command(path)
+    if theirs is not None and theirs != command:
+        _give_back(path, fd)
+        raise _refuse_other(path, command, theirs)
+    return _Held(fd, entries=manifest.entries, legacy=manifest.legacy, created=created, command=command)
+
+
+def _unmake(path: Path, created: list) -> None:
+    """Remove the folders made for a folder that could not be opened (and its lock file)."""
+    if created:
+        with contextlib.suppress(OSError):
+            (path / LOCK).unlink(missing_ok=True)
+    for made in reversed(created):
+        with contextlib.suppress(OSError):
+            made.rmdir()
+
+
+def _give_back(folder: Path, fd: int) -> None:
+    """Release a lock this process took (its file removed when it is still ours)."""
+    if _same_file(fd, folder / LOCK):
+        with contextlib.suppress(OSError):
+            (folder / LOCK).unlink()
+    with contextlib.suppress(OSError):
+        os.close(fd)
+
+
 class OutputFolder:
     """The output folder of one command, locked while it is open.
 
@@ -399,6 +519,9 @@ class OutputFolder:
     path : Path
         The folder; created with its parents. A path naming a file, or a folder that cannot be
         created or written, raises :class:`OutputError`.
+    command : str
+        The command whose result the folder holds (one of :data:`COMMANDS`): a folder holding
+        another command's result is refused (:class:`UsageError`, nothing touched).
     force : bool
         Write into a non-empty folder that is not navsim's (else a :class:`UsageError` naming
         its files, before anything is touched).
@@ -409,7 +532,9 @@ class OutputFolder:
     those share the manifest.
     """
 
-    def __init__(self, path: Path, *, force: bool = False):
+    def __init__(self, path: Path, *, command: str, force: bool = False):
+        if command not in COMMANDS:
+            raise ValueError(f"command {command!r}: expected one of {', '.join(COMMANDS)}")
         self.path = Path(path)
         if self.path.exists() and not self.path.is_dir():
             raise OutputError(self.path, reason="exists and is not a folder")
@@ -417,27 +542,12 @@ class OutputFolder:
         held = _HELD.get(key)
         if held is not None and held.thread != threading.get_ident():
             raise _refuse(self.path, f"pid {os.getpid()} (this process), its thread {held.thread_name}")
+        if held is not None and held.command != command:
+            raise _refuse_other(self.path, command, held.command)
         if held is not None:
             held.count += 1
         else:
-            foreign = [] if force else foreign_files(self.path)
-            if foreign:
-                raise _refuse_foreign(self.path, foreign)
-            created = _make_folders(self.path)
-            try:
-                fd = _take_lock(self.path)
-            except BaseException as exc:     # the folders made for it go again, whatever failed
-                if created:
-                    with contextlib.suppress(OSError):
-                        (self.path / LOCK).unlink(missing_ok=True)
-                for made in reversed(created):
-                    with contextlib.suppress(OSError):
-                        made.rmdir()
-                if isinstance(exc, OSError):
-                    raise OutputError(exc.filename or self.path / LOCK, exc) from None
-                raise
-            entries, legacy = _read_manifest(self.path)
-            held = _HELD[os.path.realpath(self.path)] = _Held(fd, entries=entries, legacy=legacy, created=created)
+            held = _HELD[key] = _open(self.path, command, force)
         self._held = held
         self._close = weakref.finalize(self, _release, key, Path(key))   # absolute: a later chdir does not move it
 
@@ -462,8 +572,10 @@ class OutputFolder:
         held, removed, kept = self._held, [], []
         for name, ident in held.entries.items():
             target = self.path / name
-            if ident is None or name in held.mine:
-                kept += [name] if ident is None and identity(target) is not None else []
+            if name in held.mine:                  # this command's own
+                continue
+            if ident is None:
+                kept += [name] if identity(target) is not None else []
                 continue
             now = identity(target)
             try:

@@ -303,7 +303,7 @@ def test_labels_a_space_b_and_a_underscore_b_keep_their_own_data(tiny, tmp_path,
     text = TINY.replace("label: free SINS", "label: a b").replace("label: KF", "label: a_b")
     (tmp_path / "ab.yaml").write_text(text)
     result = navsim.run(tmp_path / "ab.yaml", out=None)
-    api._write_run(result, OutputFolder(tmp_path / "ab"))
+    api._write_run(result, OutputFolder(tmp_path / "ab", command="run"))
     back = navsim.open_result(tmp_path / "ab")
     assert set(back.histories) == {"a b", "a_b"}
     for label in ("a b", "a_b"):

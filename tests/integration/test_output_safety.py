@@ -149,7 +149,7 @@ def test_a_server_that_is_not_dask_is_refused(tiny, tmp_path, capsys):
 # --- 2. one writer per folder ---------------------------------------------------------------------
 
 HOLD = ("import sys, time; from navsim.foundations.outputs import OutputFolder; "
-        "f = OutputFolder(sys.argv[1]); print('held', flush=True); time.sleep(60)")
+        "f = OutputFolder(sys.argv[1], command='run'); print('held', flush=True); time.sleep(60)")
 
 
 def test_a_second_writer_is_refused_at_once(tiny, tmp_path, capsys):
@@ -172,19 +172,19 @@ def test_a_second_writer_is_refused_at_once(tiny, tmp_path, capsys):
 def test_another_thread_of_this_process_is_refused_as_another_process_is(tmp_path):
     """Two threads of one process (a notebook's tasks) writing one folder: the second is refused
     as a second process is (the review found it let in, the mixed-seed case again)."""
-    first = OutputFolder(tmp_path / "out")
+    first = OutputFolder(tmp_path / "out", command="run")
     errors = []
 
     def second():
         try:
-            OutputFolder(tmp_path / "out")
+            OutputFolder(tmp_path / "out", command="run")
         except NavsimError as exc:
             errors.append(str(exc))
     t = threading.Thread(target=second, name="notebook-task")
     t.start()
     t.join()
     assert len(errors) == 1 and "in use" in errors[0] and "thread MainThread" in errors[0], errors
-    again = OutputFolder(tmp_path / "out")           # the holding thread itself: re-entrant
+    again = OutputFolder(tmp_path / "out", command="run")  # the holding thread itself: re-entrant
     again.close()
     first.close()
 
@@ -200,7 +200,7 @@ def test_a_file_system_without_flock_falls_back_to_an_exclusive_create(tmp_path,
     def no_flock(fd, op):
         raise OSError(errno.ENOSYS, "Function not implemented")
     monkeypatch.setattr(fcntl, "flock", no_flock)
-    folder = OutputFolder(tmp_path / "out")
+    folder = OutputFolder(tmp_path / "out", command="run")
     assert "no flock" in caplog.text and (tmp_path / "out" / outputs.LOCK).is_file()
     holder = json.loads((tmp_path / "out" / outputs.LOCK).read_text())
     assert holder["pid"] == os.getpid()
@@ -210,7 +210,7 @@ def test_a_file_system_without_flock_falls_back_to_an_exclusive_create(tmp_path,
     (tmp_path / "held" / outputs.LOCK).write_text(json.dumps(
         {"pid": os.getppid(), "host": socket.gethostname(), "started": "earlier", "command": "navsim run"}))
     with pytest.raises(NavsimError, match=f"pid {os.getppid()}"):
-        OutputFolder(tmp_path / "held")
+        OutputFolder(tmp_path / "held", command="run")
 
 
 def test_a_lock_left_by_a_killed_writer_is_taken_over(tiny, tmp_path, caplog):
@@ -221,7 +221,7 @@ def test_a_lock_left_by_a_killed_writer_is_taken_over(tiny, tmp_path, caplog):
     dead.wait()
     assert (out / ".navsim.lock").is_file()
     with caplog.at_level("WARNING"):
-        folder = OutputFolder(out)
+        folder = OutputFolder(out, command="run")
         folder.text("note.txt", "x")
         release(folder)
     assert f"pid {dead.pid}" in caplog.text and "taking over" in caplog.text
@@ -239,8 +239,8 @@ def test_the_api_holds_the_folder_while_it_runs(tiny, tmp_path):
     navsim.run(tiny[0], runs=2, out=out, progress=progress)
     assert tries and tries[0].returncode != 0 and "in use by another navsim writer" in tries[0].stderr
     assert f"pid {os.getpid()}" in tries[0].stderr
-    outer = OutputFolder(out)                                  # given back, and re-entrant
-    release(OutputFolder(out))
+    outer = OutputFolder(out, command="run")  # given back, and re-entrant
+    release(OutputFolder(out, command="run"))
     release(outer)
 
 
@@ -270,7 +270,7 @@ def test_empty_missing_and_navsim_folders_are_written(tmp_path):
     (tmp_path / "parent" / "flight").mkdir(parents=True)
     (tmp_path / "parent" / "flight" / MANIFEST).write_text('{"format": 2, "files": {}}')
     for path in (tmp_path / "empty", tmp_path / "new" / "deeper", tmp_path / "parent"):
-        folder = OutputFolder(path)
+        folder = OutputFolder(path, command="run")
         folder.text("a.txt", "a")
         release(folder)
 
@@ -284,14 +284,14 @@ def test_a_planted_manifest_deletes_nothing(tmp_path, caplog):
     (folder / "thesis.tex").write_text("years of work")
     (folder / MANIFEST).write_text(json.dumps(["thesis.tex"]))        # an old-style manifest
     with caplog.at_level("WARNING"):
-        release(OutputFolder(folder), clear=True)
+        release(OutputFolder(folder, command="run"), clear=True)
     assert (folder / "thesis.tex").read_text() == "years of work"
     assert "thesis.tex" in caplog.text
 
 
 def test_a_file_changed_since_navsim_wrote_it_is_kept(tmp_path):
     folder = tmp_path / "out"
-    out = OutputFolder(folder)
+    out = OutputFolder(folder, command="run")
     out.text("metrics.json", "{}")
     out.text("run.json", "{}")
     release(out)
@@ -301,13 +301,13 @@ def test_a_file_changed_since_navsim_wrote_it_is_kept(tmp_path):
     target.write_text("elsewhere")
     (folder / "run.json").unlink()
     (folder / "run.json").symlink_to(target)
-    release(OutputFolder(folder), clear=True)
+    release(OutputFolder(folder, command="run"), clear=True)
     assert (folder / "metrics.json").read_text() == "the user's own, under the same name"
     assert (folder / "run.json").is_symlink() and target.read_text() == "elsewhere"
-    out = OutputFolder(folder)                                         # what navsim wrote goes
+    out = OutputFolder(folder, command="run")  # what navsim wrote goes
     out.text("report.txt", "r")
     release(out)
-    assert release(OutputFolder(folder), clear=True) == ["report.txt"]
+    assert release(OutputFolder(folder, command="run"), clear=True) == ["report.txt"]
 
 
 # --- 5. SIGTERM, SIGKILL and the workers ----------------------------------------------------------
@@ -442,3 +442,83 @@ def test_metrics_json_is_strict_and_reads_back_nan(tiny, tmp_path):
     assert strict((tmp_path / "out" / "run.json").read_text())["wall_s"] is None
     back = navsim.open_result(tmp_path / "out").metrics.estimators["KF"].rms.pos_m
     assert math.isnan(back[0]) and back[1] == 1.0 and math.isnan(back[2])
+
+
+def contents(folder: Path) -> dict:
+    """Every file under ``folder``, byte for byte (the lock aside: it comes and goes)."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name != ".navsim.lock"}
+
+
+@pytest.fixture(scope="module")
+def three_results(tiny, tmp_path_factory):
+    """A finished run, an interrupted one (a chunk and no metrics) and a write_report folder."""
+    root = tmp_path_factory.mktemp("three")
+    done = finished_copy(tiny, root / "done")
+    cut = finished_copy(tiny, root / "cut")
+    for name in ("metrics.json", "report.pdf"):
+        (cut / name).unlink()
+    result = navsim.run(tiny[0], runs=2, seed=3, workers=1)
+    navsim.write_report(result, root / "written")
+    assert (root / "written" / "runs.npz").is_file()
+    return {"run": done, "interrupted run": cut, "write_report": root / "written"}
+
+
+@pytest.mark.parametrize("holder", ["run", "interrupted run", "write_report"])
+@pytest.mark.parametrize("command", ["compare", "budget", "sweep", "fly", "sensors"])
+def test_another_command_into_a_runs_folder_is_refused_and_deletes_nothing(tiny, three_results, tmp_path,
+                                                                         capsys, holder, command):
+    """Issue 50's data loss: `compare A B --out C` and `budget S --out C` deleted C's run."""
+    folder = tmp_path / "c"
+    shutil.copytree(three_results[holder], folder, copy_function=shutil.copy2)
+    before = contents(folder)
+    sweep = tmp_path / "s.yaml"
+    shutil.copyfile(tiny[0], tmp_path / "tiny.yaml")
+    sweep.write_text("scenario: tiny.yaml\nruns: 2\nmetric: rms.pos_m\ngrid: {montecarlo.seed: [1]}\n")
+    argv = {"compare": ["compare", str(tiny[1]), str(tiny[1]), "--estimators", "free SINS", "KF"],
+            "budget": ["budget", str(tiny[0]), "--runs", "2"], "sweep": ["sweep", str(sweep)],
+            "fly": ["fly", str(tiny[0])], "sensors": ["sensors", str(tiny[0]), "--runs", "1"]}[command]
+    assert main([*argv, "--out", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert "holds the result of `navsim run`" in err and f"`navsim {command}`" in err and "Traceback" not in err
+    assert contents(folder) == before
+
+
+def test_the_api_refuses_to_write_a_run_into_a_comparisons_folder(tiny, tmp_path, capsys):
+    out = tmp_path / "cmp"
+    assert main(["compare", str(tiny[1]), "--estimators", "free SINS", "KF", "--out", str(out)]) == 0
+    before = contents(out)
+    with pytest.raises(NavsimError, match="holds the result of `navsim compare`"):
+        navsim.run(tiny[0], runs=2, seed=1, workers=1, out=out)
+    assert contents(out) == before
+
+
+def test_the_same_command_again_replaces_only_its_own_files_and_a_fresh_budget_warns_of_nothing(
+        tiny, tmp_path, caplog):
+    out = tmp_path / "b"
+    with caplog.at_level("WARNING"):
+        assert main(["budget", str(tiny[0]), "--runs", "2", "--out", str(out)]) == 0
+    assert not [r for r in caplog.records if "left" in r.getMessage()], caplog.text
+    mine = out / "notes.txt"
+    mine.write_text("the user's")
+    assert main(["budget", str(tiny[0]), "--runs", "2", "--out", str(out)]) == 0
+    assert mine.read_text() == "the user's" and (out / "budget.json").is_file()
+    assert json.loads((out / MANIFEST).read_text())["command"] == "budget"
+
+
+def test_a_result_being_written_is_named_as_such(tiny, tmp_path):
+    folder = finished_copy(tiny, tmp_path / "busy")
+    (folder / "metrics.json").unlink()
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from navsim.foundations.outputs import "
+                               "OutputFolder; f = OutputFolder(sys.argv[1], command='run'); print('held', flush=True);"
+                               " time.sleep(60)", str(folder)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        for read in (navsim.open_result, lambda f: navsim.compare(f, f)):
+            with pytest.raises(NavsimError, match=f"being written by another navsim \\(pid {holder.pid}"):
+                read(folder)
+    finally:
+        holder.kill()
+        holder.wait()
+    with pytest.raises(NavsimError, match="not a finished navsim run.*metrics.json"):
+        navsim.open_result(folder)

@@ -29,7 +29,7 @@ def pages():
 @pytest.mark.parametrize("fork", [True, False])
 def test_every_page_to_a_png_and_the_pdf(tmp_path, monkeypatch, fork):
     monkeypatch.setattr(report, "_can_fork", lambda: fork)
-    folder = OutputFolder(tmp_path / "out")
+    folder = OutputFolder(tmp_path / "out", command="run")
     files = report.render(folder, pages(), ["pdf", "png"], "t")
     assert sorted(p.name for p in files) == ["a.png", "b.png", "c.png", "report.pdf"]
     assert all(p.stat().st_size > 1000 for p in files)
@@ -48,7 +48,7 @@ def test_a_png_that_cannot_be_written_is_reported_with_its_path_and_hint(tmp_pat
             raise OSError(errno.ENOSPC, "No space left on device", str(fname))
         return real(self, fname, *args, **kwargs)
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", full)
-    folder = OutputFolder(tmp_path / "out")
+    folder = OutputFolder(tmp_path / "out", command="run")
     with pytest.raises(OutputError) as err:
         report.render(folder, pages(), ["pdf", "png"], "t")
     assert err.value.path.endswith("b.png") and "No space left on device" in str(err.value)
@@ -64,7 +64,7 @@ def test_a_fork_that_fails_falls_back_to_drawing_in_turn(tmp_path, monkeypatch):
         raise OSError(11, "Resource temporarily unavailable")
     monkeypatch.setattr(os, "fork", no_fork)
     before = _pipes()
-    files = report.render(OutputFolder(tmp_path / "out"), pages(), ["pdf", "png"], "t")
+    files = report.render(OutputFolder(tmp_path / "out", command="run"), pages(), ["pdf", "png"], "t")
     assert sorted(p.name for p in files) == ["a.png", "b.png", "c.png", "report.pdf"]
     assert _pipes() == before                                          # the pipe closed again
 
