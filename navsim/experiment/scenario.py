@@ -19,6 +19,7 @@ file, the key path, what was expected and a hint.
 
 from __future__ import annotations
 
+import logging
 import math
 import re
 from dataclasses import dataclass, field
@@ -51,6 +52,11 @@ from navsim.records.reference import Reference
 from navsim.records.vocabulary import check_metric_path
 from navsim.sensors import height_fields, output_fields, parse_sensors, velocity_fields
 from navsim.sensors.base import check_faults, decimation
+
+log = logging.getLogger(__name__)
+#: the clipped fault windows already named (:func:`_warn_clipped_faults`): each once per process,
+#: however many times the same scenario is checked (its parse, its flight, a budget's variants)
+_CLIPPED_NAMED: set[str] = set()
 
 
 @dataclass
@@ -272,6 +278,7 @@ def check_scenario(scenario: Scenario, duration_s: float) -> None:
             check_faults(cfg.faults, cfg.kind, last_s, cfg.name)
         except ScenarioError as exc:
             raise exc.with_file(file or "<scenario>") from None
+        _warn_clipped_faults(cfg, last_s, file)
     if scenario.settle_s >= last_s:
         raise ScenarioError(f"is {scenario.settle_s:g} s, not before the end of the flight ({last_s:.0f} s)",
                             file=file, key="metrics.settle_s",
@@ -302,6 +309,21 @@ def check_scenario(scenario: Scenario, duration_s: float) -> None:
         for key, m in _measurement_entries(est.params, f"estimators[{i}]"):
             _check_field(m, outputs[m["sensor"]], file, key)
             _check_reads(m, outputs[m["sensor"]], file, key)
+
+
+def _warn_clipped_faults(cfg, last_s: float, file: str | None) -> None:
+    """A logging warning for each fault window of sensor ``cfg`` that starts within the flight
+    (``last_s``, s) and ends after it: it is clipped to the flight's end. Each message once."""
+    for i, f in enumerate(cfg.faults):
+        if not (f.start_s < last_s < f.end_s < math.inf):
+            continue
+        message = (f"{file or '<scenario>'}: sensors.{cfg.name}.faults[{i}]: the {f.type} window of sensor "
+                   f"'{cfg.name}' [{f.start_s:g}, {f.end_s:g}) s ends after the flight ({last_s:.6g} s): "
+                   f"it is clipped to [{f.start_s:g}, {last_s:.6g}) s (end it by {last_s:.6g} s, or leave "
+                   "end_s out for a fault to the end)")
+        if message not in _CLIPPED_NAMED:
+            _CLIPPED_NAMED.add(message)
+            log.warning("%s", message)
 
 
 #: the estimator types that read sensors through their measurement models alone (their

@@ -95,6 +95,10 @@ IC_THETA_DEG = "ic/theta-deg"
 IC_PHI_DEG = "ic/phi-deg"
 
 TURBULENCE_TYPES = {"none": 0, "milspec": 3, "tustin": 4}
+#: the turbulence models that divide by the time step: JSBSim's Tustin (bilinear) discretisation
+#: (``C_BL = 1 / tau / tan(dt / 2 tau)``, ``sqrt(2 tau / dt)``) turns its state into NaN, for good,
+#: on a step that does not advance time (its initial conditions' step, :meth:`JSBSimIO.run_ic`)
+ZERO_STEP_UNSAFE_TURBULENCE = ("tustin",)
 
 #: JSBSim integrators, all Adams-Bashforth 3 (JSBSim's code 4): the recorded trajectory then
 #: approximates the continuous-time solution to third order, so that an IMU integrating the
@@ -156,6 +160,7 @@ class JSBSimIO:
         self._set_thr = self._node[THROTTLE_CMD_NORM].set_double_value
         self._run = fdm.run
         self._wind_fps = (0.0, 0.0, 0.0)
+        self._turbulence = "none"
 
     # --- the hot loop -------------------------------------------------------------------------
     def run(self) -> bool:
@@ -229,6 +234,7 @@ class JSBSimIO:
         severity (0 none .. 7 extreme); ``seed`` fixes its random stream."""
         self.fdm[RANDOM_SEED] = int(seed)
         self.fdm[TURB_TYPE] = TURBULENCE_TYPES[kind]
+        self._turbulence = kind
         self.fdm[TURB_WIND20_FPS] = wind20_mps / FT_TO_M
         self.fdm[TURB_SEVERITY] = int(severity)
 
@@ -242,8 +248,12 @@ class JSBSimIO:
 
     def run_ic(self) -> None:
         """Re-apply the initial conditions, keeping the motor and servo states (and the wind,
-        which JSBSim's initial conditions would reset)."""
+        which JSBSim's initial conditions would reset). A turbulence of
+        :data:`ZERO_STEP_UNSAFE_TURBULENCE` is off over these steps of zero time, its state kept."""
         fdm = self.fdm
+        unsafe = self._turbulence in ZERO_STEP_UNSAFE_TURBULENCE
+        if unsafe:
+            fdm[TURB_TYPE] = TURBULENCE_TYPES["none"]
         if not fdm.run_ic():
             raise RuntimeError("JSBSim rejected the initial conditions")
         self._apply_wind()
@@ -252,3 +262,5 @@ class JSBSimIO:
         fdm.suspend_integration()
         fdm.run()
         fdm.resume_integration()
+        if unsafe:
+            fdm[TURB_TYPE] = TURBULENCE_TYPES[self._turbulence]

@@ -72,8 +72,13 @@ def zeros3():
 
 
 def truth_step(data: "SensorData", truth) -> slice:
-    """The truth samples at ``data``'s sample times (every ``step``-th), for plots."""
-    return slice(None, None, round(len(truth.t_s) / len(data.t_s))) if len(data.t_s) else slice(None)
+    """The truth samples at ``data``'s sample times (every ``step``-th, as many as ``data.t_s``:
+    the step from the sample period, as :func:`sampling` took them), for plots."""
+    m = len(data.t_s)
+    if m < 2:
+        return slice(0, m)
+    step = max(1, round((data.t_s[1] - data.t_s[0]) / truth.dt_s))
+    return slice(0, step * (m - 1) + 1, step)
 
 
 def stream_id(name: str) -> int:
