@@ -23,7 +23,9 @@ import hashlib
 import io
 import json
 import logging
+import os
 import time
+import urllib.parse
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -44,10 +46,14 @@ from navsim.experiment.runner import (
 )
 from navsim.experiment import resources
 from navsim.experiment.budget import GROUPS as BUDGET_GROUPS, alone, budget_sources, find_source, scaled
-from navsim.experiment.budget import check_method, covariance_contributions, linear_sources
+from navsim.experiment.budget import check_method, covariance_contributions, left_out_reasons, linear_sources
 from navsim.experiment.results import ResultFiles, check_comparable, check_not_being_written, pairing, read_result
+from navsim.experiment.results import read_files
 from navsim.experiment.scenario import Scenario, check_scenario, load_scenario as _load_file, parse_scenario
 from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
+from navsim.experiment.scenario import MAX_SEED, MAX_WORKERS
+from navsim.experiment.budget import SCALE_RANGE, scale_ok
+from navsim.foundations.config import MAX_RUNS, Argument
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.provenance import provenance
@@ -65,7 +71,7 @@ from navsim.report.render import render
 from navsim.scoring.budget import METHODS as BUDGET_METHODS, Budget, WhatIf, covariance_budgets, metric_budgets
 from navsim.scoring.budget import epoch_mean_squares, monte_carlo_curves, predict, with_covariance
 from navsim.scoring.closed_loop import closed_loop_metrics
-from navsim.scoring.compare import Comparison, Side, compare_samples
+from navsim.scoring.compare import DEFAULT_MARGIN_PCT, Comparison, Side, check_margin, compare_samples
 from navsim.scoring.intervals import MIN_RUNS
 from navsim.scoring.landmarks import sighting_spans
 from navsim.records.metrics import RunMetrics
@@ -147,10 +153,10 @@ class Result:
         Every estimator's variables are named ``<field>`` with an ``estimator`` dimension when
         all estimators share their epochs; otherwise pass ``label`` for one estimator."""
         import xarray as xr  # heavy to import (pandas): only when asked
-        hists = self.histories if label is None else {label: self.histories[label]}
+        hists = self._histories(label)
         t = {k: tuple(h.t_s) for k, h in hists.items()}
         if len(set(t.values())) > 1:
-            raise ValueError(f"the estimators have different epochs ({', '.join(hists)}): "
+            raise UsageError(f"the estimators have different epochs ({', '.join(hists)}): "
                              "pass label= for one of them")
         first = next(iter(hists.values()))
         data = {}
@@ -176,6 +182,22 @@ class Result:
                          "navsim": str(self.record.versions.get("navsim", "")),
                          "git_revision": str(self.record.git_revision or "")})
         return ds
+
+    def _histories(self, label: str | None) -> dict:
+        """The histories :meth:`to_xarray` takes (``label``'s, or all); :class:`UsageError` for
+        an unknown label, or a result without per-run histories (its ``chunks/`` or
+        ``runs.npz`` gone)."""
+        where = self.folder if self.folder is not None else f"result of '{self.scenario.name}'"
+        if not self.histories:
+            stored = self.record.per_run_data or "runs.npz"
+            raise UsageError(f"{where}: no per-run histories to read (its {stored} is missing: removed, or the run "
+                             "was not written there); hint: run the scenario again to have them, the metrics "
+                             "are in result.metrics")
+        if label is None:
+            return self.histories
+        if label not in self.histories:
+            raise UsageError(f"{where}: no estimator {label!r}; it has: " + ", ".join(self.histories))
+        return {label: self.histories[label]}
 
 
 #: the per-axis metrics :meth:`Result.to_xarray` carries with their intervals
@@ -203,12 +225,115 @@ def _metric_variables(metrics, labels) -> dict:
     return out
 
 
+# --- the arguments: each declared once; navsim.cli reads its options with the same ------------------
+RUNS = Argument("runs", int, minimum=1, maximum=MAX_RUNS)
+SEED = Argument("seed", int, minimum=0, maximum=MAX_SEED)
+WORKERS = Argument("workers", int, minimum=1, maximum=MAX_WORKERS)
+CHUNK_RUNS = Argument("chunk_runs", int, minimum=1, maximum=MAX_RUNS)
+#: where the chunks of runs go (``executor=``, ``--executor``)
+EXECUTORS = ("local", "dask")
+#: the Dask schemes a scheduler address may use
+SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "inproc", "ucx")
+
+
+def _shown(value) -> str:
+    """``value`` for a message, at most 60 characters."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def check_scheduler(address, name: str = "scheduler") -> str:
+    """``address`` if it is a Dask scheduler address, ``scheme://host:port`` or ``host:port``
+    for TCP as Dask reads it; else a :class:`UsageError` (naming ``name``, when given)."""
+    url = None
+    if isinstance(address, str) and address:
+        try:
+            url = urllib.parse.urlsplit(address if "://" in address else f"tcp://{address}")
+            port = url.port
+        except ValueError:
+            url = None
+    if url is None or url.scheme not in SCHEDULER_SCHEMES or not url.hostname or (
+            url.scheme != "inproc" and port is None):
+        raise UsageError(f"{name + ': ' if name else ''}{_shown(address)} is not a scheduler address (expected "
+                         f"scheme://host:port, scheme one of {', '.join(SCHEDULER_SCHEMES)}, e.g. tcp://10.0.0.5:8786)")
+    return address
+
+
+def _numbers(runs, seed, workers, chunk_runs=None) -> tuple:
+    """The numbers of a call checked (:data:`RUNS`, :data:`SEED`, :data:`WORKERS`,
+    :data:`CHUNK_RUNS`; None: the default)."""
+    return tuple(None if v is None else a.check(v)
+                 for a, v in ((RUNS, runs), (SEED, seed), (WORKERS, workers), (CHUNK_RUNS, chunk_runs)))
+
+
+def _check_how(executor, scheduler, flags: dict, functions: dict) -> None:
+    """:class:`UsageError` for an executor not in :data:`EXECUTORS`, a scheduler that is not
+    an address, and as :func:`_check_flags`."""
+    if not isinstance(executor, str) or executor not in EXECUTORS:
+        raise UsageError(f"executor: {_shown(executor)} is not an executor (expected one of {', '.join(EXECUTORS)})")
+    if scheduler is not None:
+        check_scheduler(scheduler)
+    _check_flags(flags, functions)
+
+
+def _check_flags(flags: dict, functions: dict | None = None) -> None:
+    """:class:`UsageError` for a flag (name -> value) that is not a bool, or a function
+    (``progress=``) that is neither None nor callable."""
+    for name, value in flags.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise UsageError(f"{name}: {_shown(value)} is not true or false (expected a bool)")
+    for name, value in (functions or {}).items():
+        if value is not None and not callable(value):
+            raise UsageError(f"{name}: {_shown(value)} is not callable (expected a function or None)")
+
+
+def _path(name: str, value, what: str) -> Path:
+    """``value`` as the path of a ``what``; :class:`UsageError` naming ``name`` for anything else."""
+    text = os.fspath(value) if isinstance(value, (str, os.PathLike)) else None
+    if not isinstance(text, str) or not text or "\0" in text:
+        why = "has a NUL character" if isinstance(text, str) and text else "is not a path"
+        raise UsageError(f"{name}: {_shown(value)} {why} (expected the {what}'s path: a non-empty str or "
+                         "os.PathLike without NUL characters)")
+    return Path(text)
+
+
+def _scales(scales) -> list[tuple[str, float]]:
+    """A budget's ``scales`` checked: ``(source, factor)`` pairs, each factor :data:`SCALE_RANGE`."""
+    expected = f"expected a sequence of (source, factor) pairs, {SCALE_RANGE}"
+    if isinstance(scales, (str, bytes, Mapping)) or not hasattr(scales, "__iter__"):
+        raise UsageError(f"scales: {_shown(scales)}: {expected}")
+    out = []
+    for item in scales:
+        ok = isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[0], str) and item[0]
+        number = ok and isinstance(item[1], (int, float, np.integer, np.floating)) and not isinstance(item[1], bool)
+        if not (number and scale_ok(float(item[1]))):
+            raise UsageError(f"scales: {_shown(item)}: {expected} (imu.gyro.noise_density, 0.5)")
+        out.append((item[0], float(item[1])))
+    return out
+
+
+def _labels(estimators) -> list[str] | None:
+    """:func:`compare`'s ``estimators``: None, one label or a sequence of one or two."""
+    if estimators is None or isinstance(estimators, str):
+        return None if estimators is None else [estimators]
+    names = list(estimators) if isinstance(estimators, (list, tuple)) else None
+    if names is None or not all(isinstance(x, str) for x in names) or len(names) > 2:
+        raise UsageError(f"estimators: {_shown(estimators)}: expected one or two estimator labels (str)")
+    return names
+
+
+def _check_result(name: str, value) -> None:
+    if not isinstance(value, Result):
+        raise UsageError(f"{name}: {_shown(value)} is not a navsim Result (expected what navsim.run or "
+                         "navsim.open_result returns)")
+
+
 def load_scenario(source) -> Scenario:
     """A scenario from a YAML file (path) or from a mapping with the file's keys (relative
     paths then resolve from the working directory)."""
     if isinstance(source, Mapping):
         return parse_scenario(dict(source), None)
-    return _load_file(source)
+    return _load_file(_path("scenario", source, "scenario file"))
 
 
 def run(scenario, runs: int | None = None, seed: int | None = None, workers: int | None = None, *,
@@ -242,6 +367,9 @@ def run(scenario, runs: int | None = None, seed: int | None = None, workers: int
     -------
     Result
     """
+    runs, seed, workers, chunk_runs = _numbers(runs, seed, workers, chunk_runs)
+    _check_how(executor, scheduler, dict(resume=resume, force=force), dict(progress=progress))
+    out = None if out is None else _path("out", out, "output folder")
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     runs = scenario.runs if runs is None else runs
@@ -443,6 +571,9 @@ def write_report(result: Result, out=None, *, force: bool = False) -> list[Path]
     list of Path
         The report's files.
     """
+    _check_result("result", result)
+    _check_flags(dict(force=force))
+    out = None if out is None else _path("out", out, "output folder")
     if out is None and result.folder is None:
         raise UsageError("write_report needs a folder: out=... (the run was held in memory)")
     with OutputFolder(Path(out) if out is not None else result.folder, command="run", force=force) as folder:
@@ -473,6 +604,7 @@ def report_figures(result: Result) -> list:
         ``name``: the PNG's stem, ``title``: its line in the contents, ``figure``: the
         matplotlib figure. Close them with ``matplotlib.pyplot.close(page.figure)``.
     """
+    _check_result("result", result)
     return _report_pages(result.scenario, _truth(result), result, result.metrics, result.record, result.loop,
                          result.reference, result.sightings)
 
@@ -489,14 +621,14 @@ def open_result(folder) -> Result:
     the folder is written or removed. The histories of up to :data:`navsim.experiment.runner.REPORT_RUNS`
     runs are loaded (from ``runs.npz`` or the first stored chunks); the store
     (:attr:`Result.store`) reads every chunk, one at a time."""
-    folder = Path(folder)
+    folder = _path("folder", folder, "result folder")
     check_not_being_written(folder)
     try:
-        metrics = RunMetrics.from_dict(json.loads((folder / "metrics.json").read_text()))
-        record = RunRecord.from_dict(json.loads((folder / "run.json").read_text()))
-        raw = yaml.safe_load((folder / "scenario.resolved.yaml").read_text())
-    except (OSError, ValueError, KeyError, TypeError, yaml.YAMLError) as exc:
-        raise UsageError(f"{folder}: not a finished navsim run ({exc})") from None
+        metrics, record, raw = read_files(folder)
+    except OSError as exc:
+        raise UsageError(f"{folder}: not a finished navsim run ({exc.strerror or exc})") from None
+    except UsageError as exc:
+        raise UsageError(f"not a finished navsim run: {exc}") from None
     try:
         scenario = parse_scenario(raw, record.scenario)
     except ScenarioError as exc:
@@ -511,8 +643,9 @@ def open_result(folder) -> Result:
     every = np.asarray(store.runs(), int) if store is not None else runs
     try:
         samples = load_samples(folder / SAMPLES_FILE) if (folder / SAMPLES_FILE).is_file() else {}
-    except (OSError, ValueError, KeyError):
-        samples = {}                          # unreadable: compare refuses it, the rest reads
+    except (OSError, UsageError) as exc:
+        logging.getLogger(__name__).warning("%s; the rest of the result is read (compare refuses it)", exc)
+        samples = {}
     return Result(scenario, every, histories, metrics, record, folder=folder, truth_bias=bias, calibration=calib,
                   failed=dict(record.failed_runs), interrupted=bool(record.interrupted), store=store,
                   history_runs=None if len(runs) == len(every) else runs, samples=samples)
@@ -546,7 +679,9 @@ def sweep(path, workers: int | None = None, *, executor: str = "local", schedule
         flown (their values None, their metrics None; the other points go on); whether it was
         interrupted (the points after it are not run).
     """
-    plan = plan_sweep(path)
+    workers = None if workers is None else WORKERS.check(workers)
+    _check_how(executor, scheduler, {}, dict(progress=progress, on_point=on_point))
+    plan = plan_sweep(_path("path", path, "sweep file"))
     result = SweepResult([], plan.metric)
     for i, (point, sc) in enumerate(zip(plan.points, plan.scenarios)):
         if i in plan.unflown:
@@ -577,7 +712,8 @@ def sweep(path, workers: int | None = None, *, executor: str = "local", schedule
     return result
 
 
-def compare(a, b=None, estimators=None, *, partial: bool = False, unpaired: bool = False) -> list[Comparison]:
+def compare(a, b=None, estimators=None, *, partial: bool = False, unpaired: bool = False,
+            margin=DEFAULT_MARGIN_PCT) -> list[Comparison]:
     """Compare two estimators over the runs as the samples: ``B - A`` per metric with its 95 %
     interval and a verdict (:mod:`navsim.scoring.compare`); nothing is written.
 
@@ -594,6 +730,12 @@ def compare(a, b=None, estimators=None, *, partial: bool = False, unpaired: bool
         Compare an interrupted result as it is (its finished runs), else refuse it.
     unpaired : bool
         Compare side against side even where the runs pair (what pairing gains).
+    margin : float or mapping, optional
+        The practical-equivalence margin, per cent of the larger of the two values: a
+        difference whose 95 % interval lies within it is ``negligible``, and none within it is
+        offered a run count (:mod:`navsim.scoring.compare`). A mapping gives it per metric path
+        (``{"rms.pos_m": 5, "": 1}``: the longest matching start; ``""`` the others).
+        Default :data:`navsim.scoring.compare.DEFAULT_MARGIN_PCT`.
 
     Returns
     -------
@@ -604,9 +746,16 @@ def compare(a, b=None, estimators=None, *, partial: bool = False, unpaired: bool
     Raises
     ------
     UsageError
-        A folder that is not a result or that an older navsim wrote, two different tracks or
+        A folder that is not a result, a damaged file of one (named with its key or array), a
+        result an older or a newer navsim wrote, two different tracks or
         metric settings, an interrupted result without ``partial``, an unknown estimator.
     """
+    for name, x in (("a", a), ("b", b)):
+        if not isinstance(x, Result) and (x is not None or name == "a"):
+            _path(name, x, "result folder")
+    estimators = _labels(estimators)
+    _check_flags(dict(partial=partial, unpaired=unpaired))
+    margin = check_margin(margin)
     ra = _result_files(a)
     rb = ra if b is None or b is a else _result_files(b)
     check_comparable(ra, rb)
@@ -621,7 +770,7 @@ def compare(a, b=None, estimators=None, *, partial: bool = False, unpaired: bool
     for la, lb in _estimator_pairs(ra, rb, b is None, estimators):
         side = lambda r, label: Side(str(r.folder), label, len(r.samples[label].runs), r.record.runs_done,
                                      r.record.runs, bool(r.record.interrupted), r.record.seed)
-        c = compare_samples(side(ra, la), ra.samples[la], side(rb, lb), rb.samples[lb], paired, why)
+        c = compare_samples(side(ra, la), ra.samples[la], side(rb, lb), rb.samples[lb], paired, why, margin)
         if not c.differences:
             raise UsageError(f"{ra.folder} '{la}' and {rb.folder} '{lb}' share no metric to compare")
         if c.runs_compared < MIN_RUNS:
@@ -743,10 +892,15 @@ def budget(scenario, runs: int | None = None, seed: int | None = None, workers: 
         a covariance analysis of a closed loop or of sources none of which has a linear form.
     """
     t0 = time.perf_counter()
+    runs, seed, workers, _ = _numbers(runs, seed, workers)
+    _check_how(executor, scheduler, dict(resume=resume), dict(progress=progress))
+    scales = _scales(scales)
+    if store is not None and not isinstance(store, OutputFolder):
+        raise UsageError(f"store: {_shown(store)} is not an open navsim.foundations.outputs.OutputFolder (or None)")
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     sources = budget_sources(sc)
     if group not in BUDGET_GROUPS:
-        raise UsageError(f"--group {group!r}: expected one of {', '.join(BUDGET_GROUPS)}")
+        raise UsageError(f"group: {group!r} is not a budget's grouping (expected one of {', '.join(BUDGET_GROUPS)})")
     check_method(sc, method, BUDGET_METHODS, sources)
     scaled_runs = [(find_source(name, sources), float(k)) for name, k in scales]
     plan = _budget_plan(sc, sources, scaled_runs, method)
@@ -771,7 +925,8 @@ def budget(scenario, runs: int | None = None, seed: int | None = None, workers: 
     if method == "both":
         metrics = with_covariance(metrics, cov.metrics)
     what_if = _what_ifs(samples, by_source, scaled_runs)
-    extra = {} if cov is None else dict(monte_carlo_only=cov.left, not_analysed=cov.skipped, covariance_s=cov.wall_s,
+    extra = {} if cov is None else dict(monte_carlo_only=cov.left, left_out=left_out_reasons(sc, sources, cov.left),
+                                        not_analysed=cov.skipped, covariance_s=cov.wall_s,
                                         covariance_curves=cov.curves)
     if method != "covariance":
         extra["curves"] = monte_carlo_curves(squares, [s.name for s in sources])

@@ -21,7 +21,6 @@ import shutil
 import sys
 import textwrap
 import time
-import urllib.parse
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +32,6 @@ from navsim.experiment.executors import TERMINATED_EXIT, Terminated, stop_on_sig
 from navsim.experiment.runner import cached_flight
 from navsim.experiment import resources
 from navsim.experiment.scenario import (
-    MAX_SEED,
     MAX_WORKERS,
     RATE_HZ,
     available_aircraft,
@@ -45,12 +43,13 @@ from navsim.experiment.sweep import parse_sweep
 from navsim.flight.plots import plot_flight
 from navsim.flight.simulator import fly
 from navsim.flight.track import available_tracks, load_track, nominal_duration_s
-from navsim.foundations.config import MAX_RUNS
+from navsim.foundations.config import Argument
 from navsim.foundations.errors import FlightError, NavsimError, OutputError, UsageError
 from navsim.experiment.budget import GROUPS as BUDGET_GROUP_NAMES, budget_sources, check_method, find_source
-from navsim.scoring.budget import METHODS as BUDGET_METHODS
-from navsim.report.budget import check_text, chosen as budget_chosen, covariance_notes
-from navsim.report.budget import headers as budget_headers, text_rows as budget_text_rows
+from navsim.experiment.budget import SCALE_RANGE, scale_ok
+from navsim.scoring.budget import METHODS as BUDGET_METHODS, check_metric as budget_metric
+from navsim.report.budget import check_text, chosen as budget_chosen, covariance_notes, left_out_rows, rank_notes
+from navsim.report.budget import headers as budget_headers, text_rows as budget_text_rows, warn_unranked
 from navsim.report.compare import HEADERS as COMPARE_HEADERS, headline, text_rows
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.progress import Progress
@@ -63,6 +62,7 @@ from navsim.replay.run import IMU_RATE_HZ
 from navsim.report.replay import difference_table, write_replay_report
 from navsim.report.summary import sections as summary_sections, text_table
 from navsim.report.sweep import short_key, write_sweep_figure
+from navsim.scoring.compare import DEFAULT_MARGIN_PCT
 from navsim.scoring.verdicts import num, with_interval
 from navsim.sensors import emulate
 from navsim.sensors.catalog import entries as catalog_entries
@@ -192,6 +192,7 @@ def cmd_run(args) -> int:
     resources.check_run(scenario, runs, args.chunk_runs, Path(args.out) if args.out else Path("reports"),
                         args.workers)
     folder = _open_folder(args, Path("reports") / scenario.name)
+    print(resources.estimate_line(scenario, runs, folder.path, args.workers, args.chunk_runs), flush=True)
     todo, desc, flight = runs, f"{runs} runs", None
     if scenario.closed_loop is not None:
         desc += ", navigation in the loop"
@@ -286,12 +287,17 @@ def cmd_sensors(args) -> int:
     return 0
 
 
+def _point_name(n: int, total: int, point: dict) -> str:
+    """``point 2/3 (key=value, ...)``: the point of index ``n``, numbered from 1 as everywhere
+    the user reads it (progress, errors, sweep.csv)."""
+    return f"point {n + 1}/{total} (" + ", ".join(f"{short_key(k)}={v}" for k, v in point.items()) + ")"
+
+
 def _point_line(n: int, total: int, point: dict, values: dict, res) -> str:
-    what = ", ".join(f"{short_key(k)}={v}" for k, v in point.items())
     if res is None:
-        return f"point {n + 1}/{total} ({what}): the flight cannot be flown"
+        return f"{_point_name(n, total, point)}: the flight cannot be flown"
     got = ", ".join(f"{lb} {num(v)}" for lb, v in values.items())
-    return f"point {n + 1}/{total} ({what}): {got} [{len(res.runs)} runs, {res.record.wall_s:.1f} s]"
+    return f"{_point_name(n, total, point)}: {got} [{len(res.runs)} runs, {res.record.wall_s:.1f} s]"
 
 
 def cmd_sweep(args) -> int:
@@ -311,16 +317,21 @@ def cmd_sweep(args) -> int:
     write_sweep_figure(folder, sweep, f"sweep {Path(args.sweep).name}: {sweep.metric} (vectors by their norm), 95 % intervals over the runs")
     print(f"\nwrote {folder.path}/: sweep.json (every point's metrics), sweep.csv, sweep.png")
     for i, why in sweep.failed_points.items():
-        print(f"error: point {i}: {why}" if i in sweep.unflown else f"error: no run of point {i} succeeded: {why}",
+        name = _point_name(i, len(points), points[i])
+        print(f"error: {name}: {why}" if i in sweep.unflown else f"error: no run of {name} succeeded: {why}",
               file=sys.stderr)
     if sweep.interrupted:
         print(f"interrupted after {len(sweep.rows)} of {len(points)} points", file=sys.stderr)
         return 130
-    return 1 if sweep.failed_points else 0
+    if sweep.failed_points:                # exit 1: a point not flown or without a run (the others written)
+        print(f"{len(sweep.failed_points)} of {len(points)} points failed", file=sys.stderr)
+        return 1
+    return 0
 
 
 def cmd_compare(args) -> int:
-    comparisons = api.compare(args.a, args.b, args.estimators, partial=args.partial, unpaired=args.unpaired)
+    comparisons = api.compare(args.a, args.b, args.estimators, partial=args.partial, unpaired=args.unpaired,
+                              margin=parse_margins(args.margin))
     name = lambda p: Path(p).resolve().name
     default = Path("reports") / (f"compare_{name(args.a)}" + (f"_vs_{name(args.b)}" if args.b else ""))
     out = (Path(args.out) if args.out else default).resolve()
@@ -338,9 +349,25 @@ def cmd_compare(args) -> int:
     return 0
 
 
+def parse_margins(items: list[str] | None):
+    """``--margin`` strings (``PCT`` or ``PATH=PCT``) as :func:`navsim.compare`'s ``margin``: one
+    number, or a mapping of metric path -> per cent (``""`` the default)."""
+    out = {}
+    for item in items or []:
+        path, sep, value = item.rpartition("=")
+        try:
+            out[path.strip()] = float(value)
+        except ValueError:
+            raise UsageError(f"--margin {item!r}: expected PCT or PATH=PCT, a number of per cent "
+                             "(--margin 2, --margin rms.pos_m=5)") from None
+    if not out:
+        return DEFAULT_MARGIN_PCT
+    return out[""] if list(out) == [""] else out
+
+
 def parse_scales(items: list[str] | None) -> list[tuple[str, float]]:
-    """``SOURCE=K`` strings to ``(source, factor)``; a factor that is not a number >= 0 is a
-    :class:`UsageError`."""
+    """``SOURCE=K`` strings to ``(source, factor)``; a factor that is not a number from 0 to
+    :data:`~navsim.experiment.budget.MAX_SCALE` is a :class:`UsageError`."""
     out = []
     for item in items or []:
         name, sep, value = item.partition("=")
@@ -348,27 +375,34 @@ def parse_scales(items: list[str] | None) -> list[tuple[str, float]]:
             factor = float(value)
         except ValueError:
             factor = math.nan
-        if not sep or not name or not (math.isfinite(factor) and factor >= 0):
-            raise UsageError(f"--scale {item!r}: expected SOURCE=K with a factor K >= 0 (--scale imu.gyro.noise_density=0.5)")
+        if not sep or not name or not scale_ok(factor):
+            raise UsageError(f"--scale {item!r}: expected SOURCE=K with {SCALE_RANGE} (a budget's what-if "
+                             "is linear in the squared errors; far larger factors overflow them); hint: "
+                             "--scale imu.gyro.noise_density=0.5")
         out.append((name, factor))
     return out
 
 
-def parse_budget_metrics(items: list[str] | None):
-    """``PATH[:COMPONENT]`` strings (``final.pos_m:horizontal``) to pairs; None: the default."""
-    return None if not items else [tuple((x.split(":", 1) + [""])[:2]) for x in items]
+def parse_budget_metrics(items: list[str] | None, windows=()):
+    """``PATH[:COMPONENT]`` strings (``final.pos_m:horizontal``) to pairs, each checked against
+    what a budget of a scenario with the metric windows ``windows`` (names) can score; None:
+    the default."""
+    return None if not items else [budget_metric(x, windows) for x in items]
 
 
 def cmd_budget(args) -> int:
     scenario = load_scenario(args.scenario)
     scales = parse_scales(args.scale)
-    metrics = parse_budget_metrics(args.metric)
+    metrics = parse_budget_metrics(args.metric, [w[0] for w in scenario.windows])
     sources = budget_sources(scenario)           # checked before anything runs or is written
     for name, _ in scales:
         find_source(name, sources)
     check_method(scenario, args.method, BUDGET_METHODS, sources)
-    folder = _open_folder(args, Path("reports") / scenario.name / "budget")
     carlos = (len(sources) + 2 if args.method != "covariance" else 0) + len(scales)
+    if carlos:                                   # each Monte Carlo's runs are held in memory
+        resources.check_held(scenario, scenario.runs if args.runs is None else args.runs, workers=args.workers,
+                             held="budget")
+    folder = _open_folder(args, Path("reports") / scenario.name / "budget")
     todo = carlos + (args.method != "montecarlo")
     try:
         with Progress(todo, f"budget {scenario.name}", unit="step") as bar:
@@ -385,8 +419,13 @@ def cmd_budget(args) -> int:
         raise UsageError(f"--metric: none of {', '.join(':'.join(m) for m in metrics)} is scored; hint: "
                          "final.pos_m:horizontal, rms.att_deg:D, windows.<name>.height_m.rms")
     heads = budget_headers(result)
+    runs_flown = result.runs if result.method != "covariance" else 0
     for m in shown:
-        print(f"\n{m.estimator}: {m.name}\n" + _table(list(heads), budget_text_rows(m, heads)) + "\n" + check_text(m))
+        rows = budget_text_rows(m, heads) + left_out_rows(result, m, heads)
+        print(f"\n{m.estimator}: {m.name}\n" + _table(list(heads), rows) + "\n" + check_text(m))
+        for note in rank_notes(m, runs_flown):
+            print(note)
+    warn_unranked(result, shown)
     for w in result.what_if:
         if (w.metric, w.component) in [(m.metric, m.component) for m in shown]:
             print(f"what if {w.source} x{w.factor:g}: {w.estimator} {w.metric} {w.component} {num(w.all_on)} -> "
@@ -404,8 +443,8 @@ def cmd_budget(args) -> int:
 
 def write_sweep_files(folder: OutputFolder, sweep) -> None:
     """``sweep.json``: each point with its values, their 95 % intervals and its whole
-    ``metrics.json``; ``sweep.csv``: one row per point, the swept parameters then the metric of
-    each estimator and its interval's ends (empty where there is none)."""
+    ``metrics.json``; ``sweep.csv``: one row per point (numbered from 1), the swept parameters
+    then the metric of each estimator and its interval's ends (empty where there is none)."""
     folder.json("sweep.json", {"metric": sweep.metric, "points": [
         {"point": p, "values": v, "ci95": sweep.intervals[i] if i < len(sweep.intervals) else {},
          "metrics": None if m is None else m.to_dict()} for i, ((p, v), m) in enumerate(zip(sweep.rows, sweep.metrics))],
@@ -416,9 +455,9 @@ def write_sweep_files(folder: OutputFolder, sweep) -> None:
     w = csv.writer(buf)
     w.writerow(["point", *keys, *(f"{lb}: {sweep.metric}{end}" for lb in labels for end in ("", " ci95_lo", " ci95_hi"))])
     cell = lambda v: "" if v is None or (isinstance(v, float) and not math.isfinite(v)) else repr(v)
-    for n, (p, vals) in enumerate(sweep.rows):
+    for n, (p, vals) in enumerate(sweep.rows):          # numbered from 1, as the progress and errors
         ends = lambda lb: sweep.interval(n, lb) or [None, None]
-        w.writerow([n, *(p.get(k) for k in keys), *(cell(x) for lb in labels for x in (vals.get(lb), *ends(lb)))])
+        w.writerow([n + 1, *(p.get(k) for k in keys), *(cell(x) for lb in labels for x in (vals.get(lb), *ends(lb)))])
     folder.text("sweep.csv", buf.getvalue())
 
 
@@ -530,68 +569,63 @@ def cmd_list(args) -> int:
     return 0
 
 
-def _number(kind, minimum=None, maximum=None, exclusive_minimum=None):
-    """An argparse ``type`` reading ``kind`` within bounds; a value out of them is a usage
-    error (exit 2) naming the bound."""
+def option_type(argument: Argument):
+    """An argparse ``type`` reading ``argument``'s option (:meth:`Argument.parse`): a value
+    refused is a usage error (exit 2) in the words the API uses."""
     def read(text: str):
         try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"'{text}' is not {'an integer' if kind is int else 'a number'}")
-        if kind is float and not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"{text} is not a finite number")
-        if minimum is not None and value < minimum:
-            raise argparse.ArgumentTypeError(f"{text} is below {minimum}")
-        if exclusive_minimum is not None and value <= exclusive_minimum:
-            raise argparse.ArgumentTypeError(f"{text} is not above {exclusive_minimum}")
-        if maximum is not None and value > maximum:
-            raise argparse.ArgumentTypeError(f"{text} is above {maximum}")
-        return value
-    read.__name__ = kind.__name__
+            return argument.parse(text)
+        except UsageError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    read.__name__ = argument.kind.__name__
     return read
 
 
-RUNS = _number(int, minimum=1, maximum=MAX_RUNS)
-SEED = _number(int, minimum=0, maximum=MAX_SEED)
-WORKERS = _number(int, minimum=1, maximum=MAX_WORKERS)
-#: the Dask schemes a scheduler address may use
-SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "inproc", "ucx")
+def _number(kind, minimum=None, maximum=None, exclusive_minimum=None):
+    """An argparse ``type`` reading ``kind`` within bounds (an option of the command line only)."""
+    return option_type(Argument("", kind, minimum, maximum, exclusive_minimum))
+
+
+RUNS, CHUNK_RUNS = option_type(api.RUNS), option_type(api.CHUNK_RUNS)
+SEED, WORKERS = option_type(api.SEED), option_type(api.WORKERS)
 
 
 def scheduler_address(text: str) -> str:
-    """A Dask scheduler address ``scheme://host:port``, or ``host:port`` for TCP as Dask reads
-    it (argparse ``type``)."""
-    url = urllib.parse.urlsplit(text if "://" in text else f"tcp://{text}")
+    """A Dask scheduler address (argparse ``type``; :func:`navsim.api.check_scheduler`)."""
     try:
-        port = url.port
-    except ValueError:
-        port = None
-    if url.scheme not in SCHEDULER_SCHEMES or not url.hostname or (url.scheme != "inproc" and port is None):
-        raise argparse.ArgumentTypeError(f"'{text}' is not a scheduler address (expected scheme://host:port, "
-                                         f"scheme one of {', '.join(SCHEDULER_SCHEMES)}, e.g. tcp://10.0.0.5:8786)")
-    return text
+        return api.check_scheduler(text, "")
+    except UsageError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-#: the end of the --help of every command that writes an output folder
+#: the end of the --help of every command that writes an output folder; ``{kept}``: what an
+#: interrupt leaves, as the command has it (:data:`KEPT`)
 WRITER_EPILOG = ("The output folder is locked while the command writes it: a second command writing "
                  "there is refused (exit 2) with the holder's pid and start time; a lock left by a "
                  "killed command is taken over. A non-empty folder that is not a navsim result is "
-                 "refused (exit 2, its files named) unless --force. Ctrl-C or SIGTERM (how Slurm, "
-                 "Kubernetes and Dask stop a job) stops it as an interrupt: what finished is kept "
-                 "(a run's chunks: --resume completes it), exit 130 for Ctrl-C, 143 for SIGTERM "
-                 "('terminated'); the worker processes end with it, also when it is killed.")
+                 "refused (exit 2, its files named) unless --force; a folder holding another command's "
+                 "result is refused (exit 2), even with --force. Ctrl-C or SIGTERM (how Slurm, "
+                 "Kubernetes and Dask stop a job) stops it as an interrupt: {kept}, exit 130 for Ctrl-C, "
+                 "143 for SIGTERM ('terminated'); the worker processes end with it, also when it is killed.")
+#: what an interrupt leaves, per command (the others: :data:`NOTHING_RESUMED`)
+KEPT = {"run": "the finished chunks are kept and --resume completes the run",
+        "budget": "the finished Monte Carlos are kept (budget_part_*.npz) and --resume completes the budget",
+        "sweep": "the finished points are written (sweep.json, sweep.csv, sweep.png; nothing completes "
+                 "the rest later: run the sweep again)"}
+NOTHING_RESUMED = "what it wrote stays (nothing completes it later: run it again)"
 
 
-def _writer_options(p) -> None:
-    """--force, and the epilog on locks and signals, of a command that writes a folder."""
+def _writer_options(p, command: str = "") -> None:
+    """--force, and the epilog on locks and signals, of a command that writes a folder
+    (``command``: its key of :data:`KEPT`, if it has one)."""
     p.add_argument("--force", action="store_true",
                    help="write into --out even when it is a non-empty folder that is not a navsim "
                    "result (its files of the same names are replaced)")
-    p.epilog = WRITER_EPILOG
+    p.epilog = WRITER_EPILOG.format(kept=KEPT.get(command, NOTHING_RESUMED))
 
 
 def _executor_options(p) -> None:
-    p.add_argument("--executor", choices=("local", "dask"), default="local",
+    p.add_argument("--executor", choices=api.EXECUTORS, default="local",
                    help="where the chunks of runs go: a process pool here (local, default) or Dask "
                    "distributed tasks (dask; needs pip install 'navsim[dask]')")
     p.add_argument("--scheduler", metavar="ADDRESS", type=scheduler_address,
@@ -619,8 +653,8 @@ def _budget_parser(sub) -> None:
     p.add_argument("--group", choices=BUDGET_GROUP_NAMES, default="source",
                    help="the budget's lines: each source (default), each sensor, each sensor's kind of term")
     p.add_argument("--scale", action="append", metavar="SOURCE=K",
-                   help="what if: the source scaled by K, predicted from the budget and checked by a run "
-                   "(repeatable)")
+                   help=f"what if: the source scaled by K ({SCALE_RANGE}), predicted from the budget and "
+                   "checked by a run (repeatable)")
     p.add_argument("--metric", action="append", metavar="PATH[:COMPONENT]",
                    help="a metric to print and draw (repeatable; default final.pos_m:horizontal, "
                    "final.att_deg:D, rms.pos_m:horizontal, rms.att_deg:D); budget.json has every RMS metric")
@@ -633,7 +667,7 @@ def _budget_parser(sub) -> None:
                    "(budget_part_*.npz, kept for the same scenario, source, runs, seed and navsim version), "
                    "the others run")
     _executor_options(p)
-    _writer_options(p)
+    _writer_options(p, "budget")
     p.set_defaults(func=cmd_budget)
 
 
@@ -646,8 +680,8 @@ def _compare_parser(sub) -> None:
                        "data (the resolved scenarios equal but for their estimators and run counts, the same "
                        "seed and flight) the runs are paired by number, which cancels the noise they share; "
                        "else side against side. Writes compare.json, compare.csv and compare.pdf/.png. "
-                       "Refused with exit 2, nothing written: a folder that is not a result or that an older "
-                       "navsim wrote, two different tracks or metric settings, an interrupted result "
+                       "Refused with exit 2, nothing written: a folder that is not a result, damaged, or that an "
+                       "older or newer navsim wrote, two different tracks or metric settings, an interrupted result "
                        "(unless --partial).")
     p.add_argument("a", help="result folder A")
     p.add_argument("b", nargs="?", help="result folder B (default: A, comparing two of its estimators)")
@@ -658,6 +692,10 @@ def _compare_parser(sub) -> None:
                    help="compare an interrupted result's finished runs (each side's count is printed)")
     p.add_argument("--unpaired", action="store_true",
                    help="compare side against side even where the runs pair (to see what pairing gains)")
+    p.add_argument("--margin", action="append", metavar="[PATH=]PCT",
+                   help="the practical-equivalence margin, per cent of the larger value: a difference whose "
+                   f"95 %% interval lies within it is 'negligible', and none within it is offered a run count "
+                   f"(default {DEFAULT_MARGIN_PCT:g}); PATH=PCT sets it for a metric path (rms.pos_m=5); repeatable")
     p.add_argument("--out", help="output folder (default reports/compare_<A>_vs_<B>)")
     _writer_options(p)
     p.set_defaults(func=cmd_compare)
@@ -715,13 +753,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=WORKERS, help=f"worker processes, 1-{MAX_WORKERS} (default: montecarlo.workers)")
     p.add_argument("--out", help="output folder (default reports/<name>)")
     _executor_options(p)
-    p.add_argument("--chunk-runs", type=RUNS, metavar="N",
+    p.add_argument("--chunk-runs", type=CHUNK_RUNS, metavar="N",
                    help="runs per chunk, the unit of work streamed to <out>/chunks (default 250; "
                    "the numbers do not depend on it)")
     p.add_argument("--resume", action="store_true",
                    help="complete an interrupted run in --out: run only the chunks missing from "
                    "<out>/chunks (same scenario, seed and runs, else exit 2)")
-    _writer_options(p)
+    _writer_options(p, "run")
     p.set_defaults(func=cmd_run)
     p = sub.add_parser("sensors", help="emulate a scenario's sensors and plot them against the truth",
                        description="Fly the scenario's track, emulate its sensors for the Monte "
@@ -744,7 +782,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=WORKERS, help="worker processes (default: the scenario's)")
     p.add_argument("--out", help="output folder (default reports/<sweep name>)")
     _executor_options(p)
-    _writer_options(p)
+    _writer_options(p, "sweep")
     p.set_defaults(func=cmd_sweep)
     _replay_parser(sub)
     _compare_parser(sub)

@@ -1,3 +1,3 @@
 """navsim's version, declared once (``pyproject.toml`` reads the same number)."""
 
-__version__ = "0.3.0"
+__version__ = "0.4.0"

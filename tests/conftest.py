@@ -4,6 +4,9 @@ from pathlib import Path
 import matplotlib
 import numpy as np
 import pytest
+from matplotlib.figure import Figure
+
+from pages import check_saved, saved_name
 
 matplotlib.use("Agg")
 # one cache of compiled kernels for every test, worker and subprocess of the suite (tests that
@@ -65,6 +68,42 @@ def pytest_configure(config):
     truth = fly(parse_track({"start": {"lat_deg": 30.0, "lon_deg": 122.5, "alt_m": 150, "speed_mps": 15,
                                        "heading_deg": 0}, "segments": [{"type": "straight", "time_s": 3}]}))
     _chunk_work(truth, scenario, 1, range(2))
+
+
+#: what the figures saved since the last test's end were found with: (file, problems)
+_SAVED_PROBLEMS: list = []
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _pages_checked_when_saved():
+    """Every figure saved in this process (``Figure.savefig``; ``PdfPages.savefig`` calls it)
+    is checked for text outside its page and overprinted tick labels (``tests/pages.py``) and
+    its problems kept for :func:`pages_read_well`. Not in a forked child (the report's PNG
+    writer: the parent draws every page into the PDF) nor in a subprocess (a CLI run as one)."""
+    parent, original = os.getpid(), Figure.savefig
+
+    def savefig(fig, fname, *args, **kwargs):
+        out = original(fig, fname, *args, **kwargs)
+        if os.getpid() == parent:
+            found = check_saved(fig, fname, kwargs)
+            if found:
+                _SAVED_PROBLEMS.append((saved_name(fname), found))
+        return out
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(Figure, "savefig", savefig)
+        yield
+
+
+@pytest.fixture(autouse=True)
+def pages_read_well(_pages_checked_when_saved):
+    """Fails the test that saved a figure with text outside its page or tick labels printed
+    over each other (in its body or in a fixture it set up), naming the file and the texts."""
+    yield                            # a module fixture's pages go to the first test using it
+    found, _SAVED_PROBLEMS[:] = list(_SAVED_PROBLEMS), []
+    if found:
+        pytest.fail("pages that do not read well:\n" + "\n".join(
+            f"{name}: {p}" for name, problems in found for p in problems), pytrace=False)
 
 
 @pytest.fixture(scope="session")

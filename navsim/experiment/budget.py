@@ -39,6 +39,17 @@ HELD = 1e-150
 #: terms that are not held but switched off: they draw nothing, and a held value would be wrong
 #: (a quantization step divides, a range bounds)
 NOT_HELD = ("quantization", "range")
+#: the largest factor a what-if (``--scale SOURCE=K``) scales a source by: a budget's prediction
+#: is linear in the squared errors, which a thousandfold source leaves far behind, and factors
+#: much larger overflow them (1e200 squared is no double: NaN predictions)
+MAX_SCALE = 1000.0
+#: the factors a what-if takes, as messages and the help say them
+SCALE_RANGE = f"a factor K >= 0, at most {MAX_SCALE:g}"
+
+
+def scale_ok(factor: float) -> bool:
+    """Whether ``factor`` is one a what-if takes: finite, 0 to :data:`MAX_SCALE`."""
+    return math.isfinite(factor) and 0.0 <= factor <= MAX_SCALE
 
 
 @dataclass(frozen=True)
@@ -147,8 +158,8 @@ def scaled(scenario, source: Source, factor: float):
     """``scenario`` with one source's magnitude times ``factor`` (a sensor's error term: its
     value; an initial error block: its sigma in the truth and in the filters' covariances alike,
     as a better alignment would give)."""
-    if not (math.isfinite(factor) and factor >= 0):
-        raise UsageError(f"--scale {source.name}={factor}: expected a factor >= 0")
+    if not scale_ok(factor):
+        raise UsageError(f"--scale {source.name}={factor}: expected {SCALE_RANGE}")
     if source.sensor == INITIAL:
         fld = DRAWN_FIELDS[source.term]
         init = dataclasses.replace(scenario.initial, **{fld: np.asarray(getattr(scenario.initial, fld)) * factor})
@@ -237,6 +248,42 @@ def linear_sources(scenario, sources: list[Source], truth) -> tuple[list[SourceM
         else:
             models.append(SourceModel(s.name, s.sensor, form))
     return models, left
+
+
+#: why a term (the last part of its name) has no linear form
+NOT_LINEAR = {"quantization": "rounding to a step is not linear in the errors",
+              "range": "clipping at the range (saturation) is not linear in the errors",
+              "vibration": "a vibration's error is set by the motion's spectrum, not a linear error process",
+              "latency_s": "a latency's error is set by the trajectory (the motion over the delay)",
+              "lever_arm_b": "a lever arm's error is set by the trajectory (the attitude and body rate)"}
+#: why a sensor kind none of whose terms has a linear form has none (the rest: said generically)
+NOT_LINEAR_KINDS = {"ads": "its errors are its raw sensors' (static and total pressure in Pa, temperature in K, "
+                           "vane angles); they reach its height (h_pressure_m, not a fix's h) and its velocity "
+                           "(along the airspeed's direction: correlated across N, E, D and turning with the "
+                           "attitude) through the air-data formulas, which a linear form (an error of the body rate, "
+                           "the specific force or a NED fix, white per axis) does not express"}
+
+
+def left_out_reasons(scenario, sources: list[Source], left: list[str]) -> dict[str, str]:
+    """Each source of ``left`` (:func:`linear_sources`' names) -> why a covariance analysis
+    leaves it to Monte Carlo, said in the budget's table."""
+    out = {}
+    for s in sources:
+        if s.name not in left:
+            continue
+        config = next(c for c in scenario.sensors if c.name == s.sensor)
+        kind = registry.of(config.spec)
+        if s.term.startswith("fault["):
+            why = f"a fault window ({config.faults[int(s.term[6:-1])].type}) switches its errors in time: not linear"
+        elif s.term.split(".")[-1] in NOT_LINEAR:
+            why = NOT_LINEAR[s.term.split(".")[-1]]
+        elif not any(t.linear is not None for t in kind.errors):
+            why = (f"the {kind.name} kind declares no linear form of its error terms"
+                   + (f": {NOT_LINEAR_KINDS[kind.name]}" if kind.name in NOT_LINEAR_KINDS else ""))
+        else:
+            why = f"the {kind.name} kind declares no linear form of '{s.term}'"
+        out[s.name] = why + "; Monte Carlo only (--method montecarlo or both)"
+    return out
 
 
 def _ideal(truth, config, seed: int):

@@ -4,14 +4,17 @@ metrics can be compared at all.
 
 Read: ``metrics.json``, ``run.json``, ``scenario.resolved.yaml`` and ``samples.npz`` (each run's
 part of the metrics, :mod:`navsim.records.samples`); nothing is written. A folder that lacks one
-of them, or whose ``samples.npz`` an older navsim wrote, is refused with a
+of them, one of them damaged (named with its key path), a ``samples.npz`` an older navsim wrote
+or a result a newer navsim wrote is refused with a
 :class:`~navsim.foundations.errors.UsageError` naming it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
+import typing
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,9 +22,10 @@ import yaml
 
 from navsim.foundations.errors import UsageError
 from navsim.foundations.outputs import writer
-from navsim.records.metrics import RunMetrics
+from navsim.records.metrics import MetricsError, RunMetrics, check_typed, read_metrics
 from navsim.records.run import RunRecord
 from navsim.records.samples import SAMPLES_FILE, EstimatorSamples, load_samples
+from navsim.version import __version__
 
 #: the first navsim that writes ``samples.npz``
 SAMPLES_SINCE = (0, 2, 0)
@@ -126,35 +130,25 @@ def check_version(folder, record: RunRecord) -> None:
 
 def read_result(folder) -> ResultFiles:
     """The files of the result in ``folder``; :class:`UsageError` for a folder that is not a
-    result or was written by a navsim before :data:`SAMPLES_SINCE`."""
+    result, a damaged file, or a result written by a navsim before :data:`SAMPLES_SINCE` or
+    after this one."""
     folder = Path(folder)
     if not folder.is_dir():
         raise UsageError(f"{folder}: no such folder (expected a result folder of navsim run)")
     check_not_being_written(folder)
-    missing = [n for n in ("metrics.json", "run.json", "scenario.resolved.yaml") if not (folder / n).is_file()]
-    if missing:
-        raise UsageError(f"{folder}: not a navsim result (no {', '.join(missing)}); "
-                         "hint: pass the folder navsim run wrote (its --out)")
     try:
-        metrics = RunMetrics.from_dict(json.loads((folder / "metrics.json").read_text()))
-        record = RunRecord.from_dict(json.loads((folder / "run.json").read_text()))
-        resolved = yaml.safe_load((folder / "scenario.resolved.yaml").read_text())
-    except (OSError, ValueError, KeyError, TypeError, AttributeError, yaml.YAMLError) as exc:
-        raise UsageError(f"{folder}: not a readable navsim result ({type(exc).__name__}: {exc})") from None
-    version = str(record.versions.get("navsim", "unknown"))
-    since = ".".join(map(str, SAMPLES_SINCE))
-    if _version(version) < SAMPLES_SINCE:
-        raise UsageError(f"{folder}: written by navsim {version}, before the per-run samples a comparison reads "
-                         f"(navsim {since}); hint: run its scenario again with this navsim")
+        metrics, record, resolved = read_files(folder)
+    except OSError as exc:
+        raise UsageError(f"{folder}: not a readable navsim result ({exc.strerror or exc})") from None
+    check_version(folder, record)
     if not (folder / SAMPLES_FILE).is_file():
         raise UsageError(f"{folder}: no {SAMPLES_FILE} (each run's part of the metrics, what a comparison reads); "
                          "hint: run its scenario again")
     try:
         samples = load_samples(folder / SAMPLES_FILE)
-    except (OSError, ValueError, KeyError) as exc:
-        raise UsageError(f"{folder}/{SAMPLES_FILE}: not readable ({exc}); hint: run its scenario again") from None
-    if not isinstance(resolved, dict):
-        raise UsageError(f"{folder}/scenario.resolved.yaml: expected a mapping")
+    except OSError as exc:
+        raise UsageError(f"{folder}/{SAMPLES_FILE}: not readable ({exc.strerror or exc}); hint: run its scenario "
+                         "again") from None
     return ResultFiles(folder, metrics, record, resolved, samples)
 
 

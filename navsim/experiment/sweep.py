@@ -14,18 +14,23 @@ A sweep file::
 from __future__ import annotations
 
 import copy
+import dataclasses
 import itertools
 import math
 import re
+import types
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from navsim.experiment.resources import check_held
 from navsim.experiment.runner import cached_flight
 from navsim.experiment.scenario import check_scenario, parse_scenario
-from navsim.foundations.config import MAX_RUNS, Node, load_yaml
-from navsim.foundations.errors import FlightError, ScenarioError
+from navsim.foundations.config import MAX_RUNS, Node, close_match, load_yaml
+from navsim.foundations.errors import FlightError, ScenarioError, UsageError
+from navsim.records.metrics import EstimatorMetrics, Window
 from navsim.records.vocabulary import check_metric_path
 
 _INDEX = re.compile(r"^(.*)\[(\d+)\]$")
@@ -64,13 +69,17 @@ def parse_sweep(path: str | Path):
     node = Node(load_yaml(path), "", str(path))
     scenario = node.get("scenario", str)
     base_path = (path.parent / scenario)
-    if Path(scenario).is_absolute() or Path(scenario).suffix.lower() not in (".yaml", ".yml") \
-            or not base_path.is_file():
-        raise node.error(f"'{scenario}' not found next to the sweep file", "scenario",
-                         expected="a scenario YAML path relative to the sweep file")
+    relative = "a scenario YAML path relative to the sweep file"
+    if Path(scenario).is_absolute():
+        raise node.error(f"'{scenario}' is an absolute path", "scenario", expected=relative,
+                         hint="a sweep file names its scenario relative to itself, so that the two move "
+                         "together (a copied or shared folder of both still runs): put them side by side")
+    if Path(scenario).suffix.lower() not in (".yaml", ".yml") or not base_path.is_file():
+        raise node.error(f"'{scenario}' not found next to the sweep file", "scenario", expected=relative)
     runs = node.get("runs", int, None, minimum=1, maximum=MAX_RUNS)
     metric = node.get("metric", str, "rms.pos_m")
     check_metric_path(metric, [(w, 0, 0) for w in _window_names(base_path)], file=str(path), key="metric")
+    check_number_path(metric, file=str(path), key="metric")
     grid = node.child("grid", None)
     node._seen.add("points")
     points = node.data.get("points")
@@ -94,6 +103,72 @@ def parse_sweep(path: str | Path):
         raise node.error(f"has {len(points)} points", "points", expected=f"at most {MAX_POINTS} points")
     node.done()
     return base_path, runs, metric, points
+
+
+#: what a sweep's metric must name (its value is compared point by point)
+NUMBER_EXPECTED = "the path of a number or of a list of numbers, a vector shown by its norm"
+
+
+def _plain(tp):
+    """``X`` of ``X | None``."""
+    if typing.get_origin(tp) in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        return args[0] if len(args) == 1 else tp
+    return tp
+
+
+def _is_number(tp) -> bool:
+    """Whether a field of type ``tp`` holds a number or a list of numbers (None allowed)."""
+    tp = _plain(tp)
+    if typing.get_origin(tp) is list:
+        item = typing.get_args(tp)[0]
+        union = typing.get_origin(item) in (typing.Union, types.UnionType)
+        return all(a in (int, float, type(None)) for a in (typing.get_args(item) if union else (item,)))
+    return tp in (int, float)
+
+
+def _members(tp) -> dict | None:
+    """The names under a group of metrics of type ``tp`` -> their types (a mapping by name:
+    ``{"*": type}``; a window's quantities beside its ``horizontal_m`` and ``nees``, as its
+    mapping has them); None: not a group."""
+    tp = _plain(tp)
+    if dataclasses.is_dataclass(tp):
+        hints = typing.get_type_hints(tp)
+        out = {f.name: hints[f.name] for f in dataclasses.fields(tp) if f.name != "ci95"}
+        if tp is Window:
+            out["*"] = typing.get_args(out.pop("quantities"))[1]
+        return out
+    if typing.get_origin(tp) is dict:
+        return {"*": typing.get_args(tp)[1]}
+    return None
+
+
+def check_number_path(metric: str, *, file: str, key: str) -> None:
+    """Raise :class:`ScenarioError` unless ``metric`` (a path that
+    :func:`~navsim.records.vocabulary.check_metric_path` took) names a number or a list of
+    numbers of an estimator's metrics: not a group of them, not a path past a number
+    (``rms.pos_m.ci95``), nothing else (a list of lists, of records)."""
+    tp, walked = EstimatorMetrics, []
+    for part in metric.split("."):
+        members = _members(tp)
+        if members is None:
+            raise ScenarioError(f"'{metric}': '{'.'.join(walked)}' is a number or a list of numbers, with nothing "
+                                "under it", file=file, key=key, expected=NUMBER_EXPECTED,
+                                hint=f"metric: {'.'.join(walked)} (its 95 % intervals are in sweep.json's ci95)")
+        if part not in members and "*" not in members:
+            raise ScenarioError(f"'{metric}' is not a metric", file=file, key=key, expected=NUMBER_EXPECTED,
+                                hint=close_match(part, members))
+        tp = members.get(part, members.get("*"))
+        walked.append(part)
+    members = _members(tp)
+    if members is not None:
+        names = [m for m in members if m != "*"] + ([f"<{'quantity' if _plain(tp) is Window else 'name'}>"]
+                                                   if "*" in members else [])
+        raise ScenarioError(f"'{metric}' is a group of metrics ({', '.join(names)})", file=file, key=key,
+                            expected=NUMBER_EXPECTED, hint=f"metric: {metric}.{'rms' if 'rms' in names else names[0]}")
+    if not _is_number(tp):
+        raise ScenarioError(f"'{metric}' is not a number nor a list of numbers", file=file, key=key,
+                            expected=NUMBER_EXPECTED)
 
 
 def _window_names(scenario_path: Path) -> list[str]:
@@ -158,7 +233,7 @@ def plan_sweep(path) -> SweepPlan:
     cannot be flown (a wind the aircraft cannot make way against) is in ``unflown``."""
     base_path, runs, metric, points = parse_sweep(path)
     base = load_yaml(base_path)
-    where = lambda i: f"{path}: point {i} ({points[i]}) of {base_path}"
+    where = lambda i: f"{path}: point {i + 1}/{len(points)} ({points[i]}) of {base_path}"
     scenarios, unflown = [], {}
     for i, point in enumerate(points):
         data = copy.deepcopy(base)
@@ -166,6 +241,10 @@ def plan_sweep(path) -> SweepPlan:
             set_path(data, key, value, str(path), f"points[{i}]")
         try:
             sc = parse_scenario(data, str(base_path))
+            try:                                 # each point's runs are held in memory
+                check_held(sc, runs or sc.runs, held="sweep")
+            except UsageError as exc:
+                raise UsageError(f"{where(i)}: {exc}") from None
             check_scenario(sc, cached_flight(sc.flight)[0].duration_s)
         except ScenarioError as exc:
             raise (exc.with_file(where(i)) if exc.file in (None, str(base_path)) else exc) from None

@@ -10,10 +10,12 @@ import difflib
 import hashlib
 import logging
 import math
+import numbers
 import os
 import re
 import tempfile
 import threading
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -425,8 +427,12 @@ def check_number(value: Any, kind: type = float, *, minimum: float | None = None
         raise error(f"is {value}", "a finite number")
     low = -limit if minimum is None and exclusive_minimum is None else minimum
     high = limit if maximum is None else maximum
-    if abs(value) > max(abs(high), abs(low if low is not None else 0.0), limit):
-        raise error(f"is {_short(value)}", f"a value of magnitude <= {limit:g}")
+    largest = max(abs(high), abs(low if low is not None else 0.0), limit)
+    if abs(value) > largest:              # before a float of it overflows; the bound it passes named
+        expected = (f"a value <= {_bound(high)}" if value > 0 and maximum is not None else
+                    f"a value >= {_bound(low)}" if value < 0 and minimum is not None else
+                    f"a value of magnitude <= {_bound(largest)}")
+        raise error(f"is {_short(value)}", expected)
     value = float(value) + 0.0 if kind is float else value
     if kind is float and value != 0.0 and abs(value) < MIN_FLOAT:
         raise error(f"is {value:g}", f"0 or a magnitude >= {MIN_FLOAT:g}")
@@ -449,9 +455,81 @@ def check_numbers(value: Any, n: int, *, error, **bounds) -> list[float]:
                          **bounds) for x in value]
 
 
+@dataclass(frozen=True)
+class Argument:
+    """A number that an API call and a command-line option both take, declared once: the API
+    checks a value (:meth:`check`), the command line reads its option's text (:meth:`parse`,
+    an argparse ``type``); both refuse with the same words, a :class:`UsageError` naming the
+    argument, the value and what was expected (``seed: -1 is below 0 (expected an integer
+    0-9223372036854775807)``)."""
+
+    name: str                                   #: the API's keyword (``chunk_runs``)
+    kind: type = int                            #: int or float
+    minimum: float | None = None
+    maximum: float | None = None
+    exclusive_minimum: float | None = None
+
+    @property
+    def option(self) -> str:
+        """The command line's option, ``--chunk-runs``."""
+        return "--" + self.name.replace("_", "-")
+
+    @property
+    def expected(self) -> str:
+        """What the argument takes: ``an integer 1-1000000``, ``a number > 0``."""
+        what = "an integer" if self.kind is int else "a finite number"
+        limit = lambda x: str(x) if isinstance(x, int) else f"{x:g}"
+        if self.minimum is not None and self.maximum is not None:
+            return f"{what} {limit(self.minimum)}-{limit(self.maximum)}"
+        bounds = [f"{op} {limit(x)}" for op, x in ((">=", self.minimum), (">", self.exclusive_minimum),
+                                                   ("<=", self.maximum)) if x is not None]
+        return " ".join([what, *bounds])
+
+    def problem(self, value: Any, shown: str) -> str | None:
+        """Why ``value`` (written ``shown``) is refused; None: it is taken."""
+        integer = isinstance(value, numbers.Integral) and not isinstance(value, bool)
+        if self.kind is int and not integer:
+            return f"{shown} is not an integer"
+        if self.kind is float and not (integer or isinstance(value, numbers.Real) and not isinstance(value, bool)):
+            return f"{shown} is not a number"
+        if self.kind is float and not math.isfinite(value):
+            return f"{shown} is not a finite number"
+        if self.minimum is not None and value < self.minimum:
+            return f"{shown} is below {self.minimum}"
+        if self.exclusive_minimum is not None and value <= self.exclusive_minimum:
+            return f"{shown} is not above {self.exclusive_minimum}"
+        if self.maximum is not None and value > self.maximum:
+            return f"{shown} is above {self.maximum}"
+        return None
+
+    def check(self, value: Any):
+        """``value`` as the argument's kind (a numpy integer as an ``int``); :class:`UsageError`
+        naming the argument where it is refused."""
+        why = self.problem(value, _short(value))
+        if why is not None:
+            raise UsageError(f"{self.name}: {why} (expected {self.expected})")
+        return int(value) if self.kind is int else float(value) + 0.0
+
+    def parse(self, text: str):
+        """The value of the option's ``text``; :class:`UsageError` saying why not (without the
+        option's name: argparse prefixes it)."""
+        try:
+            value = self.kind(text)
+        except (ValueError, OverflowError):
+            value = text
+        why = self.problem(value, text if isinstance(value, (int, float)) else repr(text))
+        if why is not None:
+            raise UsageError(f"{why} (expected {self.expected})")
+        return value
+
+
 def _bound(x: float) -> str:
-    """A bound for a message: as written (``0.0``), a large one short (``1e+12``)."""
-    return f"{x:g}" if abs(x) >= 1e6 else f"{x}"
+    """A bound for a message: as written (``0.0``), a large one short (``1e+12``) where that
+    is exact (an integer such as ``2**63 - 1`` in full)."""
+    if abs(x) < 1e6:
+        return f"{x}"
+    short = f"{x:g}"
+    return short if not isinstance(x, int) or int(float(short)) == x else str(x)
 
 
 def _short(value: Any) -> str:

@@ -8,15 +8,25 @@ dotted path of that mapping (``rms.pos_m``, ``windows.low_leg.height_m.std``), a
 
 Units are in the names: ``_m``, ``_mps``, ``_deg``, ``_s``, ``_pct``; per-axis values are
 ``[N, E, D]`` for position and velocity and ``[x, y, z]`` (rotation vector) for attitude.
+
+``from_dict()`` checks what it reads against the annotations (a number where a number is
+expected, three per axis, every required key there): a mapping that is not what navsim writes
+(a hand-edited or damaged ``metrics.json``) raises :class:`MetricsError` naming the key path;
+:func:`read_metrics` reads the file and names it too.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+import numbers
 import types
 import typing
 from dataclasses import dataclass, field
+from pathlib import Path
+
+from navsim.foundations.errors import UsageError
 
 #: the Euler axes of :class:`AttitudeStats`
 EULER_AXES = ("roll", "pitch", "yaw")
@@ -32,22 +42,102 @@ def _plain(v):
     return v
 
 
+class MetricsError(ValueError):
+    """A metrics mapping that is not what navsim writes: the key path (``estimators.KF.rms.pos_m[0]``,
+    "" at the top), what is there and what was expected."""
+
+    def __init__(self, message: str, key: str = ""):
+        self.message, self.key = message, key
+        super().__init__(f"{key}: {message}" if key else message)
+
+    def under(self, part: str) -> "MetricsError":
+        """The same error one level up, under the key (or ``[index]``) ``part``."""
+        return MetricsError(self.message, part + ("." if self.key and not self.key.startswith("[") else "") + self.key)
+
+
+_EXPECTED = {float: "a number (or null)", int: "an integer", str: "a string", bool: "true or false",
+             dict: "a mapping", list: "a list"}
+
+
+def _describe(v) -> str:
+    """What ``v`` (from JSON) is, for a message."""
+    if isinstance(v, (dict, list)):
+        return f"a {'mapping' if isinstance(v, dict) else 'list'} of {len(v)}"
+    text = json.dumps(v) if isinstance(v, (str, int, float, bool)) or v is None else repr(v)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _child(part: str, tp, v):
+    """:func:`_build` of the value under ``part``, its errors named with the key."""
+    try:
+        return _build(tp, v)
+    except MetricsError as exc:
+        raise exc.under(part) from None
+
+
+def _scalar(tp, v):
+    """``v`` as the plain type ``tp`` (float, int, str, bool, dict, list); :class:`MetricsError`
+    if it is not one."""
+    if tp is float and isinstance(v, numbers.Real) and not isinstance(v, bool):
+        return v
+    if tp is int and isinstance(v, numbers.Real) and not isinstance(v, bool) and float(v).is_integer():
+        return v if isinstance(v, numbers.Integral) else int(v)
+    if tp in (str, bool, dict, list) and isinstance(v, tp):
+        return v
+    if tp not in _EXPECTED:
+        return v
+    raise MetricsError(f"is {_describe(v)} (expected {_EXPECTED[tp]})")
+
+
 def _build(tp, v):
-    """``v`` (from JSON) as the annotated type ``tp``; null where a number is expected is NaN
-    (strict JSON writes NaN as null)."""
-    if v is None:
-        return math.nan if tp is float else None
+    """``v`` (from JSON) as the annotated type ``tp``, checked; null where a number is expected
+    is NaN (strict JSON writes NaN as null), null where the type allows None is None."""
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin in (typing.Union, types.UnionType):
-        tp = next(a for a in args if a is not type(None))
+        options = [a for a in args if a is not type(None)]
+        if v is None:
+            return None
+        if len(options) > 1:                  # float | list: the first that fits
+            for option in options:
+                try:
+                    return _build(option, v)
+                except MetricsError:
+                    pass
+            raise MetricsError(f"is {_describe(v)} (expected " + " or ".join(
+                _EXPECTED.get(typing.get_origin(o) or o, "a mapping") for o in options) + ")")
+        tp = options[0]
         origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if v is None:
+        if tp is float:
+            return math.nan
+        raise MetricsError(f"is null (expected {_EXPECTED.get(origin or tp, 'a mapping')})")
     if isinstance(tp, type) and issubclass(tp, _Record):
+        if not isinstance(v, dict):
+            raise MetricsError(f"is {_describe(v)} (expected a mapping)")
         return None if v == {} else tp.from_dict(v)       # {}: a section left empty (older files)
     if origin is dict:
-        return {k: _build(args[1], x) for k, x in v.items()}
+        return {k: _child(str(k), args[1], x) for k, x in _scalar(dict, v).items()}
     if origin is list and args:
-        return [_build(args[0], x) for x in v]
-    return v
+        return [_child(f"[{i}]", args[0], x) for i, x in enumerate(_scalar(list, v))]
+    return _scalar(tp, v)
+
+
+def check_typed(tp, value, key: str) -> None:
+    """:class:`MetricsError` naming ``key`` unless ``value`` is of the annotated type ``tp``
+    (what :meth:`_Record.from_dict` checks; for the fields of another record, ``run.json``'s)."""
+    _child(key, tp, value)
+
+
+def _check_numbers(v, key: str) -> None:
+    """:class:`MetricsError` unless every leaf of ``v`` (mappings and lists) is a number or null."""
+    if isinstance(v, dict):
+        for k, x in v.items():
+            _check_numbers(x, f"{key}.{k}")
+    elif isinstance(v, list):
+        for i, x in enumerate(v):
+            _check_numbers(x, f"{key}[{i}]")
+    elif v is not None and not (isinstance(v, numbers.Real) and not isinstance(v, bool)):
+        raise MetricsError(f"is {_describe(v)} (expected a number or null)", key)
 
 
 class _Record:
@@ -55,6 +145,10 @@ class _Record:
     the mapping (those named in ``_NULLS`` are kept, as JSON null)."""
 
     _NULLS: typing.ClassVar[tuple] = ()
+    #: field -> the length of its list (3 per axis)
+    _LENGTHS: typing.ClassVar[dict] = {}
+    #: the fields that are trees (mappings, lists) of numbers only (the intervals)
+    _NUMBER_TREES: typing.ClassVar[tuple] = ()
 
     def to_dict(self) -> dict:
         return {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)
@@ -62,9 +156,25 @@ class _Record:
 
     @classmethod
     def from_dict(cls, data: dict):
+        """The record of the mapping ``data``, checked: :class:`MetricsError` naming the key path
+        of a value of the wrong type or length, or of a required key that is missing."""
+        if not isinstance(data, dict):
+            raise MetricsError(f"is {_describe(data)} (expected a mapping)")
         hints = typing.get_type_hints(cls)
-        return cls(**{f.name: _build(hints[f.name], data[f.name]) for f in dataclasses.fields(cls)
-                      if f.name in data})
+        fields = dataclasses.fields(cls)
+        missing = [f.name for f in fields if f.name not in data and f.default is dataclasses.MISSING
+                   and f.default_factory is dataclasses.MISSING]
+        if missing:
+            raise MetricsError(f"is missing the key{'s' if len(missing) > 1 else ''} {', '.join(missing)}")
+        out = {}
+        for f in (f for f in fields if f.name in data):
+            out[f.name] = _child(f.name, hints[f.name], data[f.name])
+            n = cls._LENGTHS.get(f.name)
+            if n is not None and out[f.name] is not None and len(out[f.name]) != n:
+                raise MetricsError(f"has {len(out[f.name])} values (expected {n} numbers)", f.name)
+            if f.name in cls._NUMBER_TREES:
+                _check_numbers(out[f.name], f.name)
+        return cls(**out)
 
 
 @dataclass(frozen=True)
@@ -74,6 +184,8 @@ class ErrorStats(_Record):
     pos_m: list[float]
     vel_mps: list[float]
     att_deg: list[float]
+
+    _LENGTHS = {"pos_m": 3, "vel_mps": 3, "att_deg": 3}
 
 
 @dataclass(frozen=True)
@@ -104,6 +216,8 @@ class AttitudeStats(_Record):
     rms_deg: list[float]
     max_abs_deg: list[float]
     p95_about_run_mean_deg: list[float]
+
+    _LENGTHS = {"p95_deg": 3, "rms_deg": 3, "max_abs_deg": 3, "p95_about_run_mean_deg": 3}
 
 
 @dataclass(frozen=True)
@@ -179,13 +293,18 @@ class Window(_Record):
 
     @classmethod
     def from_dict(cls, data: dict) -> Window:
-        return cls({k: QuantityStats.from_dict(v) for k, v in data.items() if k not in ("horizontal_m", "nees")},
-                   _build(HorizontalStats, data.get("horizontal_m")), _build(WindowNees, data.get("nees")))
+        if not isinstance(data, dict):
+            raise MetricsError(f"is {_describe(data)} (expected a mapping)")
+        return cls({k: _child(k, QuantityStats, v) for k, v in data.items() if k not in ("horizontal_m", "nees")},
+                   _child("horizontal_m", HorizontalStats | None, data.get("horizontal_m")),
+                   _child("nees", WindowNees | None, data.get("nees")))
 
 
 @dataclass(frozen=True)
 class Nees(_Record):
     """The average over runs of the NEES of the 9 navigation errors against its chi-square band."""
+
+    _LENGTHS = {"band": 2}
 
     average: float               #: dimensionless, over the epochs from the settling time on
     band: list[float]            #: two-sided 95 % band of the average over the runs counted, dimensionless
@@ -201,6 +320,8 @@ class Nees(_Record):
 @dataclass(frozen=True)
 class Nis(_Record):
     """The average NIS of one measurement against its chi-square band."""
+
+    _LENGTHS = {"band": 2}
 
     average: float                #: dimensionless (its expected value is ``dim``)
     band: list[float]             #: two-sided 95 % band of the average, dimensionless
@@ -284,6 +405,7 @@ class EstimatorMetrics(_Record):
     ci95: dict | None = None
 
     _NULLS = ("convergence_s",)
+    _NUMBER_TREES = ("ci95",)
 
     def to_dict(self) -> dict:
         out = super().to_dict()
@@ -313,6 +435,7 @@ class IronErrors(_Record):
     ci95: dict | None = None
 
     _NULLS = ("mean", "p95", "max")
+    _NUMBER_TREES = ("ci95",)
 
 
 @dataclass(frozen=True)
@@ -346,10 +469,19 @@ class CalibrationScore(_Record):
 
     @classmethod
     def from_dict(cls, data: dict) -> CalibrationScore:
+        if not isinstance(data, dict):
+            raise MetricsError(f"is {_describe(data)} (expected a mapping)")
+        missing = [k for k in ("runs", "turns_total", "final") if k not in data]
+        if missing:
+            raise MetricsError(f"is missing the key{'s' if len(missing) > 1 else ''} {', '.join(missing)}")
         after = [k for k in data if k.startswith("after_") and k.endswith("_turns")]
-        turns = float(after[0][len("after_"):-len("_turns")]) if after else 2.0
-        return cls(data["runs"], data["turns_total"], CalibrationAt.from_dict(data["final"]), turns,
-                   CalibrationAt.from_dict(data[after[0]]) if after else None)
+        try:
+            turns = float(after[0][len("after_"):-len("_turns")]) if after else 2.0
+        except ValueError:
+            raise MetricsError("is not after_<turns>_turns with a number of turns", after[0]) from None
+        return cls(_child("runs", int, data["runs"]), _child("turns_total", float, data["turns_total"]),
+                   _child("final", CalibrationAt, data["final"]), turns,
+                   _child(after[0], CalibrationAt, data[after[0]]) if after else None)
 
 
 @dataclass(frozen=True)
@@ -394,6 +526,21 @@ class RunMetrics(_Record):
     closed_loop: dict | None = None
     wall_s: float | None = None
     paper_checks: list[Verdict] | None = None    #: the scenario's ``reference``, judged
+
+
+def read_metrics(path) -> RunMetrics:
+    """``metrics.json`` at ``path``, checked (:meth:`RunMetrics.from_dict`); a file that is not
+    JSON or not what navsim writes is a :class:`~navsim.foundations.errors.UsageError` naming
+    the file and the key path. ``OSError`` where it cannot be read."""
+    hint = "hint: navsim run writes it; run the scenario again (or undo the edit)"
+    try:
+        data = json.loads(Path(path).read_bytes())
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise UsageError(f"{path}: not JSON ({exc}); {hint}") from None
+    try:
+        return RunMetrics.from_dict(data)
+    except MetricsError as exc:
+        raise UsageError(f"{path}: {exc}; {hint}") from None
 
 
 def lookup(metrics: dict, path: str):

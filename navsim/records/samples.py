@@ -12,15 +12,21 @@ sums and are not kept.
 
 The file holds plain arrays only (read with ``allow_pickle=False``): ``format``, ``labels``,
 and per estimator ``i`` ``e{i}.runs``, ``e{i}.paths``, ``e{i}.roots`` and ``e{i}.{path}.s`` /
-``.n``.
+``.n``. :func:`load_samples` checks each array's type and shape against the others: a damaged,
+truncated or foreign file is a :class:`~navsim.foundations.errors.UsageError` naming the file
+and the array.
 """
 
 from __future__ import annotations
 
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from navsim.foundations.errors import UsageError
 
 #: the file's name in a result folder and the version of its layout
 SAMPLES_FILE, SAMPLES_FORMAT = "samples.npz", "samples-1"
@@ -69,14 +75,63 @@ def save_samples(path: Path, samples: dict[str, EstimatorSamples], extra: dict |
         np.savez(f, **arrays, **(extra or {}))
 
 
+class _Damaged(Exception):
+    """What is wrong with a samples file (its array named)."""
+
+
+#: what reading a damaged ``.npz`` raises (a truncated or corrupt archive or member; a file that
+#: is no archive is taken for a pickle and refused, which is no advice to pass on)
+_READ_ERRORS = (ValueError, EOFError, zipfile.BadZipFile, zlib.error, KeyError, IndexError)
+
+
+def _array(z, name: str, kinds: str, ndim: int) -> np.ndarray:
+    """The array ``name`` of the open archive ``z``, of a dtype kind in ``kinds`` and ``ndim``
+    dimensions; :class:`_Damaged` naming it otherwise."""
+    if name not in z.files:
+        raise _Damaged(f"it has no array {name}")
+    try:
+        a = z[name]
+    except _READ_ERRORS:
+        raise _Damaged(f"its array {name} cannot be read (truncated or corrupt)") from None
+    if a.dtype.kind not in kinds or a.ndim != ndim:
+        raise _Damaged(f"its array {name} is {a.dtype} of shape {a.shape}, not the {ndim}-d "
+                       f"{'numbers' if 'f' in kinds else 'text' if kinds == 'U' else a.dtype.kind} its layout has")
+    return a
+
+
+def _estimator(z, i: int) -> EstimatorSamples:
+    """The ``i``-th estimator's samples of the open archive ``z``, checked."""
+    runs = _array(z, f"e{i}.runs", "iu", 1)
+    paths, roots = _array(z, f"e{i}.paths", "U", 1).tolist(), _array(z, f"e{i}.roots", "b", 1).tolist()
+    if len(paths) != len(roots) or len(set(runs.tolist())) != len(runs):
+        raise _Damaged(f"its arrays e{i}.paths and e{i}.roots differ in length, or e{i}.runs repeats a run")
+    metrics = {}
+    for p, r in zip(paths, roots):
+        s, n = _array(z, f"e{i}.{p}.s", "fiu", 2), _array(z, f"e{i}.{p}.n", "fiu", 2)
+        if s.shape != n.shape or s.shape[0] != len(runs) or s.shape[1] < 1:
+            raise _Damaged(f"its arrays e{i}.{p}.s {s.shape} and .n {n.shape} are not (runs, components) "
+                           f"for the {len(runs)} runs of e{i}.runs")
+        metrics[p] = MetricSamples(s, n, bool(r))
+    return EstimatorSamples(runs, metrics)
+
+
 def load_samples(path: Path) -> dict[str, EstimatorSamples]:
-    """Read what :func:`save_samples` wrote; ``ValueError`` for another layout."""
-    with np.load(path, allow_pickle=False) as z:
-        if "format" not in z.files or str(z["format"]) != SAMPLES_FORMAT:
-            raise ValueError(f"not a {SAMPLES_FORMAT} samples file")
-        out = {}
-        for i, label in enumerate(z["labels"].tolist()):
-            paths, roots = z[f"e{i}.paths"].tolist(), z[f"e{i}.roots"].tolist()
-            out[label] = EstimatorSamples(z[f"e{i}.runs"], {p: MetricSamples(z[f"e{i}.{p}.s"], z[f"e{i}.{p}.n"], bool(r))
-                                                              for p, r in zip(paths, roots)})
-        return out
+    """Read what :func:`save_samples` wrote, every array checked against the layout;
+    :class:`~navsim.foundations.errors.UsageError` naming the file (and the array) for another
+    layout, a damaged or truncated file; ``OSError`` where it cannot be opened."""
+    hint = "hint: run its scenario again to write it anew"
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            fmt = _array(z, "format", "U", 0) if "format" in z.files else None
+            if fmt is None or str(fmt) != SAMPLES_FORMAT:
+                raise _Damaged(f"it is not a {SAMPLES_FORMAT} samples file (no format {SAMPLES_FORMAT!r})")
+            return {label: _estimator(z, i) for i, label in enumerate(_array(z, "labels", "U", 1).tolist())}
+    except _Damaged as exc:
+        raise UsageError(f"{path}: damaged: {exc}; {hint}") from None
+    except OSError as exc:
+        if exc.errno is not None:              # cannot be opened: the caller's to say
+            raise
+        raise UsageError(f"{path}: damaged: not a readable .npz archive; {hint}") from None
+    except _READ_ERRORS:
+        raise UsageError(f"{path}: damaged: not a readable .npz archive (truncated, corrupt or another "
+                         f"kind of file); {hint}") from None

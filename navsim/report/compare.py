@@ -13,9 +13,9 @@ import math
 
 import numpy as np
 
-from navsim.report.figures import Page, page_figure, titled
-from navsim.report.tables import FAIL, PASS
-from navsim.scoring.compare import (BETTER, HIGHER, LOWER, SAME, WORSE, Comparison, Difference, columns,
+from navsim.report.figures import TITLE_LINE_IN, Page, page_figure, titled
+from navsim.report.tables import FAIL, PASS, wrap_text
+from navsim.scoring.compare import (BETTER, HIGHER, LOWER, NEGLIGIBLE, SAME, WORSE, Comparison, Difference, columns,
                                     paired_rows)
 from navsim.scoring.intervals import CONFIDENCE
 from navsim.scoring.verdicts import num
@@ -23,8 +23,12 @@ from navsim.scoring.verdicts import num
 #: the table's columns (terminal, CSV: the same order)
 HEADERS = ("metric", "A", "B", "B - A [95 %]", "B - A, %", "verdict")
 CSV_HEADERS = ("estimator_a", "estimator_b", "paired", "runs", "metric", "component", "a", "b", "diff",
-               "ci95_lo", "ci95_hi", "relative", "p_value", "verdict", "runs_needed")
-COLOURS = {BETTER: PASS, WORSE: FAIL, SAME: "#555555", HIGHER: "#1f5fa8", LOWER: "#1f5fa8"}
+               "ci95_lo", "ci95_hi", "relative", "p_value", "verdict", "runs_needed", "margin")
+#: the headline over the panels: its size (points), and its place (inches): from the page's top
+#: and sides, and the room it keeps above the panels
+HEAD_PT = 6.5
+HEAD_IN = {"top": 0.55, "left": 0.5, "right": 0.3, "below": 0.35}
+COLOURS = {BETTER: PASS, WORSE: FAIL, SAME: "#555555", HIGHER: "#1f5fa8", LOWER: "#1f5fa8", NEGLIGIBLE: "#8a8a8a"}
 
 
 def _signed(v: float) -> str:
@@ -33,13 +37,19 @@ def _signed(v: float) -> str:
 
 def verdict_text(d: Difference, runs: int) -> str:
     """The verdict as printed: ``no significant difference at 50 runs (~210 would resolve it)``."""
+    if d.verdict == NEGLIGIBLE:
+        return f"{NEGLIGIBLE}: within +-{num(d.margin)}"
     if d.verdict != SAME:
         return f"B {d.verdict}"
+    if d.runs_needed:
+        more = f"~{d.runs_needed} runs would resolve {_signed(d.diff)}"
+    elif math.isfinite(d.margin) and abs(d.diff) <= d.margin:
+        more = f"{_signed(d.diff)} is within the margin +-{num(d.margin)}"
+    else:
+        more = ""
     if math.isfinite(d.p_value) and d.p_value < 1 - CONFIDENCE:     # its own interval excludes 0
-        return (f"not significant over the components (Holm; its own p {d.p_value:.2g}; "
-                f"~{d.runs_needed} runs would resolve {_signed(d.diff)})")
-    more = f" (~{d.runs_needed} runs would resolve {_signed(d.diff)})" if d.runs_needed else ""
-    return f"{SAME} at {runs} runs{more}"
+        return f"not significant over the components (Holm; its own p {d.p_value:.2g}" + (f"; {more})" if more else ")")
+    return f"{SAME} at {runs} runs" + (f" ({more})" if more else "")
 
 
 def text_rows(c: Comparison) -> list[list[str]]:
@@ -56,7 +66,8 @@ def csv_rows(c: Comparison) -> list[list]:
     """The rows of ``compare.csv`` (numbers unformatted; empty for none)."""
     v = lambda x: "" if x is None or (isinstance(x, float) and not math.isfinite(x)) else x
     return [[c.a.estimator, c.b.estimator, c.paired, c.runs_compared, d.metric, d.component, v(d.a), v(d.b),
-             v(d.diff), v(d.ci95[0]), v(d.ci95[1]), v(d.relative), v(d.p_value), d.verdict, v(d.runs_needed)]
+             v(d.diff), v(d.ci95[0]), v(d.ci95[1]), v(d.relative), v(d.p_value), d.verdict, v(d.runs_needed),
+             v(d.margin)]
             for d in c.differences]
 
 
@@ -68,7 +79,15 @@ def headline(c: Comparison) -> str:
             for k, runs in (("A", c.only_a), ("B", c.only_b)) if runs]
     left = f" (left out: {'; '.join(left)}: diverged on the other side)" if left else ""
     return (f"{side(c.a, 'A')}\n{side(c.b, 'B')}\n{c.pairing}; {c.runs_compared} runs compared{left}; {counts}; "
-            f"the verdicts over the {len(c.differences)} components together (Holm, 5 %)")
+            f"the verdicts over the {len(c.differences)} components together (Holm, 5 %); {_margin_text(c)}")
+
+
+def _margin_text(c: Comparison) -> str:
+    """The practical-equivalence margin in words."""
+    if not isinstance(c.margin_pct, dict):
+        return f"negligible: the interval within +-{c.margin_pct:g} % of the larger value"
+    parts = [f"{k or 'the others'} {v:g} %" for k, v in c.margin_pct.items()]
+    return "negligible: the interval within the margin, per cent of the larger value (" + ", ".join(parts) + ")"
 
 
 def _dots(c: Comparison) -> dict:
@@ -89,6 +108,8 @@ def _dots(c: Comparison) -> dict:
 
 def _short(d: Difference) -> str:
     """The verdict beside a line of the page."""
+    if d.verdict == NEGLIGIBLE:
+        return NEGLIGIBLE
     if d.verdict != SAME:
         return f"B {d.verdict}"
     p = f", p {d.p_value:.2g}" if math.isfinite(d.p_value) and d.p_value < 1 - CONFIDENCE else ""
@@ -136,8 +157,11 @@ def compare_page(c: Comparison, name: str = "compare") -> Page:
         _panel(ax, c, diffs, dots)
     axes[-1, 0].set_xlabel("B - A, % of A " + ("(grey: each run's own B - A)" if c.paired else
                                                "(grey: A's runs, blue: B's runs, about A's value)"), fontsize=7.5)
-    text = headline(c).replace("; ", ";\n", 1)
-    fig.text(0.06, 1 - 0.55 / fig.get_figheight(), text, fontsize=6.5, va="top")
     page = titled(fig, name, f"Compare: {c.b.estimator} (B) against {c.a.estimator} (A)")
-    fig.subplots_adjust(right=0.74, top=1 - 1.35 / fig.get_figheight())
+    w, h = fig.get_size_inches()
+    top = HEAD_IN["top"] + TITLE_LINE_IN * fig.get_suptitle().count("\n")      # under a title of more lines
+    lines = wrap_text(headline(c).replace("; ", ";\n", 1), w - HEAD_IN["left"] - HEAD_IN["right"], HEAD_PT)
+    fig.text(HEAD_IN["left"] / w, 1 - top / h, "\n".join(lines), fontsize=HEAD_PT, va="top")
+    below = top + len(lines) * HEAD_PT * 1.2 / 72 + HEAD_IN["below"]
+    fig.subplots_adjust(right=0.74, top=1 - below / h)
     return page

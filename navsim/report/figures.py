@@ -4,15 +4,17 @@ landed closed-loop run leaves NaN."""
 
 from __future__ import annotations
 
+import re
 import textwrap
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from navsim.records.run import RunRecord
-from navsim.report.tables import PAGE_IN
+from navsim.report.tables import PAGE_IN, text_width_in
 from navsim.records.metrics import RunMetrics
 
 #: every page of a report: A4 portrait (the text pages' size), inches
@@ -70,8 +72,12 @@ def pyplot():
 
 
 def page_figure(rows: int = 1, cols: int = 1, **kw):
-    """``(figure, axes)`` of one report page (:data:`FIGURE_IN`): ``plt.subplots`` on a page."""
-    return pyplot().subplots(rows, cols, figsize=FIGURE_IN, **kw)
+    """``(figure, axes)`` of one report page (:data:`FIGURE_IN`): ``Figure.subplots`` on a page
+    of its own, not held by pyplot (a report of more than 20 pages opens none there; a page is
+    freed when dropped)."""
+    fig = Figure(figsize=FIGURE_IN)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(rows, cols, **kw)
 
 
 #: a page's fixed margins, inches: left of the axes (tick labels and the y label), right of
@@ -82,11 +88,40 @@ MARGIN_IN = {"left": 0.95, "right": 0.3, "bottom": 0.55, "row": 0.3, "xlabels": 
              "column": 0.95}
 
 
+#: what the first column's y tick labels and y label need beside their texts, inches: room to
+#: the page's edge, the tick marks with the labels' pad, the y label's pad
+LABEL_ROOM_IN = {"edge": 0.1, "ticks": 0.1, "label": 0.06}
+#: a line of text's height, in font sizes
+TEXT_LINE = 1.2
+
+
+def _plain(text: str) -> str:
+    """A tick label's mathtext (``$\\mathdefault{2.95\\times10^{0}}$``) as the characters it
+    draws, near enough to measure."""
+    return re.sub(r"\\mathdefault|[{}$^]", "", text.replace("\\times", "\u00d7").replace("\\minus", "-"))
+
+
+def y_labels_in(ax) -> float:
+    """What ``ax``'s y tick labels (those inside its limits, as its formatters give them at its
+    limits now) and its y label take left of it, inches, measured character by character
+    (:func:`~navsim.report.tables.text_width_in`), nothing drawn."""
+    lo, hi = sorted(ax.get_ylim())
+    pad = 1e-9 * abs(hi - lo)
+    ticks = [t for t in ax.get_yticklabels() + ax.get_yticklabels(minor=True)
+             if t.get_visible() and t.get_text().strip() and lo - pad <= t.get_position()[1] <= hi + pad]
+    width = max((text_width_in(_plain(t.get_text()), t.get_fontsize()) for t in ticks), default=0.0)
+    label = ax.yaxis.label
+    height = (label.get_text().count("\n") + 1) * TEXT_LINE * label.get_fontsize() / 72 if label.get_text() else 0.0
+    return (LABEL_ROOM_IN["edge"] + width + LABEL_ROOM_IN["ticks"] * bool(ticks)
+            + (LABEL_ROOM_IN["label"] + height) * bool(height))
+
+
 def fit(fig, top: float = 1.0) -> None:
     """Lay the page's grid of axes out between fixed margins (:data:`MARGIN_IN`), above the
     page's foot (:data:`FOOTER_IN`) and below ``top`` (a share of the height: room for a title
-    and legend drawn on the figure): no text is measured (``tight_layout`` measured every
-    label, about half the time of drawing a page)."""
+    and legend drawn on the figure); the left margin wider where the first column's y labels
+    need it (:func:`y_labels_in`: their characters' cached widths; ``tight_layout`` measured
+    every label, about half the time of drawing a page)."""
     w, h = fig.get_size_inches()
     axes = [ax for ax in fig.axes if ax.get_subplotspec() is not None]
     rows, cols = axes[0].get_subplotspec().get_gridspec().get_geometry() if axes else (1, 1)
@@ -97,7 +132,11 @@ def fit(fig, top: float = 1.0) -> None:
     bottom, upper = (FOOTER_IN + m["bottom"]) / h, top - (0.1 + m["title"] * titled) / h
     # an axis labelled on the right (a twin's) needs the left margin's room there
     on_right = any(ax.yaxis.get_label_position() == "right" and ax.get_ylabel() for ax in axes)
-    left, right = m["left"] / w, 1 - (m["left"] if on_right else m["right"]) / w
+    # the first column's labels where they need more (a metric's name, a number of many digits)
+    first = [ax for ax in axes if ax.get_visible() and ax.get_subplotspec().is_first_col()
+             and ax.yaxis.get_label_position() == "left"]
+    left = max([m["left"]] + [y_labels_in(ax) for ax in first]) / w
+    right = 1 - (m["left"] if on_right else m["right"]) / w
     cell_h = ((upper - bottom) * h - (rows - 1) * gap) / rows
     cell_w = ((right - left) * w - (cols - 1) * m["column"]) / cols
     fig.subplots_adjust(left=left, right=right, bottom=bottom, top=upper,
@@ -106,6 +145,8 @@ def fit(fig, top: float = 1.0) -> None:
 
 #: the characters of a page title's line at its font size across the page (a longer title wraps)
 TITLE_CHARS = 90
+#: the height of a page title's line, inches
+TITLE_LINE_IN = 0.2
 
 
 def titled(fig, name: str, title: str) -> Page:
@@ -113,7 +154,7 @@ def titled(fig, name: str, title: str) -> Page:
     title longer than :data:`TITLE_CHARS` wraps onto more lines, the axes moved down under them."""
     lines = textwrap.wrap(title, TITLE_CHARS) or [""]
     fig.suptitle("\n".join(lines), fontsize=11, y=1 - 0.25 / fig.get_figheight(), va="top")
-    fit(fig, 1 - (0.5 + 0.2 * (len(lines) - 1)) / fig.get_figheight())
+    fit(fig, 1 - (0.5 + TITLE_LINE_IN * (len(lines) - 1)) / fig.get_figheight())
     return Page(name, title, fig)
 
 

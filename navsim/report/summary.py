@@ -248,14 +248,31 @@ def closed_loop(m: dict | None) -> Section | None:
                     ["same flight guided on the truth", num(ref["miss_m"]), "-", "-", "-", "1"]])
 
 
+#: a window's table shows ``heading_deg`` and leaves ``yaw_deg`` (in metrics.json) out: this
+#: says why, with the largest difference of their statistics (deg)
+YAW_LEFT_OUT = (" The Euler yaw error (yaw_deg, in metrics.json) is left out: it is the heading error (the "
+                "rotation error about the vertical) plus tan(pitch) times the tilt error about the heading "
+                "axis, equal in level flight; its statistics are within {} deg of heading_deg's here.")
+
+
+def _yaw_apart(quantities: dict):
+    """The largest difference between the statistics of ``yaw_deg`` and ``heading_deg`` (None
+    without both)."""
+    if "yaw_deg" not in quantities or "heading_deg" not in quantities:
+        return None
+    a, b = quantities["yaw_deg"], quantities["heading_deg"]
+    stats = ("max_pos", "max_neg", "std", "rms", "p95_abs")
+    return float(np.nanmax([abs(getattr(a, k) - getattr(b, k)) for k in stats]))
+
+
 def windows(metrics: RunMetrics, spans=()) -> list[Section]:
     """One section per metrics window: each estimator's quantities (``spans``: the scenario's
-    ``(name, start_s, end_s)``)."""
+    ``(name, start_s, end_s)``); ``yaw_deg`` left out beside ``heading_deg`` (:data:`YAW_LEFT_OUT`)."""
     names = list(dict.fromkeys(w for m in metrics.estimators.values() for w in (m.windows or {})))
     times = {name: (a, b) for name, a, b in spans}
     out = []
     for name in names:
-        rows, nees, drift = [], [], []
+        rows, nees, drift, apart = [], [], [], []
         for label, m in metrics.estimators.items():
             w = (m.windows or {}).get(name)
             if w is None:
@@ -268,7 +285,10 @@ def windows(metrics: RunMetrics, spans=()) -> list[Section]:
             if w.nees is not None:
                 nees.append(f"{label} {with_interval(w.nees.average, ci('nees.average'))}, "
                             f"{pct_ci(w.nees.fraction_inside, ci('nees.fraction_inside'))} in band")
-            for j, (q, v) in enumerate(w.quantities.items()):
+            shown = {q: v for q, v in w.quantities.items()
+                     if not (q == "yaw_deg" and "heading_deg" in w.quantities)}
+            apart += [d for d in [_yaw_apart(w.quantities)] if d is not None]
+            for j, (q, v) in enumerate(shown.items()):
                 norm = q in NORM_QUANTITIES
                 rows.append([label if j == 0 else "", q + (" (norm)" if norm else ""), num(v.max_pos),
                              "-" if norm else num(v.max_neg), with_interval(v.std, ci(f"{q}.std")),
@@ -279,6 +299,7 @@ def windows(metrics: RunMetrics, spans=()) -> list[Section]:
         text += (" Horizontal position error, m (RMS over the runs; an outage's drift): " + "; ".join(drift) + "."
                  if drift else "")
         text += f" NEES over the window: {'; '.join(nees)}." if nees else ""
+        text += YAW_LEFT_OUT.format(num(max(apart))) if apart else ""
         out.append(Section(f"Window '{name}'{span}", text,
                            ["estimator", "quantity", "max +", "max -", "std", "RMS"], rows))
     return out

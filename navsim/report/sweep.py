@@ -15,7 +15,12 @@ import numpy as np
 from navsim.experiment.sweep import SweepResult
 from navsim.foundations.outputs import OutputFolder
 from navsim.report.figures import pyplot
+from navsim.report.tables import wrap_text
 from navsim.scoring.verdicts import num
+
+#: the title's size, points, and the room it keeps from the figure's sides, inches
+TITLE_PT = 10
+TITLE_SIDES_IN = 0.3
 
 
 def short_key(path: str) -> str:
@@ -48,7 +53,7 @@ def _log_if_positive(ax, values) -> None:
 def _lines(fig, sweep: SweepResult, labels: list, key: str | None) -> None:
     """One axis: the metric per estimator over the parameter's values (or the points)."""
     ax = fig.add_subplot()
-    ticks = [str(p.get(key, "-")) for p, _ in sweep.rows] if key else [str(i) for i in range(len(sweep.rows))]
+    ticks = [str(p.get(key, "-")) for p, _ in sweep.rows] if key else [str(i + 1) for i in range(len(sweep.rows))]
     for lb in labels:
         ax.errorbar(range(len(sweep.rows)), _values(sweep, lb), yerr=_errors(sweep, lb), fmt="o-", capsize=3,
                     label=lb)
@@ -61,7 +66,8 @@ def _lines(fig, sweep: SweepResult, labels: list, key: str | None) -> None:
         ax.text(n, 0.03, "not flown" if n in sweep.unflown else "no run",
                 transform=ax.get_xaxis_transform(), ha="center", fontsize=8, color="tab:red")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    if ax.get_legend_handles_labels()[0]:        # no point with a value: no line to name
+        ax.legend(fontsize=8)
 
 
 def _heatmaps(fig, sweep: SweepResult, labels: list, rows_key: str, cols_key: str, axes: dict) -> None:
@@ -107,6 +113,7 @@ def write_sweep_figure(folder: OutputFolder, sweep: SweepResult, title: str) -> 
         _heatmaps(fig, sweep, labels, *axes, axes)
     else:
         _lines(fig, sweep, labels, next(iter(axes)) if len(axes) == 1 else None)
-    fig.suptitle(title, fontsize=10)
+    lines = wrap_text(title, fig.get_figwidth() - 2 * TITLE_SIDES_IN, TITLE_PT)
+    fig.suptitle("\n".join(lines), fontsize=TITLE_PT)
     folder.write("sweep.png", lambda p: fig.savefig(p, dpi=110))
     plt.close(fig)

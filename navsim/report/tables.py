@@ -80,9 +80,15 @@ def _new_page(title: str, continued: bool) -> _Page:
 
 
 def _width_in(page: _Page, text: str, size: float, weight: str = "normal", family: str = "sans-serif") -> float:
+    return text_width_in(text, size, weight, family, page.fig.dpi)
+
+
+def text_width_in(text: str, size: float, weight: str = "normal", family: str = "sans-serif",
+                  dpi: float = PNG_DPI) -> float:
+    """The width of ``text``'s widest line at ``size`` points, inches, as Agg draws it at ``dpi``
+    (:func:`_line_width_px`: 0-1.5 % over, never under); 0 for no text."""
     if not text:
         return 0.0
-    dpi = page.fig.dpi
     return max(_line_width_px(line, size, weight, family, dpi) for line in text.split("\n")) / dpi
 
 
@@ -131,30 +137,32 @@ def _room(page: _Page) -> float:
     return PAGE_IN[1] - MARGIN_IN - page.y_in
 
 
-def _pieces(page: _Page, word: str, width_in: float, size: float, family: str) -> list[str]:
+def _pieces(dpi: float, word: str, width_in: float, size: float, family: str) -> list[str]:
     """A word too long for the line cut after its dots, underscores and slashes (a metric's
     path), where it has them."""
-    if _width_in(page, word, size, family=family) <= width_in:
+    if text_width_in(word, size, family=family, dpi=dpi) <= width_in:
         return [word]
     parts, out = re.findall(r"[^._/]+[._/]?|[._/]", word), [""]
     # a piece still too long is cut between characters
-    parts = [q for p in parts for q in ([p] if _width_in(page, p, size, family=family) <= width_in else list(p))]
+    parts = [q for p in parts for q in ([p] if text_width_in(p, size, family=family, dpi=dpi) <= width_in else list(p))]
     for part in parts:
-        if out[-1] and _width_in(page, out[-1] + part, size, family=family) > width_in:
+        if out[-1] and text_width_in(out[-1] + part, size, family=family, dpi=dpi) > width_in:
             out.append(part)
         else:
             out[-1] += part
     return out
 
 
-def _wrap(page: _Page, text: str, width_in: float, size: float, family: str = "sans-serif") -> list[str]:
-    """``text``'s lines wrapped to ``width_in`` (each paragraph of it, measured)."""
+def wrap_text(text: str, width_in: float, size: float, family: str = "sans-serif", dpi: float = PNG_DPI) -> list[str]:
+    """``text``'s lines wrapped to ``width_in`` at ``size`` points (each paragraph of it,
+    measured as Agg draws it at ``dpi``; a word too long cut after its dots, underscores and
+    slashes)."""
     out = []
     for para in text.split("\n"):
-        words, line = [p for w in para.split(" ") for p in _pieces(page, w, width_in, size, family)], ""
+        words, line = [p for w in para.split(" ") for p in _pieces(dpi, w, width_in, size, family)], ""
         for w in words:
             trial = f"{line} {w}" if line else w
-            if line and _width_in(page, trial, size, family=family) > width_in:
+            if line and text_width_in(trial, size, family=family, dpi=dpi) > width_in:
                 out.append(line)
                 line = w
             else:
@@ -184,15 +192,14 @@ def layout(title: str, blocks: list) -> list[Figure]:
     """The pages holding ``blocks`` (:class:`Heading`, :class:`Paragraph`, :class:`Table`) in
     order under ``title``."""
     lay = _Layout(title)
+    heading = None                                  # the last heading and its page
     for b in blocks:
         if isinstance(b, Heading):
-            lines = _wrap(lay.pages[-1], b.text, 0.93 * _block_width(), b.size)      # bold is wider
-            p = lay.page(b.size * LINE / 72 * (len(lines) + 2))   # a heading keeps two lines of what follows
-            p.y_in += 0.08
-            _draw_text(p, "\n".join(lines), MARGIN_IN, b.size, weight="bold")
-            p.y_in += len(lines) * b.size * LINE / 72 + 0.04
+            p = _heading(lay, b.text, b.size)
+            heading = (b, p)
         elif isinstance(b, Paragraph):
-            lines = b.text.split("\n") if b.pre else _wrap(lay.pages[-1], b.text, _block_width(), b.size, b.family)
+            lines = (b.text.split("\n") if b.pre
+                     else wrap_text(b.text, _block_width(), b.size, b.family, lay.pages[-1].fig.dpi))
             step = b.size * LINE / 72
             for line in lines:
                 p = lay.page(step)
@@ -200,8 +207,18 @@ def layout(title: str, blocks: list) -> list[Figure]:
                 p.y_in += step
             lay.pages[-1].y_in += 0.06
         else:
-            _table(lay, b)
+            _table(lay, b, heading)
     return [p.fig for p in lay.pages]
+
+
+def _heading(lay: _Layout, text: str, size: float) -> _Page:
+    """Draw a heading where it keeps two lines of what follows; returns its page."""
+    lines = wrap_text(text, 0.93 * _block_width(), size, dpi=lay.pages[-1].fig.dpi)      # bold is wider
+    p = lay.page(size * LINE / 72 * (len(lines) + 2))
+    p.y_in += 0.08
+    _draw_text(p, "\n".join(lines), MARGIN_IN, size, weight="bold")
+    p.y_in += len(lines) * size * LINE / 72 + 0.04
+    return p
 
 
 def _cell_lines(page: _Page, table: Table, caps: list[float]) -> list[list[list[str]]]:
@@ -212,7 +229,7 @@ def _cell_lines(page: _Page, table: Table, caps: list[float]) -> list[list[list[
         for text, cap in zip(row, caps):
             text = str(text)
             wide = _width_in(page, text, table.size) > cap
-            cells.append(_wrap(page, text, cap, table.size) if wide else text.split("\n"))
+            cells.append(wrap_text(text, cap, table.size, dpi=page.fig.dpi) if wide else text.split("\n"))
         out.append(cells)
     return out
 
@@ -275,7 +292,10 @@ def _measured(page: _Page, table: Table):
     return first
 
 
-def _table(lay: _Layout, table: Table) -> None:
+def _table(lay: _Layout, table: Table, heading=None) -> None:
+    """Draw ``table`` from the cursor on, over as many pages as it takes; on a page after
+    ``heading``'s (``(Heading, its page)``), the heading again, "(continued)", and a first row
+    whose first cell is empty (a row of a group) with the group's name."""
     table, cells, widths = _measured(lay.pages[-1], table)
     align = _alignment(table)
     colours = table.colours or [[None] * len(table.headers) for _ in table.rows]
@@ -285,20 +305,37 @@ def _table(lay: _Layout, table: Table) -> None:
         rows = list(range(len(cells)))
         while True:
             p = lay.page((head_lines + min(3, len(rows)) + 1) * line_in)
+            if heading is not None and p is not heading[1]:
+                p = _heading(lay, f"{heading[0].text} (continued)", heading[0].size)
+                heading = (heading[0], p)
+            shown = _named_group(cells, rows[0]) if rows else cells      # a table of no rows: its header
             fit = max(1, int(math.floor((_room(p) - (head_lines + 0.6) * line_in) / line_in)))
             taken, used = [], 0
             for r in rows:
-                n = max(len(cells[r][j]) for j in cols)
+                n = max(len(shown[r][j]) for j in cols)
                 if taken and used + n > fit:
                     break
                 taken.append(r)
                 used += n
-            _draw_rows(p, table, cols, widths, align, cells, colours, taken, head_lines, line_in)
+            _draw_rows(p, table, cols, widths, align, shown, colours, taken, head_lines, line_in)
             rows = rows[len(taken):]
             if not rows:
                 break
             lay.new()
         lay.pages[-1].y_in += 0.12
+
+
+def _named_group(cells: list, first: int) -> list:
+    """``cells`` with row ``first``'s empty first cell given the last first cell above it (a
+    table continued on a new page starts inside a group of rows: its name again)."""
+    if first == 0 or any(line.strip() for line in cells[first][0]):
+        return cells
+    name = next((cells[r][0] for r in range(first - 1, -1, -1) if any(line.strip() for line in cells[r][0])), None)
+    if name is None:
+        return cells
+    shown = list(cells)
+    shown[first] = [name] + cells[first][1:]
+    return shown
 
 
 def _draw_rows(p: _Page, table: Table, cols, widths, align, cells, colours, rows, head_lines, line_in) -> None:

@@ -21,16 +21,26 @@ called different when none is stays at 5 %, where 30 components each tested at 5
 one in four out of nothing); the intervals are each one's own 95 %. A component whose own
 interval excludes 0 but that does not pass Holm's step is ``no significant difference`` with
 its ``p_value`` shown.
+
+A practical-equivalence margin (``margin``, per cent of the larger of A's and B's value,
+:data:`DEFAULT_MARGIN_PCT` unless given, per metric path if asked) says what difference
+matters: a component whose whole 95 % interval lies within ``+- margin`` is ``negligible``
+(the two are equivalent to within it, significant or not: two filters 66 nm apart), and a
+``no significant difference`` whose difference seen is within the margin is offered no run
+count (resolving it would not matter). A margin of 0 turns this off: the intervals' verdicts alone.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.stats import t as student_t
 
+from navsim.foundations.errors import UsageError
 from navsim.records.samples import EstimatorSamples, MetricSamples
 from navsim.records.states import POS, SIGMA_STATES
 from navsim.scoring.intervals import CONFIDENCE, MIN_RUNS, student_runs
@@ -38,6 +48,11 @@ from navsim.scoring.intervals import CONFIDENCE, MIN_RUNS, student_runs
 #: the verdicts (an error metric; a consistency statistic)
 BETTER, WORSE, SAME = "better", "worse", "no significant difference"
 HIGHER, LOWER = "higher", "lower"
+#: the verdict of a difference whose 95 % interval lies within the practical-equivalence margin
+NEGLIGIBLE = "negligible"
+#: the practical-equivalence margin, per cent of the larger of A's and B's value: a difference
+#: below it does not matter (an RMS 1 % apart is within what a Monte Carlo is usually asked for)
+DEFAULT_MARGIN_PCT = 1.0
 #: the names of a metric's components, by its shape (the metric path's start decides first)
 COMPONENTS = {"attitude.rms_deg": ("roll", "pitch", "yaw"), "nees.per_state": SIGMA_STATES}
 AXES = tuple(s.split("_")[1] for s in SIGMA_STATES[POS])
@@ -68,6 +83,8 @@ class Difference:
     #: the standard error B - A would have at one run per side (``se * sqrt(runs)`` paired;
     #: ``sqrt(var(g_A) + var(g_B))`` unpaired): what the runs needed scale
     spread: float = math.nan
+    #: the practical-equivalence margin in the metric's unit (its per cent of max(|A|, |B|))
+    margin: float = math.nan
 
     @property
     def relative(self) -> float:
@@ -135,10 +152,51 @@ def _rows(m: MetricSamples, rows) -> MetricSamples:
     return MetricSamples(m.s[rows], m.n[rows], m.root)
 
 
-def differences(a: EstimatorSamples, b: EstimatorSamples, paired: bool) -> list[Difference]:
+def check_margin(margin):
+    """``margin`` as :func:`compare_samples` takes it (a per cent, or a mapping of metric path ->
+    per cent, ``""`` the default), checked: each a number 0-100; else a :class:`UsageError`."""
+    items = margin.items() if isinstance(margin, Mapping) else [("", margin)]
+    for key, pct in items:
+        where = f"margin[{key!r}]" if isinstance(margin, Mapping) else "margin"
+        if not isinstance(key, str):
+            raise UsageError(f"{where}: the key is not a metric path (expected a string such as 'rms.pos_m')")
+        if isinstance(pct, bool) or not isinstance(pct, numbers.Real) or not 0 <= float(pct) <= 100:
+            raise UsageError(f"{where}: is {pct!r} (expected a number of per cent, 0-100; default "
+                             f"{DEFAULT_MARGIN_PCT:g})")
+    return {k: float(v) for k, v in margin.items()} if isinstance(margin, Mapping) else float(margin)
+
+
+def margin_pct(margin, path: str) -> float:
+    """The margin (per cent) of the metric ``path``: ``margin`` itself, or the entry of the
+    mapping whose key is the longest start of ``path`` (``"rms.pos_m"``; ``""`` the default,
+    else :data:`DEFAULT_MARGIN_PCT`)."""
+    if not isinstance(margin, Mapping):
+        return float(margin)
+    keys = [k for k in margin if path == k or path.startswith(k + ".") or k == ""]
+    return float(margin[max(keys, key=len)]) if keys else DEFAULT_MARGIN_PCT
+
+
+def with_margin(d: Difference, pct: float) -> Difference:
+    """``d`` judged against its practical-equivalence margin of ``pct`` per cent: ``negligible``
+    when its interval lies within it; no run count for a difference seen within it."""
+    scale = max(abs(d.a), abs(d.b)) if math.isfinite(d.a) and math.isfinite(d.b) else math.nan
+    margin = pct / 100 * scale
+    if not (math.isfinite(margin) and margin > 0):        # 0: no margin, the verdicts of the intervals alone
+        return d
+    lo, hi = d.ci95
+    if -margin <= lo and hi <= margin:
+        return replace(d, verdict=NEGLIGIBLE, runs_needed=None, margin=margin)
+    if d.verdict == SAME and abs(d.diff) <= margin:
+        return replace(d, runs_needed=None, margin=margin)
+    return replace(d, margin=margin)
+
+
+def differences(a: EstimatorSamples, b: EstimatorSamples, paired: bool,
+                margin=DEFAULT_MARGIN_PCT) -> list[Difference]:
     """Every metric both sides kept, component by component: ``B - A`` with its interval and
-    verdict (Holm's over the components, :func:`holm`). Paired: over the runs both have
-    (matched by number); unpaired: each side's own."""
+    verdict (Holm's over the components, :func:`holm`; then the margin, :func:`with_margin`:
+    ``margin`` per cent, or per metric path as :func:`margin_pct` reads it). Paired: over the
+    runs both have (matched by number); unpaired: each side's own."""
     ia, ib = paired_rows(a, b) if paired else (slice(None), slice(None))
     out = []
     for path in [p for p in a.metrics if p in b.metrics]:
@@ -147,7 +205,7 @@ def differences(a: EstimatorSamples, b: EstimatorSamples, paired: bool) -> list[
         for (comp, ma), (_, mb) in zip(columns(path, _rows(a.metrics[path], ia)),
                                        columns(path, _rows(b.metrics[path], ib))):
             out.append(_difference(path, comp, ma, mb, paired))
-    return holm(out)
+    return [with_margin(d, margin_pct(margin, d.metric)) for d in holm(out)]
 
 
 def holm(diffs: list[Difference], alpha: float = 1 - CONFIDENCE) -> list[Difference]:
@@ -233,6 +291,8 @@ class Comparison:
     #: the samples compared (what the page draws)
     samples_a: EstimatorSamples | None = field(default=None, repr=False)
     samples_b: EstimatorSamples | None = field(default=None, repr=False)
+    #: the practical-equivalence margin, per cent (one for every metric, or by metric path)
+    margin_pct: float | dict = DEFAULT_MARGIN_PCT
 
     def summary(self) -> dict[str, int]:
         """Verdict -> how many components have it."""
@@ -247,19 +307,24 @@ class Comparison:
         side = lambda s: dict(vars(s))
         rows = [{"metric": d.metric, "component": d.component, "a": clean(d.a), "b": clean(d.b),
                  "diff": clean(d.diff), "relative": clean(d.relative), "ci95": [clean(v) for v in d.ci95],
-                 "verdict": d.verdict, "runs_needed": d.runs_needed, "p_value": clean(d.p_value)}
+                 "verdict": d.verdict, "runs_needed": d.runs_needed, "p_value": clean(d.p_value),
+                 "margin": clean(d.margin)}
                 for d in self.differences]
         return {"a": side(self.a), "b": side(self.b), "paired": self.paired, "pairing": self.pairing,
                 "runs_compared": self.runs_compared, "left_out": {"a_only": self.only_a, "b_only": self.only_b},
                 "confidence": CONFIDENCE,
-                "verdicts": "Holm's step-down over the components at 5 %", "summary": self.summary(),
+                "verdicts": "Holm's step-down over the components at 5 %; negligible: the 95 % interval within "
+                            "the practical-equivalence margin", "margin_pct": self.margin_pct, "summary": self.summary(),
                 "differences": rows}
 
 
 def compare_samples(a: Side, sa: EstimatorSamples, b: Side, sb: EstimatorSamples, paired: bool,
-                    pairing: str) -> Comparison:
+                    pairing: str, margin=DEFAULT_MARGIN_PCT) -> Comparison:
     """The :class:`Comparison` of two estimators' samples (paired: over the runs both counted;
-    those only one side counted are listed)."""
+    those only one side counted are listed), with the practical-equivalence ``margin``
+    (:func:`differences`)."""
     runs = len(paired_rows(sa, sb)[0]) if paired else min(len(sa.runs), len(sb.runs))
     only = lambda x, y: np.setdiff1d(x.runs, y.runs).astype(int).tolist() if paired else []
-    return Comparison(a, b, paired, pairing, runs, differences(sa, sb, paired), only(sa, sb), only(sb, sa), sa, sb)
+    pct = dict(margin) if isinstance(margin, Mapping) else float(margin)
+    return Comparison(a, b, paired, pairing, runs, differences(sa, sb, paired, margin), only(sa, sb), only(sb, sa),
+                      sa, sb, pct)

@@ -337,17 +337,46 @@ def runs_for_precision(runs: int, value: float, interval, precision: float) -> i
     return student_runs(unit, precision * abs(value))
 
 
+#: the runs :class:`WeightedSums` sums in one product: fixed blocks of the runs fed, in run
+#: order, so that the sums do not depend on how the runs are chunked
+BOOTSTRAP_BLOCK_RUNS = 64
+
+
 class WeightedSums:
     """The Poisson-bootstrap replicates of per-epoch sums over runs, fed chunk by chunk: for
     values ``x`` ``(B, epochs)`` of runs with weights ``w`` ``(R, B)``
     (:func:`bootstrap_weights`), ``sum_b w_rb x_bt`` and ``sum_b w_rb [x_bt finite]``
-    (``(R, epochs)``, float32)."""
+    (``(R, epochs)``, float32). The runs are summed in blocks of
+    :data:`BOOTSTRAP_BLOCK_RUNS` in the order they are fed (the last block when the sums are
+    read), whatever the chunks: the same runs give the same bits."""
 
     def __init__(self):
         self.s = self.n = self.s0 = self.n0 = None
+        self._w: list = []             # the runs fed and not summed yet (less than a block)
+        self._x: list = []
 
     def add(self, w: np.ndarray, x) -> None:
-        x = np.asarray(x, float)
+        self._w.append(np.asarray(w, np.float32))
+        self._x.append(np.asarray(x, float))
+        held = sum(len(x) for x in self._x)
+        if held < BOOTSTRAP_BLOCK_RUNS:
+            return
+        w, x = np.concatenate(self._w, axis=1), np.concatenate(self._x)
+        full = held - held % BOOTSTRAP_BLOCK_RUNS
+        for a in range(0, full, BOOTSTRAP_BLOCK_RUNS):
+            self._sum(w[:, a:a + BOOTSTRAP_BLOCK_RUNS], x[a:a + BOOTSTRAP_BLOCK_RUNS])
+        self._w, self._x = [w[:, full:]], [x[full:]]
+
+    def _flush(self) -> None:
+        """Sum the runs held (the last block)."""
+        if self._x:
+            w, x = np.concatenate(self._w, axis=1), np.concatenate(self._x)
+            self._w, self._x = [], []
+            if len(x) or self.s is None:
+                self._sum(w, x)
+
+    def _sum(self, w: np.ndarray, x: np.ndarray) -> None:
+        x = np.ascontiguousarray(x)
         finite = np.isfinite(x)
         x0 = np.where(finite, x, 0.0)
         s, n = w @ x0.astype(np.float32), w @ finite.astype(np.float32)
@@ -359,11 +388,13 @@ class WeightedSums:
 
     def mean(self) -> np.ndarray:
         """Each replicate's per-epoch weighted mean (NaN where no weighted value)."""
+        self._flush()
         with np.errstate(invalid="ignore", divide="ignore"):
             return (self.s / self.n).astype(float)
 
     def point(self) -> np.ndarray:
         """The per-epoch mean over the runs themselves (every weight 1), ``(1, epochs)``."""
+        self._flush()
         with np.errstate(invalid="ignore", divide="ignore"):
             return (self.s0 / self.n0)[None, :]
 

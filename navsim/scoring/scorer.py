@@ -10,7 +10,8 @@ The quantities (per run, per epoch) are the NED position error ``pos_m``, the ve
 ``roll_deg``, ``pitch_deg``, ``yaw_deg``. Every chunk is fed twice (:meth:`EstimatorScore.add`,
 :meth:`~EstimatorScore.second_pass`, :meth:`~EstimatorScore.add` again): the second pass picks
 the exact percentiles (:class:`~navsim.scoring.stats.AbsPercentiles`). The results do not
-depend on the chunking beyond the rounding of sums (tested to 1e-12 relative).
+depend on the chunking, bit for bit: every sum over runs is taken in run order
+(:mod:`navsim.scoring.stats`).
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ from navsim.scoring.stats import (
     chi2_bands,
     convergence_time,
     last_finite,
+    run_nansums,
 )
 
 #: diverged runs listed by run in an estimator's ``divergence`` metrics (all are counted)
@@ -97,17 +99,20 @@ class DivergenceLog:
 
 #: the windows' quantities that are norms (never negative: no "largest negative" to show)
 NORM_QUANTITIES = frozenset({"speed_mps"})
+#: the windows' quantities (:func:`window_quantities`), and those where the Euler errors are recorded
+WINDOW_QUANTITIES = ("north_m", "east_m", "height_m", "speed_mps", "heading_deg")
+EULER_QUANTITIES = ("roll_deg", "pitch_deg", "yaw_deg")
 
 
 def window_quantities(h, good) -> dict:
     """The windows' quantities of the runs ``good`` of history ``h``, ``(R, E)`` each."""
     pos = h.pos_err_m[good]
-    out = {"north_m": pos[..., 0], "east_m": pos[..., 1], "height_m": -pos[..., 2],
-           "speed_mps": np.linalg.norm(h.vel_err_mps[good][..., :2], axis=-1),
-           "heading_deg": -np.degrees(h.att_err_rad[good][..., 2])}
+    out = dict(zip(WINDOW_QUANTITIES, (pos[..., 0], pos[..., 1], -pos[..., 2],
+                                       np.linalg.norm(h.vel_err_mps[good][..., :2], axis=-1),
+                                       -np.degrees(h.att_err_rad[good][..., 2]))))
     if h.euler_err_rad is not None:
         e = np.degrees(h.euler_err_rad[good])
-        out.update(roll_deg=e[..., 0], pitch_deg=e[..., 1], yaw_deg=e[..., 2])
+        out.update(zip(EULER_QUANTITIES, (e[..., 0], e[..., 1], e[..., 2])))
     return out
 
 
@@ -140,9 +145,9 @@ class _Chunk:
         self.euler = self.about = None
         if h.euler_err_rad is not None:
             self.euler = np.degrees(h.euler_err_rad[good][:, self.after])
-            with np.errstate(invalid="ignore"):       # a run without a finite epoch: NaN, as numpy
-                self.about = (np.abs(self.euler - np.nanmean(self.euler, axis=1, keepdims=True))
-                              if self.euler.shape[1] else self.euler)
+            s, n = run_nansums(self.euler, 1)      # each run's mean, whatever its chunk
+            with np.errstate(invalid="ignore", divide="ignore"):   # a run without a finite epoch: NaN
+                self.about = np.abs(self.euler - (s / n)[:, None, :]) if self.euler.shape[1] else self.euler
         self.quantities = window_quantities(h, good)
 
 

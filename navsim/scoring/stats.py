@@ -1,8 +1,10 @@
 """Statistics of values fed in pieces (chunk by chunk), and the chi-square bands and the
 convergence time the scores use.
 
-Sums, counts, extremes and per-epoch sums over the runs accumulate as the pieces go by; the
-standard deviations combine the pieces' means and squared deviations (Chan et al.); the
+Sums, counts, extremes and per-epoch sums over the runs accumulate as the pieces go by, each
+run's part summed alone and added in run order (:func:`run_nansums`, :func:`fold_runs`), so that
+the figures do not depend on how the runs are cut into pieces, bit for bit; the standard
+deviations combine the runs' means and squared deviations in run order (Chan et al.); the
 percentiles of absolute values are exact, in two passes over the pieces: the first counts the
 values in fixed logarithmic bins (:data:`BINS_PER_DECADE`), the second keeps only the values in
 the bins that hold the wanted ranks and picks them (numpy's linear interpolation).
@@ -116,10 +118,37 @@ class AbsPercentiles:
         return float(10.0 ** (_LOG_MIN + (k - 1 + min(max(f, 0.0), 1.0)) / BINS_PER_DECADE))
 
 
+def run_nansums(x, keep: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Each run's ``np.nansum`` and non-NaN count over the axes after the run axis (axis 0)
+    but the last ``keep``: ``(B, epochs, 3)`` -> ``(B, 3)`` with ``keep=1``.
+
+    A run's sum has the same bits whatever runs share its array: numpy's reductions follow the
+    memory layout (a boolean index over epochs leaves the runs innermost, and a pairwise sum
+    then becomes a sequential one), so each run's values of each kept index are summed as one
+    contiguous row, from a C-contiguous ``(B, kept, values)`` copy."""
+    x = np.asarray(x, float)
+    kept = x.shape[x.ndim - keep:] if keep else ()
+    rows = (x.shape[0], int(np.prod(x.shape[1:x.ndim - keep])), int(np.prod(kept)))
+    y = np.ascontiguousarray(np.swapaxes(x.reshape(rows), 1, 2))
+    nan = np.isnan(y)
+    s, n = np.sum(np.where(nan, 0.0, y), axis=2), np.sum(~nan, axis=2)
+    return s.reshape(x.shape[:1] + kept), n.reshape(x.shape[:1] + kept)
+
+
+def fold_runs(total, rows) -> np.ndarray:
+    """``total + rows[0] + rows[1] + ...``, added left to right (``np.add.accumulate``: never
+    regrouped), so that a sum over runs fed in pieces has the bits of the same sum fed whole;
+    ``total`` None: from zero (also when ``rows`` holds no run)."""
+    rows = np.asarray(rows)
+    start = np.zeros(rows.shape[1:], rows.dtype) if total is None else np.asarray(total, rows.dtype)
+    return np.add.accumulate(np.concatenate([start[None], rows]), axis=0)[-1]
+
+
 class RunSums:
     """Each run's ``np.nansum`` and non-NaN count over the axes after the run axis (its last
     axes kept: ``(B, epochs, 3)`` -> ``(B, 3)``), run after run: what an interval with the
-    runs as the samples needs (:mod:`navsim.scoring.intervals`)."""
+    runs as the samples needs (:mod:`navsim.scoring.intervals`); :func:`run_nansums`, so a
+    run's sums do not depend on its chunk."""
 
     def __init__(self, keep: int = 0):
         self.keep = keep             # trailing axes kept
@@ -127,10 +156,9 @@ class RunSums:
         self.n: list = []
 
     def add(self, x) -> None:
-        x = np.asarray(x, float)
-        axes = tuple(range(1, x.ndim - self.keep))
-        self.s.append(np.nansum(x, axis=axes))
-        self.n.append(np.sum(~np.isnan(x), axis=axes))
+        s, n = run_nansums(x, self.keep)
+        self.s.append(s)
+        self.n.append(n)
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """The runs' sums and counts, run axis first."""
@@ -138,37 +166,45 @@ class RunSums:
 
 
 class Moments:
-    """Count, mean and squared deviations of the non-NaN values, combined across pieces."""
+    """Count, mean and squared deviations of the non-NaN values of runs ``(B, values)``: each
+    run's (:func:`run_nansums`), combined run after run in run order (Chan et al.), so that
+    the result does not depend on how the runs are chunked."""
 
     def __init__(self):
         self.n, self.mean, self.m2 = 0, 0.0, 0.0
 
     def add(self, x) -> None:
-        v = x[~np.isnan(x)]
-        n = v.size
-        if n == 0:
-            return
-        mean = float(np.mean(v))
-        m2 = float(np.sum((v - mean) ** 2))
-        delta = mean - self.mean
-        tot = self.n + n
-        self.mean += delta * n / tot
-        self.m2 += m2 + delta ** 2 * self.n * n / tot
-        self.n = tot
+        s, n = run_nansums(x)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = s / n
+        m2, _ = run_nansums((np.asarray(x, float) - mean[:, None]) ** 2)
+        for n_b, mean_b, m2_b in zip(n.tolist(), mean.tolist(), m2.tolist()):
+            if n_b == 0:
+                continue
+            delta = mean_b - self.mean
+            tot = self.n + n_b
+            self.mean += delta * n_b / tot
+            self.m2 += m2_b + delta ** 2 * self.n * n_b / tot
+            self.n = tot
 
     def std(self) -> float:
         return float(np.sqrt(self.m2 / self.n)) if self.n else float("nan")
 
 
 class Sum:
-    """``np.nansum`` and the non-NaN count over the run axis (and more leading axes)."""
+    """``np.nansum`` and the non-NaN count over the run axis (and more leading axes): each
+    run's sum (:func:`run_nansums`), added in run order (:func:`fold_runs`), so that the sums
+    do not depend on how the runs are chunked."""
 
     def __init__(self):
         self.s = self.n = None
 
     def add(self, x, axis) -> None:
-        s, n = np.nansum(x, axis=axis), np.sum(~np.isnan(x), axis=axis)
-        self.s, self.n = (s, n) if self.s is None else (self.s + s, self.n + n)
+        """Feed ``x`` (runs first), summed over ``axis``: 0 or the leading axes ``(0, 1, ...)``."""
+        x = np.asarray(x, float)
+        s, n = run_nansums(x, x.ndim - len(np.atleast_1d(axis)))
+        n = np.sum(n, axis=0)
+        self.s, self.n = fold_runs(self.s, s), (n if self.n is None else self.n + n)
 
     def mean(self):
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -210,7 +246,10 @@ def convergence_time(t_s, err, factor: float = 2.0, hold_s: float = 60.0):
     a failure to converge; None if it never does, or if the steady error is not below the
     initial one (an error that grows, as free inertial navigation's, has not converged)."""
     t_s, err = np.asarray(t_s, float), np.asarray(err, float)
-    steady = np.nanmedian(err[len(err) // 2:])
+    late = err[len(err) // 2:]
+    if not np.isfinite(late).any():        # no steady value (a bootstrap replicate that drew no run)
+        return None
+    steady = np.nanmedian(late)
     if not steady < err[0]:
         return None
     ok = err <= factor * steady

@@ -33,13 +33,13 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from importlib import metadata
 from typing import Callable, NamedTuple
 
 import numpy as np
 
 from navsim.foundations.config import close_match, plain_name
 from navsim.foundations.errors import UsageError
+from navsim.foundations.plugins import describe, load_entry_points
 
 ENTRY_POINT_GROUP = "navsim.sensors"
 #: the fault windows a scenario may give a sensor (:class:`navsim.sensors.base.Fault`); each kind
@@ -377,15 +377,10 @@ def _load_entry_points() -> None:
     if _ENTRY_POINTS_READ:
         return
     _ENTRY_POINTS_READ.append(True)
-    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
-        if ep.name in _REGISTRY:
-            continue
-        kind = ep.load()
+    for ep, kind in load_entry_points(ENTRY_POINT_GROUP, skip=_REGISTRY):
         if not isinstance(kind, SensorKind) or kind.name != ep.name:
-            raise UsageError(f"the entry point {ep.name} = {ep.value!r} of the group '{ENTRY_POINT_GROUP}' "
-                             f"is not a SensorKind named '{ep.name}'")
+            raise UsageError(f"{describe(ep, ENTRY_POINT_GROUP)} is not a SensorKind named '{ep.name}'")
         try:
             register(kind)
         except TypeError as exc:
-            raise UsageError(f"the entry point {ep.name} = {ep.value!r} of the group "
-                             f"'{ENTRY_POINT_GROUP}': {exc}") from exc
+            raise UsageError(f"{describe(ep, ENTRY_POINT_GROUP)}: {exc}") from exc

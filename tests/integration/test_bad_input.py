@@ -198,7 +198,7 @@ CASES = [
                                    "metric: rmse.pos_m\n"}, ["sweep", "case/w.yaml"], 2, ["metric", "rms"]),
     ("sweep-bad-fault-point", {S: scenario(), "w.yaml": "scenario: s.yaml\npoints:\n"
                                "  - {sensors.bd.faults: [{type: outage, start_s: 900}]}\n"},
-     ["sweep", "case/w.yaml"], 2, ["case/w.yaml: point 0", "sensors.bd.faults[0]"]),
+     ["sweep", "case/w.yaml"], 2, ["case/w.yaml: point 1/1", "sensors.bd.faults[0]"]),
     ("sweep-scenario-not-yaml", {"w.yaml": "scenario: notes.txt\ngrid: {montecarlo.seed: [1]}\n",
                                  "notes.txt": SECRET}, ["sweep", "case/w.yaml"], 2, ["scenario"]),
     # 11. duplicate keys
@@ -465,7 +465,12 @@ def plugin_folders() -> list:
     """The folders of the installed estimator plug-ins' modules (``navsim.estimators`` entry points)."""
     import importlib.util
     from importlib.metadata import entry_points
-    specs = [importlib.util.find_spec(ep.module) for ep in entry_points(group="navsim.estimators")]
+    specs = []
+    for ep in entry_points(group="navsim.estimators"):
+        try:
+            specs.append(importlib.util.find_spec(ep.module))
+        except ModuleNotFoundError:          # a broken plug-in: navsim leaves it out, and so does this
+            pass
     return [Path(s.origin).resolve().parent for s in specs if s is not None and s.origin]
 
 
@@ -528,5 +533,5 @@ def test_a_sweep_point_without_a_successful_run_is_an_error(workdir, capsys, mon
     (workdir / "case" / "w.yaml").write_text("scenario: s.yaml\ngrid: {montecarlo.seed: [1, 2]}\n")
     assert call(["sweep", "case/w.yaml", "--out", "out"]) == 1
     err = capsys.readouterr().err
-    assert "no run of point 0 succeeded: RuntimeError: filter exploded" in err and "Traceback" not in err
+    assert "no run of point 1/2 (montecarlo.seed=1) succeeded: RuntimeError: filter exploded" in err and "Traceback" not in err
     assert json.loads((workdir / "out" / "sweep.json").read_text())["failed_points"]

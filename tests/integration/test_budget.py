@@ -54,7 +54,35 @@ def test_a_budget_writes_its_tables_and_pages(p0, repo_root, tmp_path, capsys):
     assert any(w["source"] == "bd.position_sigma" and w["factor"] == 0.5 for w in data["what_if"])
     assert (out / "budget.csv").read_text().count("\n") == 1 + sum(len(x["lines"]) for x in data["metrics"])
     assert (out / "budget.png").stat().st_size > 0 and (out / "budget.pdf").stat().st_size > 0
-    assert "root-sum-square" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "root-sum-square" in captured.out
+
+
+def test_a_budgets_lines_have_intervals_and_two_runs_do_not_rank_them(repo_root, tmp_path, capsys, caplog):
+    """Each line's contribution and share have a 95 % interval over the runs (in budget.json,
+    budget.csv and the table); at 2 runs they overlap and the table's notes and the log say the
+    runs are too few to rank the sources."""
+    data = yaml.safe_load((repo_root / ".ci" / "wheel_check.yaml").read_text())     # 8 s of P0's flight
+    path = tmp_path / "short.yaml"
+    path.write_text(yaml.safe_dump(data))
+    out = tmp_path / "b"
+    assert main(["budget", str(path), "--runs", "2", "--workers", "1", "--metric", "final.pos_m:horizontal",
+                 "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    data = json.loads((out / "budget.json").read_text())
+    for m in data["metrics"]:
+        for x in m["lines"]:
+            lo, hi = x["contribution_ci95"]
+            assert lo is None or lo <= x["contribution"] <= hi, x
+            lo, hi = x["share_ci95"]
+            assert lo is None or lo <= x["share"] <= hi, x
+    shown = [m for m in data["metrics"] if (m["metric"], m["component"]) == ("final.pos_m", "horizontal")]
+    assert shown and all(m["unranked"] for m in shown)
+    assert any(x["contribution_ci95"][0] is not None for m in shown for x in m["lines"])
+    rows = (out / "budget.csv").read_text().splitlines()
+    assert rows[0].endswith("contribution_lo,contribution_hi,share_lo,share_hi")
+    assert "contribution 95 %" in captured.out and "too few runs to rank (2 runs)" in captured.out
+    assert any(r.levelname == "WARNING" and "too few to rank the sources" in r.getMessage() for r in caplog.records)
 
 
 @pytest.mark.slow               # 11 Monte Carlos of 50 P3 runs: ~1 min on two cores
@@ -148,6 +176,17 @@ def test_a_covariance_budget_names_what_it_leaves_to_monte_carlo(repo_root, tmp_
     assert data["method"] == "covariance" and "ads.static_noise" in data["monte_carlo_only"]
     assert "no linear form (Monte Carlo only)" in text and "a covariance analysis in" in text
     assert len({m["estimator"] for m in data["metrics"]}) == 2
+    # every source is in each table: a contribution, or left out with the reason why
+    ads = [s for s in data["sources"] if s.startswith("ads.")]
+    assert len(ads) == 5 and set(data["left_out"]) == set(data["monte_carlo_only"]) >= set(ads)
+    assert all("ads kind declares no linear form" in data["left_out"][s] for s in ads)
+    for m in data["metrics"]:
+        assert {x["source"] for x in m["lines"]} | set(data["left_out"]) == set(data["sources"]), m
+    tables = text.split("\n\n")
+    for table in (x for x in tables if "source " in x):
+        listed = [line.split()[0] for line in table.splitlines()[3:] if line and not line.startswith("all on")]
+        assert set(listed) >= set(data["sources"]), table
+        assert all(f"{s} " in table and "left out" in table.split(f"{s} ", 1)[1].splitlines()[0] for s in ads)
     assert (out / "budget_time.png").stat().st_size > 0
 
 

@@ -9,7 +9,7 @@ import shutil
 import pytest
 
 import navsim
-from navsim.cli import main
+from navsim.cli import main, parse_margins
 from navsim.records.samples import EstimatorSamples, MetricSamples, load_samples, save_samples
 
 ESKF = "BD/SINS/ADS ES-KF 16"
@@ -57,11 +57,11 @@ def test_a_wider_gnss_sigma_is_found_run_by_run(results, tmp_path, capsys):
 def test_the_same_sensor_data_pairs_exactly_and_two_seeds_do_not(results):
     [c] = navsim.compare(results["a"], results["same"])
     assert c.paired and c.runs_compared == RUNS
-    assert all(d.diff == 0 and d.verdict == "no significant difference" for d in c.differences)
+    assert all(d.diff == 0 and d.verdict == "negligible" for d in c.differences)     # within any margin
     by_label = {c.a.estimator: c for c in navsim.compare(results["a"], results["seed2"])}
     c = by_label[ESKF]
     assert not c.paired and "montecarlo" in c.pairing
-    assert all(d.verdict == "no significant difference" for d in c.differences), c.summary()
+    assert all(d.verdict in ("no significant difference", "negligible") for d in c.differences), c.summary()
 
 
 def test_results_at_hand_compare_as_their_folders(results):
@@ -131,3 +131,17 @@ def test_hostile_inputs_are_refused_with_nothing_written(results, repo_root, shi
     # one result without two estimators named, an unknown estimator
     assert "--estimators" in _refused(capsys, ["compare", str(results["a"])], out)
     assert "no estimator 'UKF'" in _refused(capsys, ["compare", str(results["a"]), "--estimators", "UKF", ESKF], out)
+
+
+def test_the_margin_on_the_command_line(results, tmp_path, capsys):
+    assert parse_margins(None) == 1.0 and parse_margins(["2"]) == 2.0
+    assert parse_margins(["rms.pos_m=5", "0.5"]) == {"rms.pos_m": 5.0, "": 0.5}
+    for bad in (["x"], ["rms.pos_m=-1"], ["500"]):
+        assert main(["compare", str(results["a"]), str(results["same"]), "--margin", *bad,
+                     "--out", str(tmp_path / "no")]) == 2
+        assert "margin" in capsys.readouterr().err and not (tmp_path / "no").exists()
+    assert main(["compare", str(results["a"]), str(results["same"]), "--margin", "rms=0",
+                 "--out", str(tmp_path / "c")]) == 0
+    rows = json.loads((tmp_path / "c" / "compare.json").read_text())["comparisons"][0]["differences"]
+    assert {r["verdict"] for r in rows if r["metric"].startswith("rms.")} == {"no significant difference"}
+    assert {r["verdict"] for r in rows if not r["metric"].startswith("rms.")} == {"negligible"}

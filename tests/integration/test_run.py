@@ -251,7 +251,7 @@ def test_a_sweep_point_that_cannot_be_flown_is_reported_and_the_others_run(short
     assert "above the airspeed" in data["failed_points"]["1"]
     text = capsys.readouterr()
     assert "point 2/2 (wind.speed_mps=20): the flight cannot be flown" in text.out
-    assert "error: point 1: the flight cannot be flown" in text.err and (out / "sweep.png").stat().st_size > 0
+    assert "error: point 2/2 (wind.speed_mps=20): the flight cannot be flown" in text.err and (out / "sweep.png").stat().st_size > 0
 
 
 def test_sweep_grid(short, tmp_path, capsys):

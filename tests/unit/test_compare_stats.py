@@ -5,11 +5,15 @@ alarms at 5 %, the per-run samples round-trip through samples.npz."""
 import math
 
 import numpy as np
+import pytest
 
 from navsim.records.samples import EstimatorSamples, MetricSamples, load_samples, save_samples
 from scipy.stats import t as student_t
 
-from navsim.scoring.compare import BETTER, SAME, Difference, Side, compare_samples, differences, holm, runs_to_resolve
+from navsim.foundations.errors import UsageError
+from navsim.report.compare import verdict_text
+from navsim.scoring.compare import (BETTER, NEGLIGIBLE, SAME, Difference, Side, check_margin, compare_samples,
+                                    differences, holm, runs_to_resolve)
 
 EPOCHS = 100
 TRIALS = 600
@@ -72,7 +76,7 @@ def test_holm_keeps_the_familys_false_alarms_at_5_pct():
             e = rng.normal(0, 1, (40, 1, 30)) + rng.normal(0, 1, (40, 20, 30))
             sides.append(EstimatorSamples(np.arange(40), {"nees.per_state": MetricSamples(
                 np.sum(e ** 2, 1), np.full((40, 30), 20.0), False)}))
-        d = differences(*sides, False)
+        d = differences(*sides, False, margin=0)          # the intervals' verdicts alone
         alarms += any(x.verdict != SAME for x in d)
         raw += any(x.p_value < 0.05 for x in d)
     assert alarms / 200 <= 0.05 + 3.5 * math.sqrt(0.05 * 0.95 / 200), alarms / 200
@@ -83,8 +87,9 @@ def test_a_better_filter_is_called_better_and_identical_sides_are_no_difference(
     ea, eb = _runs(np.random.default_rng(2), 30)
     d = differences(_side(ea), _side(ea, 0.9), True)
     assert all(x.verdict == BETTER for x in d), [x.verdict for x in d]
-    same = differences(_side(ea), _side(ea), True)
+    same = differences(_side(ea), _side(ea), True, margin=0)
     assert all(x.verdict == SAME and x.diff == 0 and x.ci95 == [0.0, 0.0] for x in same)
+    assert all(x.verdict == "negligible" for x in differences(_side(ea), _side(ea), True))
 
 
 def test_the_samples_file_round_trips(tmp_path):
@@ -136,3 +141,48 @@ def test_a_run_diverged_on_one_side_is_left_out_of_both_and_listed():
     assert c.runs_compared == 10 and c.only_a == [3, 7] and c.only_b == []
     keep = np.delete(np.arange(12), [3, 7])
     assert c.differences[0].a == math.sqrt(np.sum(a.metrics["rms.pos_m"].s[keep, 0]) / (10 * EPOCHS))
+
+
+def test_two_filters_a_hair_apart_are_negligible_and_offered_no_run_count():
+    """Issue 50: two filters 66 nm apart were offered '~28 runs would resolve +6.59e-08 m'."""
+    ea, _ = _runs(np.random.default_rng(5), 20)
+    a, b = _side(ea), _side(ea + 1e-8 * np.random.default_rng(6).normal(0, 1, ea.shape))
+    for d in differences(a, b, True):
+        assert d.verdict == NEGLIGIBLE and d.runs_needed is None, d
+        assert "would resolve" not in verdict_text(d, 20) and "within" in verdict_text(d, 20)
+    strict = differences(a, b, True, margin=0.0)            # no margin: the old verdicts, run counts offered
+    assert all(d.verdict != NEGLIGIBLE for d in strict) and any(d.runs_needed for d in strict)
+
+
+def test_a_difference_within_the_margin_but_unresolved_is_offered_no_run_count():
+    """A 0.5 % difference at 3 runs, unpaired: its interval spans far beyond the 1 % margin (not
+    negligible, not significant), and resolving it would not matter: no run count; with the
+    margin at 0.1 % for rms.pos_m it is offered one."""
+    rng = np.random.default_rng(8)
+    ea, _ = _runs(rng, 3)
+    _, eb = _runs(rng, 3)
+    d = {x.name: x for x in differences(_side(ea), _side(ea * 1.005), False)}["rms.pos_m N"]
+    assert d.verdict == SAME and d.runs_needed is None and abs(d.diff) <= d.margin < d.ci95[1]
+    assert "within the margin" in verdict_text(d, 3)
+    d = {x.name: x for x in differences(_side(ea), _side(ea * 1.005), False, margin={"rms.pos_m": 0.1, "": 5})}
+    assert d["rms.pos_m N"].runs_needed and math.isclose(d["rms.pos_m N"].margin, 0.001 * d["rms.pos_m N"].b)
+
+
+def test_a_difference_just_beyond_the_margin_is_called_negligible_at_most_2_5_percent_of_the_time():
+    """The verdict is an equivalence test (the 95 % interval inside +-margin): where B - A is
+    just over the margin, 'negligible' comes at most as often as the interval misses on one side,
+    2.5 % (3 binomial sigmas over 400 Monte Carlos: 0.025 + 3 * 0.0078)."""
+    rng = np.random.default_rng(31)
+    called = 0
+    for _ in range(400):
+        ea, eb = _runs(rng, 50)
+        d = differences(_side(ea), _side(eb, 1.0102), True)[0]
+        called += d.verdict == NEGLIGIBLE
+    assert called / 400 <= 0.025 + 3 * math.sqrt(0.025 * 0.975 / 400), called
+
+
+def test_the_margin_is_checked():
+    for bad in (-1, 101, "2", True, math.nan, {"rms.pos_m": -3}, {3: 1.0}):
+        with pytest.raises(UsageError, match="margin"):
+            check_margin(bad)
+    assert check_margin(2) == 2.0 and check_margin({"": 0, "rms.pos_m": 5}) == {"": 0.0, "rms.pos_m": 5.0}

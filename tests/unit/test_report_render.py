@@ -20,7 +20,7 @@ matplotlib.use("Agg")
 def pages():
     out = []
     for name in ("a", "b", "c"):
-        fig = matplotlib.figure.Figure(figsize=(3, 2))
+        fig = matplotlib.figure.Figure(figsize=(3, 2), layout="constrained")     # its labels on the page
         fig.add_subplot().plot([0, 1], [0, len(name)])
         out.append(Page(name, name, fig))
     return out

@@ -12,6 +12,7 @@ import navsim.sensors
 from navsim.flight import FlightConfig, fly, parse_track
 from navsim.flight.environment import parse_environment
 from navsim.flight.truth import Truth
+from navsim.foundations import plugins
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.sensors import SensorConfig, emulate, load_spec, output_fields, registry
 from navsim.sensors.base import check_faults, parse_faults
@@ -168,13 +169,13 @@ def test_an_entry_point_registers_its_kind(monkeypatch):
             return self.obj
 
     monkeypatch.setattr(registry, "_ENTRY_POINTS_READ", [])
-    monkeypatch.setattr(registry.metadata, "entry_points", lambda group: [EntryPoint(_kind())])
+    monkeypatch.setattr(plugins.metadata, "entry_points", lambda group: [EntryPoint(_kind())])
     try:
         assert registry.get("toy").name == "toy"
     finally:
         registry.unregister("toy")
     monkeypatch.setattr(registry, "_ENTRY_POINTS_READ", [])
-    monkeypatch.setattr(registry.metadata, "entry_points", lambda group: [EntryPoint(object())])
+    monkeypatch.setattr(plugins.metadata, "entry_points", lambda group: [EntryPoint(object())])
     with pytest.raises(UsageError, match="is not a SensorKind named 'toy'"):
         registry.available()
 

@@ -38,13 +38,13 @@ by :func:`get`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from importlib import metadata
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from navsim.foundations.config import close_match
 from navsim.foundations.errors import UsageError
+from navsim.foundations.plugins import describe, load_entry_points
 from navsim.navigation.strapdown import NavState
 
 _REGISTRY: dict[str, type] = {}
@@ -176,10 +176,8 @@ def get(name: str) -> type:
 def _load_entry_points() -> None:
     """Register each ``navsim.estimators`` entry point as :func:`register` does (its class
     checked, ``type_name`` its entry point's name)."""
-    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
-        if ep.name not in _REGISTRY:
-            try:
-                register(ep.name)(ep.load())
-            except TypeError as exc:
-                raise UsageError(f"the entry point {ep.name} = {ep.value!r} of the group '{ENTRY_POINT_GROUP}': "
-                                 f"{exc}") from exc
+    for ep, cls in load_entry_points(ENTRY_POINT_GROUP, skip=_REGISTRY):
+        try:
+            register(ep.name)(cls)
+        except TypeError as exc:
+            raise UsageError(f"{describe(ep, ENTRY_POINT_GROUP)}: {exc}") from exc
