@@ -45,14 +45,14 @@ from navsim.experiment.runner import (
     scenario_hash,
 )
 from navsim.experiment import resources
-from navsim.experiment.budget import GROUPS as BUDGET_GROUPS, alone, budget_sources, find_source, scaled
+from navsim.experiment.budget import GROUPS as BUDGET_GROUPS, SCALE_RANGE, alone, budget_sources, find_source
 from navsim.experiment.budget import check_method, covariance_contributions, left_out_reasons, linear_sources
-from navsim.experiment.results import ResultFiles, check_comparable, check_not_being_written, pairing, read_result
-from navsim.experiment.results import read_files
-from navsim.experiment.scenario import Scenario, check_scenario, load_scenario as _load_file, parse_scenario
+from navsim.experiment.budget import scale_ok, scaled
+from navsim.experiment.results import ResultFiles, check_comparable, check_not_being_written, pairing, read_files
+from navsim.experiment.results import read_result
+from navsim.experiment.scenario import MAX_SEED, MAX_WORKERS, Scenario, check_scenario, parse_scenario
+from navsim.experiment.scenario import load_scenario as _load_file
 from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
-from navsim.experiment.scenario import MAX_SEED, MAX_WORKERS
-from navsim.experiment.budget import SCALE_RANGE, scale_ok
 from navsim.foundations.config import MAX_RUNS, Argument
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.foundations.outputs import OutputFolder
@@ -71,7 +71,8 @@ from navsim.report.render import render
 from navsim.scoring.budget import METHODS as BUDGET_METHODS, Budget, WhatIf, covariance_budgets, metric_budgets
 from navsim.scoring.budget import epoch_mean_squares, monte_carlo_curves, predict, with_covariance
 from navsim.scoring.closed_loop import closed_loop_metrics
-from navsim.scoring.compare import DEFAULT_MARGIN_PCT, Comparison, Side, check_margin, compare_samples
+from navsim.scoring.compare import DEFAULT_MARGIN_PCT, Comparison, Side, check_margin, check_margin_paths
+from navsim.scoring.compare import compare_samples
 from navsim.scoring.intervals import MIN_RUNS
 from navsim.scoring.landmarks import sighting_spans
 from navsim.records.metrics import RunMetrics
@@ -580,8 +581,27 @@ def write_report(result: Result, out=None, *, force: bool = False) -> list[Path]
         return _write_report_into(folder, result)
 
 
+def _check_same_run(folder: OutputFolder, result: Result) -> None:
+    """A :class:`UsageError` when ``folder`` (not the run's own) holds another run's result
+    (its ``run.json`` of other flights and sensor data, seed or runs), which the report of
+    ``result`` would overwrite in part."""
+    try:
+        earlier = json.loads((folder.path / "run.json").read_text())
+    except (OSError, ValueError):
+        return
+    if not isinstance(earlier, dict) or "run.json" in folder.written():
+        return
+    ours = {"data_key": result.record.data_key, "seed": result.record.seed, "runs_done": result.record.runs_done}
+    if {k: earlier.get(k) for k in ours} != ours:
+        raise UsageError(f"{folder.path}: holds the result of another run ({earlier.get('scenario') or '?'}, seed "
+                         f"{earlier.get('seed')}, {earlier.get('runs_done')} runs); write_report writes a run's "
+                         "report into its own folder or a new one: choose another out=...")
+
+
 def _write_report_into(folder: OutputFolder, result: Result) -> list[Path]:
     if result.folder is None or folder.path.resolve() != Path(result.folder).resolve():
+        _check_same_run(folder, result)
+        folder.clear_earlier()                  # the same run's earlier report: replaced whole
         record = result.record                  # the chunks stay where the run wrote them
         if result.store is not None:
             record = dataclasses.replace(record, per_run_data=str(Path(result.store.folder).resolve()))
@@ -766,19 +786,26 @@ def compare(a, b=None, estimators=None, *, partial: bool = False, unpaired: bool
     paired, why = pairing(ra, rb)
     if unpaired:
         paired, why = False, "unpaired (asked): side against side"
-    out = []
-    for la, lb in _estimator_pairs(ra, rb, b is None, estimators):
-        side = lambda r, label: Side(str(r.folder), label, len(r.samples[label].runs), r.record.runs_done,
-                                     r.record.runs, bool(r.record.interrupted), r.record.seed)
-        c = compare_samples(side(ra, la), ra.samples[la], side(rb, lb), rb.samples[lb], paired, why, margin)
-        if not c.differences:
-            raise UsageError(f"{ra.folder} '{la}' and {rb.folder} '{lb}' share no metric to compare")
-        if c.runs_compared < MIN_RUNS:
-            raise UsageError(f"'{la}' ({c.a.runs} counted runs) against '{lb}' ({c.b.runs}): "
-                             f"{c.runs_compared} runs to compare{' in common' if paired else ''}, at least "
-                             f"{MIN_RUNS} needed (a diverged run is not counted)")
-        out.append(c)
+    out = [_compare_pair(ra, rb, pair, (paired, why), margin)
+           for pair in _estimator_pairs(ra, rb, b is None, estimators)]
+    check_margin_paths(margin, {d.metric for c in out for d in c.differences})
     return out
+
+
+def _compare_pair(ra: ResultFiles, rb: ResultFiles, pair: tuple, pairing_: tuple, margin) -> Comparison:
+    """The comparison of the estimators ``pair`` = ``(A's, B's)``, ``pairing_`` = ``(paired, why)``;
+    a :class:`UsageError` where they share no metric or too few runs."""
+    (la, lb), (paired, why) = pair, pairing_
+    side = lambda r, label: Side(str(r.folder), label, len(r.samples[label].runs), r.record.runs_done,
+                                 r.record.runs, bool(r.record.interrupted), r.record.seed)
+    c = compare_samples(side(ra, la), ra.samples[la], side(rb, lb), rb.samples[lb], paired, why, margin)
+    if not c.differences:
+        raise UsageError(f"{ra.folder} '{la}' and {rb.folder} '{lb}' share no metric to compare")
+    if c.runs_compared < MIN_RUNS:
+        raise UsageError(f"'{la}' ({c.a.runs} counted runs) against '{lb}' ({c.b.runs}): "
+                         f"{c.runs_compared} runs to compare{' in common' if paired else ''}, at least "
+                         f"{MIN_RUNS} needed (a diverged run is not counted)")
+    return c
 
 
 def _result_files(x) -> ResultFiles:
@@ -895,8 +922,7 @@ def budget(scenario, runs: int | None = None, seed: int | None = None, workers: 
     runs, seed, workers, _ = _numbers(runs, seed, workers)
     _check_how(executor, scheduler, dict(resume=resume), dict(progress=progress))
     scales = _scales(scales)
-    if store is not None and not isinstance(store, OutputFolder):
-        raise UsageError(f"store: {_shown(store)} is not an open navsim.foundations.outputs.OutputFolder (or None)")
+    _check_store(store)
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     sources = budget_sources(sc)
     if group not in BUDGET_GROUPS:
@@ -1029,6 +1055,13 @@ def _what_ifs(samples: dict, by_source: dict, scaled_runs) -> list[WhatIf]:
                     out.append(WhatIf(s.name, k, label, mb.metric, mb.component, mb.all_on, predict(mb, s.name, k),
                                       m.all_on))
     return out
+
+
+def _check_store(store) -> None:
+    """A :class:`UsageError` unless ``store`` is None or an output folder opened for a budget."""
+    if store is not None and not (isinstance(store, OutputFolder) and store.command == "budget"):
+        raise UsageError(f"store: {_shown(store)} is not an OutputFolder opened for a budget "
+                         "(OutputFolder(path, command='budget'), or None)")
 
 
 def write_budget(result: Budget, folder: OutputFolder, metrics=None, fmts=("pdf", "png")) -> list[Path]:

@@ -62,7 +62,7 @@ from navsim.replay.run import IMU_RATE_HZ
 from navsim.report.replay import difference_table, write_replay_report
 from navsim.report.summary import sections as summary_sections, text_table
 from navsim.report.sweep import short_key, write_sweep_figure
-from navsim.scoring.compare import DEFAULT_MARGIN_PCT
+from navsim.scoring.compare import DEFAULT_MARGIN_PCT, check_margin
 from navsim.scoring.verdicts import num, with_interval
 from navsim.sensors import emulate
 from navsim.sensors.catalog import entries as catalog_entries
@@ -360,9 +360,11 @@ def parse_margins(items: list[str] | None):
         except ValueError:
             raise UsageError(f"--margin {item!r}: expected PCT or PATH=PCT, a number of per cent "
                              "(--margin 2, --margin rms.pos_m=5)") from None
-    if not out:
-        return DEFAULT_MARGIN_PCT
-    return out[""] if list(out) == [""] else out
+    margin = DEFAULT_MARGIN_PCT if not out else out[""] if list(out) == [""] else out
+    try:
+        return check_margin(margin)
+    except UsageError as exc:                   # in the option's words: margin[...] -> --margin[...]
+        raise UsageError(f"--{exc}") from None
 
 
 def parse_scales(items: list[str] | None) -> list[tuple[str, float]]:

@@ -67,7 +67,8 @@ MANIFEST_FORMAT = 3
 COMMANDS = ("run", "fly", "sensors", "sweep", "compare", "budget", "replay")
 #: how the result of a folder written before format 3 is told: the first of these files its
 #: manifest lists (navsim 0.3.0 and older wrote no command into it)
-LEGACY_SIGNATURES = (("compare.json", "compare"), ("budget.json", "budget"), ("sweep.json", "sweep"),
+LEGACY_SIGNATURES = (("compare.json", "compare"), ("budget.json", "budget"), ("budget_part_*.npz", "budget"),
+                     ("sweep.json", "sweep"),
                      ("truth.npz", "fly"), ("replay.pdf", "replay"), ("sensor_*.png", "sensors"),
                      ("run.json", "run"),
                      ("metrics.json", "run"))
@@ -75,6 +76,9 @@ LEGACY_SIGNATURES = (("compare.json", "compare"), ("budget.json", "budget"), ("s
 IDENTITY = ("size", "mtime_ns", "ino", "dev")
 #: how many of a foreign folder's files a refusal names
 SHOWN_FILES = 5
+#: how many times a lock found taken is tried again (10 ms apart) before the writer is refused: a
+#: reader testing it (:func:`writer`) holds it for microseconds
+PROBE_RETRIES = 3
 #: the most of a lock file or a run.json read to tell whose they are
 READ_LIMIT = 1 << 20
 
@@ -210,7 +214,7 @@ def _take_lock(folder: Path, flock: bool = fcntl is not None) -> int:
     path = folder / LOCK
     me = json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
                      "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "command": " ".join(sys.argv)})
-    for _ in range(20):                      # another process removing the file between our steps
+    for attempt in range(20):                # another process removing the file between our steps
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0)
                          | (0 if flock else os.O_EXCL), 0o644)
@@ -227,6 +231,9 @@ def _take_lock(folder: Path, flock: bool = fcntl is not None) -> int:
             except BlockingIOError:
                 text = _holder_text(os.pread(fd, READ_LIMIT, 0))[1]
                 os.close(fd)
+                if attempt < PROBE_RETRIES:      # perhaps a reader's probe (:func:`writer`), held for microseconds
+                    time.sleep(0.01)
+                    continue
                 raise _refuse(folder, text) from None
             except OSError as exc:
                 empty = not os.pread(fd, 1, 0)
@@ -359,7 +366,9 @@ def read_manifest(folder: Path) -> Manifest:
     ok = lambda i: isinstance(i, dict) and set(i) == set(IDENTITY) and all(type(i[k]) is int for k in IDENTITY)
     entries = {n: (i if ok(i) else None) for n, i in files.items() if isinstance(n, str) and plain_name(n)}
     command = data.get("command")
-    return Manifest(entries, command=command if command in COMMANDS else _legacy_command(entries))
+    if isinstance(command, str) and plain_name(command):      # a newer navsim's command too: named, never free
+        return Manifest(entries, command=command)
+    return Manifest(entries, command=_legacy_command(entries))
 
 
 def folder_command(folder: Path) -> str | None:
@@ -373,9 +382,12 @@ def folder_command(folder: Path) -> str | None:
 
 def writer(folder: Path) -> str | None:
     """The navsim process writing ``folder`` now, in words (pid, host, start, command); None when
-    none holds its lock (or this process does). Read-only: the lock is tested, never taken."""
-    if os.path.realpath(folder) in _HELD:
-        return None
+    none holds its lock (or this thread does). Read-only: the lock is tested (a shared lock taken
+    and given back at once; a writer starting meanwhile tries again, :func:`_take_lock`)."""
+    held = _HELD.get(os.path.realpath(folder))
+    if held is not None:
+        return None if held.thread == threading.get_ident() else \
+            f"pid {os.getpid()} (this process), its thread {held.thread_name}"
     path = folder / LOCK
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_CLOEXEC", 0))
@@ -443,9 +455,13 @@ def foreign_files(folder: Path) -> list[str]:
     return out
 
 
+def _listed(names: list[str]) -> str:
+    """The first :data:`SHOWN_FILES` names, and how many more."""
+    return ", ".join(names[:SHOWN_FILES]) + (f" and {len(names) - SHOWN_FILES} more" if len(names) > SHOWN_FILES else "")
+
+
 def _refuse_foreign(folder: Path, names: list[str]) -> UsageError:
-    shown = ", ".join(names[:SHOWN_FILES]) + (f" and {len(names) - SHOWN_FILES} more"
-                                               if len(names) > SHOWN_FILES else "")
+    shown = _listed(names)
     return UsageError(f"{folder}: not a navsim output folder (it holds {shown}); navsim writes into a new "
                       "or empty folder or one of its own results: choose another with --out, or write "
                       "here anyway with --force (files of the same names are then replaced)")
@@ -462,10 +478,9 @@ def _make_folders(path: Path) -> list[Path]:
 
 
 def _refuse_other(folder: Path, command: str, theirs: str) -> UsageError:
-    names = sorted(n for n in os.listdir(folder) if n not in (LOCK, MANIFEST))
-    shown = ", ".join(names[:SHOWN_FILES]) + (f" and {len(names) - SHOWN_FILES} more"
-                                               if len(names) > SHOWN_FILES else "")
-    return UsageError(f"{folder}: holds the result of `navsim {theirs}` ({shown or 'no file now'}); `navsim "
+    shown = _listed(sorted(n for n in os.listdir(folder) if n not in (LOCK, MANIFEST)))
+    whose = theirs if theirs == UNTOLD else f"`navsim {theirs}`"
+    return UsageError(f"{folder}: holds the result of {whose} ({shown or 'no file now'}); `navsim "
                       f"{command}` does not write into another command's folder, and nothing there was touched: "
                       "choose a folder of its own with --out (out=... in Python)")
 
@@ -485,11 +500,27 @@ def _open(path: Path, command: str, force: bool) -> _Held:
             raise OutputError(exc.filename or path / LOCK, exc) from None
         raise
     manifest = read_manifest(path)
-    theirs = manifest.command if manifest.command is not None else folder_command(path)
+    theirs = _holder_command(path, manifest)
     if theirs is not None and theirs != command:
         _give_back(path, fd)
         raise _refuse_other(path, command, theirs)
     return _Held(fd, entries=manifest.entries, legacy=manifest.legacy, created=created, command=command)
+
+
+#: what a refusal calls a folder whose manifest lists files but not the command that wrote them
+UNTOLD = "an earlier navsim command (its manifest does not say which)"
+
+
+def _holder_command(path: Path, manifest: Manifest) -> str | None:
+    """The command whose result ``path`` holds, for another command opening it: the manifest's
+    (:data:`UNTOLD` where it lists files but cannot tell whose), else a navsim ``run.json``'s;
+    None where no file the manifest lists is left (a result removed, or a failure's empty folder)."""
+    listed = [n for n in [*manifest.entries, *manifest.legacy] if os.path.lexists(path / n)]
+    if manifest.command is not None:
+        return manifest.command if listed else None
+    if listed:
+        return folder_command(path) or UNTOLD
+    return folder_command(path)
 
 
 def _unmake(path: Path, created: list) -> None:
@@ -550,6 +581,11 @@ class OutputFolder:
             held = _HELD[key] = _open(self.path, command, force)
         self._held = held
         self._close = weakref.finalize(self, _release, key, Path(key))   # absolute: a later chdir does not move it
+
+    @property
+    def command(self) -> str:
+        """The command whose result the folder holds (:data:`COMMANDS`)."""
+        return self._held.command
 
     def close(self) -> None:
         """Give this user's hold on the folder back (the last one saves the manifest and

@@ -16,7 +16,7 @@ import numpy as np
 from navsim.report.figures import TITLE_LINE_IN, Page, page_figure, titled
 from navsim.report.tables import FAIL, PASS, wrap_text
 from navsim.scoring.compare import (BETTER, HIGHER, LOWER, NEGLIGIBLE, SAME, WORSE, Comparison, Difference, columns,
-                                    paired_rows)
+                                    margin_pct, paired_rows)
 from navsim.scoring.intervals import CONFIDENCE
 from navsim.scoring.verdicts import num
 
@@ -86,7 +86,7 @@ def _margin_text(c: Comparison) -> str:
     """The practical-equivalence margin in words."""
     if not isinstance(c.margin_pct, dict):
         return f"negligible: the interval within +-{c.margin_pct:g} % of the larger value"
-    parts = [f"{k or 'the others'} {v:g} %" for k, v in c.margin_pct.items()]
+    parts = [f"{k} {v:g} %" for k, v in c.margin_pct.items() if k] + [f"the others {margin_pct(c.margin_pct, ''):g} %"]
     return "negligible: the interval within the margin, per cent of the larger value (" + ", ".join(parts) + ")"
 
 

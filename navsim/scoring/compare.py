@@ -40,6 +40,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.stats import t as student_t
 
+from navsim.foundations.config import close_match
 from navsim.foundations.errors import UsageError
 from navsim.records.samples import EstimatorSamples, MetricSamples
 from navsim.records.states import POS, SIGMA_STATES
@@ -163,7 +164,21 @@ def check_margin(margin):
         if isinstance(pct, bool) or not isinstance(pct, numbers.Real) or not 0 <= float(pct) <= 100:
             raise UsageError(f"{where}: is {pct!r} (expected a number of per cent, 0-100; default "
                              f"{DEFAULT_MARGIN_PCT:g})")
-    return {k: float(v) for k, v in margin.items()} if isinstance(margin, Mapping) else float(margin)
+    return {"": DEFAULT_MARGIN_PCT, **{k: float(v) for k, v in margin.items()}} if isinstance(margin, Mapping) \
+        else float(margin)
+
+
+def check_margin_paths(margin, paths) -> None:
+    """A :class:`UsageError` for a key of a per-path ``margin`` that starts none of the metric
+    ``paths`` compared (``rms.pos`` for ``rms.pos_m``), with the closest path."""
+    if not isinstance(margin, Mapping):
+        return
+    paths = set(paths)
+    starts = paths | {p.rsplit(".", j)[0] for p in paths for j in range(1, p.count(".") + 1)}
+    for key in margin:
+        if key and key not in starts:
+            raise UsageError(f"margin[{key!r}]: no metric compared is {key!r} or starts with it; "
+                             f"hint: {close_match(key, sorted(starts))}")
 
 
 def margin_pct(margin, path: str) -> float:

@@ -376,7 +376,7 @@ class WeightedSums:
                 self._sum(w, x)
 
     def _sum(self, w: np.ndarray, x: np.ndarray) -> None:
-        x = np.ascontiguousarray(x)
+        w, x = np.ascontiguousarray(w), np.ascontiguousarray(x)    # the same layout whatever the chunks
         finite = np.isfinite(x)
         x0 = np.where(finite, x, 0.0)
         s, n = w @ x0.astype(np.float32), w @ finite.astype(np.float32)

@@ -136,10 +136,11 @@ def test_hostile_inputs_are_refused_with_nothing_written(results, repo_root, shi
 def test_the_margin_on_the_command_line(results, tmp_path, capsys):
     assert parse_margins(None) == 1.0 and parse_margins(["2"]) == 2.0
     assert parse_margins(["rms.pos_m=5", "0.5"]) == {"rms.pos_m": 5.0, "": 0.5}
-    for bad in (["x"], ["rms.pos_m=-1"], ["500"]):
+    for bad, said in ((["x"], "--margin 'x'"), (["rms.pos_m=-1"], "--margin['rms.pos_m']"), (["500"], "--margin: is 500"),
+                      (["rms.pos=5"], "did you mean 'rms.pos_m'")):
         assert main(["compare", str(results["a"]), str(results["same"]), "--margin", *bad,
                      "--out", str(tmp_path / "no")]) == 2
-        assert "margin" in capsys.readouterr().err and not (tmp_path / "no").exists()
+        assert said in capsys.readouterr().err and not (tmp_path / "no").exists()
     assert main(["compare", str(results["a"]), str(results["same"]), "--margin", "rms=0",
                  "--out", str(tmp_path / "c")]) == 0
     rows = json.loads((tmp_path / "c" / "compare.json").read_text())["comparisons"][0]["differences"]

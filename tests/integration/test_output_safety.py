@@ -283,10 +283,9 @@ def test_a_planted_manifest_deletes_nothing(tmp_path, caplog):
     folder.mkdir()
     (folder / "thesis.tex").write_text("years of work")
     (folder / MANIFEST).write_text(json.dumps(["thesis.tex"]))        # an old-style manifest
-    with caplog.at_level("WARNING"):
-        release(OutputFolder(folder, command="run"), clear=True)
+    with pytest.raises(NavsimError, match=r"an earlier navsim command .*\(thesis.tex\)"):
+        OutputFolder(folder, command="run")         # listed, whose command it cannot tell: not free
     assert (folder / "thesis.tex").read_text() == "years of work"
-    assert "thesis.tex" in caplog.text
 
 
 def test_a_file_changed_since_navsim_wrote_it_is_kept(tmp_path):
@@ -337,7 +336,7 @@ def alive(pid: int) -> bool:
 
 def start_long_run(scenario, out):
     proc = subprocess.Popen([sys.executable, "-m", "navsim", "run", str(scenario), "--out", str(out),
-                             "--runs", "400", "--chunk-runs", "2", "--workers", "2"],
+                             "--runs", "120", "--chunk-runs", "2", "--workers", "2"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
@@ -397,12 +396,12 @@ def test_sigkill_ends_the_workers_and_resume_completes(tiny, tmp_path):
         assert not wait_gone(workers, 5), "worker processes outlived their killed parent"
     finally:
         kill_all(workers)
-    r = subprocess.run([sys.executable, "-m", "navsim", "run", str(tiny[0]), "--out", str(out), "--runs", "400",
+    r = subprocess.run([sys.executable, "-m", "navsim", "run", str(tiny[0]), "--out", str(out), "--runs", "120",
                         "--chunk-runs", "2", "--workers", "2", "--resume"], capture_output=True, text=True,
                        timeout=300)
     assert r.returncode == 0, r.stderr
     assert "taking over the lock" in r.stderr
-    assert json.loads((out / "metrics.json").read_text())["runs_done"] == 400
+    assert json.loads((out / "metrics.json").read_text())["runs_done"] == 120
 
 
 # --- 6. a full disk while the report is written ---------------------------------------------------
@@ -523,3 +522,67 @@ def test_a_result_being_written_is_named_as_such(tiny, tmp_path):
         holder.wait()
     with pytest.raises(NavsimError, match="not a finished navsim run.*metrics.json"):
         navsim.open_result(folder)
+
+
+def _manifest(folder: Path, data) -> None:
+    folder.mkdir(parents=True)
+    (folder / MANIFEST).write_text(json.dumps(data))
+
+
+@pytest.mark.parametrize("files, holder", [(["budget_part_all.npz"], "budget"), (["compare.json", "compare.pdf"], "compare"),
+                                           (["sensor_imu.png"], "sensors"), (["metrics.json", "run.json"], "run")])
+def test_a_folder_of_an_older_navsim_is_told_by_its_files_and_kept(tmp_path, files, holder):
+    """A format-2 manifest (navsim 0.3.0) names no command: its files tell which (an interrupted
+    budget's parts among them), and another command is refused without touching them."""
+    folder = tmp_path / "old"
+    _manifest(folder, {"format": 2, "files": {}})
+    for name in files:
+        (folder / name).write_text(name)
+    st = {n: os.lstat(folder / n) for n in files}
+    ident = {n: {"size": s.st_size, "mtime_ns": s.st_mtime_ns, "ino": s.st_ino, "dev": s.st_dev} for n, s in st.items()}
+    (folder / MANIFEST).write_text(json.dumps({"format": 2, "files": ident}))
+    other = "fly" if holder != "fly" else "run"
+    with pytest.raises(NavsimError, match=f"holds the result of `navsim {holder}`"):
+        OutputFolder(folder, command=other)
+    assert sorted(os.listdir(folder)) == sorted([*files, MANIFEST])
+    release(OutputFolder(folder, command=holder), clear=True)          # its own command replaces them
+    assert not any((folder / n).exists() for n in files)
+
+
+def test_a_manifest_that_cannot_tell_or_names_a_newer_command_is_refused(tmp_path):
+    untold = tmp_path / "untold"
+    _manifest(untold, ["notes.csv"])
+    (untold / "notes.csv").write_text("x")
+    with pytest.raises(NavsimError, match="an earlier navsim command"):
+        OutputFolder(untold, command="compare")
+    newer = tmp_path / "newer"
+    _manifest(newer, {"format": 4, "command": "tune", "files": {"tune.json": None}})
+    (newer / "tune.json").write_text("{}")
+    with pytest.raises(NavsimError, match="`navsim tune`"):
+        OutputFolder(newer, command="run")
+    assert (untold / "notes.csv").exists() and (newer / "tune.json").exists()
+
+
+def test_a_result_whose_files_are_gone_leaves_its_folder_free(tmp_path):
+    folder = tmp_path / "gone"
+    _manifest(folder, {"format": 3, "command": "budget", "files": {"budget.json": None}})
+    release(OutputFolder(folder, command="compare"), clear=True)
+    assert json.loads((folder / MANIFEST).read_text())["command"] == "compare"
+
+
+def test_this_process_reentering_with_another_command_is_refused(tmp_path):
+    with OutputFolder(tmp_path / "f", command="budget"):
+        with pytest.raises(NavsimError, match="holds the result of `navsim budget`"):
+            OutputFolder(tmp_path / "f", command="run")
+
+
+def test_a_budget_store_must_be_a_budgets_folder_and_a_report_not_another_runs(tiny, tmp_path):
+    with OutputFolder(tmp_path / "r", command="run") as folder:
+        with pytest.raises(NavsimError, match="opened for a budget"):
+            navsim.budget(tiny[0], runs=2, store=folder)
+    other = navsim.run(tiny[0], runs=2, seed=9, workers=1)
+    target = finished_copy(tiny, tmp_path / "done")
+    before = contents(target)
+    with pytest.raises(NavsimError, match="holds the result of another run"):
+        navsim.write_report(other, target)
+    assert contents(target) == before
