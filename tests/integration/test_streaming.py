@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 import pytest
-from test_run import run, short  # noqa: F401 (short is the fixture)
+from test_run import SHORT, run
 
 import navsim
 from navsim.cli import main
@@ -13,6 +13,16 @@ from navsim.experiment.chunkstore import ChunkStore, part_arrays, part_from_arra
 from navsim.records.chunk import ChunkPart, merge_parts
 from navsim.records.history import EstimatorHistory
 from navsim.records.truth import CalibrationHistory, TruthBias
+
+
+@pytest.fixture
+def short(tmp_path, monkeypatch):
+    """test_run's short scenario with its report as a PDF only: these tests read the numbers,
+    and the PNGs cost a second drawing of every page in each of the 34 runs."""
+    monkeypatch.setenv("NAVSIM_CACHE", str(tmp_path / "cache"))
+    path = tmp_path / "short.yaml"
+    path.write_text(SHORT + "report: {formats: [pdf]}\n")
+    return path
 
 
 @pytest.fixture(autouse=True)
