@@ -53,6 +53,14 @@ def short(tmp_path, monkeypatch):
     return path
 
 
+@pytest.fixture
+def short_pdf(short):
+    """The short scenario with its report as a PDF only, for the tests that read the numbers (the
+    PNGs, every page drawn a second time, cost 2-3.5 s a run)."""
+    short.write_text(SHORT + "report: {formats: [pdf]}\n")
+    return short
+
+
 def run(path, out, *extra):
     return main(["run", str(path), "--out", str(out), *extra])
 
@@ -86,11 +94,11 @@ def test_run_writes_report_metrics_and_histories(short, tmp_path, capsys):
     assert json.loads((tmp_path / "out2" / "run.json").read_text())["flight_cached"] is True
 
 
-def test_workers_do_not_change_the_numbers(short, tmp_path, monkeypatch):
+def test_workers_do_not_change_the_numbers(short_pdf, tmp_path, monkeypatch):
     import navsim.experiment.runner
     monkeypatch.setattr(navsim.experiment.runner, "CHUNK_RUNS", 2)          # 3 chunks for 6 runs
-    assert run(short, tmp_path / "w1", "--workers", "1") == 0
-    assert run(short, tmp_path / "w2", "--workers", "2") == 0
+    assert run(short_pdf, tmp_path / "w1", "--workers", "1") == 0
+    assert run(short_pdf, tmp_path / "w2", "--workers", "2") == 0
     a = json.loads((tmp_path / "w1" / "metrics.json").read_text())
     b = json.loads((tmp_path / "w2" / "metrics.json").read_text())
     timing_free = lambda m: {k: {q: v for q, v in e.items() if q != "cost"} for k, e in m["estimators"].items()}
@@ -100,7 +108,7 @@ def test_workers_do_not_change_the_numbers(short, tmp_path, monkeypatch):
                           navsim.open_result(tmp_path / "w2").histories["KF"].pos_err_m)
 
 
-def test_a_failing_chunk_is_flagged_and_the_others_complete(short, tmp_path, monkeypatch, capsys):
+def test_a_failing_chunk_is_flagged_and_the_others_complete(short_pdf, tmp_path, monkeypatch, capsys):
     import navsim.experiment.runner
     monkeypatch.setattr(navsim.experiment.runner, "CHUNK_RUNS", 2)
     real = navsim.experiment.runner._chunk
@@ -111,7 +119,7 @@ def test_a_failing_chunk_is_flagged_and_the_others_complete(short, tmp_path, mon
         return real(args)
 
     monkeypatch.setattr(navsim.experiment.runner, "_chunk", flaky)
-    assert run(short, tmp_path / "out") == 0
+    assert run(short_pdf, tmp_path / "out") == 0
     m = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert m["runs_done"] == 4 and set(m["failed_runs"]) == {"2", "3"}
     assert "worker killed" in m["failed_runs"]["2"]
@@ -131,11 +139,11 @@ def interrupt_at(monkeypatch, first_run: int) -> None:
     monkeypatch.setattr(navsim.experiment.runner, "_chunk", interrupt)
 
 
-def test_interrupted_run_keeps_what_finished(short, tmp_path, monkeypatch):
+def test_interrupted_run_keeps_what_finished(short_pdf, tmp_path, monkeypatch):
     import navsim.experiment.runner
     monkeypatch.setattr(navsim.experiment.runner, "CHUNK_RUNS", 2)
     interrupt_at(monkeypatch, 4)
-    assert run(short, tmp_path / "out") == 130
+    assert run(short_pdf, tmp_path / "out") == 130
     m = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert m["interrupted"] is True and m["runs_done"] == 4
     assert (tmp_path / "out" / "report.pdf").exists()

@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 import pytest
-from test_run import SHORT, run
+from test_run import run, short, short_pdf  # noqa: F401 (fixtures)
 
 import navsim
 from navsim.cli import main
@@ -13,16 +13,6 @@ from navsim.experiment.chunkstore import ChunkStore, part_arrays, part_from_arra
 from navsim.records.chunk import ChunkPart, merge_parts
 from navsim.records.history import EstimatorHistory
 from navsim.records.truth import CalibrationHistory, TruthBias
-
-
-@pytest.fixture
-def short(tmp_path, monkeypatch):
-    """test_run's short scenario with its report as a PDF only: these tests read the numbers,
-    and the PNGs cost a second drawing of every page in each of the 34 runs."""
-    monkeypatch.setenv("NAVSIM_CACHE", str(tmp_path / "cache"))
-    path = tmp_path / "short.yaml"
-    path.write_text(SHORT + "report: {formats: [pdf]}\n")
-    return path
 
 
 @pytest.fixture(autouse=True)
@@ -98,10 +88,10 @@ def test_the_merged_store_equals_the_in_memory_merge(same_history, tmp_path):
     assert all(np.array_equal(a.calibration["mag"].arrays()[k], v) for k, v in b.calibration["mag"].arrays().items())
 
 
-def test_stored_chunks_equal_the_in_memory_histories(same_history, short, tmp_path):
+def test_stored_chunks_equal_the_in_memory_histories(same_history, short_pdf, tmp_path):
     from navsim.experiment.runner import cached_flight, run_monte_carlo
     from navsim.experiment.scenario import load_scenario
-    sc = load_scenario(short)
+    sc = load_scenario(short_pdf)
     truth, path, _ = cached_flight(sc.flight)
     key = {"scenario_hash": "x", "seed": 4, "runs": 5, "chunk_runs": 2}
     store = ChunkStore(tmp_path / "chunks", key, mode="new")
@@ -120,9 +110,9 @@ def test_stored_chunks_equal_the_in_memory_histories(same_history, short, tmp_pa
     assert index["chunks"]["2-3"] == "chunk_2-3.npz" and index["failed"] == {} and index["seed"] == 4
 
 
-def test_resume_runs_only_the_missing_chunks_and_gives_the_same_metrics(short, tmp_path, monkeypatch):
+def test_resume_runs_only_the_missing_chunks_and_gives_the_same_metrics(short_pdf, tmp_path, monkeypatch):
     import navsim.experiment.runner
-    assert run(short, tmp_path / "whole", "--chunk-runs", "2") == 0
+    assert run(short_pdf, tmp_path / "whole", "--chunk-runs", "2") == 0
     real, calls, stop = navsim.experiment.runner._chunk, [], [True]
 
     def interrupt(args):
@@ -132,11 +122,11 @@ def test_resume_runs_only_the_missing_chunks_and_gives_the_same_metrics(short, t
         return real(args)
 
     monkeypatch.setattr(navsim.experiment.runner, "_chunk", interrupt)
-    assert run(short, tmp_path / "cut", "--chunk-runs", "2") == 130
+    assert run(short_pdf, tmp_path / "cut", "--chunk-runs", "2") == 130
     assert numbers(tmp_path / "cut")[1]["runs_done"] == 4
     calls.clear()
     stop[0] = False
-    assert run(short, tmp_path / "cut", "--resume") == 0          # the chunk size comes from the index
+    assert run(short_pdf, tmp_path / "cut", "--resume") == 0          # the chunk size comes from the index
     assert calls == [4]
     (a, ma), (b, mb) = numbers(tmp_path / "whole"), numbers(tmp_path / "cut")
     assert a == b and mb["runs_done"] == 6 and mb["interrupted"] is False
@@ -144,18 +134,18 @@ def test_resume_runs_only_the_missing_chunks_and_gives_the_same_metrics(short, t
     assert np.array_equal(kf_errors(tmp_path / "whole"), kf_errors(tmp_path / "cut"))
 
 
-def test_resume_refuses_another_run(short, tmp_path, capsys):
-    assert run(short, tmp_path / "none", "--resume") == 2
+def test_resume_refuses_another_run(short_pdf, tmp_path, capsys):
+    assert run(short_pdf, tmp_path / "none", "--resume") == 2
     assert "nothing to resume" in capsys.readouterr().err
-    assert run(short, tmp_path / "out", "--chunk-runs", "3") == 0
-    assert run(short, tmp_path / "out", "--resume", "--seed", "5") == 2
+    assert run(short_pdf, tmp_path / "out", "--chunk-runs", "3") == 0
+    assert run(short_pdf, tmp_path / "out", "--resume", "--seed", "5") == 2
     assert "seed 4 there, 5 now" in capsys.readouterr().err
 
 
 @pytest.mark.dask
-def test_dask_local_cluster_gives_the_local_numbers(short, tmp_path, monkeypatch):
-    assert run(short, tmp_path / "local", "--chunk-runs", "2", "--workers", "1") == 0
-    assert run(short, tmp_path / "dask", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
+def test_dask_local_cluster_gives_the_local_numbers(short_pdf, tmp_path, monkeypatch):
+    assert run(short_pdf, tmp_path / "local", "--chunk-runs", "2", "--workers", "1") == 0
+    assert run(short_pdf, tmp_path / "dask", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
     (a, _), (b, mb) = numbers(tmp_path / "local"), numbers(tmp_path / "dask")
     assert a == b and mb["runs_done"] == 6
     assert np.array_equal(kf_errors(tmp_path / "local"), kf_errors(tmp_path / "dask"))
@@ -163,7 +153,7 @@ def test_dask_local_cluster_gives_the_local_numbers(short, tmp_path, monkeypatch
 
 
 @pytest.mark.dask
-def test_dask_retries_a_chunk_once_and_flags_one_that_fails_twice(short, tmp_path, monkeypatch):
+def test_dask_retries_a_chunk_once_and_flags_one_that_fails_twice(short_pdf, tmp_path, monkeypatch):
     import navsim.experiment.runner
     real, marker = navsim.experiment.runner._chunk, tmp_path / "failed_once"
 
@@ -177,7 +167,7 @@ def test_dask_retries_a_chunk_once_and_flags_one_that_fails_twice(short, tmp_pat
         return real(args)
 
     monkeypatch.setattr(navsim.experiment.runner, "_chunk", flaky)
-    assert run(short, tmp_path / "out", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
+    assert run(short_pdf, tmp_path / "out", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
     _, m = numbers(tmp_path / "out")
     assert m["runs_done"] == 4 and set(m["failed_runs"]) == {"2", "3"} and marker.exists()
     record = json.loads((tmp_path / "out" / "run.json").read_text())
@@ -192,7 +182,7 @@ def test_closed_loop_refuses_dask(repo_root, tmp_path, capsys):
 
 @pytest.mark.dask
 @pytest.mark.filterwarnings("ignore:No artists with labels")   # the stub returns no runs
-def test_sweep_passes_the_executor_to_every_point(short, tmp_path, monkeypatch):
+def test_sweep_passes_the_executor_to_every_point(short_pdf, tmp_path, monkeypatch):
     import navsim.api
     import navsim.experiment.runner
     seen = []
@@ -203,13 +193,13 @@ def test_sweep_passes_the_executor_to_every_point(short, tmp_path, monkeypatch):
 
     monkeypatch.setattr(navsim.api, "run_monte_carlo", record)
     sweep = tmp_path / "sweep.yaml"
-    sweep.write_text(f"scenario: {short.name}\nruns: 2\npoints: [{{montecarlo.seed: 1}}, {{montecarlo.seed: 2}}]\n")
+    sweep.write_text(f"scenario: {short_pdf.name}\nruns: 2\npoints: [{{montecarlo.seed: 1}}, {{montecarlo.seed: 2}}]\n")
     assert main(["sweep", str(sweep), "--out", str(tmp_path / "out"), "--executor", "dask",
                  "--scheduler", "tcp://nowhere:8786"]) == 0
     assert seen == [("dask", "tcp://nowhere:8786")] * 2
 
 
-def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short, tmp_path, monkeypatch, close_metrics):
+def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short_pdf, tmp_path, monkeypatch, close_metrics):
     """Metrics chunk by chunk (flat memory) equal the in-memory scores of all runs; the report's
     plots load only the first REPORT_RUNS runs and say so; no runs.npz (the runs are in chunks/)."""
     import navsim.experiment.runner
@@ -217,11 +207,11 @@ def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short, tmp_pat
     from navsim.scoring.scorer import score
     monkeypatch.setattr(navsim.experiment.runner, "REPORT_RUNS", 2)
     out = tmp_path / "out"
-    assert run(short, out, "--chunk-runs", "2") == 0
+    assert run(short_pdf, out, "--chunk-runs", "2") == 0
     record = json.loads((out / "run.json").read_text())
     assert record["runs_plotted"] == 2 and record["runs_done"] == 6 and record["per_run_data"] == "chunks/"
     assert not (out / "runs.npz").exists() and (out / "report.pdf").stat().st_size > 0
-    sc = load_scenario(short)
+    sc = load_scenario(short_pdf)
     hist = ChunkStore.open(out / "chunks").merged().histories
     got = json.loads((out / "metrics.json").read_text())["estimators"]
     for label, h in hist.items():
@@ -231,7 +221,7 @@ def test_streamed_metrics_cover_every_run_and_the_plots_the_first(short, tmp_pat
 
 
 @pytest.mark.dask
-def test_dask_retries_a_chunk_whose_worker_dies_and_flags_one_that_kills_it_twice(short, tmp_path, monkeypatch):
+def test_dask_retries_a_chunk_whose_worker_dies_and_flags_one_that_kills_it_twice(short_pdf, tmp_path, monkeypatch):
     """A worker process killed under a chunk (os._exit, as the OOM killer would): the chunk runs
     again on a restarted worker; a chunk that kills its worker twice is flagged, the others complete."""
     import os
@@ -248,7 +238,7 @@ def test_dask_retries_a_chunk_whose_worker_dies_and_flags_one_that_kills_it_twic
         return real(args)
 
     monkeypatch.setattr(navsim.experiment.runner, "_chunk", deadly)
-    assert run(short, tmp_path / "out", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
+    assert run(short_pdf, tmp_path / "out", "--chunk-runs", "2", "--workers", "2", "--executor", "dask") == 0
     _, m = numbers(tmp_path / "out")
     attempts = [p.name.split("-")[0] for p in log.iterdir()]
     # chunk 0 ran twice (killed once), or three times when its finished result was still on the
@@ -258,14 +248,14 @@ def test_dask_retries_a_chunk_whose_worker_dies_and_flags_one_that_kills_it_twic
     assert "KilledWorker" in json.loads((tmp_path / "out" / "run.json").read_text())["failed_chunks"]["2-3"]
 
 
-def test_a_run_killed_by_sigkill_resumes_to_the_uninterrupted_metrics(short, tmp_path):
+def test_a_run_killed_by_sigkill_resumes_to_the_uninterrupted_metrics(short_pdf, tmp_path):
     """``navsim run`` killed (SIGKILL: no handler runs) once two chunks are stored; ``--resume``
     completes it with the metrics of an uninterrupted run."""
     import subprocess
     import sys
     import time
     cut = tmp_path / "cut"
-    proc = subprocess.Popen([sys.executable, "-m", "navsim", "run", str(short), "--out", str(cut),
+    proc = subprocess.Popen([sys.executable, "-m", "navsim", "run", str(short_pdf), "--out", str(cut),
                              "--chunk-runs", "1", "--workers", "1"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     index, done, deadline = cut / "chunks" / "index.json", 0, time.monotonic() + 600
@@ -278,20 +268,20 @@ def test_a_run_killed_by_sigkill_resumes_to_the_uninterrupted_metrics(short, tmp
     proc.kill()
     proc.wait()
     assert 2 <= done < 6 and not (cut / "metrics.json").exists()
-    assert run(short, cut, "--resume") == 0
-    assert run(short, tmp_path / "whole", "--chunk-runs", "1") == 0
+    assert run(short_pdf, cut, "--resume") == 0
+    assert run(short_pdf, tmp_path / "whole", "--chunk-runs", "1") == 0
     (a, _), (b, mb) = numbers(tmp_path / "whole"), numbers(cut)
     assert a == b and mb["runs_done"] == 6
 
 
 @pytest.mark.dask
-def test_dask_on_a_running_scheduler_gives_the_local_numbers(short, tmp_path):
+def test_dask_on_a_running_scheduler_gives_the_local_numbers(short_pdf, tmp_path):
     """``--scheduler ADDRESS``: the truth is scattered to the cluster's workers (no flight cache
     needed there) and the numbers equal the local executor's."""
     import distributed
-    assert run(short, tmp_path / "local", "--chunk-runs", "3", "--workers", "1") == 0
+    assert run(short_pdf, tmp_path / "local", "--chunk-runs", "3", "--workers", "1") == 0
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster:
-        assert run(short, tmp_path / "remote", "--chunk-runs", "3", "--executor", "dask",
+        assert run(short_pdf, tmp_path / "remote", "--chunk-runs", "3", "--executor", "dask",
                    "--scheduler", cluster.scheduler_address) == 0
     (a, _), (b, mb) = numbers(tmp_path / "local"), numbers(tmp_path / "remote")
     assert a == b and mb["runs_done"] == 6
@@ -319,25 +309,25 @@ def test_the_local_pool_keeps_no_part_once_it_is_handed_on():
     assert parts == [] and failed == {} and alive == [0, 0, 0, 0]
 
 
-def test_a_bad_chunk_size_clears_nothing(short, tmp_path, capsys):
-    assert run(short, tmp_path / "out", "--chunk-runs", "3") == 0
+def test_a_bad_chunk_size_clears_nothing(short_pdf, tmp_path, capsys):
+    assert run(short_pdf, tmp_path / "out", "--chunk-runs", "3") == 0
     with pytest.raises(SystemExit) as exc:             # a usage error, from the command line parser
-        run(short, tmp_path / "out", "--chunk-runs", "0")
+        run(short_pdf, tmp_path / "out", "--chunk-runs", "0")
     assert exc.value.code == 2
     assert "--chunk-runs: 0 is below 1" in capsys.readouterr().err
     assert sorted(p.name for p in (tmp_path / "out" / "chunks").glob("chunk_*")) == ["chunk_0-2.npz", "chunk_3-5.npz"]
 
 
-def test_resume_rescores_with_other_metric_settings_without_running_again(short, tmp_path, monkeypatch):
+def test_resume_rescores_with_other_metric_settings_without_running_again(short_pdf, tmp_path, monkeypatch):
     """The chunks do not depend on the ``metrics`` block: a resume with another settling time runs
     nothing and scores the stored runs anew."""
     import navsim.experiment.runner
-    assert run(short, tmp_path / "out", "--chunk-runs", "3") == 0
+    assert run(short_pdf, tmp_path / "out", "--chunk-runs", "3") == 0
     before = json.loads((tmp_path / "out" / "metrics.json").read_text())["estimators"]["KF"]
     calls = []
     monkeypatch.setattr(navsim.experiment.runner, "_chunk", lambda args: calls.append(args))
-    rescored = short.with_name("rescored.yaml")
-    rescored.write_text(short.read_text().replace("settle_s: 10", "settle_s: 20"))
+    rescored = short_pdf.with_name("rescored.yaml")
+    rescored.write_text(short_pdf.read_text().replace("settle_s: 10", "settle_s: 20"))
     assert run(rescored, tmp_path / "out", "--resume") == 0
     after = json.loads((tmp_path / "out" / "metrics.json").read_text())["estimators"]["KF"]
     assert calls == [] and after["settle_s"] == 20 and before["settle_s"] == 10
