@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_run import interrupt_at, run, short  # noqa: F401 (short is the fixture)
+from test_run import interrupt_at, run, short, short_pdf  # noqa: F401 (fixtures)
 
 import navsim
 from navsim.experiment.chunkstore import ChunkStore, ResumeError
@@ -79,11 +79,11 @@ def test_a_run_held_in_memory_writes_nothing_until_asked(short, tmp_path, monkey
     assert back.rms_pos_m_ci95.attrs["units"] == "m"
 
 
-def test_open_result_reads_a_finished_and_an_interrupted_run_and_changes_no_byte(short, tmp_path, monkeypatch,
+def test_open_result_reads_a_finished_and_an_interrupted_run_and_changes_no_byte(short_pdf, tmp_path, monkeypatch,
                                                                                   same_history):
-    assert run(short, tmp_path / "whole", "--chunk-runs", "2") == 0
+    assert run(short_pdf, tmp_path / "whole", "--chunk-runs", "2") == 0
     interrupt_at(monkeypatch, 4)
-    assert run(short, tmp_path / "cut", "--chunk-runs", "2") == 130
+    assert run(short_pdf, tmp_path / "cut", "--chunk-runs", "2") == 130
     for name, runs in (("whole", list(range(6))), ("cut", [0, 1, 2, 3])):
         folder = tmp_path / name
         before = checksums(folder)
