@@ -13,6 +13,9 @@ A run written to a folder holds ``metrics.json`` (:attr:`Result.metrics`), ``run
 (:attr:`Result.record`: seed, runs, versions, git revision), ``scenario.resolved.yaml`` and
 the per-run histories once: in ``chunks/``, or in ``runs.npz`` for a run held in memory and
 written with :func:`write_report`.
+
+Over 600 lines (run, result I/O, sweep, compare and budget in one file): issue 51 splits it into a package, one
+module per verb, its long keyword chains into options objects.
 """
 
 from __future__ import annotations

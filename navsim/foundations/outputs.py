@@ -26,6 +26,9 @@ after a full disk inside matplotlib's PDF writer), becomes an
 :class:`~navsim.foundations.errors.OutputError` (exit code 4) naming the path.
 
 Every JSON file navsim writes is strict JSON: :func:`strict_json` (NaN and infinities as null).
+
+One module, over 600 lines, for one concept: the lock, the manifest and the atomic writes are the
+three halves of "nothing another command wrote is lost", and each reads the others' state.
 """
 
 from __future__ import annotations
