@@ -39,6 +39,10 @@ _SIZES = {"axis": 3, "state": 9}
 #: docs/performance.md)
 RUN_CPU_S_PER_ESTIMATOR_S = 1.32e-5
 SCORE_S_PER_ESTIMATOR_S = 1.6e-6
+#: CPU seconds of a closed-loop run per second of its time limit: each run flies its own
+#: flight with the navigation in the loop (P1's return to land, time limit 1400 s: 100 runs in
+#: 154.4 s on 2 workers, docs/performance.md)
+CLOSED_LOOP_CPU_S_PER_S = 2.2e-3
 #: what an estimator without measurements (a free inertial solution) records: its errors
 ERRORS_RECORDED = ("att_err_rad", "vel_err_mps", "pos_err_m", "euler_err_rad")
 #: a chunk file's bytes besides its runs' (numpy's ``.npz``, measured on P0's chunks and on a
@@ -161,9 +165,12 @@ def store_bytes(scenario, runs: int, chunk_runs: int | None = None) -> int:
 
 def run_seconds(scenario, runs: int, workers: int) -> float:
     """The seconds ``runs`` runs and their scoring take on ``workers`` processes, at the
-    declared per-run costs (:data:`RUN_CPU_S_PER_ESTIMATOR_S`, :data:`SCORE_S_PER_ESTIMATOR_S`)."""
-    size = runs * _duration_s(scenario) * len(scenario.estimators)
-    return size * (RUN_CPU_S_PER_ESTIMATOR_S / max(workers, 1) + SCORE_S_PER_ESTIMATOR_S)
+    declared per-run costs (:data:`RUN_CPU_S_PER_ESTIMATOR_S`, :data:`SCORE_S_PER_ESTIMATOR_S`;
+    a closed loop's flights at :data:`CLOSED_LOOP_CPU_S_PER_S`)."""
+    duration_s = _duration_s(scenario)
+    size = runs * duration_s * len(scenario.estimators)
+    flights = runs * duration_s * CLOSED_LOOP_CPU_S_PER_S if scenario.closed_loop is not None else 0.0
+    return (size * RUN_CPU_S_PER_ESTIMATOR_S + flights) / max(workers, 1) + size * SCORE_S_PER_ESTIMATOR_S
 
 
 def _number(v: float) -> str:

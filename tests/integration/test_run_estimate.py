@@ -62,3 +62,10 @@ def test_the_cli_prints_one_estimate_line_before_the_runs(scenario, tmp_path, ca
     sc = load_scenario(scenario)
     one, many = (resources.run_seconds(sc, runs, 2) for runs in (1000, 4000))
     assert many == pytest.approx(4 * one) and resources.run_seconds(sc, 1000, 1) > one
+
+
+def test_a_closed_loop_estimate_counts_each_runs_flight(repo_root):
+    """Each closed-loop run flies its own flight: P1's return to land (100 runs in 154 s on
+    2 workers, docs/performance.md) is estimated within a factor of 2 of that."""
+    sc = load_scenario(repo_root / "scenarios" / "p1_return_to_land.yaml")
+    assert 77 < resources.run_seconds(sc, 100, 2) < 310

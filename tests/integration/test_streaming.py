@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 import pytest
-from test_run import run, short, short_pdf  # noqa: F401 (fixtures)
+from test_run import SHORT, run, short, short_pdf  # noqa: F401 (fixtures)
 
 import navsim
 from navsim.cli import main
@@ -29,6 +29,17 @@ def need_distributed(request):
         if os.environ.get("NAVSIM_REQUIRE_DASK") == "1":
             pytest.fail("NAVSIM_REQUIRE_DASK=1 but Dask distributed is not installed")
         pytest.skip("the Dask tests need pip install -e '.[test,dask]'")
+
+
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory):
+    """An uninterrupted run of the PDF-only short scenario, the reference a resumed run must
+    equal (the numbers do not depend on the chunking); the tests only read it."""
+    folder = tmp_path_factory.mktemp("whole")
+    path = folder / "short.yaml"
+    path.write_text(SHORT + "report: {formats: [pdf]}\n")
+    assert run(path, folder / "out", "--chunk-runs", "2") == 0
+    return folder / "out"
 
 
 def numbers(out):
@@ -110,9 +121,8 @@ def test_stored_chunks_equal_the_in_memory_histories(same_history, short_pdf, tm
     assert index["chunks"]["2-3"] == "chunk_2-3.npz" and index["failed"] == {} and index["seed"] == 4
 
 
-def test_resume_runs_only_the_missing_chunks_and_gives_the_same_metrics(short_pdf, tmp_path, monkeypatch):
+def test_resume_runs_only_the_missing_chunks_and_gives_the_same_metrics(short_pdf, whole, tmp_path, monkeypatch):
     import navsim.experiment.runner
-    assert run(short_pdf, tmp_path / "whole", "--chunk-runs", "2") == 0
     real, calls, stop = navsim.experiment.runner._chunk, [], [True]
 
     def interrupt(args):
@@ -128,10 +138,10 @@ def test_resume_runs_only_the_missing_chunks_and_gives_the_same_metrics(short_pd
     stop[0] = False
     assert run(short_pdf, tmp_path / "cut", "--resume") == 0          # the chunk size comes from the index
     assert calls == [4]
-    (a, ma), (b, mb) = numbers(tmp_path / "whole"), numbers(tmp_path / "cut")
+    (a, ma), (b, mb) = numbers(whole), numbers(tmp_path / "cut")
     assert a == b and mb["runs_done"] == 6 and mb["interrupted"] is False
     assert json.loads((tmp_path / "cut" / "run.json").read_text())["resumed"] is True
-    assert np.array_equal(kf_errors(tmp_path / "whole"), kf_errors(tmp_path / "cut"))
+    assert np.array_equal(kf_errors(whole), kf_errors(tmp_path / "cut"))
 
 
 def test_resume_refuses_another_run(short_pdf, tmp_path, capsys):
@@ -248,7 +258,7 @@ def test_dask_retries_a_chunk_whose_worker_dies_and_flags_one_that_kills_it_twic
     assert "KilledWorker" in json.loads((tmp_path / "out" / "run.json").read_text())["failed_chunks"]["2-3"]
 
 
-def test_a_run_killed_by_sigkill_resumes_to_the_uninterrupted_metrics(short_pdf, tmp_path):
+def test_a_run_killed_by_sigkill_resumes_to_the_uninterrupted_metrics(short_pdf, whole, tmp_path):
     """``navsim run`` killed (SIGKILL: no handler runs) once two chunks are stored; ``--resume``
     completes it with the metrics of an uninterrupted run."""
     import subprocess
@@ -269,8 +279,7 @@ def test_a_run_killed_by_sigkill_resumes_to_the_uninterrupted_metrics(short_pdf,
     proc.wait()
     assert 2 <= done < 6 and not (cut / "metrics.json").exists()
     assert run(short_pdf, cut, "--resume") == 0
-    assert run(short_pdf, tmp_path / "whole", "--chunk-runs", "1") == 0
-    (a, _), (b, mb) = numbers(tmp_path / "whole"), numbers(cut)
+    (a, _), (b, mb) = numbers(whole), numbers(cut)
     assert a == b and mb["runs_done"] == 6
 
 
