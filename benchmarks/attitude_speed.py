@@ -16,10 +16,10 @@ import time
 
 import numpy as np
 
-from navsim.experiment.driver import InitialErrors, run_batch
-from navsim.flight.truth import Truth
+from navsim.experiment.driver import Batch, InitialErrors, run_batch
+from navsim.flight.truth import Pose, Truth
 from navsim.navigation.estimators.attitude_config import imu_noise
-from navsim.navigation.estimators.cpf_ekf import CpfEkf
+from navsim.navigation.estimators.cpf_ekf import CpfEkf, CpfEkfConfig
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.gnss import emulate_gnss
 from navsim.sensors.imu import emulate_imu
@@ -34,7 +34,7 @@ def main() -> None:
     args = parser.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
-    truth = Truth.static(args.seconds, 100.0, 43.88, 125.35, 220.0, 63.0)
+    truth = Truth.static(args.seconds, 100.0, Pose(43.88, 125.35, 220.0, 63.0))
     spec = load_spec("mpu6050")
     noise, initial = imu_noise(spec)
     print(f"CPF-EKF (P4, 20 states + CPF), {args.seconds:g} s at rest, IMU 50 Hz, magnetometer 10 Hz, "
@@ -45,10 +45,10 @@ def main() -> None:
         imu = emulate_imu(truth, spec, 1, runs, keep_rates=False)
         sensors = {"mag": emulate_magnetometer(truth, load_spec("lsm303d"), 1, runs, name="mag"),
                    "gps": emulate_gnss(truth, load_spec("neo_m8n"), 1, runs, name="gps")}
-        est = CpfEkf(mag="mag", gnss="gps", period_s=args.period, noise=noise, initial=initial)
+        est = CpfEkf(CpfEkfConfig(mag="mag", gnss="gps", period_s=args.period, noise=noise, initial=initial))
         init = InitialErrors(np.full(3, 2.0), np.full(3, 0.1), np.radians([1.0, 1.0, 2.0]))
         t0 = time.perf_counter()
-        h = run_batch(truth, imu, sensors, {"ekf": est}, init, 1, runs)["ekf"]
+        h = run_batch(truth, imu, sensors, {"ekf": est}, Batch(init, 1, runs))["ekf"]
         wall = time.perf_counter() - t0
         cycles = imu.values["dtheta_b_rad"].shape[1] - 1
         c = h.cost

@@ -47,6 +47,7 @@ def measure(runs: int, workers: int, executor: str, out: Path) -> dict:
 def measure_speed(runs: int, workers: int, executor: str, out: Path) -> dict:
     """The Monte Carlo alone (chunks streamed; cluster start and close included): wall time."""
     from navsim.experiment.chunkstore import ChunkStore
+    from navsim.experiment.options import RunOptions
     from navsim.experiment.runner import CHUNK_RUNS, cached_flight, run_monte_carlo, scenario_hash
     from navsim.experiment.scenario import load_scenario
     from navsim.scoring.scorer import score_parts
@@ -55,7 +56,8 @@ def measure_speed(runs: int, workers: int, executor: str, out: Path) -> dict:
     key = {"scenario_hash": scenario_hash(sc), "seed": sc.seed, "runs": runs, "chunk_runs": CHUNK_RUNS}
     store = ChunkStore(out, key, mode="new")
     t0 = time.perf_counter()
-    res = run_monte_carlo(sc, truth, path, runs, sc.seed, workers, store=store, executor=executor, keep_runs=0)
+    res = run_monte_carlo(sc, truth, path, RunOptions(runs=runs, seed=sc.seed, workers=workers, executor=executor),
+                          store=store, keep_runs=0)
     wall = time.perf_counter() - t0
     m = score_parts(store.parts, sc.settle_s, sc.windows)
     return {"runs": runs, "workers": workers, "executor": executor, "wall_s": wall, "runs_done": len(res.runs),

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from navsim.experiment.driver import run_batch
+from navsim.experiment.driver import Batch, run_batch
 from navsim.experiment.runner import _chunk_work, cached_flight
 from navsim.experiment.scenario import load_scenario
 from navsim.navigation.estimators.factory import build
@@ -96,7 +96,7 @@ def main() -> None:
     imu, others = sensors(warm, scenario, range(2))
     streamed_sensors(warm, scenario, range(2))
     for e in scenario.estimators:
-        run_batch(warm, imu, others, {e.label: build(e)}, scenario.initial, scenario.seed, range(2))
+        run_batch(warm, imu, others, {e.label: build(e)}, Batch(scenario.initial, scenario.seed, range(2)))
     t_sensors, _ = timed(streamed_sensors, truth, scenario, range(B))
     t_whole, (imu, others) = timed(sensors, truth, scenario, range(B))
     print(f"P0 ({SCENARIO.name}), p0 track {truth.t_s[-1]:.0f} s, IMU 100 Hz, B = {B}, one core:")
@@ -104,9 +104,9 @@ def main() -> None:
     print(f"  sensors, IMU whole        {t_whole:6.2f} s = {per(t_whole):6.1f} ms per run ((B, n, 3) arrays)")
     imu = ChunkBlocks(imu)
     for e in scenario.estimators:
-        run_batch(truth, imu, others, {e.label: build(e)}, scenario.initial, scenario.seed, range(B))
-        wall, h = timed(run_batch, truth, imu, others, {e.label: build(e)}, scenario.initial,
-                        scenario.seed, range(B))
+        run_batch(truth, imu, others, {e.label: build(e)}, Batch(scenario.initial, scenario.seed, range(B)))
+        wall, h = timed(run_batch, truth, imu, others, {e.label: build(e)},
+                        Batch(scenario.initial, scenario.seed, range(B)))
         h = h[e.label]
         target = 2 if e.type == "sins" else 6
         print(f"  {e.label:<25} {wall:6.2f} s = {per(wall):6.1f} ms per run (target <= {target}); "

@@ -24,7 +24,8 @@ The Python API (:mod:`navsim.api`): :func:`load_scenario`, :func:`run` (a :class
 :func:`open_result` (a finished run's folder, read-only), :func:`write_report`, :func:`report_figures`
 (the report's pages as figures), :func:`sweep`, and :func:`compare` (two estimators, ``B - A`` with
 95 % intervals, run by run where they flew the same runs) with :func:`write_comparison`, and
-:func:`budget` (each error source's share of the errors) with :func:`write_budget`.
+:func:`budget` (each error source's share of the errors) with :func:`write_budget`; how the runs
+are made, one :class:`RunOptions` (``options=``, or its fields as keywords).
 
 The subpackages follow the data flow; each imports only from those before it:
 :mod:`navsim.foundations` (Earth, rotations, atmosphere, YAML, errors, output folders) ->
@@ -35,9 +36,9 @@ driver, chunks, executors, closed loop, sweep) -> :mod:`navsim.scoring` (typed m
 :mod:`navsim.replay` (PX4 logs) -> :mod:`navsim.report` -> :mod:`navsim.api` -> :mod:`navsim.cli`.
 """
 
-from navsim.api import (Result, budget, compare, load_scenario, open_result, report_figures, run,  # noqa: E402
-                        sweep, write_budget, write_comparison, write_report)
+from navsim.api import (Result, RunOptions, budget, compare, load_scenario, open_result,  # noqa: E402
+                        report_figures, run, sweep, write_budget, write_comparison, write_report)
 from navsim.version import __version__  # noqa: E402
 
-__all__ = ["Result", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "report_figures", "run", "sweep", "write_report",
+__all__ = ["Result", "RunOptions", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "report_figures", "run", "sweep", "write_report",
            "__version__"]

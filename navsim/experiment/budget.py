@@ -25,6 +25,7 @@ from navsim.navigation.estimators import factory
 from navsim.navigation.estimators.eskf import ErrorStateKF
 from navsim.navigation.estimators.sins import FreeInertial
 from navsim.sensors import emulate, registry
+from navsim.sensors.registry import INERTIAL
 
 #: the initial errors' blocks as sources, and the label of their group
 INITIAL = "initial"
@@ -296,8 +297,8 @@ def _ideal(truth, config, seed: int):
 def covariance_contributions(scenario, truth, models: list[SourceModel]) -> tuple[dict, dict]:
     """Each estimator's :class:`~navsim.navigation.covariance.Contributions` of ``models``
     (label -> it), and the estimators not analysed (label -> why)."""
-    imu = next(c for c in scenario.sensors if c.kind == "imu")
-    others = {c.name: _ideal(truth, c, scenario.seed) for c in scenario.sensors if c.kind != "imu"}
+    imu = next(c for c in scenario.sensors if c.role == INERTIAL)
+    others = {c.name: _ideal(truth, c, scenario.seed) for c in scenario.sensors if c.role != INERTIAL}
     sigma_nav = scenario.initial.sigma_blocks(float(truth.lat_rad[0]), float(truth.h_m[0]))
     out, skipped = {}, {}
     for config in scenario.estimators:

@@ -48,10 +48,11 @@ import numpy as np
 
 from navsim.experiment.driver import Driver, perturbed_start
 from navsim.flight import properties as P
+from navsim.flight.autopilot import Sensed
 from navsim.flight.segments import State
 from navsim.flight.simulator import Aircraft, Watchdog
 from navsim.flight.track import Segment
-from navsim.flight.truth import Truth, truth_from_rows
+from navsim.flight.truth import Pose, Truth, truth_from_rows
 from navsim.foundations.config import MAX_DURATION_S, Node, close_match
 from navsim.foundations.errors import FlightError, ScenarioError
 from navsim.foundations.transform import quat_from_euler
@@ -59,7 +60,7 @@ from navsim.navigation.estimators import factory
 from navsim.records.history import EPOCH_ARRAYS
 from navsim.records.truth import TruthBias
 from navsim.sensors import emulate
-from navsim.sensors.registry import LoopSample, get as get_kind, kinds as sensor_kinds
+from navsim.sensors.registry import INERTIAL, LoopSample, get as get_kind, kinds as sensor_kinds
 from navsim.sensors.imu import OnlineIncrements, error_increments, quantize_increment
 
 RETURN_LABEL = "return to land"
@@ -85,13 +86,14 @@ class ClosedLoopConfig:
 def in_loop_kinds() -> list[str]:
     """The sensor kinds a closed loop flies: the IMU and every registered kind that declares how
     (:class:`navsim.sensors.registry.InLoop`)."""
-    return ["imu"] + [k.name for k in sensor_kinds() if k.in_loop is not None and k.name != "imu"]
+    return ([k.name for k in sensor_kinds() if k.role == INERTIAL]
+            + [k.name for k in sensor_kinds() if k.in_loop is not None and k.role != INERTIAL])
 
 
 def _check_in_loop(c, file) -> None:
     """Sensor ``c`` (a SensorConfig) can fly in the closed loop, or a ScenarioError says why."""
     key, kind = f"sensors.{c.name}", get_kind(c.kind)
-    if c.kind != "imu" and kind.in_loop is None:
+    if c.role != INERTIAL and kind.in_loop is None:
         raise ScenarioError(f"is a {c.kind}, whose errors depend on the trajectory: it cannot be "
                             "flown in the loop", file=file, key=key,
                             expected="with closed_loop, sensors of kinds " + ", ".join(in_loop_kinds()),
@@ -114,7 +116,7 @@ def parse_closed_loop(node: Node, labels: list[str], sensors, track, duration_s:
         what = "starts on a launcher" if track.start.type == "launch" else "is parked on the ground"
         raise ScenarioError(what, file=node.file, key="track.start.type", expected="with closed_loop, an air start",
                             hint="launches and parked vehicles are open loop only")
-    imu = [c for c in sensors if c.kind == "imu"]
+    imu = [c for c in sensors if c.role == INERTIAL]
     for c in sensors:
         _check_in_loop(c, node.file)
     if imu and abs(imu[0].spec.rate_hz - rate_hz) > 1e-9:
@@ -185,11 +187,11 @@ class LoopBatch:
 
 def _sensor_streams(scenario, seed, runs, dt, n):
     """IMU error increments and the other sensors' data (values to be filled in flight)."""
-    imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
+    imu_cfg = next(c for c in scenario.sensors if c.role == INERTIAL)
     imu = error_increments(imu_cfg.spec, seed, runs, n, dt, name=imu_cfg.name)
     start = scenario.flight.track.start
-    static = Truth.static((n - 1) * dt, 1.0 / dt, start.lat_deg, start.lon_deg, start.alt_m)
-    others = {c.name: emulate(static, c, seed, runs) for c in scenario.sensors if c.kind != "imu"}
+    static = Truth.static((n - 1) * dt, 1.0 / dt, Pose(start.lat_deg, start.lon_deg, start.alt_m))
+    others = {c.name: emulate(static, c, seed, runs) for c in scenario.sensors if c.role != INERTIAL}
     for data in others.values():
         data.meta["step"] = int(round(1.0 / (data.meta["rate_hz"] * dt)))
         prepare = get_kind(data.kind).in_loop.prepare
@@ -388,8 +390,8 @@ def _step_run(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, s: State, g
         tally.kept.append(row.copy())
         tally.seg_kept.append(len(c.config.track.segments) if tally.status[0] in ("aborted", "landed") else
                               runner.index - 1 if runner.finished else runner.index)
-    c.io.set_controls(*c.ap.step(fleet.dt, row[P.COL_TAS], s.h, climb, roll, pitch, row[P.COL_P], row[P.COL_Q],
-                                 row[P.COL_BETA], s.course))
+    c.io.set_controls(*c.ap.step(fleet.dt, Sensed(row[P.COL_TAS], s.h, climb, roll, pitch, row[P.COL_P], row[P.COL_Q],
+                                                  row[P.COL_BETA], s.course)))
     c.set_wind_at(t + fleet.dt)
     c.io.run()
 

@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from navsim.foundations import earth
 from navsim.foundations.transform import rotation
-from navsim.navigation import kernels
+from navsim.navigation.kernels import records as kernels
 from navsim.navigation.strapdown import NavState, state_from_truth
 from navsim.records.cost import compile_seconds, compute_clock
 from navsim.records.history import EPOCH_ARRAYS, RECORD_DTYPES, EstimatorHistory, epoch_shape
@@ -100,20 +101,20 @@ def nav_errors(nav: NavState, truth, k: int):
     """Errors of ``nav`` against truth sample ``k``: attitude phi (rad, ``(B, 3)``), velocity
     (m/s), position NED (m), the position error in the filter's units (dL, dlambda, dh) and
     roll, pitch, yaw minus the truth's, wrapped to [-pi, pi) (compiled, run by run:
-    :func:`navsim.navigation.kernels.nav_errors`). The truth's sample may be one for all runs or ``(B, ...)``."""
+    :func:`navsim.navigation.kernels.records.nav_errors`). The truth's sample may be one for all runs or ``(B, ...)``."""
     out = _errors(nav, truth, k)[0]
     return tuple(out[:, c] for c in (_PHI, _DV, _POS_M, _POS_FILTER, _EULER))
 
 
-#: the columns of :func:`navsim.navigation.kernels.nav_errors`' output
+#: the columns of :func:`navsim.navigation.kernels.records.nav_errors`' output
 _PHI, _DV, _POS_FILTER, _POS_M, _EULER = (slice(i, i + 3) for i in range(0, 15, 3))
 #: the errors recorded at every epoch: the :class:`EstimatorHistory` array each fills, and its
-#: columns of :func:`navsim.navigation.kernels.nav_errors`' output
+#: columns of :func:`navsim.navigation.kernels.records.nav_errors`' output
 _RECORDED = {"att_err_rad": _PHI, "vel_err_mps": _DV, "pos_err_m": _POS_M, "euler_err_rad": _EULER}
 
 
 def _errors(nav: NavState, truth, k: int):
-    """The ``(B, 15)`` output of :func:`navsim.navigation.kernels.nav_errors` and the truth's ``(1 or B, 13)``
+    """The ``(B, 15)`` output of :func:`navsim.navigation.kernels.records.nav_errors` and the truth's ``(1 or B, 13)``
     rows it was computed against."""
     parts = (truth.lat_rad[k], truth.lon_rad[k], truth.h_m[k], truth.vel_n_mps[k], truth.euler_rad[k],
              truth.quat_nb[k])
@@ -145,7 +146,7 @@ def covariance_codes(P: np.ndarray) -> np.ndarray:
     blocks weigh alike: a non-finite entry, a negative variance, an asymmetry above
     :data:`SYMMETRY_TOL` of the largest entry, or no Cholesky factorisation of the scaled
     matrix plus :data:`PSD_TOL` times the identity (not positive semi-definite). Compiled, run
-    by run: :func:`navsim.navigation.kernels.covariance_codes`.
+    by run: :func:`navsim.navigation.kernels.records.covariance_codes`.
 
     Parameters
     ----------
@@ -165,6 +166,20 @@ def covariance_faults(P: np.ndarray) -> list:
     """Per run, the cause (:data:`CAUSES`) why ``P`` is not a covariance, or None
     (:func:`covariance_codes`)."""
     return [CAUSES[c] for c in covariance_codes(P)]
+
+
+@dataclass(frozen=True)
+class _Block:
+    """What :meth:`Driver.advance` hands every estimator: the ``(B, K, 3)`` IMU increments of
+    the block, the time of its last sample (s), the measurements seen (empty off an epoch), and
+    the truth with the sample ``k`` the epochs are recorded against (``truth`` None: no record)."""
+
+    dtheta_b: np.ndarray
+    dv_b: np.ndarray
+    t_s: float
+    sensors: dict
+    truth: object
+    k: int
 
 
 class Driver:
@@ -227,8 +242,9 @@ class Driver:
                 raise ValueError(f"a block of samples {self.i + 1}-{i} crosses an epoch of '{label}'")
         due = [label for label, e in self.every.items() if i % e == 0]
         seen = self._measurements(sensors) if due else {}
+        block = _Block(dtheta_b, dv_b, t_s, seen, truth, k)
         for label, est in self.estimators.items():
-            self._advance(self.rec[label], est, dtheta_b, dv_b, label in due, t_s, seen, truth, k)
+            self._advance(self.rec[label], est, block, label in due)
         self.i = i
         return due
 
@@ -242,9 +258,10 @@ class Driver:
             self._seen = {k: d if isinstance(d, Measurements) else d.measurements() for k, d in sensors.items()}
         return self._seen
 
-    def _advance(self, rec, est, dtheta_b, dv_b, is_epoch: bool, t_s: float, sensors, truth, k) -> None:
+    def _advance(self, rec, est, block: _Block, is_epoch: bool) -> None:
         """One block of one estimator: ``propagate``, and at its epoch ``epoch`` and the record;
         a stopped estimator gets a NaN record at its epochs."""
+        dtheta_b, dv_b, t_s, truth = block.dtheta_b, block.dv_b, block.t_s, block.truth
         record = truth is not None
         if rec.failed:
             if is_epoch and record:
@@ -260,11 +277,11 @@ class Driver:
             rec.propagate_s += c1 - c0
             rec.steps += dtheta_b.shape[1]
             if is_epoch:
-                innov = est.epoch(t_s, sensors)
+                innov = est.epoch(t_s, block.sensors)
                 rec.epoch_s += clock() - c1
                 rec.epochs += 1
                 if record:
-                    rec.add(est, truth, k, t_s, innov)
+                    rec.add(est, truth, block.k, t_s, innov)
         except Exception as exc:  # one estimator's failure must not stop the others
             self._fail(rec, t_s, exc, is_epoch and record and len(rec.t) == recorded)
         finally:
@@ -289,9 +306,18 @@ class Driver:
         return {label: r.history(self.estimators[label]) for label, r in self.rec.items()}
 
 
-def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialErrors, seed: int,
-              runs, progress=None) -> dict[str, EstimatorHistory]:
-    """Run ``estimators`` (label -> estimator object) on the runs ``runs``.
+@dataclass(frozen=True)
+class Batch:
+    """The runs of a batch: the initial errors drawn for each (``initial``), the seed of their
+    random streams and the run indices (:meth:`InitialErrors.draw`)."""
+
+    initial: InitialErrors
+    seed: int
+    runs: Sequence[int]
+
+
+def run_batch(truth, imu, sensors: dict, estimators: dict, batch: Batch, progress=None) -> dict[str, EstimatorHistory]:
+    """Run ``estimators`` (label -> estimator object) on the runs of ``batch``.
 
     ``imu`` is the IMU :class:`~navsim.sensors.base.SensorData` of these runs, or an
     :class:`~navsim.sensors.imu.ImuStream` generating it block by block, ``sensors`` the other
@@ -302,12 +328,12 @@ def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialError
     all its runs flagged diverged with the exception as the cause and is not called again; its
     errors are NaN from there, and the other estimators go on.
     """
-    runs = list(runs)
-    errors = initial.draw(seed, runs)
+    runs = list(batch.runs)
+    errors = batch.initial.draw(batch.seed, runs)
     dt = imu.meta["dt_s"]
     step = int(round(dt / truth.dt_s))
     driver = Driver(estimators, dt, len(runs))
-    driver.start(perturbed_start(truth, errors, 0), initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0]),
+    driver.start(perturbed_start(truth, errors, 0), batch.initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0]),
                  truth, 0)
     if hasattr(imu, "block"):                    # an ImuStream: generated block by block
         blocks = lambda a, b: imu.block(a, b)[0]
@@ -323,7 +349,7 @@ def run_batch(truth, imu, sensors: dict, estimators: dict, initial: InitialError
     return driver.histories()
 
 
-#: the limits of :func:`navsim.navigation.kernels.covariance_record`
+#: the limits of :func:`navsim.navigation.kernels.records.covariance_record`
 _LIMITS = np.array([SYMMETRY_TOL, PSD_TOL, NEES_BOUND])
 
 

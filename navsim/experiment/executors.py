@@ -29,6 +29,7 @@ import threading
 import time
 import uuid
 
+from navsim.experiment.options import RunOptions
 from navsim.foundations.errors import UsageError
 
 RETRIES = 1
@@ -182,8 +183,7 @@ def _error(future) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
-def run_chunks_dask(fn, chunks, truth, truth_path, rest: tuple, workers: int, scheduler: str | None = None,
-                    progress=None, on_part=None):
+def run_chunks_dask(fn, chunks, truth, truth_path, rest: tuple, options: RunOptions, on_part=None):
     """Run ``fn((truth, *rest, chunk))`` for each chunk as a Dask task.
 
     Parameters
@@ -196,19 +196,20 @@ def run_chunks_dask(fn, chunks, truth, truth_path, rest: tuple, workers: int, sc
         The flight and its cached file.
     rest : tuple
         The worker's arguments between the truth and the runs (scenario, seed).
-    workers : int
-        Processes of the ``LocalCluster`` (ignored with ``scheduler``).
-    scheduler : str, optional
-        Address of a running Dask scheduler (``tcp://host:8786``).
-    progress, on_part : callable, optional
-        ``progress(runs_finished)``; ``on_part(part)`` receives each finished chunk as it arrives
-        (otherwise the parts are returned).
+    options : navsim.experiment.options.RunOptions
+        Its ``workers`` (the processes of the ``LocalCluster``, ignored with ``scheduler``),
+        ``scheduler`` (the address of a running Dask scheduler, ``tcp://host:8786``; None: a
+        ``LocalCluster``) and ``progress`` (called ``progress(runs_finished)``).
+    on_part : callable, optional
+        ``on_part(part)`` receives each finished chunk as it arrives (otherwise the parts are
+        returned).
 
     Returns
     -------
     tuple
         ``(parts, failed, interrupted)`` as :func:`navsim.experiment.runner.run_chunks`.
     """
+    workers, scheduler, progress = options.workers, options.scheduler, options.progress
     parts, failed, interrupted = [], {}, False
     if not chunks:
         return parts, failed, interrupted

@@ -19,7 +19,6 @@ import numpy as np
 
 from navsim.experiment.runner import CHUNK_RUNS, CLOSED_CHUNK_RUNS
 from navsim.flight import properties as P
-from navsim.flight.track import nominal_duration_s
 from navsim.flight.truth import ARRAY_FIELDS as TRUTH_ARRAYS, Truth
 from navsim.foundations.config import MAX_RUNS
 from navsim.foundations.errors import ScenarioError, UsageError
@@ -79,7 +78,7 @@ def available_memory() -> int:
 
 def flight_bytes(scenario, duration_s: float | None = None) -> int:
     """The memory of the scenario's flight: truth samples x (raw properties + truth arrays) x 8."""
-    duration = nominal_duration_s(scenario.flight.track) if duration_s is None else duration_s
+    duration = scenario.nominal_duration_s if duration_s is None else duration_s
     samples = duration * scenario.flight.rate_hz + 1
     return int(samples * (len(P.RAW_PROPERTIES) + TRUTH_FLOATS) * 8)
 
@@ -100,7 +99,7 @@ def _chunk_size(scenario, chunk_runs: int | None) -> int:
 
 def _duration_s(scenario) -> float:
     """The longest the scenario flies: its track, or a closed loop's time limit."""
-    nominal = nominal_duration_s(scenario.flight.track)
+    nominal = scenario.nominal_duration_s
     return max(nominal, scenario.closed_loop.time_limit_s) if scenario.closed_loop is not None else nominal
 
 
@@ -224,7 +223,7 @@ def check_flight(scenario) -> None:
     need, have = flight_bytes(scenario), available_memory()
     if need > MEMORY_SHARE * have:
         raise ScenarioError(f"the flight needs about {_gib(need)} of memory for its truth "
-                            f"({nominal_duration_s(scenario.flight.track):.6g} s at {scenario.flight.rate_hz:g} Hz), "
+                            f"({scenario.nominal_duration_s:.6g} s at {scenario.flight.rate_hz:g} Hz), "
                             f"more than {MEMORY_SHARE:.0%} of the {_gib(have)} available",
                             file=scenario.path, key="track", expected="a shorter track or a lower flight.rate_hz")
 
@@ -279,7 +278,7 @@ def check_run(scenario, runs: int, chunk_runs: int | None = None, out=None, work
 def sensor_bytes(scenario, runs: int) -> int:
     """The memory of ``runs`` runs of every sensor of the scenario, emulated at once (``navsim
     sensors``): samples x (outputs + validity) x 8 per run."""
-    duration = nominal_duration_s(scenario.flight.track)
+    duration = scenario.nominal_duration_s
     per_run = sum((duration * min(c.spec.rate_hz, scenario.flight.rate_hz) + 1) * (3 * len(output_fields(c.spec)) + 1)
                   for c in scenario.sensors)
     return int(runs * per_run * 8)

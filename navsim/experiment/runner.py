@@ -25,8 +25,9 @@ import numpy as np
 
 from navsim.experiment.chunkstore import chunk_name, job_chunks
 from navsim.experiment.closed_loop import end_records, fly_batch
-from navsim.experiment.driver import run_batch
+from navsim.experiment.driver import Batch, run_batch
 from navsim.experiment.executors import POOL_CONTEXT, run_chunks_dask
+from navsim.experiment.options import RunOptions
 from navsim.experiment.scenario import values_read
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import fly
@@ -41,6 +42,7 @@ from navsim.records.truth import CalibrationHistory, TruthBias
 from navsim.sensors import emulate
 from navsim.sensors.base import RANDOM_STREAMS, SensorData
 from navsim.sensors.imu import ImuStream, emulate_imu, seen_bias
+from navsim.sensors.registry import INERTIAL
 from navsim.version import __version__
 
 log = logging.getLogger(__name__)
@@ -193,7 +195,7 @@ def _chunk(args):
 def _chunk_work(truth_or_path, scenario, seed, runs):
     """The sensors and estimators of the runs ``runs``, as a :class:`ChunkPart`."""
     truth = Truth.load(truth_or_path) if isinstance(truth_or_path, (str, Path)) else truth_or_path
-    imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
+    imu_cfg = next(c for c in scenario.sensors if c.role == INERTIAL)
     if imu_cfg.spec.vibration:       # normalised over the whole record: emulated whole
         imu = emulate_imu(truth, imu_cfg.spec, seed, runs, name=imu_cfg.name, keep_rates=False)
     else:                            # generated block by block inside the loop
@@ -205,9 +207,9 @@ def _chunk_work(truth_or_path, scenario, seed, runs):
     read = values_read(scenario)
     others = {c.name: emulate(truth, c, seed, runs) if c.name in calibrated
               else emulated(truth, c, seed, runs, None if read is None else read[c.name])
-              for c in scenario.sensors if c.kind != "imu"}
+              for c in scenario.sensors if c.role != INERTIAL}
     estimators = {e.label: factory.build(e) for e in scenario.estimators}   # looked up at the call
-    hist = run_batch(truth, imu, others, estimators, scenario.initial, seed, runs)
+    hist = run_batch(truth, imu, others, estimators, Batch(scenario.initial, seed, runs))
     # true IMU biases at the epochs of the first estimator, for the bias plots
     first = next(iter(hist.values()))
     idx = np.searchsorted(imu.t_s, first.t_s - 1e-9)
@@ -325,25 +327,26 @@ def _chunk_failures(chunks, failed: dict) -> dict:
     return {chunk_name(ch): failed[ch[0]] for ch in chunks if ch[0] in failed}
 
 
-def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: int, workers: int,
-                    progress=None, *, chunk_runs: int | None = None, store=None, executor: str = "local",
-                    scheduler: str | None = None, keep_runs: int | None = None) -> RunResult:
-    """All runs of ``scenario`` on ``truth``, in chunks of ``chunk_runs`` (default :data:`CHUNK_RUNS`).
+def run_monte_carlo(scenario, truth: Truth, truth_path: Path | None, options: RunOptions, *, store=None,
+                    keep_runs: int | None = None) -> RunResult:
+    """All runs of ``scenario`` on ``truth``, in chunks of ``options.chunk_runs`` (default
+    :data:`CHUNK_RUNS`).
 
     Parameters
     ----------
-    scenario, truth, truth_path, runs, seed, workers, progress
-        The scenario, its flight (in memory and its cached ``.npz``), the number of runs, the
-        seed, the worker processes and a callback ``progress(runs_finished)``.
-    chunk_runs : int, optional
-        Runs per chunk; the numbers do not depend on it.
+    scenario, truth, truth_path
+        The scenario and its flight (in memory, and its cached ``.npz`` or None).
+    options : navsim.experiment.options.RunOptions
+        How the runs are made, ``runs``, ``seed`` and ``workers`` given
+        (:meth:`~navsim.experiment.options.RunOptions.for_scenario`): the number of runs, the
+        seed, the worker processes, the runs per chunk (the numbers do not depend on it), the
+        executor (``local``: a process pool on this machine; ``dask``: Dask distributed,
+        :mod:`navsim.experiment.executors`, on ``scheduler`` or a ``LocalCluster`` of
+        ``workers`` processes) and a callback ``progress(runs_finished)``; its ``resume`` is
+        not read (a ``store`` opened to resume is).
     store : navsim.experiment.chunkstore.ChunkStore, optional
         Streams each finished chunk to disk; only the chunks it lacks are run (resume) and the
         result is rebuilt from the stored chunks.
-    executor : {"local", "dask"}
-        A process pool on this machine, or Dask distributed (:mod:`navsim.experiment.executors`).
-    scheduler : str, optional
-        Dask scheduler address; without it a ``LocalCluster`` of ``workers`` processes.
     keep_runs : int, optional
         With ``store``: load the histories of the first chunks holding this many runs only
         (memory independent of ``runs``; the whole result stays in ``result.store``).
@@ -352,16 +355,17 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path, runs: int, seed: i
     -------
     RunResult
     """
-    chunks = chunk_ranges(runs, chunk_runs or CHUNK_RUNS)
+    chunks = chunk_ranges(options.runs, options.chunk_runs or CHUNK_RUNS)
     pending = store.missing(chunks) if store is not None else chunks
     on_part = store.add if store is not None else None
-    if executor == "dask":
-        parts, failed, interrupted = run_chunks_dask(
-            _chunk, pending, truth, truth_path, (scenario, seed), workers, scheduler, progress, on_part)
+    seed = options.seed
+    if options.executor == "dask":
+        parts, failed, interrupted = run_chunks_dask(_chunk, pending, truth, truth_path, (scenario, seed), options,
+                                                     on_part)
     else:
         parts, failed, interrupted = run_chunks(
             _chunk, pending, lambda ch, remote: (str(truth_path) if remote and truth_path else truth, scenario, seed, ch),
-            workers, progress, on_part)
+            options.workers, options.progress, on_part)
     if store is not None:
         store.flag(_chunk_failures(pending, failed))
         merged = store.merged(keep_runs)

@@ -52,6 +52,7 @@ from navsim.records.reference import Reference
 from navsim.records.vocabulary import check_metric_path
 from navsim.sensors import height_fields, output_fields, parse_sensors, velocity_fields
 from navsim.sensors.base import check_faults, decimation
+from navsim.sensors.registry import INERTIAL
 
 log = logging.getLogger(__name__)
 #: the clipped fault windows already named (:func:`_warn_clipped_faults`): each once per process,
@@ -77,6 +78,9 @@ class Scenario:
     reference: Reference | None = None    #: the published results it reproduces
     report: dict = field(default_factory=dict)
     closed_loop: object = None           #: navsim.experiment.closed_loop.ClosedLoopConfig, or None (open loop)
+    #: the track's duration at its speeds, s (:func:`~navsim.flight.track.nominal_duration_s`,
+    #: computed once by :func:`parse_scenario`): time-outs, progress, memory and window checks
+    nominal_duration_s: float = math.nan
 
 
 def available_aircraft() -> list[str]:
@@ -125,7 +129,8 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     scenario = Scenario(name=name, description=description, flight=config,
                         path=Path(file) if file else None, raw=data, sensors=sensors, runs=runs, seed=seed,
                         workers=workers, estimators=estimators, initial=initial, settle_s=settle_s,
-                        windows=windows, reference=reference, report=report, closed_loop=closed_loop)
+                        windows=windows, reference=reference, report=report, closed_loop=closed_loop,
+                        nominal_duration_s=nominal_s)
     check_scenario(scenario, nominal_s)   # closed loop too: its windows lie within the track as planned
     return scenario
 
@@ -205,7 +210,7 @@ def _estimators(node: Node, sensors, file: str | None) -> tuple:
         return ()
     node._seen.add("estimators")
     estimators = parse_estimators(node.data["estimators"], {c.name: c.kind for c in sensors}, file)
-    imu = [c for c in sensors if c.kind == "imu"]
+    imu = [c for c in sensors if c.role == INERTIAL]
     if len(imu) != 1:
         raise ScenarioError(f"has {len(imu)} IMUs", file=file, key="sensors",
                             expected="exactly one sensor of kind imu when estimators are given")
@@ -295,7 +300,7 @@ def check_scenario(scenario: Scenario, duration_s: float) -> None:
                                     f"after the end of the flight ({end:.6g} s)", file=file,
                                     key=f"metrics.windows[{i}].{key}",
                                     expected=f"a window within the flight (0 to {end:.6g} s)")
-    imu = [c for c in scenario.sensors if c.kind == "imu"]
+    imu = [c for c in scenario.sensors if c.role == INERTIAL]
     if not scenario.estimators or not imu:
         return
     dt = 1.0 / imu[0].spec.rate_hz

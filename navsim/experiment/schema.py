@@ -9,9 +9,9 @@ from __future__ import annotations
 import json
 
 from navsim.experiment.scenario import MAX_INITIAL, MAX_SEED, MAX_WORKERS, RATE_HZ
-from navsim.flight.environment import MAX_TURBULENCE_SEED, MAX_WIND_MPS
+from navsim.flight.environment import MAX_TURBULENCE_SEED
 from navsim.flight.track import MAX_AIRSPEED_MPS, SEGMENT_KEYS
-from navsim.foundations.config import MAX_DURATION_S, MAX_RUNS, PLAIN_NAME_PATTERN
+from navsim.foundations.config import MAX_DURATION_S, MAX_RUNS, MAX_WIND_MPS, PLAIN_NAME_PATTERN
 from navsim.foundations.jsonschema import NUM, POS, merge_properties, obj
 from navsim.navigation.estimators import available as available_estimators, get as get_estimator
 from navsim.navigation.estimators.measurements import measurements_schema

@@ -31,7 +31,7 @@ from navsim.experiment.scenario import check_scenario, parse_scenario
 from navsim.foundations.config import MAX_RUNS, Node, close_match, load_yaml
 from navsim.foundations.errors import FlightError, ScenarioError, UsageError
 from navsim.records.metrics import EstimatorMetrics, Window
-from navsim.records.vocabulary import check_metric_path
+from navsim.records.vocabulary import check_metric_path, plain_type
 
 _INDEX = re.compile(r"^(.*)\[(\d+)\]$")
 #: the most points a sweep may have (each is a Monte Carlo of its own)
@@ -109,17 +109,9 @@ def parse_sweep(path: str | Path):
 NUMBER_EXPECTED = "the path of a number or of a list of numbers, a vector shown by its norm"
 
 
-def _plain(tp):
-    """``X`` of ``X | None``."""
-    if typing.get_origin(tp) in (typing.Union, types.UnionType):
-        args = [a for a in typing.get_args(tp) if a is not type(None)]
-        return args[0] if len(args) == 1 else tp
-    return tp
-
-
 def _is_number(tp) -> bool:
     """Whether a field of type ``tp`` holds a number or a list of numbers (None allowed)."""
-    tp = _plain(tp)
+    tp = plain_type(tp)
     if typing.get_origin(tp) is list:
         item = typing.get_args(tp)[0]
         union = typing.get_origin(item) in (typing.Union, types.UnionType)
@@ -131,7 +123,7 @@ def _members(tp) -> dict | None:
     """The names under a group of metrics of type ``tp`` -> their types (a mapping by name:
     ``{"*": type}``; a window's quantities beside its ``horizontal_m`` and ``nees``, as its
     mapping has them); None: not a group."""
-    tp = _plain(tp)
+    tp = plain_type(tp)
     if dataclasses.is_dataclass(tp):
         hints = typing.get_type_hints(tp)
         out = {f.name: hints[f.name] for f in dataclasses.fields(tp) if f.name != "ci95"}
@@ -162,7 +154,7 @@ def check_number_path(metric: str, *, file: str, key: str) -> None:
         walked.append(part)
     members = _members(tp)
     if members is not None:
-        names = [m for m in members if m != "*"] + ([f"<{'quantity' if _plain(tp) is Window else 'name'}>"]
+        names = [m for m in members if m != "*"] + ([f"<{'quantity' if plain_type(tp) is Window else 'name'}>"]
                                                    if "*" in members else [])
         raise ScenarioError(f"'{metric}' is a group of metrics ({', '.join(names)})", file=file, key=key,
                             expected=NUMBER_EXPECTED, hint=f"metric: {metric}.{'rms' if 'rms' in names else names[0]}")

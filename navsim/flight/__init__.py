@@ -3,7 +3,7 @@
 from navsim.flight.environment import Environment, parse_environment
 from navsim.flight.simulator import FlightConfig, fly
 from navsim.flight.track import Track, load_track, parse_track
-from navsim.flight.truth import Truth
+from navsim.flight.truth import Pose, Truth
 
-__all__ = ["Environment", "FlightConfig", "Track", "Truth", "fly", "load_track", "parse_environment",
+__all__ = ["Environment", "FlightConfig", "Pose", "Track", "Truth", "fly", "load_track", "parse_environment",
            "parse_track"]

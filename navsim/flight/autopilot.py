@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 G = 9.80665
 
@@ -57,6 +58,21 @@ class Gains:
     k_orbit: float = 2.0             #: orbit following gain
 
 
+class Sensed(NamedTuple):
+    """What the autopilot reads of the aircraft at a step (SI): true airspeed, height, climb
+    rate, roll and pitch, roll and pitch rates, sideslip and course over the ground."""
+
+    tas: float        #: m/s
+    h: float          #: m
+    climb: float      #: m/s, up
+    roll: float       #: rad
+    pitch: float      #: rad
+    p: float          #: rad/s
+    q: float          #: rad/s
+    beta: float       #: rad
+    course: float     #: rad
+
+
 class Autopilot:
     """State of the loops (integrators) and the current commands.
 
@@ -83,25 +99,30 @@ class Autopilot:
         self.i_beta = 0.0
         self.idle = False
 
-    def step(self, dt: float, tas: float, h: float, climb: float, roll: float, pitch: float,
-             p: float, q: float, beta: float, course: float) -> tuple[float, float, float, float]:
-        """One update; returns (elevator, aileron, rudder, throttle) normalised commands."""
-        g = self.g
-        v = max(tas, 5.0)
-        sched = min(max((g.v_ref_mps / v) ** 2, 0.3), 3.0)
+    def step(self, dt: float, s: "Sensed") -> tuple[float, float, float, float]:
+        """One update of ``dt`` seconds on the aircraft's state ``s``; returns (elevator,
+        aileron, rudder, throttle) normalised commands."""
+        v = max(s.tas, 5.0)
+        sched = min(max((self.g.v_ref_mps / v) ** 2, 0.3), 3.0)
+        elev, climb_cmd = self._vertical(dt, s, v, sched)
+        thr = self._throttle(dt, s, climb_cmd)
+        ail, rud = self._lateral(dt, s, sched)
+        return elev, ail, rud, thr
 
-        # vertical: altitude -> climb rate -> pitch
-        err_h = self.alt_cmd - h
+    def _vertical(self, dt: float, s: "Sensed", v: float, sched: float) -> tuple[float, float]:
+        """Altitude -> climb rate -> pitch -> elevator: the elevator and the commanded climb rate."""
+        g = self.g
+        err_h = self.alt_cmd - s.h
         if self.climb_rate > 0.0:
             lim = self.climb_rate
         else:
             lim = g.climb_max_mps
         climb_cmd = min(max(g.k_alt * err_h, -lim), lim)
-        over = tas - self.speed_cmd - g.overspeed_margin_mps
+        over = s.tas - self.speed_cmd - g.overspeed_margin_mps
         if self.idle and climb_cmd < 0.0 and over > 0.0:
             # at idle throttle nothing else slows a descent: give up sink rate for speed
             climb_cmd = min(climb_cmd + g.k_overspeed * over, 0.0)
-        err_climb = climb_cmd - climb
+        err_climb = climb_cmd - s.climb
         gamma_ff = math.asin(min(max(climb_cmd / v, -0.5), 0.5))
         if self.pitch_hold is not None:
             pitch_cmd = self.pitch_hold
@@ -111,40 +132,40 @@ class Autopilot:
                 self.i_climb += g.ki_climb * err_climb * dt
             pitch_cmd = min(max(pitch_cmd, g.pitch_min_rad), g.pitch_max_rad)
         self.pitch_cmd = pitch_cmd
-        err_pitch = pitch_cmd - pitch
-        elev = -sched * (g.kp_pitch * err_pitch + self.i_pitch - g.kd_pitch * q)
+        err_pitch = pitch_cmd - s.pitch
+        elev = -sched * (g.kp_pitch * err_pitch + self.i_pitch - g.kd_pitch * s.q)
         if -1.0 < elev < 1.0:
             self.i_pitch += g.ki_pitch * err_pitch * dt
-        elev = min(max(elev, -1.0), 1.0)
+        return min(max(elev, -1.0), 1.0), climb_cmd
 
-        # speed -> throttle
-        err_v = self.speed_cmd - tas
+    def _throttle(self, dt: float, s: "Sensed", climb_cmd: float) -> float:
+        """Speed -> throttle (with the climb-rate feed-forward)."""
+        g = self.g
+        err_v = self.speed_cmd - s.tas
         if self.throttle_hold is not None:
-            thr = self.throttle_hold
-        else:
-            thr = self.i_speed + g.kp_speed * err_v + g.ff_climb * climb_cmd
-            if 0.0 < thr < 1.0 or (thr >= 1.0 and err_v < 0) or (thr <= 0.0 and err_v > 0):
-                self.i_speed += g.ki_speed * err_v * dt
-            self.idle = thr <= 0.0
-            thr = min(max(thr, 0.0), 1.0)
+            return self.throttle_hold
+        thr = self.i_speed + g.kp_speed * err_v + g.ff_climb * climb_cmd
+        if 0.0 < thr < 1.0 or (thr >= 1.0 and err_v < 0) or (thr <= 0.0 and err_v > 0):
+            self.i_speed += g.ki_speed * err_v * dt
+        self.idle = thr <= 0.0
+        return min(max(thr, 0.0), 1.0)
 
-        # lateral: course -> bank -> aileron
-        err_course = (self.course_cmd - course + math.pi) % (2.0 * math.pi) - math.pi
+    def _lateral(self, dt: float, s: "Sensed", sched: float) -> tuple[float, float]:
+        """Course -> bank -> aileron, and sideslip -> rudder (turn coordination)."""
+        g = self.g
+        err_course = (self.course_cmd - s.course + math.pi) % (2.0 * math.pi) - math.pi
         bank_cmd = self.bank_ff + g.k_course * err_course
         bank_cmd = min(max(bank_cmd, -g.bank_max_rad), g.bank_max_rad)
         self.bank_cmd = bank_cmd
-        err_roll = bank_cmd - roll
-        ail = sched * (g.kp_roll * err_roll + self.i_roll - g.kd_roll * p)
+        err_roll = bank_cmd - s.roll
+        ail = sched * (g.kp_roll * err_roll + self.i_roll - g.kd_roll * s.p)
         if -1.0 < ail < 1.0:
             self.i_roll += g.ki_roll * err_roll * dt
         ail = min(max(ail, -1.0), 1.0)
-
-        # turn coordination
-        rud = -sched * (g.kp_beta * beta + self.i_beta)
+        rud = -sched * (g.kp_beta * s.beta + self.i_beta)
         if -1.0 < rud < 1.0:
-            self.i_beta += g.ki_beta * beta * dt
-        rud = min(max(rud, -1.0), 1.0)
-        return elev, ail, rud, thr
+            self.i_beta += g.ki_beta * s.beta * dt
+        return ail, min(max(rud, -1.0), 1.0)
 
 
 def line_course(g: Gains, north: float, east: float, n0: float, e0: float,

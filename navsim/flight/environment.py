@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from navsim.foundations.config import MAX_DURATION_S, Node
+from navsim.foundations.config import MAX_DURATION_S, MAX_WIND_MPS, Node
 from navsim.foundations.errors import ScenarioError
 
 #: Beaufort force -> (low, high) mean wind speed, m/s (WMO).
@@ -31,8 +31,6 @@ class Environment:
     surface_m: float = 0.0
 
 
-#: the strongest wind a scenario may set, m/s (Beaufort 12, a hurricane, starts at 32.7 m/s)
-MAX_WIND_MPS = 40.0
 #: the largest turbulence seed (JSBSim's random seed is a 32-bit integer)
 MAX_TURBULENCE_SEED = 2**31 - 1
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -114,6 +115,22 @@ INTEGRATORS = {"simulation/integrator/rate/rotational": 4,
 AIRCRAFT_DIR = data_folder("aircraft")
 
 
+class InitialCondition(NamedTuple):
+    """Where and how JSBSim starts the aircraft (:meth:`JSBSimIO.set_initial`), SI: geodetic
+    position, attitude, and an air velocity of ``tas_mps`` along the heading at flight-path angle
+    ``gamma_rad`` (no sideslip), over terrain ``terrain_m`` high."""
+
+    lat_rad: float              #: geodetic latitude
+    lon_rad: float              #: longitude
+    h_m: float                  #: geodetic height (= JSBSim's above sea level), m
+    tas_mps: float              #: true airspeed, m/s
+    yaw_rad: float              #: true heading, the air velocity's azimuth too
+    pitch_rad: float            #: pitch attitude
+    roll_rad: float = 0.0       #: roll attitude
+    gamma_rad: float = 0.0      #: flight-path angle of the air velocity, up
+    terrain_m: float = 0.0      #: terrain height above the ellipsoid, m
+
+
 class JSBSimIO:
     """One JSBSim instance, spoken to in SI units.
 
@@ -179,12 +196,10 @@ class JSBSimIO:
         self._set_thr(throttle)
 
     # --- set-up --------------------------------------------------------------------------------
-    def set_initial(self, *, lat_rad: float, lon_rad: float, h_m: float, tas_mps: float,
-                    yaw_rad: float, pitch_rad: float, roll_rad: float = 0.0,
-                    gamma_rad: float = 0.0, terrain_m: float = 0.0) -> None:
-        """Initial conditions: geodetic position, attitude, and an air velocity of ``tas_mps``
-        along the heading at flight-path angle ``gamma_rad`` (no sideslip), to which the wind
-        set by :meth:`set_wind_ned` is added to give the velocity over the ground."""
+    def set_initial(self, ic: InitialCondition) -> None:
+        """Start from ``ic`` (:class:`InitialCondition`): its air velocity plus the wind set by
+        :meth:`set_wind_ned` gives the velocity over the ground."""
+        lat_rad, lon_rad, h_m, tas_mps, yaw_rad, pitch_rad, roll_rad, gamma_rad, terrain_m = ic
         fdm = self.fdm
         fdm[IC_TERRAIN_FT] = terrain_m / FT_TO_M
         fdm[IC_LAT_GEOD_DEG] = np.degrees(lat_rad)

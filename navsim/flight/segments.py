@@ -31,13 +31,13 @@ class Limits:
 class State:
     """What the segments look at, SI: local north/east from the track origin, height, speeds."""
 
-    t: float = 0.0
-    north: float = 0.0
-    east: float = 0.0
-    h: float = 0.0
-    tas: float = 0.0
-    ground_speed: float = 0.0
-    course: float = 0.0
+    t: float = 0.0              #: time since the start of the track, s
+    north: float = 0.0          #: m north of the track's origin
+    east: float = 0.0           #: m east of it
+    h: float = 0.0              #: geodetic height, m
+    tas: float = 0.0            #: true airspeed, m/s
+    ground_speed: float = 0.0   #: horizontal speed over the ground, m/s
+    course: float = 0.0         #: course over the ground, rad from true north
 
 
 class SegmentRunner:

@@ -12,16 +12,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import yaml
 
 from navsim.flight import properties as P
-from navsim.flight.autopilot import Autopilot, Gains
+from navsim.flight.autopilot import Autopilot, Gains, Sensed
 from navsim.flight.environment import Environment, steady_wind_n_mps
 from navsim.flight.segments import Limits, SegmentRunner, State
-from navsim.flight.track import Track, nominal_duration_s
-from navsim.flight.truth import Truth, truth_from_rows
+from navsim.flight.track import Start, Track, nominal_duration_s
+from navsim.flight.truth import Pose, Truth, truth_from_rows
 from navsim.foundations.earth import radii
 from navsim.foundations.errors import FlightError
 
@@ -106,10 +107,11 @@ class Aircraft:
         heading = math.radians(start.heading_deg)
         ap.course_cmd = heading
         ap.speed_cmd = start.speed_mps
+        departure = Departure(start, lat0, lon0, heading, env.surface_m)
         if start.type == "air":
-            _air_start(io, ap, self.limits, start, lat0, lon0, heading, env, self.dt)
+            _air_start(io, ap, self.limits, departure, self.dt)
         else:
-            _launch_prepare(io, ap, start, lat0, lon0, heading, env, self.dt)
+            _launch_prepare(io, ap, departure, self.dt)
         self.runner = SegmentRunner(track.segments, ap, self.limits, self.local_of_latlon)
         self.runner.course_ref = heading
         self.runner.speed_target = start.speed_mps
@@ -225,9 +227,9 @@ def _fly_track(craft: Aircraft, rec: _Recorder, progress) -> None:
         if progress is not None and t >= next_progress:
             progress(t, nominal)
             next_progress += 1.0
-        elev, ail, rud, thr = step_ap(dt, state.tas, state.h, -row[P.COL_VD], row[P.COL_ROLL],
-                                      row[P.COL_PITCH], row[P.COL_P], row[P.COL_Q],
-                                      row[P.COL_BETA], state.course)
+        elev, ail, rud, thr = step_ap(dt, Sensed(state.tas, state.h, -row[P.COL_VD], row[P.COL_ROLL],
+                                                 row[P.COL_PITCH], row[P.COL_P], row[P.COL_Q],
+                                                 row[P.COL_BETA], state.course))
         set_controls(elev, ail, rud, thr)
         craft.set_wind_at(t + dt)
         run()
@@ -283,9 +285,8 @@ def _parked(config: FlightConfig) -> Truth:
     """The truth of a vehicle parked for the track's ``hold`` segments (no flight dynamics)."""
     track, start = config.track, config.track.start
     duration = sum(s["time_s"] for s in track.segments)
-    truth = Truth.static(duration, config.rate_hz, start.lat_deg, start.lon_deg, start.alt_m,
-                         start.heading_deg, h_agl_m=0.0, roll_deg=start.roll_deg,
-                         pitch_deg=start.pitch_deg)
+    pose = Pose(start.lat_deg, start.lon_deg, start.alt_m, start.heading_deg, start.roll_deg, start.pitch_deg)
+    truth = Truth.static(duration, config.rate_hz, pose, h_agl_m=0.0)
     ends = np.cumsum([s["time_s"] for s in track.segments])
     truth.segment = np.minimum(np.searchsorted(ends, truth.t_s - 1e-9), len(ends) - 1).astype(np.int16)
     truth.segment_labels = [s.label for s in track.segments]
@@ -303,15 +304,33 @@ def _make_truth(rows, seg, dt, track, config) -> Truth:
     return truth_from_rows(rows, t, seg, [s.label for s in track.segments], meta)
 
 
-def _air_start(io, ap, limits, start, lat0, lon0, heading, env, dt) -> None:
+class Departure(NamedTuple):
+    """Where the aircraft is started: the track's start, its point and the heading it flies
+    there, over the environment's surface."""
+
+    start: Start                #: the track's start (its type, height, speed, launcher)
+    lat_rad: float              #: geodetic latitude of the start point
+    lon_rad: float              #: its longitude
+    heading_rad: float          #: the heading flown from it, true
+    surface_m: float            #: the terrain or sea-surface height under it, m
+
+    def condition(self, h_m: float, tas_mps: float, pitch_rad: float,
+                  gamma_rad: float = 0.0) -> P.InitialCondition:
+        """JSBSim's initial condition at the start point on :attr:`heading_rad`, wings level."""
+        return P.InitialCondition(lat_rad=self.lat_rad, lon_rad=self.lon_rad, h_m=h_m, tas_mps=tas_mps,
+                                  yaw_rad=self.heading_rad, pitch_rad=pitch_rad, gamma_rad=gamma_rad,
+                                  terrain_m=self.surface_m)
+
+
+def _air_start(io, ap, limits, departure: Departure, dt) -> None:
     """Trimmed level flight: spin the motor up held, fly ``SETTLE_S`` under the autopilot to
     settle the trim, then re-initialise at the start point keeping motor, servos and loops."""
     alpha = math.radians(limits.trim_alpha_deg)
+    start, heading = departure.start, departure.heading_rad
     h = start.alt_m
 
     def init(pitch):
-        io.set_initial(lat_rad=lat0, lon_rad=lon0, h_m=h, tas_mps=start.speed_mps, yaw_rad=heading,
-                       pitch_rad=pitch, terrain_m=env.surface_m)
+        io.set_initial(departure.condition(h, start.speed_mps, pitch))
 
     init(alpha)
     io.set_hold_down(True)
@@ -327,8 +346,8 @@ def _air_start(io, ap, limits, start, lat0, lon0, heading, env, dt) -> None:
         r = io.read_row()
         ap.course_cmd = heading
         course = math.atan2(r[P.COL_VE], r[P.COL_VN])
-        io.set_controls(*ap.step(dt, r[P.COL_TAS], r[P.COL_H], -r[P.COL_VD], r[P.COL_ROLL],
-                                 r[P.COL_PITCH], r[P.COL_P], r[P.COL_Q], r[P.COL_BETA], course))
+        io.set_controls(*ap.step(dt, Sensed(r[P.COL_TAS], r[P.COL_H], -r[P.COL_VD], r[P.COL_ROLL],
+                                            r[P.COL_PITCH], r[P.COL_P], r[P.COL_Q], r[P.COL_BETA], course)))
         io.run()
     r = io.read_row()
     if not math.isfinite(r[P.COL_ALPHA]) or abs(r[P.COL_H] - h) > 20.0:
@@ -337,17 +356,15 @@ def _air_start(io, ap, limits, start, lat0, lon0, heading, env, dt) -> None:
     crab = r[P.COL_YAW] - math.atan2(r[P.COL_VE], r[P.COL_VN])
     heading = heading + (crab + math.pi) % (2.0 * math.pi) - math.pi
     io.use_accurate_integrators()
-    io.set_initial(lat_rad=lat0, lon_rad=lon0, h_m=h, tas_mps=start.speed_mps, yaw_rad=heading,
-                   pitch_rad=r[P.COL_PITCH], gamma_rad=r[P.COL_PITCH] - r[P.COL_ALPHA],
-                   terrain_m=env.surface_m)
+    io.set_initial(departure._replace(heading_rad=heading).condition(
+        h, start.speed_mps, r[P.COL_PITCH], gamma_rad=r[P.COL_PITCH] - r[P.COL_ALPHA]))
 
 
-def _launch_prepare(io, ap, start, lat0, lon0, heading, env, dt) -> None:
+def _launch_prepare(io, ap, departure: Departure, dt) -> None:
     """On the launcher: motor at full power while held, then booster fired at t = 0."""
+    start, heading = departure.start, departure.heading_rad
     pitch = math.radians(start.pitch_deg)
-    io.set_initial(lat_rad=lat0, lon_rad=lon0, h_m=start.alt_m + start.launcher_height_m,
-                   tas_mps=1.0, yaw_rad=heading, pitch_rad=pitch, gamma_rad=pitch,
-                   terrain_m=env.surface_m)
+    io.set_initial(departure.condition(start.alt_m + start.launcher_height_m, 1.0, pitch, gamma_rad=pitch))
     io.set_hold_down(True)
     for _ in range(int(SPINUP_S / dt)):
         io.set_controls(0.0, 0.0, 0.0, 1.0)

@@ -35,6 +35,7 @@ import hashlib
 import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -60,6 +61,17 @@ def _digest(entries: dict, key: str) -> str:
         h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
         h.update(a.tobytes())
     return h.hexdigest()
+
+
+class Pose(NamedTuple):
+    """Where and how a vehicle rests (:meth:`Truth.static`): geodetic position and attitude."""
+
+    lat_deg: float = 37.38      #: geodetic latitude (WGS-84)
+    lon_deg: float = 117.97     #: longitude
+    h_m: float = 0.0            #: height above the ellipsoid, m
+    yaw_deg: float = 0.0        #: true heading
+    roll_deg: float = 0.0       #: roll (the ground's tilt)
+    pitch_deg: float = 0.0      #: pitch
 
 
 @dataclass
@@ -151,13 +163,13 @@ class Truth:
         return cls(**kw, segment_labels=labels, meta=json.loads(str(entries["meta"])))
 
     @classmethod
-    def static(cls, duration_s: float, rate_hz: float = 100.0, lat_deg: float = 37.38,
-               lon_deg: float = 117.97, h_m: float = 0.0, yaw_deg: float = 0.0,
-               h_agl_m=None, roll_deg: float = 0.0, pitch_deg: float = 0.0) -> "Truth":
-        """A vehicle at rest on the rotating Earth, heading ``yaw_deg``, tilted by ``roll_deg``
-        and ``pitch_deg`` (default level): the specific force is minus gravity, the inertial rate
-        the Earth rate. ``h_agl_m`` (array or scalar) overrides the height above the surface (for
-        altimeter tests)."""
+    def static(cls, duration_s: float, rate_hz: float = 100.0, pose: Pose = Pose(),
+               h_agl_m=None) -> "Truth":
+        """A vehicle at rest on the rotating Earth at ``pose`` (a :class:`Pose`: where, heading
+        ``yaw_deg``, tilted by ``roll_deg`` and ``pitch_deg``; default level): the specific force
+        is minus gravity, the inertial rate the Earth rate. ``h_agl_m`` (array or scalar)
+        overrides the height above the surface (for altimeter tests)."""
+        lat_deg, lon_deg, h_m, yaw_deg, roll_deg, pitch_deg = pose
         n = int(round(duration_s * rate_hz)) + 1
         lat, lon, yaw = np.radians(lat_deg), np.radians(lon_deg), np.radians(yaw_deg)
         ones = np.ones(n)

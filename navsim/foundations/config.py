@@ -67,6 +67,9 @@ MAX_DURATION_S = 1e6
 MAX_TIME_CONSTANT_S = 1e10
 #: the highest rate of a simulation or a sensor, Hz
 MAX_RATE_HZ = 1000.0
+#: the strongest wind a scenario may set or an estimator may assume, m/s (Beaufort 12, a
+#: hurricane, starts at 32.7 m/s)
+MAX_WIND_MPS = 40.0
 #: the most Monte Carlo runs of a scenario or a command line
 MAX_RUNS = 1_000_000
 #: the longest averaging window of an adaptive filter, epochs; the most rules of a fuzzy one

@@ -12,7 +12,7 @@ compensation:
 
 Gravity is :func:`navsim.foundations.earth.gravity_n` (WGS-84 with J2, as JSBSim), Earth rate and transport
 rate are included. Arrays broadcast over the leading run axis. The per-interval loop is compiled
-(:mod:`navsim.navigation.kernels`, where the same formulas are written out per component).
+(:mod:`navsim.navigation.kernels.strapdown`, where the same formulas are written out per component).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import numpy as np
 
 from navsim.foundations import earth
 from navsim.foundations.transform import dcm_from_quat
-from navsim.navigation import kernels
+from navsim.navigation.kernels.strapdown import CACHE_SIZE, strapdown_block
 
 
 @dataclass
@@ -62,7 +62,7 @@ def rates_n(lat, h, vel_n):
 
 class BlockStrapdown:
     """The mechanization of the module docstring over a whole block of IMU intervals per call,
-    compiled (:func:`navsim.navigation.kernels.strapdown_block`, runs side by side in vector lanes).
+    compiled (:func:`navsim.navigation.kernels.strapdown.strapdown_block`, runs side by side in vector lanes).
     ``gravity_every`` IMU steps share one evaluation of gravity, Earth rate, transport rate and
     radii (at UAV speeds they change by less than 1e-7 of themselves in 0.1 s). The tests hold it to a numpy
     reference of the same algorithm (``tests/reference_strapdown.py``) to 1e-9.
@@ -90,7 +90,7 @@ class BlockStrapdown:
         B = state.lat_rad.shape[0]
         self.dtheta_prev = np.zeros((B, 3))
         self.dv_prev = np.zeros((B, 3))
-        self._cache = np.zeros((B, kernels.CACHE_SIZE))
+        self._cache = np.zeros((B, CACHE_SIZE))
         self._k = 0
         self.reset_sums()
 
@@ -122,7 +122,7 @@ class BlockStrapdown:
             self.dtheta_prev = np.array(dtheta_b[:, 0] - bg * dt, float)
             self.dv_prev = np.array(dv_b[:, 0] - ba * dt, float)
         s.contiguous()
-        kernels.strapdown_block(s.lat_rad, s.lon_rad, s.h_m, s.vel_n_mps, s.C_nb, self.dtheta_prev,
+        strapdown_block(s.lat_rad, s.lon_rad, s.h_m, s.vel_n_mps, s.C_nb, self.dtheta_prev,
                                 self.dv_prev, self._cache, _rows_in_order(dtheta_b), _rows_in_order(dv_b),
                                 bg, ba, float(dt), self._k, self.gravity_every, self.sum_C_nb, self.sum_dv_n_mps)
         self._k += dtheta_b.shape[1]

@@ -343,6 +343,9 @@ class Sighting(_Record):
 
 @dataclass(frozen=True)
 class SpreadStats(_Record):
+    """A quantity's spread (over the landmark sightings): its median and its largest value, in
+    the quantity's unit."""
+
     median: float
     max: float
 

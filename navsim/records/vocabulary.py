@@ -15,7 +15,7 @@ from navsim.foundations.errors import ScenarioError
 from navsim.records.metrics import EstimatorMetrics
 
 
-def _plain_type(tp):
+def plain_type(tp):
     """``X`` of ``X | None``."""
     if typing.get_origin(tp) in (typing.Union, types.UnionType):
         args = [a for a in typing.get_args(tp) if a is not type(None)]
@@ -26,7 +26,7 @@ def _plain_type(tp):
 def _field_types(cls) -> dict:
     """Field name -> its type (``None`` removed) of the dataclass ``cls``."""
     hints = typing.get_type_hints(cls)
-    return {f.name: _plain_type(hints[f.name]) for f in dataclasses.fields(cls)}
+    return {f.name: plain_type(hints[f.name]) for f in dataclasses.fields(cls)}
 
 
 #: the fields of an estimator's metrics (its intervals, ``ci95``, are not a metric of their own)

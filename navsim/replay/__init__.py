@@ -2,12 +2,12 @@
 attitude.
 
 :mod:`~navsim.replay.ulog` reads and checks the log (:func:`load_ulog`), :mod:`~navsim.replay.run`
-aligns and drives an estimator over it (:func:`replay`), :mod:`~navsim.replay.metrics` scores the
+aligns and drives an estimator over it (:func:`replay`, as :class:`ReplayOptions` say), :mod:`~navsim.replay.metrics` scores the
 differences after ``settle_s`` (:func:`replay_metrics`, a :class:`ReplayMetrics`).
 """
 
 from navsim.replay.metrics import ReplayMetrics, replay_metrics
-from navsim.replay.run import ReplayResult, coarse_alignment, replay
+from navsim.replay.run import ReplayOptions, ReplayResult, coarse_alignment, replay
 from navsim.replay.ulog import ReplayLog, load_ulog
 
-__all__ = ["ReplayLog", "ReplayMetrics", "ReplayResult", "coarse_alignment", "load_ulog", "replay", "replay_metrics"]
+__all__ = ["ReplayLog", "ReplayMetrics", "ReplayOptions", "ReplayResult", "coarse_alignment", "load_ulog", "replay", "replay_metrics"]

@@ -109,7 +109,8 @@ class AttitudeDiff(_Record):
 
 @dataclass(frozen=True)
 class ResetEvent(_Record):
-    """A reset the estimator reported: when (s) and why."""
+    """A reset the estimator reported: when (s, on the replay's clock, as its epochs) and why
+    (the estimator's own words)."""
 
     t_s: float
     cause: str

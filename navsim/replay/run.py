@@ -12,6 +12,7 @@ from __future__ import annotations
 import inspect
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -41,7 +42,16 @@ ALIGN_SIGMA = {"att_rad": np.radians([1.0, 1.0, 5.0]), "vel_mps": np.array([0.3,
 
 # --- IMU increments and the sensor streams on its grid -----------------------------------------
 
-def imu_increments(t_s: np.ndarray, omega_b: np.ndarray, f_b: np.ndarray, rate_hz: float):
+class GridIncrements(NamedTuple):
+    """The IMU on a uniform grid (:func:`imu_increments`): the grid times and the increments
+    over ``(grid[j-1], grid[j]]``."""
+
+    t_s: np.ndarray               #: (N,) the grid
+    dtheta_b_rad: np.ndarray      #: (N, 3) rotation increments; row 0 is zero
+    dv_b_mps: np.ndarray          #: (N, 3) velocity increments; row 0 is zero
+
+
+def imu_increments(t_s: np.ndarray, omega_b: np.ndarray, f_b: np.ndarray, rate_hz: float) -> GridIncrements:
     """Increments on a uniform grid from samples at jittered times.
 
     Each sample is PX4's mean rate over the interval ending at its timestamp, so the rates are
@@ -52,8 +62,9 @@ def imu_increments(t_s: np.ndarray, omega_b: np.ndarray, f_b: np.ndarray, rate_h
 
     Returns
     -------
-    grid_t_s : (N,) ``t_s[0] + j / rate_hz``
-    dtheta_b_rad, dv_b_mps : (N, 3) the increment over ``(grid[j-1], grid[j]]``; row 0 is zero.
+    GridIncrements
+        ``t_s``: ``t_s[0] + j / rate_hz``; ``dtheta_b_rad``, ``dv_b_mps``: (N, 3) the increment
+        over ``(grid[j-1], grid[j]]``, row 0 zero.
     """
     dt = 1.0 / rate_hz
     grid = t_s[0] + dt * np.arange(int(math.floor((t_s[-1] - t_s[0]) / dt + 1e-9)) + 1)
@@ -63,7 +74,7 @@ def imu_increments(t_s: np.ndarray, omega_b: np.ndarray, f_b: np.ndarray, rate_h
         cum = np.concatenate([np.zeros((1, 3)), np.cumsum(rate[1:] * step, axis=0)])
         at = np.stack([np.interp(grid, t_s, cum[:, j]) for j in range(3)], axis=-1)
         return np.diff(at, axis=0, prepend=at[:1])
-    return grid, increments(omega_b), increments(f_b)
+    return GridIncrements(grid, increments(omega_b), increments(f_b))
 
 
 def snap_to_grid(t_s: np.ndarray, grid_t_s: np.ndarray, tol: float = 1e-9) -> np.ndarray:
@@ -265,9 +276,31 @@ def check_options(log: ReplayLog, rate_hz: float, settle_s: float, align_s: floa
             raise UsageError(f"{what} is {value:g} s, not before the end of the log ({end:.1f} s)")
 
 
-def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_rate_hz: float | None = None,
-           settle_s: float = 10.0, align_s: float = ALIGN_S, record_s: float = RECORD_S,
-           progress=None) -> ReplayResult:
+@dataclass(frozen=True)
+class ReplayOptions:
+    """How a log is replayed (``navsim replay``'s ``--imu-rate``, ``--settle``, ``--align``).
+
+    Attributes
+    ----------
+    imu_rate_hz : float, optional
+        The grid the IMU is resampled to (None: the log's nominal rate).
+    settle_s : float
+        Seconds left out of the metrics (the estimator converging from the coarse alignment).
+    align_s : float
+        Length of the coarse-alignment window from the first sample.
+    record_s : float
+        The solution's attitude is sampled this often (or every epoch if the estimator's period
+        is shorter), after the epoch when one falls on the same IMU step.
+    """
+
+    imu_rate_hz: float | None = None
+    settle_s: float = 10.0
+    align_s: float = ALIGN_S
+    record_s: float = RECORD_S
+
+
+def replay(log: ReplayLog, estimator: str, params: dict | None = None, options: ReplayOptions = ReplayOptions(),
+           *, progress=None) -> ReplayResult:
     """Run ``estimator`` (a registered name) over ``log`` and compare its attitude with PX4's.
 
     Parameters
@@ -281,23 +314,16 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_ra
     params : dict, optional
         Entry keys (``--set``) overriding those defaults (constructor keywords for an estimator
         without ``parse``).
-    imu_rate_hz : float, optional
-        The grid the IMU is resampled to (default: the log's nominal rate).
-    settle_s : float
-        Seconds left out of the metrics (the estimator converging from the coarse alignment).
-    align_s : float
-        Length of the coarse-alignment window from the first sample.
-    record_s : float
-        The solution's attitude is sampled this often (or every epoch if the estimator's period
-        is shorter), after the epoch when one falls on the same IMU step.
+    options : ReplayOptions
+        The IMU grid rate, the settling time, the alignment window and the record interval.
     progress : callable, optional
         ``progress(t_s, duration_s)`` now and then.
     """
-    rate = float(imu_rate_hz or round(log.imu_rate_hz))
-    check_options(log, rate, settle_s, align_s)
-    grid, dth, dv = imu_increments(log.imu_t_s, log.omega_ib_b_rps, log.f_ib_b_mps2, rate)
-    sensors = sensor_streams(log, grid)
-    align = coarse_alignment(log, align_s)
+    rate = float(options.imu_rate_hz or round(log.imu_rate_hz))
+    check_options(log, rate, options.settle_s, options.align_s)
+    imu = imu_increments(log.imu_t_s, log.omega_ib_b_rps, log.f_ib_b_mps2, rate)
+    sensors = sensor_streams(log, imu.t_s)
+    align = coarse_alignment(log, options.align_s)
     defaults = {"mag": "mag", "baro": "baro" if "baro" in sensors else None, "gnss": None,
                 "field_uT": [float(x) * 1e6 for x in align.field_n_T], "sigma": {"no_gnss_mps": NO_GNSS_SIGMA_MPS},
                 "latest_sample": True,         # the ES-KF family: the log's sensors are not on its epochs
@@ -308,7 +334,23 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_ra
     loop = Driver({estimator: est}, dt, 1, isolate=False)
     loop.start(nav0, sigma0)
     every = loop.every[estimator]
-    rec_every = max(1, int(round(min(record_s, every * dt) / dt)))
+    rec_every = max(1, int(round(min(options.record_s, every * dt) / dt)))
+    t_rec, C_rec = _drive(loop, est, imu, sensors, rec_every, progress)
+    resets = est.solution().extra.get("resets")
+    resets = [(float(t), str(c)) for t, c in resets[0]] if resets else []
+    return ReplayResult(
+        log=log, estimator=estimator, params=kw, alignment=align, imu_rate_hz=rate,
+        period_s=every * dt, t_s=t_rec, euler_rad=euler_from_dcm(np.asarray(C_rec)),
+        euler_px4_rad=px4_euler_at(log, t_rec), settle_s=options.settle_s, resets=resets,
+        cost=loop.cost(estimator),
+        sensors={k: {"samples": int(s.t_s.size), "rate_hz": s.meta["rate_hz"]} for k, s in sensors.items()})
+
+
+def _drive(loop: Driver, est, imu: GridIncrements, sensors: dict, rec_every: int, progress) -> tuple[np.ndarray, list]:
+    """Drive ``loop`` (the one estimator ``est``) over the IMU increments ``imu`` with
+    ``sensors`` on its grid; returns the record times (0 first: the initial state) and the
+    solution's ``C_nb`` there, every ``rec_every`` grid steps."""
+    grid, dth, dv = imu
     t_rec, C_rec = [0.0], [est.solution().nav.C_nb[0].copy()]
     n = len(grid)
     stops = np.union1d(loop.stops(n), np.arange(rec_every, n, rec_every))
@@ -320,12 +362,4 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, *, imu_ra
             C_rec.append(est.solution().nav.C_nb[0].copy())
         if progress is not None and i // 2000 > (i0 - 1) // 2000:
             progress(grid[i], grid[-1])
-    t_rec = np.asarray(t_rec)
-    resets = est.solution().extra.get("resets")
-    resets = [(float(t), str(c)) for t, c in resets[0]] if resets else []
-    return ReplayResult(
-        log=log, estimator=estimator, params=kw, alignment=align, imu_rate_hz=rate,
-        period_s=every * dt, t_s=t_rec, euler_rad=euler_from_dcm(np.asarray(C_rec)),
-        euler_px4_rad=px4_euler_at(log, t_rec), settle_s=settle_s, resets=resets,
-        cost=loop.cost(estimator),
-        sensors={k: {"samples": int(s.t_s.size), "rate_hz": s.meta["rate_hz"]} for k, s in sensors.items()})
+    return np.asarray(t_rec), C_rec

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from navsim.records.truth import TruthBias
@@ -34,11 +36,21 @@ def _seen_differs(truth_bias: TruthBias) -> bool:
                for k in _BIAS_UNITS)
 
 
-def _bias_axis(ax, h, key: str, j: int, truth_bias: TruthBias, runs: int, colours, truth_t) -> None:
+@dataclass(frozen=True)
+class BiasTruth:
+    """The runs' true IMU biases (``bias``) and their times (``t_s``: the first estimator's
+    epochs, where the truth is recorded)."""
+
+    bias: TruthBias
+    t_s: np.ndarray
+
+
+def _bias_axis(ax, h, key: str, j: int, truth: BiasTruth, runs: int, colours) -> None:
     """One bias axis of one estimator: per run (its own colour) the estimate (solid) with its
     ±1 sigma band, the bias its state can see (dashed) and the additive bias alone (dotted)
-    where they differ (``truth_t``: their times, the first estimator's epochs); the title says
-    when the sigma never left its initial value."""
+    where they differ (drawn at ``truth.t_s``); the title says when the sigma never left its
+    initial value."""
+    truth_bias, truth_t = truth.bias, truth.t_s
     name = _BIAS_UNITS[key][0]
     scale, unit = _bias_unit(key, truth_bias)
     est, sig = getattr(h, key), getattr(h, f"{key}_sigma")
@@ -93,12 +105,13 @@ def pages(inp: ReportInput) -> list[Page]:
                       label="truth the state sees: bias + (scale factor + misalignment) × rate or force"
                       if seen else "true bias")]
     handles += [Line2D([], [], color="0.3", lw=0.8, ls=":", label="additive bias alone")] if seen else []
+    truth = BiasTruth(truth_bias, truth_t)
     out = []
     for label, h in filters:
         fig, axs = page_figure(3, 2, sharex=True)
         for col, key in enumerate(("gyro_bias", "accel_bias")):
             for j in range(3):
-                _bias_axis(axs[j, col], h, key, j, truth_bias, BIAS_RUNS, colours, truth_t)
+                _bias_axis(axs[j, col], h, key, j, truth, BIAS_RUNS, colours)
         for ax in axs[-1]:
             ax.set_xlabel("time, s")
         runs = [Line2D([], [], color=colours[r], lw=1.0, label=f"run {r}")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from navsim.report.errors import envelopes, inside, split_free
@@ -11,10 +13,22 @@ from navsim.report.figures import Page, ReportInput, estimator_colours, head, na
 ZOOMED_WINDOWS = 2
 
 
-def _height_panel(ax, inp: ReportInput, labels: list, colours, faults, spans, after, shown=(-np.inf, np.inf)) -> None:
+@dataclass(frozen=True)
+class HeightPage:
+    """What every panel of the height page shares: the run (``inp``), the estimators' colours
+    and the sensor faults ``(sensor name, fault)`` shaded on each panel."""
+
+    inp: ReportInput
+    colours: dict
+    faults: list
+
+
+def _height_panel(ax, page: HeightPage, labels: list, spans, after, shown=(-np.inf, np.inf)) -> None:
     """The height errors (up) of ``labels``: a few runs (thin), the RMS over runs (solid) and the
-    filter's ±3 sigma (dashed), the y range set by them in the time span ``after``; sensor
-    faults shaded red (named where they start inside the span ``shown``), windows orange."""
+    filter's ±3 sigma (dashed), the y range set by them in the time span ``after``; the page's
+    sensor faults shaded red (named where they start inside the span ``shown``), ``spans``
+    (windows) orange."""
+    inp, colours, faults = page.inp, page.colours, page.faults
     peak = 0.0
     for k in labels:
         h = inp.histories[k]
@@ -64,13 +78,14 @@ def pages(inp: ReportInput) -> list[Page]:
     zoomed = list(scenario.windows[:ZOOMED_WINDOWS])
     fig, axs = page_figure(1 + bool(free) + len(zoomed), 1, squeeze=False)
     axs = list(axs[:, 0])
-    _height_panel(axs[0], inp, main, colours, faults, scenario.windows, after)
+    page = HeightPage(inp, colours, faults)
+    _height_panel(axs[0], page, main, scenario.windows, after)
     axs[0].set_title("the whole flight", fontsize=9, loc="left")
     if free:
-        _height_panel(axs[1], inp, free, colours, faults, scenario.windows, after)
+        _height_panel(axs[1], page, free, scenario.windows, after)
         axs[1].set_title("free inertial, on its own scale", fontsize=9, loc="left")
     for ax, (name, a, b) in zip(axs[1 + bool(free):], zoomed):
-        _height_panel(ax, inp, main, colours, faults, (), (a, b), (a, b))
+        _height_panel(ax, page, main, (), (a, b), (a, b))
         ax.set_xlim(a, b)
         ax.set_title(f"window '{name}' ({a:g}-{b:g} s)", fontsize=9, loc="left")
     handles = [Line2D([], [], color=colours[k], lw=1.6, label=f"{k}: RMS over runs") for k in env]

@@ -21,7 +21,6 @@ from navsim.flight.plots import flight_figures
 from navsim.foundations.outputs import OutputFolder
 from navsim.report import attitude, biases, calibration, closed_loop, consistency, errors, height, landmarks
 from navsim.report import drift, scenario_page, wind
-from navsim.records.run import RunRecord
 from navsim.report.figures import FIGURE_IN, FOOTER_IN, Page, ReportInput, pyplot
 from navsim.report.render import render
 from navsim.report.summary import summary_figures, window_figures
@@ -107,15 +106,14 @@ def number(pages: list[Page], title: str) -> None:
                          ha="center", va="bottom", fontsize=7, color="0.45")
 
 
-def report_pages(scenario, truth, result, metrics, record: RunRecord, loop=None, reference=None, sightings=()) -> list[Page]:
+def report_pages(inp: ReportInput) -> list[Page]:
     """The report's pages in order: the contents, then every source's pages
-    (:data:`PAGE_SOURCES`), each numbered at its foot."""
-    inp = ReportInput(scenario, truth, result, metrics, record, loop, reference, tuple(sightings))
+    (:data:`PAGE_SOURCES`) read from ``inp``, each numbered at its foot."""
     pages = []
     try:
         for source in PAGE_SOURCES:
             pages += source.pages(inp)
-        title = f"navsim report: {scenario.name}"
+        title = f"navsim report: {inp.scenario.name}"
         pages = contents(title, pages) + pages
         number(pages, title)
     except BaseException:
@@ -125,16 +123,16 @@ def report_pages(scenario, truth, result, metrics, record: RunRecord, loop=None,
     return pages
 
 
-def write_report(folder: OutputFolder, scenario, truth, result, metrics, record: RunRecord,
-                 loop=None, reference=None, sightings=()) -> list[Path]:
-    """Write the PNGs and ``report.pdf`` into the output folder ``folder`` (each name recorded
-    in its manifest before it is written); returns the files written. ``loop`` and
-    ``reference``: the per-run outcome of a closed-loop scenario and its truth-guided flight;
-    ``sightings``: landmark sightings ``(name, start_s, end_s, sigma_m)``, shaded in green."""
+def write_report(folder: OutputFolder, inp: ReportInput) -> list[Path]:
+    """Write the PNGs and ``report.pdf`` of the run ``inp`` (its scenario, flight, histories,
+    metrics, record; for a closed loop its per-run outcome and truth-guided flight; its landmark
+    sightings, shaded in green) into the output folder ``folder`` (each name recorded in its
+    manifest before it is written); returns the files written."""
     pages = []
     try:
-        pages = report_pages(scenario, truth, result, metrics, record, loop, reference, sightings)
-        return render(folder, pages, scenario.report.get("formats", ["pdf", "png"]), f"navsim report: {scenario.name}")
+        pages = report_pages(inp)
+        return render(folder, pages, inp.scenario.report.get("formats", ["pdf", "png"]),
+                      f"navsim report: {inp.scenario.name}")
     finally:
         for page in pages:
             pyplot().close(page.figure)

@@ -38,6 +38,11 @@ class Section:
     #: a line shown on its own after the table (in the report and on the terminal)
     note: str | None = None
 
+    @classmethod
+    def of_rows(cls, title: str, text: str, headers: list[str], rows: list, colours=None) -> "Section | None":
+        """The section of ``rows``, None without them (nothing to show)."""
+        return cls(title, text, headers, rows, colours) if rows else None
+
 
 def pct(fraction) -> str:
     return "-" if fraction is None else f"{100 * fraction:.0f} %"
@@ -106,15 +111,14 @@ def intervals(metrics: RunMetrics) -> Section | None:
             rows.append([label if first else "", what + (f", {unit}" if unit else ""), *(cells + ["", "", ""])[:3],
                          "-" if needed is None else str(needed)])
             first = False
-    if not rows:
-        return None
-    return Section(f"95 % intervals over {metrics.runs_done} runs",
-                   "Each value with its 95 % confidence interval, the runs as the independent samples (a run's "
-                   "random-constant biases are one draw): an interval narrows as 1/sqrt(runs), never with the "
-                   "epochs. RMS: studentized bootstrap over runs; p99: Woodruff's; NEES and convergence: "
-                   "bootstrap over runs (navsim.scoring.intervals). Runs for ±5 %: the runs at which every "
-                   "component's interval would be its value ±5 % (the half-width scaled as t(runs - 1)/sqrt(runs)).",
-                   ["estimator", "metric", "N / value", "E", "D", "runs for\n±5 %"], rows)
+    return Section.of_rows(f"95 % intervals over {metrics.runs_done} runs",
+                           "Each value with its 95 % confidence interval, the runs as the independent samples (a "
+                           "run's random-constant biases are one draw): an interval narrows as 1/sqrt(runs), never "
+                           "with the epochs. RMS: studentized bootstrap over runs; p99: Woodruff's; NEES and "
+                           "convergence: bootstrap over runs (navsim.scoring.intervals). Runs for ±5 %: the runs at "
+                           "which every component's interval would be its value ±5 % (the half-width scaled as "
+                           "t(runs - 1)/sqrt(runs)).",
+                           ["estimator", "metric", "N / value", "E", "D", "runs for\n±5 %"], rows)
 
 
 def compile_note(metrics: RunMetrics) -> str | None:
@@ -153,14 +157,12 @@ def consistency(metrics: RunMetrics) -> Section | None:
                 side += f"; (e/σ)² {', '.join(off)}" if off else ""
                 rows.append([label, what, num(s.average), f"{num(s.band[0])}-{num(s.band[1])}",
                              pct(s.fraction_inside), side])
-    if not rows:
-        return None
-    return Section("Consistency: sigmas that do not describe the errors",
-                   f"Each NEES or NIS whose average is inside its 95 % chi-square band on fewer than "
-                   f"{100 * CONSISTENT_FRACTION:.0f} % of the epochs, with the navigation errors whose mean "
-                   f"(error/sigma)² is outside {PER_STATE_RANGE[0]:g}-{PER_STATE_RANGE[1]:g}.",
-                   ["estimator", "statistic", "average", "95 % band", "epochs inside", "where"], rows,
-                   [[None] * 4 + [WARN, None] for _ in rows])
+    return Section.of_rows("Consistency: sigmas that do not describe the errors",
+                           f"Each NEES or NIS whose average is inside its 95 % chi-square band on fewer than "
+                           f"{100 * CONSISTENT_FRACTION:.0f} % of the epochs, with the navigation errors whose mean "
+                           f"(error/sigma)² is outside {PER_STATE_RANGE[0]:g}-{PER_STATE_RANGE[1]:g}.",
+                           ["estimator", "statistic", "average", "95 % band", "epochs inside", "where"], rows,
+                           [[None] * 4 + [WARN, None] for _ in rows])
 
 
 def divergence(metrics: RunMetrics) -> Section | None:
@@ -173,10 +175,9 @@ def divergence(metrics: RunMetrics) -> Section | None:
         more = f" (+{div.count - len(listed)} more)" if div.count > len(listed) else ""
         rows.append([label, f"{div.count} of {m.runs_counted + m.diverged_runs}",
                      ", ".join(f"{cause}: {n}" for cause, n in div.causes.items()), ", ".join(listed) + more])
-    if not rows:
-        return None
-    return Section("Runs flagged diverged", "Left out of every statistic above; the others completed.",
-                   ["estimator", "runs", "causes", "first runs"], rows, [[None, FAIL, None, None] for _ in rows])
+    return Section.of_rows("Runs flagged diverged", "Left out of every statistic above; the others completed.",
+                           ["estimator", "runs", "causes", "first runs"], rows,
+                           [[None, FAIL, None, None] for _ in rows])
 
 
 def attitude(metrics: RunMetrics) -> Section | None:
@@ -187,13 +188,11 @@ def attitude(metrics: RunMetrics) -> Section | None:
             continue
         rows.append([label, num(a.p95_deg), num(a.p95_about_run_mean_deg), num(a.rms_deg), num(a.max_abs_deg),
                      f"{r.count} in {r.runs_with_reset} runs"])
-    if not rows:
-        return None
-    return Section("Attitude estimators: roll, pitch, yaw",
-                   "Errors in degrees after the settling time, as Euler angles (the results table's attitude is "
-                   "the rotation vector N, E, D): the 95th percentile of |error|, the same about each run's own "
-                   "mean, RMS and maximum; and the divergence monitor's resets.",
-                   ["estimator", "p95\nroll pitch yaw", "p95 about\nrun mean", "RMS", "max", "resets"], rows)
+    headers = ["estimator", "p95\nroll pitch yaw", "p95 about\nrun mean", "RMS", "max", "resets"]
+    return Section.of_rows("Attitude estimators: roll, pitch, yaw",
+                           "Errors in degrees after the settling time, as Euler angles (the results table's attitude "
+                           "is the rotation vector N, E, D): the 95th percentile of |error|, the same about each "
+                           "run's own mean, RMS and maximum; and the divergence monitor's resets.", headers, rows)
 
 
 def landmarks(metrics: RunMetrics) -> Section | None:
@@ -202,13 +201,12 @@ def landmarks(metrics: RunMetrics) -> Section | None:
              with_interval(m.landmarks.rms_after_m, ci(m, "rms_after_m")), num(m.landmarks.max_ratio),
              pct_ci(m.landmarks.fraction_within_3sigma, ci(m, "fraction_within_3sigma"))]
             for label, m in metrics.estimators.items() if m.landmarks]
-    if not rows:
-        return None
-    return Section("Landmark sightings",
-                   "Horizontal error just before a sighting (RMS, median over sightings), after its last fix (RMS "
-                   "per axis), the largest |error| / fix sigma, and the share inside 3 sigma; after and inside "
-                   "with their 95 % intervals over the runs.",
-                   ["estimator", "sightings", "before\nm", "after\nm", "max\n|e|/sigma", "inside\n3 sigma"], rows)
+    return Section.of_rows("Landmark sightings",
+                           "Horizontal error just before a sighting (RMS, median over sightings), after its last "
+                           "fix (RMS per axis), the largest |error| / fix sigma, and the share inside 3 sigma; "
+                           "after and inside with their 95 % intervals over the runs.",
+                           ["estimator", "sightings", "before\nm", "after\nm", "max\n|e|/sigma", "inside\n3 sigma"],
+                           rows)
 
 
 def wind(metrics: RunMetrics) -> Section | None:
@@ -217,13 +215,11 @@ def wind(metrics: RunMetrics) -> Section | None:
     rows = [[label, with_interval(m.wind.rms_mps, ci(m, "rms_mps")), with_interval(m.wind.final_mps, ci(m, "final_mps")),
              " ".join("-" if v is None else num(v) for v in m.wind.rms_axes_mps)]
             for label, m in metrics.estimators.items() if m.wind]
-    if not rows:
-        return None
-    return Section("Wind estimate",
-                   "The estimated wind minus the true steady wind (the gusts left out), m/s, from the settling time "
-                   "on: horizontal RMS over runs and epochs and at the last epoch, with their 95 % intervals over "
-                   "the runs, and the RMS per axis (-: not estimated).",
-                   ["estimator", "horizontal\nRMS", "at the end", "RMS\nN E D"], rows)
+    return Section.of_rows("Wind estimate",
+                           "The estimated wind minus the true steady wind (the gusts left out), m/s, from the "
+                           "settling time on: horizontal RMS over runs and epochs and at the last epoch, with their "
+                           "95 % intervals over the runs, and the RMS per axis (-: not estimated).",
+                           ["estimator", "horizontal\nRMS", "at the end", "RMS\nN E D"], rows)
 
 
 def closed_loop(m: dict | None) -> Section | None:

@@ -15,6 +15,7 @@ import functools
 import math
 import re
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
 from matplotlib.figure import Figure
@@ -70,11 +71,22 @@ class _Page:
     y_in: float = MARGIN_IN                  #: the cursor, from the top
 
 
+class _Style(NamedTuple):
+    """How a text is drawn: its font size (points), horizontal alignment, colour, weight and
+    family."""
+
+    size: float
+    ha: str = "left"
+    colour: str = "black"
+    weight: str = "normal"
+    family: str = "sans-serif"
+
+
 def _new_page(title: str, continued: bool) -> _Page:
     fig = Figure(figsize=PAGE_IN, dpi=PNG_DPI)
     FigureCanvasAgg(fig)
     page = _Page(fig)
-    _draw_text(page, title + (" (continued)" if continued else ""), MARGIN_IN, 14, weight="bold")
+    _draw_text(page, title + (" (continued)" if continued else ""), MARGIN_IN, _Style(14, weight="bold"))
     page.y_in += 14 * LINE / 72 + 0.1
     return page
 
@@ -114,13 +126,13 @@ def _renderer(dpi: float) -> RendererAgg:
     return RendererAgg(1, 1, dpi)
 
 
-def _draw_text(page: _Page, text: str, x_in: float, size: float, ha: str = "left", colour: str = "black",
-               weight: str = "normal", family: str = "sans-serif") -> None:
+def _draw_text(page: _Page, text: str, x_in: float, style: _Style) -> None:
     W, H = PAGE_IN
+    size = style.size
     for k, line in enumerate(text.split("\n")):            # each line on its own baseline
         baseline_in = page.y_in + (ASCENT + k * LINE) * size / 72
-        page.fig.text(x_in / W, 1 - baseline_in / H, line, fontsize=size, ha=ha, va="baseline", color=colour,
-                      weight=weight, family=family)
+        page.fig.text(x_in / W, 1 - baseline_in / H, line, fontsize=size, ha=style.ha, va="baseline",
+                      color=style.colour, weight=style.weight, family=style.family)
 
 
 def _rule(page: _Page, x0_in: float, x1_in: float, lw: float) -> None:
@@ -203,7 +215,7 @@ def layout(title: str, blocks: list) -> list[Figure]:
             step = b.size * LINE / 72
             for line in lines:
                 p = lay.page(step)
-                _draw_text(p, line, MARGIN_IN, b.size, colour=b.colour, family=b.family)
+                _draw_text(p, line, MARGIN_IN, _Style(b.size, colour=b.colour, family=b.family))
                 p.y_in += step
             lay.pages[-1].y_in += 0.06
         else:
@@ -216,7 +228,7 @@ def _heading(lay: _Layout, text: str, size: float) -> _Page:
     lines = wrap_text(text, 0.93 * _block_width(), size, dpi=lay.pages[-1].fig.dpi)      # bold is wider
     p = lay.page(size * LINE / 72 * (len(lines) + 2))
     p.y_in += 0.08
-    _draw_text(p, "\n".join(lines), MARGIN_IN, size, weight="bold")
+    _draw_text(p, "\n".join(lines), MARGIN_IN, _Style(size, weight="bold"))
     p.y_in += len(lines) * size * LINE / 72 + 0.04
     return p
 
@@ -297,10 +309,10 @@ def _table(lay: _Layout, table: Table, heading=None) -> None:
     ``heading``'s (``(Heading, its page)``), the heading again, "(continued)", and a first row
     whose first cell is empty (a row of a group) with the group's name."""
     table, cells, widths = _measured(lay.pages[-1], table)
-    align = _alignment(table)
-    colours = table.colours or [[None] * len(table.headers) for _ in table.rows]
     line_in = table.size * LINE / 72
     head_lines = max(h.count("\n") + 1 for h in table.headers)
+    grid = _Grid(table, widths, _alignment(table), table.colours or [[None] * len(table.headers) for _ in table.rows],
+                 head_lines, line_in)
     for cols in _groups(widths):
         rows = list(range(len(cells)))
         while True:
@@ -317,7 +329,7 @@ def _table(lay: _Layout, table: Table, heading=None) -> None:
                     break
                 taken.append(r)
                 used += n
-            _draw_rows(p, table, cols, widths, align, shown, colours, taken, head_lines, line_in)
+            _draw_rows(p, grid, cols, shown, taken)
             rows = rows[len(taken):]
             if not rows:
                 break
@@ -338,7 +350,22 @@ def _named_group(cells: list, first: int) -> list:
     return shown
 
 
-def _draw_rows(p: _Page, table: Table, cols, widths, align, cells, colours, rows, head_lines, line_in) -> None:
+class _Grid(NamedTuple):
+    """A table as measured for drawing: its column widths (inches), alignments and cell
+    colours, the lines of its header and the height of a line (inches)."""
+
+    table: Table
+    widths: list
+    align: list
+    colours: list
+    head_lines: int
+    line_in: float
+
+
+def _draw_rows(p: _Page, grid: _Grid, cols, cells, rows) -> None:
+    """The columns ``cols`` of the header and of the rows ``rows`` of ``cells`` (their lines),
+    between rules, from the cursor of ``p`` on."""
+    table, widths, align, colours, line_in = grid.table, grid.widths, grid.align, grid.colours, grid.line_in
     xs, x = [], MARGIN_IN
     for j in cols:
         xs.append(x)
@@ -348,14 +375,14 @@ def _draw_rows(p: _Page, table: Table, cols, widths, align, cells, colours, rows
     p.y_in += 0.04
     for j, x0 in zip(cols, xs):
         ha, xa = ("right", x0 + widths[j]) if align[j] == "r" else ("left", x0)
-        _draw_text(p, table.headers[j], xa, table.size, ha=ha, weight="bold")
-    p.y_in += head_lines * line_in + 0.02
+        _draw_text(p, table.headers[j], xa, _Style(table.size, ha=ha, weight="bold"))
+    p.y_in += grid.head_lines * line_in + 0.02
     _rule(p, MARGIN_IN, right, 0.5)
     p.y_in += 0.04
     for r in rows:
         for j, x0 in zip(cols, xs):
             ha, xa = ("right", x0 + widths[j]) if align[j] == "r" else ("left", x0)
-            _draw_text(p, "\n".join(cells[r][j]), xa, table.size, ha=ha, colour=colours[r][j] or "black")
+            _draw_text(p, "\n".join(cells[r][j]), xa, _Style(table.size, ha=ha, colour=colours[r][j] or "black"))
         p.y_in += max(len(cells[r][j]) for j in cols) * line_in
     p.y_in += 0.02
     _rule(p, MARGIN_IN, right, 0.9)

@@ -1,5 +1,7 @@
-"""Landmark fixes scored: where the cameras of a scenario see a landmark on the flight, and the
-position error of an estimator at the end of each sighting against the camera's fix noise."""
+"""Landmark fixes scored: the position error of an estimator at the end of each landmark sighting
+against the camera's fix noise. The sightings ``(name, start_s, end_s, sigma_m)`` are the
+camera's (:class:`navsim.sensors.camera.SightingSpan`, found on the flight by
+:func:`navsim.sensors.camera.flight_sightings`): the scoring only reads them."""
 
 from __future__ import annotations
 
@@ -9,7 +11,6 @@ import numpy as np
 
 from navsim.records.metrics import Landmarks, Sighting, SpreadStats
 from navsim.scoring.intervals import MIN_RUNS, mean_square_interval, share_interval
-from navsim.sensors import emulate
 
 
 @dataclass(frozen=True)
@@ -19,24 +20,6 @@ class SightingEpochs:
     t_s: np.ndarray            #: (K,)
     pos_err_m: np.ndarray      #: (B, K, 3)
     diverged: np.ndarray       #: (B,)
-
-
-def sighting_spans(truth, scenario, seed: int = 0) -> list[tuple]:
-    """``(name, start_s, end_s, sigma_m)`` of every landmark sighting of the scenario's cameras
-    on ``truth`` (the same for every run: the flight is shared), ``sigma_m`` the camera's fix
-    noise per axis at the sighting's last fix (``noise + noise_ratio * range``)."""
-    out = []
-    for c in scenario.sensors:
-        if c.kind != "camera":
-            continue
-        data = emulate(truth, c, seed, [0])
-        v = data.valid[0].astype(int)
-        edges = np.flatnonzero(np.diff(np.r_[0, v, 0]))
-        for a, b in zip(edges[::2], edges[1::2]):
-            lm = int(data.values["landmark"][0, a])
-            sigma = c.spec.noise + c.spec.noise_ratio * float(data.errors["range_m"][b - 1])
-            out.append((f"{c.name} landmark {lm}", float(data.t_s[a]), float(data.t_s[b - 1]), sigma))
-    return out
 
 
 def _epochs(t_s, spans) -> tuple[np.ndarray, np.ndarray]:

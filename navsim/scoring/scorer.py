@@ -419,7 +419,7 @@ def score_run(parts, settle_s: float = 0.0, windows=(), sightings=()) -> RunScor
     settle_s, windows
         As :class:`EstimatorScore`.
     sightings : sequence of (name, start_s, end_s, sigma_m)
-        The landmark sightings (:func:`~navsim.scoring.landmarks.sighting_spans`).
+        The landmark sightings (:func:`~navsim.sensors.camera.flight_sightings`).
     """
     scores, thin, calib = {}, {}, {}
     for part in parts():

@@ -46,6 +46,11 @@ class SensorConfig:
     def kind(self) -> str:
         return registry.kind_of(self.spec)
 
+    @property
+    def role(self) -> str | None:
+        """What its kind is to the navigation (:data:`~navsim.sensors.registry.KIND_ROLES`)."""
+        return registry.get(self.kind).role
+
 
 #: the measurement values of each sensor kind (``SensorData.values`` keys) whatever its spec, read
 #: from the registry (each kind's declared ``outputs``; :func:`output_fields` for one spec's)

@@ -200,7 +200,7 @@ def fill_ads_in_loop(data: SensorData, j: int, sample) -> None:
 
 
 BARO = register(SensorKind(
-    name="baro", spec=BaroSpec, description="barometric altimeter",
+    name="baro", spec=BaroSpec, role="altimeter", description="barometric altimeter",
     fields={"rate_hz": Field("rate_hz", None, "plain"), "offset": Field("offset", "length", "1", signed=True),
             "offset_sigma": Field("offset_sigma", "length", "1"), "markov_sigma": Field("markov_sigma", "length", "1"),
             "markov_tau": Field("markov_tau_s", "time", "1"), "noise": Field("noise", "length", "1")},
@@ -210,11 +210,10 @@ BARO = register(SensorKind(
 
 _AXES = ("north", "east", "down")
 ADS = register(SensorKind(
-    name="ads", spec=AdsSpec, description="air data system: static, total pressure, temperature (P0)",
-    fields={"rate_hz": Field("rate_hz", None, "plain"), "static_noise": Field("static_noise", "pressure", "1"),
-            "static_bias_sigma": Field("static_bias_sigma", "pressure", "1"),
-            "total_noise": Field("total_noise", "pressure", "1"),
-            "total_bias_sigma": Field("total_bias_sigma", "pressure", "1"),
+    name="ads", spec=AdsSpec, role="air_data", description="air data system: static, total pressure, temperature (P0)",
+    fields={"rate_hz": Field("rate_hz", None, "plain"),
+            **{key: Field(key, "pressure", "1")
+               for key in ("static_noise", "static_bias_sigma", "total_noise", "total_bias_sigma")},
             "temperature_noise": Field("temperature_noise", "temperature", "1"),
             "formula": Field("formula", ("isa", "p0"), "str"),
             "pitot": Field("pitot", ("absolute", "differential"), "str"),

@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from navsim.foundations import earth
 from navsim.foundations.transform import dcm_from_quat
-from navsim.sensors.base import SensorData, apply_outages, normals, sampling
+from navsim.sensors.base import SensorData, apply_outages, check_faults, normals, sampling
 from navsim.sensors.gnss import position_channels
 from navsim.sensors.registry import ErrorTerm, Field, Output, SensorKind, register
 
@@ -68,8 +69,46 @@ def emulate_camera(truth, spec: CameraSpec, seed: int, runs, faults=(), name: st
                             "landmarks": [tuple(map(float, lm)) for lm in spec.landmarks]})
 
 
+class SightingSpan(NamedTuple):
+    """One landmark sighting of a camera: the landmark seen without a break from ``start_s`` to
+    ``end_s`` (its first and last fix, s) and the camera's fix noise per axis at the last fix,
+    ``sigma_m`` (``noise + noise_ratio * range``); ``name`` ``"<camera> landmark <index>"``."""
+
+    name: str
+    start_s: float
+    end_s: float
+    sigma_m: float
+
+
+def sightings(data: SensorData, spec: CameraSpec) -> list[SightingSpan]:
+    """The sightings of the first run of the camera data ``data`` (emulated with ``spec``: the
+    sightings do not depend on the run, the flight being shared), read from its validity, its
+    landmarks and its ranges."""
+    out = []
+    v = data.valid[0].astype(int)
+    edges = np.flatnonzero(np.diff(np.r_[0, v, 0]))
+    for a, b in zip(edges[::2], edges[1::2]):
+        lm = int(data.values["landmark"][0, a])
+        sigma = spec.noise + spec.noise_ratio * float(data.errors["range_m"][b - 1])
+        out.append(SightingSpan(f"{data.name} landmark {lm}", float(data.t_s[a]), float(data.t_s[b - 1]), sigma))
+    return out
+
+
+def flight_sightings(truth, configs, seed: int = 0) -> list[SightingSpan]:
+    """Every landmark sighting of the cameras among ``configs`` (a scenario's
+    :class:`~navsim.sensors.SensorConfig` objects) on the flight ``truth``, camera by camera: each
+    emulated for run 0 with its faults and read (:func:`sightings`). What the scorer and the
+    report are handed (they only read them)."""
+    out = []
+    for c in configs:
+        if isinstance(c.spec, CameraSpec):
+            check_faults(c.faults, KIND.name, truth.duration_s, c.name)
+            out += sightings(emulate_camera(truth, c.spec, seed, [0], faults=c.faults, name=c.name), c.spec)
+    return out
+
+
 KIND = register(SensorKind(
-    name="camera", spec=CameraSpec, description="downward landmark camera: position fixes (P1)",
+    name="camera", spec=CameraSpec, role="landmark_fix", description="downward landmark camera: position fixes (P1)",
     fields={"rate_hz": Field("rate_hz", None, "plain"), "half_fov": Field("half_fov", "angle", "1"),
             "max_range": Field("max_range", "length", "1"), "noise": Field("noise", "length", "1"),
             "noise_ratio": Field("noise_ratio", "ratio", "1"), "landmarks": Field("landmarks", None, "landmarks")},

@@ -16,7 +16,16 @@ import numpy as np
 
 from navsim.foundations import earth
 from navsim.foundations.transform import dcm_from_quat
-from navsim.sensors.base import SensorData, apply_outages, gauss_markov, normals, sampling, truth_step, zeros3
+from navsim.sensors.base import (
+    Sampling,
+    SensorData,
+    apply_outages,
+    gauss_markov,
+    normals,
+    sampling,
+    truth_step,
+    zeros3,
+)
 from navsim.sensors.registry import ErrorTerm, Field, InLoop, LinearError, Output, Refusal, SensorKind, register
 
 
@@ -54,14 +63,11 @@ def _distance_to_polyline(north, east, down, pts):
     return best
 
 
-def emulate_gnss(truth, spec: GnssSpec, seed: int, runs, faults=(), name: str = "gnss") -> SensorData:
-    smp = sampling(truth, spec.rate_hz, seed, runs, name)
-    runs, B, step, t, M = smp.runs, smp.B, smp.step, smp.t, smp.M
-    lat0, lon0 = truth.lat_rad[0], truth.lon_rad[0]
-    r_m, r_n = earth.radii(truth.lat_rad[::step])
-    k_n, k_e = r_m + truth.h_m[::step], (r_n + truth.h_m[::step]) * np.cos(truth.lat_rad[::step])
-
-    # antenna truth at the (latency-delayed) time of validity
+def _antenna_offset(truth, spec: GnssSpec, smp: Sampling, k_n, k_e) -> tuple[np.ndarray, np.ndarray]:
+    """The antenna's position ``(M, 3)`` (NED, m) and velocity (m/s) at the latency-delayed time
+    of validity, less the centre of gravity's at the fix times of ``smp`` (``k_n``, ``k_e``: m
+    per rad of latitude and longitude)."""
+    t, step = smp.t, smp.step
     t_valid = np.maximum(t - spec.latency_s, truth.t_s[0])
     if spec.latency_s:
         lat = _interp(t_valid, truth.t_s, truth.lat_rad)
@@ -79,8 +85,15 @@ def emulate_gnss(truth, spec: GnssSpec, seed: int, runs, faults=(), name: str = 
         offset_n = offset_n + C_nb @ spec.lever_arm_b
         vel_off = vel_off + np.einsum("nij,nj->ni", C_nb,
                                       np.cross(truth.omega_ib_b_rps[::step], spec.lever_arm_b))
+    return offset_n, vel_off
 
-    # noise scaling from degradation and interference, and lock loss
+
+def _fault_effects(truth, faults, smp: Sampling) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the faults do at the fix times of ``smp``: the noise scale factor ``(M,)``
+    (degradation, interference), the fixes kept ``(B, M)`` (lock lost near an interferer,
+    outages) and the position bias ``(M, 3)``."""
+    B, step, t, M = smp.B, smp.step, smp.t, smp.M
+    lat0, lon0 = truth.lat_rad[0], truth.lon_rad[0]
     factor = np.ones(M)
     valid = np.ones((B, M), bool)
     pos_bias = np.zeros((M, 3))
@@ -99,6 +112,19 @@ def emulate_gnss(truth, spec: GnssSpec, seed: int, runs, faults=(), name: str = 
             factor[act] *= grow[act]
             valid[:, act & (d < f.lost_m)] = False
     apply_outages(valid, t, faults)
+    return factor, valid, pos_bias
+
+
+def emulate_gnss(truth, spec: GnssSpec, seed: int, runs, faults=(), name: str = "gnss") -> SensorData:
+    """Fixes of ``spec`` at its rate along ``truth`` for the Monte Carlo ``runs`` (see the module
+    docstring): the antenna's offset (latency, lever arm), the faults' effects, then the noise
+    and Markov error drawn per run."""
+    smp = sampling(truth, spec.rate_hz, seed, runs, name)
+    runs, B, step, t, M = smp.runs, smp.B, smp.step, smp.t, smp.M
+    r_m, r_n = earth.radii(truth.lat_rad[::step])
+    k_n, k_e = r_m + truth.h_m[::step], (r_n + truth.h_m[::step]) * np.cos(truth.lat_rad[::step])
+    offset_n, vel_off = _antenna_offset(truth, spec, smp, k_n, k_e)
+    factor, valid, pos_bias = _fault_effects(truth, faults, smp)
 
     pos_err = offset_n[None] + pos_bias[None]
     if np.any(spec.position_sigma):
@@ -184,7 +210,7 @@ def linear_forms(term: str):
 
 
 KIND = register(SensorKind(
-    name="gnss", spec=GnssSpec, description="GNSS / BeiDou receiver: position and velocity fixes",
+    name="gnss", spec=GnssSpec, role="position_fix", description="GNSS / BeiDou receiver: position and velocity fixes",
     fields={"rate_hz": Field("rate_hz", None, "plain"), "position_sigma": Field("position_sigma", "length", "3"),
             "horizontal_sigma": Field("position_sigma", "length", "h"),
             "vertical_sigma": Field("position_sigma", "length", "v"),

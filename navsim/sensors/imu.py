@@ -24,12 +24,16 @@ used, and carries its state from block to block
 (:func:`navsim.sensors.kernels.bias_block`, :func:`navsim.sensors.kernels.imu_triad`). :func:`emulate_imu` is
 the stream in one block, plus the vibration (band-limited vibration is normalised over the
 whole record, so an IMU with vibration is emulated whole).
+
+One module, over 600 lines, for one concept: the IMU's error model, drawn whole or block by
+block, and its linear forms, sharing the error processes' helpers.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numba.typed import List
@@ -217,18 +221,47 @@ class _Normals:
         return self.buf, i0 - self.start
 
 
-class _Triad:
-    """One triad's errors for ``B`` runs, generated block by block (:class:`ImuStream`)."""
+class SampledMotion(NamedTuple):
+    """The true motion at an IMU's samples, what its errors are added to (:class:`ImuStream`):
+    the body rate (rad/s) and its increments (rad), the specific force (m/s^2) and its
+    increments (m/s), ``(n, 3)`` each, at the times ``t_s`` ``(n,)``, every ``dt_s`` seconds."""
 
-    def __init__(self, rng, B: int, e: AxisErrors, dt: float, n: int, block: int, truth_x, incr_x):
-        self.dt, self.n = dt, n
+    omega: np.ndarray
+    incr_g: np.ndarray
+    f: np.ndarray
+    incr_a: np.ndarray
+    t_s: np.ndarray
+    dt_s: float
+
+    @classmethod
+    def of_truth(cls, truth, rate_hz: float, name: str = "imu") -> "SampledMotion":
+        """``truth`` sampled at ``rate_hz`` (dividing its rate; ``name``: the sensor's, for the
+        error)."""
+        step = decimation(truth.meta.get("rate_hz", 1.0 / truth.dt_s), rate_hz, name)
+        inc_g, inc_a = truth_increments(truth, step)
+        return cls(truth.omega_ib_b_rps[::step], inc_g, truth.f_b_mps2[::step], inc_a, truth.t_s[::step],
+                   step * truth.dt_s)
+
+    @classmethod
+    def still(cls, n: int, dt_s: float) -> "SampledMotion":
+        """No motion over ``n`` samples of ``dt_s`` (an IMU's errors alone)."""
+        zero = np.zeros((n, 3))
+        return cls(zero, zero, zero, zero, np.arange(n) * dt_s, dt_s)
+
+
+class _Triad:
+    """One triad's errors for ``B`` runs, generated block by block (:class:`ImuStream`): added to
+    the true rate ``truth_x`` and increments ``incr_x`` ``(n, 3)`` every ``dt`` seconds."""
+
+    def __init__(self, rng, B: int, e: AxisErrors, block: int, truth_x, incr_x, dt: float):
+        self.dt, self.n = dt, len(truth_x)
         self.matrix, self.bias0 = _constants(rng, B, e)
         self.identity = np.array_equal(self.matrix, np.broadcast_to(np.eye(3), self.matrix.shape))
         self.truth_x = np.ascontiguousarray(truth_x, float)
         self.incr_x = np.ascontiguousarray(incr_x, float)
         self.procs = _processes(e, dt)
         self.varying = any(kind < 2 for _, kind, *_ in self.procs)     #: a bias that changes
-        self.streams = [_Normals(rng(name), n, block) for name, *_ in self.procs]     #: one per process
+        self.streams = [_Normals(rng(name), self.n, block) for name, *_ in self.procs]     #: one per process
         self.state = np.zeros((B, len(self.procs), 4))
         self.block_size = block
         self.next = 0                    #: the first sample not generated yet
@@ -271,7 +304,9 @@ class ImuStream:
 
     Parameters
     ----------
-    truth : Truth
+    truth : Truth or SampledMotion
+        The flight, or the true motion at the IMU's samples (:meth:`SampledMotion.still`: the
+        errors alone).
     spec : ImuSpec
         Its vibration is not emulated here (band-limited vibration is normalised over the whole
         record): :func:`emulate_imu` adds it to the whole record, each vibration from streams of
@@ -284,30 +319,21 @@ class ImuStream:
         Samples of normals drawn per process and run at a time (memory ``B x block x 24`` bytes
         per process: 3 MB for 250 runs; larger blocks cost memory and were not faster:
         docs/performance.md).
-    truth_x : tuple, optional
-        ``(omega, incr_g, f, incr_a)`` ``(n, 3)`` instead of the truth's (zeros: the errors alone).
 
     A stream cannot be pickled or copied (its generators sit in a :class:`numba.typed.List`):
     build it where it is used, as a chunk does.
     """
 
-    def __init__(self, truth, spec: ImuSpec, seed: int, runs, name: str = "imu", block: int = 500,
-                 truth_x: tuple | None = None, dt_s: float | None = None, n: int | None = None):
+    def __init__(self, truth, spec: ImuSpec, seed: int, runs, name: str = "imu", block: int = 500):
         self.runs = list(runs)
         self.spec, self.name, self.seed = spec, name, seed
-        if truth_x is None:
-            step = decimation(truth.meta.get("rate_hz", 1.0 / truth.dt_s), spec.rate_hz, name)
-            self.t_s = truth.t_s[::step]
-            dt_s, n = step * truth.dt_s, len(self.t_s)
-            inc_g, inc_a = truth_increments(truth, step)
-            truth_x = (truth.omega_ib_b_rps[::step], inc_g, truth.f_b_mps2[::step], inc_a)
-        else:
-            self.t_s = np.arange(n) * dt_s
-        self.dt_s, self.n = dt_s, n
+        motion = truth if isinstance(truth, SampledMotion) else SampledMotion.of_truth(truth, spec.rate_hz, name)
+        self.t_s, dt_s = motion.t_s, motion.dt_s
+        self.dt_s, self.n = dt_s, len(motion.t_s)
         self.meta = {"rate_hz": spec.rate_hz, "dt_s": dt_s, "runs": self.runs, "seed": seed}
         B = len(self.runs)
-        self.gyro = _Triad(self.streams("gyro"), B, spec.gyro, dt_s, n, block, truth_x[0], truth_x[1])
-        self.accel = _Triad(self.streams("accel"), B, spec.accel, dt_s, n, block, truth_x[2], truth_x[3])
+        self.gyro = _Triad(self.streams("gyro"), B, spec.gyro, block, motion.omega, motion.incr_g, dt_s)
+        self.accel = _Triad(self.streams("accel"), B, spec.accel, block, motion.f, motion.incr_a, dt_s)
         self.need_rate = any(math.isfinite(e.range) or e.quantization for e in (spec.gyro, spec.accel))
 
     def streams(self, group: str):
@@ -544,8 +570,7 @@ def error_increments(spec: ImuSpec, seed: int, runs, n: int, dt: float, name: st
     (``I + M``), so that the measured increment is ``matrix @ ideal + error`` (then quantized):
     the same numbers as :func:`emulate_imu` with the same ``n``. Range saturation is not
     applied (it needs the rate, which a closed loop does not keep)."""
-    zero = np.zeros((n, 3))
-    stream = ImuStream(None, spec, seed, runs, name, block=1, truth_x=(zero, zero, zero, zero), dt_s=dt, n=n)
+    stream = ImuStream(SampledMotion.still(n, dt), spec, seed, runs, name, block=1)
     _, err_g, bias_g = stream.gyro.block(0, n, False)
     _, err_a, bias_a = stream.accel.block(0, n, False)
     for va, vg in _vibrations(stream, spec):
@@ -681,7 +706,7 @@ def imu_channels(data: SensorData, truth, run: int = 0) -> list:
 
 
 KIND = register(SensorKind(
-    name="imu", spec=ImuSpec, description="strapdown gyro and accelerometer triads",
+    name="imu", spec=ImuSpec, role="inertial", description="strapdown gyro and accelerometer triads",
     fields={"rate_hz": Field("rate_hz", None, "plain"), "gyro": Field("gyro", Group(_GYRO, AxisErrors), "group"),
             "accel": Field("accel", Group(_ACCEL, AxisErrors), "group"),
             "vibration": Field("vibration", Group(_VIBRATION, Vibration), "list")},

@@ -100,7 +100,8 @@ def magnetometer_channels(data: SensorData, truth, run: int = 0) -> list:
 
 
 KIND = register(SensorKind(
-    name="magnetometer", spec=MagnetometerSpec, description="three-axis magnetometer (WMM field, hard and soft iron)",
+    name="magnetometer", spec=MagnetometerSpec, role="heading",
+    description="three-axis magnetometer (WMM field, hard and soft iron)",
     fields={"rate_hz": Field("rate_hz", None, "plain"),
             "hard_iron": Field("hard_iron", "magnetic_field", "3", signed=True),
             "hard_iron_sigma": Field("hard_iron_sigma", "magnetic_field", "3"),

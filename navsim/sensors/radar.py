@@ -63,7 +63,8 @@ def emulate_radar_altimeter(truth, spec: RadarAltimeterSpec, seed: int, runs, fa
 
 
 KIND = register(SensorKind(
-    name="radar_altimeter", spec=RadarAltimeterSpec, description="radar altimeter: height above the surface (P2)",
+    name="radar_altimeter", spec=RadarAltimeterSpec, role="altimeter",
+    description="radar altimeter: height above the surface (P2)",
     fields={"rate_hz": Field("rate_hz", None, "plain"), "noise": Field("noise", "length", "1"),
             "noise_ratio": Field("noise_ratio", "ratio", "1"), "min_range": Field("min_range", "length", "1"),
             "max_range": Field("max_range", "length", "1"), "beam_half_width": Field("beam_half_width", "angle", "1"),

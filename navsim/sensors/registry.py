@@ -37,9 +37,8 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from navsim.foundations.config import close_match, plain_name
-from navsim.foundations.errors import UsageError
-from navsim.foundations.plugins import describe, load_entry_points
+from navsim.foundations.config import plain_name
+from navsim.foundations.registry import Registry
 
 ENTRY_POINT_GROUP = "navsim.sensors"
 #: the fault windows a scenario may give a sensor (:class:`navsim.sensors.base.Fault`); each kind
@@ -49,8 +48,12 @@ FAULT_TYPES = ("outage", "bias", "degraded", "interference", "disturbance")
 SHAPES = ("1", "3", "h", "v", "33", "plain", "str", "bool", "pair", "landmarks", "group", "list")
 #: what an output may be read as by a measurement (``height``, ``velocity``), besides by name
 ROLES = ("height", "velocity")
+#: what a kind is to the navigation (:attr:`SensorKind.role`): the ``inertial`` one drives the
+#: strapdown (the scenario's IMU), the others aid it
+KIND_ROLES = ("inertial", "position_fix", "landmark_fix", "altimeter", "air_data", "heading")
+#: the role of the sensor that drives the strapdown (a scenario with estimators has one)
+INERTIAL = "inertial"
 
-_REGISTRY: dict[str, "SensorKind"] = {}
 _ENTRY_POINTS_READ: list[bool] = []          #: non-empty once the entry points were read
 
 
@@ -202,7 +205,9 @@ class SensorKind:
     ``emulate(truth, spec, seed, runs, faults=(), name=...) -> SensorData``;
     ``channels(data, truth, run) -> [(label, unit, t, measured, true), ...]`` (None: each output
     with a ``truth`` against it); ``vector_bias``: a ``bias`` fault is a NED vector (``value_m:
-    [n, e, d]``); ``in_loop``: how it flies in the closed loop (:class:`InLoop`; None: it cannot)."""
+    [n, e, d]``); ``in_loop``: how it flies in the closed loop (:class:`InLoop`; None: it cannot);
+    ``role``: what it is to the navigation, one of :data:`KIND_ROLES` (None: not declared; the
+    experiment asks the role, never the name, for the scenario's inertial sensor)."""
 
     name: str
     spec: type
@@ -215,6 +220,7 @@ class SensorKind:
     vector_bias: bool = False
     description: str = ""
     in_loop: InLoop | None = None
+    role: str | None = None
 
     def output_fields(self, spec) -> tuple[str, ...]:
         """The ``values`` keys the emulator produces for ``spec``, in declared order."""
@@ -260,24 +266,48 @@ def _zero_of(current):
     return 0.0
 
 
+def _checked(name: str, kind: SensorKind) -> SensorKind:
+    """``kind`` registered as ``name``: a :class:`SensorKind` of that name whose declaration is
+    sound (:func:`_problems`)."""
+    if not isinstance(kind, SensorKind) or kind.name != name:
+        raise TypeError(f"it is not a SensorKind named '{name}'")
+    problems = _problems(kind)
+    if problems:
+        raise TypeError(f"sensor kind '{kind.name}': " + "; ".join(problems))
+    return kind
+
+
+class _Kinds(Registry[SensorKind]):
+    """The sensor kinds' registry: the ``navsim.sensors`` entry points are read once per
+    process (the kinds are looked up at every emulation)."""
+
+    def _read_entry_points(self) -> None:
+        if _ENTRY_POINTS_READ:
+            return
+        _ENTRY_POINTS_READ.append(True)
+        super()._read_entry_points()
+
+
+#: the sensor kinds by name: the built-in ones, a user's module's and the entry points'
+KINDS: Registry[SensorKind] = _Kinds("sensor kind", ENTRY_POINT_GROUP, _checked)
+#: what is registered now
+_REGISTRY = KINDS.built()
+
+
 def register(kind: SensorKind, replace: bool = False) -> SensorKind:
     """Make ``kind`` known by its name (its declaration checked: a plain name, a spec
     dataclass whose attributes its fields, outputs' roles, error terms and faults name).
     Returns ``kind``. ``replace``: a kind of that name may be registered again (a reloaded
     module)."""
-    problems = _problems(kind)
-    if problems:
-        raise TypeError(f"sensor kind '{kind.name}': " + "; ".join(problems))
-    if kind.name in _REGISTRY and not replace and _REGISTRY[kind.name] is not kind:
-        raise TypeError(f"sensor kind '{kind.name}' is registered already "
-                        f"(by {_REGISTRY[kind.name].emulate.__module__})")
-    _REGISTRY[kind.name] = kind
-    return kind
+    earlier = _REGISTRY.get(kind.name)
+    if earlier is not None and not replace and earlier is not kind:
+        _checked(kind.name, kind)
+        raise TypeError(f"sensor kind '{kind.name}' is registered already (by {earlier.emulate.__module__})")
+    return KINDS.register(kind.name, kind)
 
 
-def unregister(name: str) -> None:
-    """Forget the kind ``name`` (a test's toy kind)."""
-    _REGISTRY.pop(name, None)
+#: forget the kind ``name`` (a test's toy kind)
+unregister = KINDS.unregister
 
 
 def _problems(kind: SensorKind) -> list[str]:
@@ -294,6 +324,8 @@ def _problems(kind: SensorKind) -> list[str]:
     out += [f"error term '{e.name}' is not an attribute of {kind.spec.__name__}"
             for e in kind.errors if e.name.split(".")[0] not in attrs]
     out += [f"output '{o.name}' has the role '{o.role}'" for o in kind.outputs if o.role not in (None, *ROLES)]
+    if kind.role not in (None, *KIND_ROLES):
+        out.append(f"its role '{kind.role}' is not one of {', '.join(KIND_ROLES)}")
     out += [f"fault '{f}' is not one of {', '.join(FAULT_TYPES)}" for f in kind.faults if f not in FAULT_TYPES]
     if "rate_hz" not in attrs:
         out.append(f"{kind.spec.__name__} has no rate_hz")
@@ -302,30 +334,22 @@ def _problems(kind: SensorKind) -> list[str]:
     return out
 
 
-def known(name: str) -> bool:
-    """Whether ``name`` is a registered kind; the entry points are read only for a name not
-    registered yet (reading them takes about 9 ms)."""
-    if name not in _REGISTRY:
-        _load_entry_points()
-    return name in _REGISTRY
-
-
-def get(name: str) -> SensorKind:
-    """The kind registered as ``name`` (built-in, a user's module's, or an entry point's)."""
-    if not known(name):
-        raise KeyError(f"no sensor kind '{name}' ({close_match(name, _REGISTRY) or 'none registered'})")
-    return _REGISTRY[name]
+#: whether ``name`` is a registered kind; the entry points are read once, for the first name
+#: not registered
+known = KINDS.known
+#: the kind registered as ``name`` (built-in, a user's module's, or an entry point's); a
+#: :class:`KeyError` naming the closest one
+get = KINDS.get
 
 
 def available() -> list[str]:
     """The registered kinds' names, sorted."""
-    _load_entry_points()
-    return sorted(_REGISTRY)
+    return KINDS.names()
 
 
 def kinds() -> list[SensorKind]:
     """The registered kinds."""
-    return [_REGISTRY[n] for n in available()]
+    return KINDS.values()
 
 
 def kind_of(spec) -> str:
@@ -369,18 +393,3 @@ class View(Mapping):
 
     def __len__(self):
         return len(available())
-
-
-def _load_entry_points() -> None:
-    """Register each ``navsim.sensors`` entry point's :class:`SensorKind` (named as its entry
-    point), once per process."""
-    if _ENTRY_POINTS_READ:
-        return
-    _ENTRY_POINTS_READ.append(True)
-    for ep, kind in load_entry_points(ENTRY_POINT_GROUP, skip=_REGISTRY):
-        if not isinstance(kind, SensorKind) or kind.name != ep.name:
-            raise UsageError(f"{describe(ep, ENTRY_POINT_GROUP)} is not a SensorKind named '{ep.name}'")
-        try:
-            register(kind)
-        except TypeError as exc:
-            raise UsageError(f"{describe(ep, ENTRY_POINT_GROUP)}: {exc}") from exc

@@ -526,7 +526,7 @@ def test_a_sweep_point_without_a_successful_run_is_an_error(workdir, capsys, mon
 
     import navsim.api
     import navsim.experiment.runner
-    monkeypatch.setattr(navsim.api, "run_monte_carlo", lambda *a, **k: navsim.experiment.runner.RunResult(
+    monkeypatch.setattr(navsim.api.runs, "run_monte_carlo", lambda *a, **k: navsim.experiment.runner.RunResult(
         {}, np.array([], int), failed={0: "RuntimeError: filter exploded", 1: "RuntimeError: filter exploded"}))
     (workdir / "case").mkdir()
     (workdir / "case" / S).write_text(scenario())

@@ -7,7 +7,7 @@ import pytest
 from reference_strapdown import Strapdown
 
 from navsim.experiment import driver
-from navsim.experiment.driver import run_batch
+from navsim.experiment.driver import Batch, run_batch
 from navsim.navigation.estimators.factory import build
 from navsim.navigation.estimators.sins import FreeInertial
 from navsim.records.history import ARRAY_FIELDS
@@ -72,7 +72,7 @@ def test_p0_histories_of_the_kernel_equal_the_per_sample_reference(shipped_fligh
 
     def histories(wrap):
         ests = {e.label: wrap(build(e)) for e in scenario.estimators}
-        return run_batch(truth, imu, others, ests, scenario.initial, scenario.seed, RUNS)
+        return run_batch(truth, imu, others, ests, Batch(scenario.initial, scenario.seed, RUNS))
 
     got, ref = histories(lambda e: e), histories(per_sample)
     for label in ref:
@@ -106,10 +106,10 @@ def test_a_chunk_does_not_depend_on_how_the_imu_is_cut_into_blocks(shipped_fligh
     imu = emulate_imu(short, imu_cfg.spec, scenario.seed, runs, name=imu_cfg.name, keep_rates=False)
     others = {c.name: emulate(short, c, scenario.seed, runs) for c in scenario.sensors if c.kind != "imu"}
     ests = lambda: {e.label: build(e) for e in scenario.estimators}
-    alone = run_batch(short, imu, others, ests(), scenario.initial, scenario.seed, runs)
+    alone = run_batch(short, imu, others, ests(), Batch(scenario.initial, scenario.seed, runs))
     for period in (0.37, 0.3):
-        mixed = run_batch(short, imu, others, {**ests(), "odd": FreeInertial(period_s=period)}, scenario.initial,
-                          scenario.seed, runs)
+        mixed = run_batch(short, imu, others, {**ests(), "odd": FreeInertial(period_s=period)},
+                          Batch(scenario.initial, scenario.seed, runs))
         for label, h in alone.items():
             for name in ARRAY_FIELDS:
                 a, b = getattr(h, name), getattr(mixed[label], name)
@@ -131,7 +131,7 @@ def test_single_precision_records_leave_the_metrics_as_printed(shipped_flight, m
 
     def metrics():
         ests = {e.label: build(e) for e in scenario.estimators}
-        hist = run_batch(short, imu, others, ests, scenario.initial, scenario.seed, runs)
+        hist = run_batch(short, imu, others, ests, Batch(scenario.initial, scenario.seed, runs))
         return {k: score(h, 20.0).to_dict() for k, h in hist.items()}, hist
 
     single, hist = metrics()

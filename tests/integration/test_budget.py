@@ -246,13 +246,13 @@ def test_an_interrupted_budget_keeps_what_finished_and_resumes(repo_root, tmp_pa
         if len(calls) == 3:
             raise KeyboardInterrupt
         return real(*a, **k)
-    monkeypatch.setattr(api, "run", interrupted)
+    monkeypatch.setattr(api.budgets, "run", interrupted)      # the run each Monte Carlo of a budget calls
     out = tmp_path / "resumed"
     assert main(args + ["--out", str(out)]) == 130
     assert "2 finished Monte Carlo(s) kept" in capsys.readouterr().err
     assert len(list(out.glob("budget_part_*.npz"))) == 2 and not (out / "budget.json").exists()
     calls.clear()
-    monkeypatch.setattr(api, "run", lambda *a, **k: calls.append(1) or real(*a, **k))
+    monkeypatch.setattr(api.budgets, "run", lambda *a, **k: calls.append(1) or real(*a, **k))
     assert main(args + ["--out", str(out), "--resume"]) == 0
     sources = len(error_sources(navsim.load_scenario(path)))
     assert len(calls) == sources + 2 - 2

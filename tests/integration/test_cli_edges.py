@@ -179,7 +179,7 @@ def test_a_sweep_of_more_runs_than_memory_holds_hints_the_sweep_file(sweep_dir, 
     from navsim.experiment import resources
     monkeypatch.setattr(resources, "available_memory",
                         lambda: 4 * resources.flight_bytes(api.load_scenario(sweep_dir / "edge.yaml")))
-    monkeypatch.setattr(api, "run", lambda *a, **k: pytest.fail("a point started"))
+    monkeypatch.setattr(api.sweeps, "run", lambda *a, **k: pytest.fail("a point started"))
     monkeypatch.setattr(sweep_module, "cached_flight", lambda *a, **k: pytest.fail("a point was flown"))
     path = _sweep(sweep_dir, "scenario: edge.yaml\nruns: 1000000\ngrid: {montecarlo.seed: [1, 2]}\n")
     assert main(["sweep", str(path), "--out", str(sweep_dir / "out")]) == 2

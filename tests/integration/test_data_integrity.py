@@ -18,7 +18,7 @@ from navsim import api
 from navsim.cli import main
 from navsim.experiment import runner
 from navsim.experiment.chunkstore import ChunkStore, ResumeError
-from navsim.flight.truth import Truth
+from navsim.flight.truth import Pose, Truth
 from navsim.foundations.errors import UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.records import cost as run_cost
@@ -250,10 +250,10 @@ def test_a_truncated_cached_flight_is_flown_again_and_replaced(flight_config, ca
 def test_another_flight_under_the_key_is_not_used(flight_config):
     config, flown = flight_config
     truth, path, _ = runner.cached_flight(config)
-    Truth.static(3.0, rate_hz=50.0, yaw_deg=90).save(path)        # a foreign flight, no key
+    Truth.static(3.0, rate_hz=50.0, pose=Pose(yaw_deg=90)).save(path)        # a foreign flight, no key
     again, _, cached = runner.cached_flight(config)
     assert not cached and again == truth and len(flown) == 2
-    other = Truth.static(3.0, rate_hz=50.0, yaw_deg=90)
+    other = Truth.static(3.0, rate_hz=50.0, pose=Pose(yaw_deg=90))
     other.save(path, key="0" * 20)                                # another flight's key
     assert runner.cached_flight(config)[2] is False and len(flown) == 3
     truth.save(path, key=runner.flight_key(config))               # the right key
@@ -303,7 +303,7 @@ def test_labels_a_space_b_and_a_underscore_b_keep_their_own_data(tiny, tmp_path,
     text = TINY.replace("label: free SINS", "label: a b").replace("label: KF", "label: a_b")
     (tmp_path / "ab.yaml").write_text(text)
     result = navsim.run(tmp_path / "ab.yaml", out=None)
-    api._write_run(result, OutputFolder(tmp_path / "ab", command="run"))
+    api.results.write_run(result, OutputFolder(tmp_path / "ab", command="run"))
     back = navsim.open_result(tmp_path / "ab")
     assert set(back.histories) == {"a b", "a_b"}
     for label in ("a b", "a_b"):
@@ -318,7 +318,7 @@ def test_npz_keys_are_injective_and_older_files_still_read(tmp_path):
     old = {"runs": np.arange(2), "BD-SINS-ADS_ES-KF_16.t_s": np.arange(3.0),        # before the keys
            "BD-SINS-ADS_ES-KF_16.pos_err_m": np.ones((2, 3, 3))}
     np.savez(tmp_path / "runs.npz", **old)
-    runs, hist = api._npz_histories(tmp_path / "runs.npz", ["BD/SINS/ADS ES-KF 16"])
+    runs, hist = api.results.npz_histories(tmp_path / "runs.npz", ["BD/SINS/ADS ES-KF 16"])
     assert list(runs) == [0, 1] and np.array_equal(hist["BD/SINS/ADS ES-KF 16"].pos_err_m, np.ones((2, 3, 3)))
 
 

@@ -12,10 +12,11 @@ import yaml
 import navsim.navigation.estimators.factory
 from navsim.experiment.chunkstore import ChunkStore, part_arrays, part_from_arrays
 from navsim.experiment.driver import NEES_BOUND, PSD_TOL, SYMMETRY_TOL, covariance_faults
+from navsim.experiment.options import RunOptions
 from navsim.experiment.runner import run_monte_carlo
 from navsim.experiment.scenario import load_scenario
 from navsim.foundations import earth
-from navsim.navigation import kernels
+from navsim.navigation.kernels.records import covariance_record
 from navsim.navigation.estimators import kalman
 from navsim.records.chunk import ChunkPart, merge_parts
 from navsim.records.history import EstimatorHistory
@@ -65,7 +66,7 @@ def test_a_blown_up_filter_is_flagged_and_the_sane_one_scored_on_every_run(p0, t
     # eigenvalues, 1e-24 of the largest): the NEES bound is what catches it.
     sc, truth, truth_path = p0
     store = ChunkStore(tmp_path / "chunks", {"seed": 1}, mode="new")
-    res = run_monte_carlo(sc, truth, truth_path, 3, 1, 1, chunk_runs=2, store=store)
+    res = run_monte_carlo(sc, truth, truth_path, RunOptions(runs=3, seed=1, workers=1, chunk_runs=2), store=store)
     assert res.failed == {} and list(res.runs) == [0, 1, 2]
     blown, sane = res.histories[BLOWN], res.histories[SANE]
     assert blown.diverged.all() and blown.divergence == [(1.0, "NEES above bound")] * 3
@@ -110,11 +111,11 @@ def test_an_estimator_that_raises_is_flagged_and_the_others_go_on(same_history, 
     sc, truth, truth_path = p0
     truth = truth.slice(0, 1201)
     sc, alone = with_twin(sc)
-    want = run_monte_carlo(alone, truth, truth_path, 3, 1, 1).histories[SANE]
+    want = run_monte_carlo(alone, truth, truth_path, RunOptions(runs=3, seed=1, workers=1)).histories[SANE]
     real = navsim.navigation.estimators.factory.build
     monkeypatch.setattr(navsim.navigation.estimators.factory, "build",
                         lambda e: RaisesOnce(real(e), method, call) if e.label == TWIN else real(e))
-    res = run_monte_carlo(sc, truth, truth_path, 3, 1, 1)
+    res = run_monte_carlo(sc, truth, truth_path, RunOptions(runs=3, seed=1, workers=1))
     assert res.failed == {}                              # the chunk is not lost
     bad, sane = res.histories[TWIN], res.histories[SANE]
     same_history(want, sane, timed=False)
@@ -130,7 +131,7 @@ def test_an_indefinite_covariance_in_one_run_flags_that_run_alone(same_history, 
     sc, truth, truth_path = p0
     truth = truth.slice(0, 1201)
     sc, alone = with_twin(sc)
-    want = run_monte_carlo(alone, truth, truth_path, 3, 1, 1).histories[SANE]
+    want = run_monte_carlo(alone, truth, truth_path, RunOptions(runs=3, seed=1, workers=1)).histories[SANE]
     real = navsim.navigation.estimators.factory.build
 
     class Spoiled:
@@ -150,7 +151,7 @@ def test_an_indefinite_covariance_in_one_run_flags_that_run_alone(same_history, 
             return out
     monkeypatch.setattr(navsim.navigation.estimators.factory, "build",
                         lambda e: Spoiled(real(e)) if e.label == TWIN else real(e))
-    res = run_monte_carlo(sc, truth, truth_path, 3, 1, 1)
+    res = run_monte_carlo(sc, truth, truth_path, RunOptions(runs=3, seed=1, workers=1))
     spoiled = res.histories[TWIN]
     assert list(spoiled.diverged) == [False, True, False]
     assert spoiled.divergence == [None, (4.0, "covariance not positive definite"), None]
@@ -183,7 +184,7 @@ def test_covariance_faults():
 
 
 def test_the_record_of_a_covariance_against_numpy_with_its_divergence_codes():
-    """``kernels.covariance_record``: the NEES against numpy's solve (NaN for a singular P),
+    """``covariance_record``: the NEES against numpy's solve (NaN for a singular P),
     the 1-sigma with the position in metres, and the code's order of precedence."""
     rng = np.random.default_rng(5)
     A = rng.normal(size=(6, 9, 9))
@@ -195,7 +196,7 @@ def test_the_record_of_a_covariance_against_numpy_with_its_divergence_codes():
     errors[5, :9] *= 1e8                                # NEES above the bound
     truth = np.array([[0.5, 2.0, 300.0, 0, 0, 0, 0, 0, 0]])
     sigma, nees, code = np.empty((6, 9)), np.empty(6), np.zeros(6, np.int64)
-    kernels.covariance_record(P, errors, truth, np.array([SYMMETRY_TOL, PSD_TOL, NEES_BOUND]), sigma, nees, code)
+    covariance_record(P, errors, truth, np.array([SYMMETRY_TOL, PSD_TOL, NEES_BOUND]), sigma, nees, code)
     ok = [0, 1, 3, 5]
     want = np.einsum("bi,bi->b", errors[ok, :9], np.linalg.solve(P[ok], errors[ok, :9, None])[..., 0])
     np.testing.assert_allclose(nees[ok], want, rtol=1e-10, atol=0)

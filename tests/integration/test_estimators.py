@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from navsim.experiment.driver import ARCSEC, Driver, InitialErrors, perturbed_start, run_batch
+from navsim.experiment.driver import ARCSEC, Batch, Driver, InitialErrors, perturbed_start, run_batch
 from navsim.flight import fly, load_track
 from navsim.flight.truth import Truth
 from navsim.foundations.errors import UsageError
 from navsim.navigation.estimators import available, factory, get, measurement_types
 from navsim.navigation.estimators.error_model import PRESETS, Layout
-from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.eskf import EpochSettings, ErrorStateKF
 from navsim.navigation.estimators.measurements import GnssPosition, Velocity
 from navsim.navigation.estimators.sins import FreeInertial
 from navsim.sensors import SensorConfig, emulate, load_spec
@@ -34,7 +34,7 @@ def p3_filter(series_order=6, discretization="series"):
     return ErrorStateKF.from_imu_spec(
         Layout(PRESETS["p3_15"]), load_spec("p3_imu"),
         [GnssPosition("gps", np.array([2.0, 2.0, 1.0])), Velocity("gps", np.full(3, 0.05))],
-        series_order=series_order, discretization=discretization)
+        epochs=EpochSettings(series_order=series_order, discretization=discretization))
 
 
 def p3_sensors(truth, runs, seed=1):
@@ -45,7 +45,7 @@ def p3_sensors(truth, runs, seed=1):
 
 def test_free_inertial_with_ideal_sensors_follows_the_truth(p0_truth):
     imu = emulate(p0_truth, SensorConfig("imu", "ideal", ImuSpec()), 1, [0])
-    h = run_batch(p0_truth, imu, {}, {"sins": FreeInertial()}, InitialErrors(), 1, [0])["sins"]
+    h = run_batch(p0_truth, imu, {}, {"sins": FreeInertial()}, Batch(InitialErrors(), 1, [0]))["sins"]
     assert h.t_s[-1] == pytest.approx(500.0)
     assert np.abs(h.pos_err_m).max() < 2.0
     assert np.abs(h.vel_err_mps).max() < 0.02
@@ -55,7 +55,7 @@ def test_free_inertial_with_ideal_sensors_follows_the_truth(p0_truth):
 def free_inertial_static(imu_spec, duration_s, rate_hz, initial=InitialErrors()):
     truth = Truth.static(duration_s, rate_hz=rate_hz)
     imu = emulate(truth, SensorConfig("imu", "x", imu_spec), 1, [0])
-    return run_batch(truth, imu, {}, {"sins": FreeInertial()}, initial, 1, [0])["sins"]
+    return run_batch(truth, imu, {}, {"sins": FreeInertial()}, Batch(initial, 1, [0]))["sins"]
 
 
 def test_accelerometer_bias_gives_half_b_t_squared():
@@ -95,7 +95,8 @@ def test_p3_sins_gps_on_the_p0_track(p0_truth):
     10 runs: 30 runs keep it clear of the 1 m it is held to."""
     runs = range(30)
     imu, sensors = p3_sensors(p0_truth, runs)
-    res = run_batch(p0_truth, imu, sensors, {"kf": p3_filter(), "sins": FreeInertial()}, P3_INITIAL, 1, runs)
+    res = run_batch(p0_truth, imu, sensors, {"kf": p3_filter(), "sins": FreeInertial()},
+                    Batch(P3_INITIAL, 1, runs))
     kf, free = res["kf"], res["sins"]
     after = kf.t_s >= 100.0                      # after convergence
     pos = np.abs(kf.pos_err_m[:, after])
@@ -115,7 +116,7 @@ def test_filter_is_consistent_nees_and_nis_in_chi2_band(p0_truth):
     B = 100
     runs = range(B)
     imu, sensors = p3_sensors(p0_truth, runs, seed=1)
-    h = run_batch(p0_truth, imu, sensors, {"kf": p3_filter()}, P3_INITIAL, 1, runs)["kf"]
+    h = run_batch(p0_truth, imu, sensors, {"kf": p3_filter()}, Batch(P3_INITIAL, 1, runs))["kf"]
     lo, hi = chi2.ppf([0.025, 0.975], 9 * B) / B
     nees = h.nees.mean(axis=0)[1:]
     assert np.mean((nees > lo) & (nees < hi)) >= 0.9
@@ -129,10 +130,10 @@ def test_filter_is_consistent_nees_and_nis_in_chi2_band(p0_truth):
 def test_batch_of_three_equals_three_single_runs(p0_truth):
     short = p0_truth.slice(0, 3001)
     imu, sensors = p3_sensors(short, range(3))
-    batch = run_batch(short, imu, sensors, {"kf": p3_filter()}, P3_INITIAL, 1, range(3))["kf"]
+    batch = run_batch(short, imu, sensors, {"kf": p3_filter()}, Batch(P3_INITIAL, 1, range(3)))["kf"]
     for i in range(3):
         imu1, sensors1 = p3_sensors(short, [i])
-        one = run_batch(short, imu1, sensors1, {"kf": p3_filter()}, P3_INITIAL, 1, [i])["kf"]
+        one = run_batch(short, imu1, sensors1, {"kf": p3_filter()}, Batch(P3_INITIAL, 1, [i]))["kf"]
         assert np.array_equal(batch.pos_err_m[i:i + 1], one.pos_err_m)
         assert np.array_equal(batch.sigma[i:i + 1], one.sigma)
         assert np.array_equal(batch.nees[i:i + 1], one.nees)
@@ -141,8 +142,9 @@ def test_batch_of_three_equals_three_single_runs(p0_truth):
 def test_van_loan_and_series_filters_agree(p0_truth):
     short = p0_truth.slice(0, 6001)
     imu, sensors = p3_sensors(short, range(4))
-    a = run_batch(short, imu, sensors, {"kf": p3_filter(6)}, P3_INITIAL, 1, range(4))["kf"]
-    b = run_batch(short, imu, sensors, {"kf": p3_filter(discretization="van_loan")}, P3_INITIAL, 1, range(4))["kf"]
+    a = run_batch(short, imu, sensors, {"kf": p3_filter(6)}, Batch(P3_INITIAL, 1, range(4)))["kf"]
+    b = run_batch(short, imu, sensors, {"kf": p3_filter(discretization="van_loan")},
+                  Batch(P3_INITIAL, 1, range(4)))["kf"]
     np.testing.assert_allclose(a.pos_err_m, b.pos_err_m, atol=1e-3)
     np.testing.assert_allclose(a.sigma, b.sigma, rtol=1e-3)
 
@@ -180,7 +182,7 @@ def test_third_party_estimator_through_entry_point(tmp_path, monkeypatch, p0_tru
     short = p0_truth.slice(0, 1001)
     imu = emulate(short, SensorConfig("imu", "ideal", ImuSpec()), 1, range(2))
     est = cls()
-    h = run_batch(short, imu, {}, {"toy": est}, InitialErrors(), 1, range(2))["toy"]
+    h = run_batch(short, imu, {}, {"toy": est}, Batch(InitialErrors(), 1, range(2)))["toy"]
     assert est.steps == 1000 and h.pos_err_m.shape == (2, 11, 3)
     assert np.abs(h.pos_err_m).max() < 0.01
     with pytest.raises(KeyError, match="did you mean 'eskf'"):
@@ -210,7 +212,7 @@ def test_p3_reproduced_on_the_p3_track():
     runs = range(10)
     imu, sensors = p3_sensors(truth, runs)
     res = run_batch(truth, imu, sensors, {"kf": p3_filter(series_order=3), "sins": FreeInertial()},
-                    P3_INITIAL, 1, runs)
+                    Batch(P3_INITIAL, 1, runs))
     kf, free = res["kf"], res["sins"]
     after = kf.t_s >= 100.0
     assert np.all(np.percentile(np.abs(kf.pos_err_m[:, after]), 99, axis=(0, 1)) < 1.0)
@@ -232,7 +234,7 @@ def test_ideal_increments_follow_the_truth_from_the_first_step(track, environmen
     from navsim.flight.track import parse_track
     truth = fly(FlightConfig(track=parse_track(track), environment=parse_environment(environment, "e"))).slice(0, 6001)
     imu = emulate(truth, SensorConfig("imu", "ideal", ImuSpec()), 1, [0])
-    h = run_batch(truth, imu, {}, {"sins": FreeInertial(period_s=0.01)}, InitialErrors(), 1, [0])["sins"]
+    h = run_batch(truth, imu, {}, {"sins": FreeInertial(period_s=0.01)}, Batch(InitialErrors(), 1, [0]))["sins"]
     assert np.abs(h.att_err_rad).max() / ARCSEC < 1.0
     # a velocity step of up to 0.04 m/s at the first step of a trim in wind remains (JSBSim's
     # translational history at its initial conditions is not the recorded one)
@@ -259,7 +261,7 @@ def test_no_estimator_reads_the_truth(shipped_flight):
         imu_cfg = next(c for c in scenario.sensors if c.kind == "imu")
         imu = ImuStream(truth, imu_cfg.spec, 1, [0, 1], name=imu_cfg.name)
         hist = run_batch(truth, imu, seen, {e.label: factory.build(e) for e in scenario.estimators},
-                         scenario.initial, 1, [0, 1])
+                         Batch(scenario.initial, 1, [0, 1]))
         for label, h in hist.items():
             assert h.divergence == [None, None], (name, label, h.divergence)
         estimators |= {e.type for e in scenario.estimators}

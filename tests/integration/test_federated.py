@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from navsim.experiment.driver import ARCSEC, InitialErrors, run_batch
+from navsim.experiment.driver import ARCSEC, Batch, InitialErrors, run_batch
 from navsim.flight import fly, load_track
 from navsim.navigation.estimators.error_model import PRESETS, Layout
-from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.eskf import ErrorStateKF, ExtraStates
 from navsim.navigation.estimators.federated import FederatedKF
 from navsim.navigation.estimators.measurements import GnssPosition, Height
 from navsim.sensors import SensorConfig, emulate, load_spec
@@ -14,7 +14,7 @@ from navsim.sensors.base import Fault
 
 INIT = InitialErrors(pos_m=np.array([5.0, 5.0, 10.0]), vel_mps=np.full(3, 0.1),
                      att_rad=np.array([20.0, 20.0, 50.0]) * ARCSEC)
-KW = dict(baro_sigma_m=3.0, baro_tau_s=600.0)
+KW = dict(extra_states=ExtraStates(baro_sigma_m=3.0, baro_tau_s=600.0))
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +48,7 @@ def test_fusion_reset_every_epoch_is_the_centralized_filter(p0):
     spec, imu, d = data(p0, runs)
     central = ErrorStateKF.from_imu_spec(Layout(PRESETS["p0_16"]), spec, gps_models() + baro_models(), **KW)
     fed = FederatedKF.from_imu_spec(Layout(PRESETS["p0_16"]), spec, locals_((0.3, 0.7)), reset=True, **KW)
-    r = run_batch(p0, imu, d, {"c": central, "f": fed}, INIT, 1, runs)
+    r = run_batch(p0, imu, d, {"c": central, "f": fed}, Batch(INIT, 1, runs))
     for key in ("pos_err_m", "vel_err_mps", "att_err_rad"):
         a, b = getattr(r["f"], key), getattr(r["c"], key)
         assert np.max(np.abs(a - b)) <= 1e-6 * np.max(np.abs(b))
@@ -64,7 +64,7 @@ def test_no_reset_is_conservative_and_a_baro_step_is_isolated(p0):
            "no_reset": FederatedKF.from_imu_spec(Layout(PRESETS["p0_16"]), spec, locals_(), reset=False, **KW),
            "isolating": FederatedKF.from_imu_spec(Layout(PRESETS["p0_16"]), spec, locals_(), reset=True,
                                                   isolation=iso, **KW)}
-    r = run_batch(p0, imu, d, est, INIT, 1, runs)
+    r = run_batch(p0, imu, d, est, Batch(INIT, 1, runs))
     t = r["reset"].t_s
     fault = (t >= 100) & (t <= 150)
     before = (t >= 40) & (t < 100)

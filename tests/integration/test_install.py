@@ -143,7 +143,7 @@ def test_the_git_revision_is_the_checkouts_only(tmp_path):
 
 #: ``navsim list``, then one of navsim's cached kernels compiled, then where numba caches
 LIST_AND_COMPILE = ("from navsim.cli import main; assert main(['list']) == 0; "
-                    "from navsim.navigation.kernels import radii; radii(0.5); "
+                    "from navsim.navigation.kernels.earth import radii; radii(0.5); "
                     "import navsim.foundations.compiled as c; print('cache:', c.CACHE_FOLDER)")
 
 

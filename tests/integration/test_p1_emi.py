@@ -6,6 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from navsim.experiment.options import RunOptions
 from navsim.experiment.runner import run_monte_carlo
 from navsim.scoring.scorer import score
 
@@ -19,7 +20,8 @@ def run(emi, runs, duration_s=None):
     scenario, truth, path = emi
     if duration_s is not None:
         truth = truth.slice(0, int(duration_s * 100) + 1)
-    res = run_monte_carlo(scenario, truth, path if duration_s is None else None, runs, scenario.seed, 1)
+    res = run_monte_carlo(scenario, truth, path if duration_s is None else None,
+                          RunOptions(runs=runs, seed=scenario.seed, workers=1))
     return {k: score(h, scenario.settle_s, scenario.windows).to_dict() for k, h in res.histories.items()}
 
 

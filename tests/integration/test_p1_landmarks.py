@@ -6,16 +6,17 @@ from model_result import unpack
 
 from navsim.experiment.driver import perturbed_start
 from navsim.experiment.scenario import parse_scenario
-from navsim.flight.truth import Truth
+from navsim.flight.truth import Pose, Truth
 from navsim.foundations.config import load_yaml
 from navsim.navigation.estimators.error_model import PRESETS, Layout
 from navsim.navigation.estimators.measurements import LandmarkFix
-from navsim.scoring.landmarks import sighting_metrics, sighting_spans
+from navsim.scoring.landmarks import sighting_metrics
 from navsim.sensors import SensorConfig, emulate, load_spec
+from navsim.sensors.camera import flight_sightings
 
 
 def test_landmark_fix_is_linear_in_the_position_error_with_range_dependent_noise():
-    truth = Truth.static(10.0, rate_hz=10.0, lat_deg=30.5, lon_deg=114.3, h_m=80.0)
+    truth = Truth.static(10.0, rate_hz=10.0, pose=Pose(lat_deg=30.5, lon_deg=114.3, h_m=80.0))
     spec = load_spec("p1_camera", {"landmarks": [[30.5, 114.3, 0.0]], "noise": "0 m", "noise_ratio": "0 %"})
     cam = emulate(truth, SensorConfig("camera", "p1_camera", spec), 1, [0, 1])
     assert cam.valid.all()                      # the anchor is right below
@@ -40,6 +41,7 @@ def short_run(repo_root, tmp_path_factory):
     """The shipped scenario cut to its first leg (400 s, 9 anchors), 8 runs."""
     import os
     os.environ.setdefault("NAVSIM_CACHE", str(tmp_path_factory.mktemp("cache")))
+    from navsim.experiment.options import RunOptions
     from navsim.experiment.runner import cached_flight, run_monte_carlo
     data = load_yaml(repo_root / "scenarios" / "p1_gnss_denied_landmarks.yaml")
     data["track"] = {"name": "p1_leg", "start": {"type": "air", "lat_deg": 30.5, "lon_deg": 114.3, "alt_m": 80,
@@ -49,13 +51,13 @@ def short_run(repo_root, tmp_path_factory):
     data["sensors"]["camera"]["override"]["landmarks"] = lm[:9]
     scenario = parse_scenario(data, "p1_leg.yaml")
     truth, path, _ = cached_flight(scenario.flight)
-    result = run_monte_carlo(scenario, truth, path, 8, 2, 1)
+    result = run_monte_carlo(scenario, truth, path, RunOptions(runs=8, seed=2, workers=1))
     return scenario, truth, result
 
 
 def test_landmarks_bring_the_position_back_to_the_fix_noise_after_each_sighting(short_run):
     scenario, truth, result = short_run
-    spans = sighting_spans(truth, scenario)
+    spans = flight_sightings(truth, scenario.sensors)
     assert len(spans) == 9 and all(2.0 < b - a < 10.0 for _, a, b, _ in spans)   # ~6 fixes each
     m = sighting_metrics(result.histories["SINS/landmark/baro"], spans)
     assert m.fraction_within_3sigma == 1.0, m
@@ -87,13 +89,14 @@ def test_p1_gnss_denied_acceptance_over_100_runs(repo_root):
     sighting x axis; the worst, 3.8-5.2 sigma, follows a 180 deg turn, which
     turns the unobservable heading error into ~600 m of position error) and the height error
     stays inside 3 sigma of the baro error model (but in two runs of 100: see below)."""
+    from navsim.experiment.options import RunOptions
     from navsim.experiment.runner import cached_flight, run_monte_carlo
     from navsim.experiment.scenario import load_scenario
     scenario = load_scenario(repo_root / "scenarios" / "p1_gnss_denied_landmarks.yaml")
     truth, path, _ = cached_flight(scenario.flight)
-    result = run_monte_carlo(scenario, truth, path, 100, 1, 2)
+    result = run_monte_carlo(scenario, truth, path, RunOptions(runs=100, seed=1, workers=2))
     h = result.histories["SINS/landmark/baro"]
-    m = sighting_metrics(h, sighting_spans(truth, scenario))
+    m = sighting_metrics(h, flight_sightings(truth, scenario.sensors))
     assert m.count == 40 and m.fraction_within_3sigma > 0.999, m
     assert len(m.sightings) == m.count
     # the worst run of 100 at a sighting: at a typical one (the median over the 40) 1.8 sigma;

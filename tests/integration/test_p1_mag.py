@@ -5,6 +5,7 @@ the heading with the calibrated magnetometer against GNSS alone in the GNSS outa
 import numpy as np
 import pytest
 
+from navsim.experiment.options import RunOptions
 from navsim.experiment.runner import mag_calibrations, run_monte_carlo
 from navsim.navigation import magcal
 from navsim.navigation.estimators.error_model import PRESETS, Layout
@@ -24,7 +25,7 @@ def mag(shipped_flight):
 def result(mag):
     scenario, truth, _ = mag
     truth = truth.slice(0, 460 * 100 + 1)                   # to the end of the GNSS outage
-    return run_monte_carlo(scenario, truth, None, 12, scenario.seed, 1), scenario
+    return run_monte_carlo(scenario, truth, None, RunOptions(runs=12, seed=scenario.seed, workers=1)), scenario
 
 
 def test_two_full_turns_calibrate_within_2_percent(result):
@@ -75,7 +76,7 @@ def test_the_filter_uses_the_fit_the_report_scores(mag):
 @pytest.mark.slow
 def test_p1_mag_acceptance_over_100_runs(mag):
     scenario, truth, path = mag
-    res = run_monte_carlo(scenario, truth, path, 100, scenario.seed, 2)
+    res = run_monte_carlo(scenario, truth, path, RunOptions(runs=100, seed=scenario.seed, workers=2))
     s = calibration_score(res.calibration["mag"]).after_turns
     assert s.hard_iron_pct.max < 2.0 and s.soft_iron_pct.max < 2.0
     m = {k: score(h, scenario.settle_s, scenario.windows).to_dict() for k, h in res.histories.items()}

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from navsim.experiment.options import RunOptions
 from navsim.experiment.runner import run_monte_carlo
 from navsim.navigation.estimators.p2_height import DynamicHeightKF, HeightFusion
 from navsim.navigation.strapdown import NavState
@@ -22,7 +23,7 @@ def run(p2, labels, runs):
     import dataclasses
     scenario, truth, path = p2
     sc = dataclasses.replace(scenario, estimators=tuple(e for e in scenario.estimators if e.label in labels))
-    res = run_monte_carlo(sc, truth, path, runs, scenario.seed, 1)
+    res = run_monte_carlo(sc, truth, path, RunOptions(runs=runs, seed=scenario.seed, workers=1))
     return {k: score(h, sc.settle_s, sc.windows).to_dict() for k, h in res.histories.items()}
 
 

@@ -9,6 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from navsim.experiment.options import RunOptions
 from navsim.experiment.runner import run_monte_carlo
 from navsim.scoring.scorer import score
 
@@ -16,7 +17,7 @@ from navsim.scoring.scorer import score
 @pytest.fixture(scope="module")
 def static(shipped_flight):
     scenario, truth, _ = shipped_flight("p4_static")
-    return run_monte_carlo(scenario, truth, None, 4, scenario.seed, 1), scenario
+    return run_monte_carlo(scenario, truth, None, RunOptions(runs=4, seed=scenario.seed, workers=1)), scenario
 
 
 def test_static_attitude_reaches_p4s_accuracy(static):
@@ -61,7 +62,7 @@ def test_the_complementary_filter_alone_is_coarser(static):
 def divergence(shipped_flight):
     scenario, truth, _ = shipped_flight("p4_divergence")
     truth = truth.slice(0, 560 * 100 + 1)          # the disturbance at 320 s, the reset ~390 s
-    return run_monte_carlo(scenario, truth, None, 2, scenario.seed, 1), scenario
+    return run_monte_carlo(scenario, truth, None, RunOptions(runs=2, seed=scenario.seed, workers=1)), scenario
 
 
 def test_the_ekf_alone_diverges_under_the_magnetic_disturbance(divergence):
@@ -100,7 +101,7 @@ def test_three_switches_of_the_pump_reset_the_cpf_ekf_at_p4s_times(shipped_fligh
     12 at seed 5); the other two fall on P4's times."""
     scenario, truth, _ = shipped_flight("p4_three_resets")
     scenario = dataclasses.replace(scenario, estimators=[e for e in scenario.estimators if e.label == "CPF-EKF"])
-    res = run_monte_carlo(scenario, truth, None, 1, scenario.seed, 1)
+    res = run_monte_carlo(scenario, truth, None, RunOptions(runs=1, seed=scenario.seed, workers=1))
     (resets,) = res.histories["CPF-EKF"].resets
     assert [cause for _, cause in resets] == ["cpf"] * 3
     assert 230.0 + 40.0 <= resets[0][0] <= 230.0 + 97.0

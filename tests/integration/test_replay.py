@@ -14,7 +14,7 @@ import pytest
 from navsim.cli import main
 from navsim.navigation.estimators import base
 from navsim.navigation.estimators.sins import FreeInertial
-from navsim.replay.run import build_estimator, coarse_alignment, px4_euler_at, replay
+from navsim.replay.run import ReplayOptions, build_estimator, coarse_alignment, px4_euler_at, replay
 from navsim.replay.ulog import load_ulog
 
 
@@ -80,7 +80,7 @@ def test_free_inertial_attitude_difference_is_the_integrated_gyro_bias(log):
     so their difference must change by ``b (t - 10)``: b is measured as the mean rate over the
     rest, 0.073°/s in roll and 0.122°/s in pitch. Allowed: 10 % (the bias drifts as the sensor
     warms up) and 0.3° (Earth rate, 0.004°/s, at the log's unknown latitude)."""
-    r = replay(log, "sins", imu_rate_hz=125.0)
+    r = replay(log, "sins", options=ReplayOptions(imu_rate_hz=125.0))
     rest = log.imu_t_s > 10.0
     bias_dps = np.degrees(log.omega_ib_b_rps[rest].mean(axis=0))
     d = np.degrees(r.diff_rad)
@@ -193,7 +193,7 @@ def test_p4_attitude_estimators_follow_px4_on_the_real_log(log, estimator, bound
     re-level after the hand tilting than PX4's complementary filter, as it levels on a zero
     horizontal velocity of 1 m/s sigma without GNSS; cpf 0.02/0.03/0.45 deg). No reset."""
     from navsim.replay.metrics import replay_metrics
-    m = replay_metrics(replay(log, estimator, imu_rate_hz=125.0))
+    m = replay_metrics(replay(log, estimator, options=ReplayOptions(imu_rate_hz=125.0)))
     rms = [m.attitude_diff_deg.axis(ax).rms for ax in ("roll", "pitch", "yaw")]
     assert np.all(np.array(rms) < bounds), rms
     assert m.resets == []

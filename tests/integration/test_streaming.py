@@ -100,14 +100,15 @@ def test_the_merged_store_equals_the_in_memory_merge(same_history, tmp_path):
 
 
 def test_stored_chunks_equal_the_in_memory_histories(same_history, short_pdf, tmp_path):
+    from navsim.experiment.options import RunOptions
     from navsim.experiment.runner import cached_flight, run_monte_carlo
     from navsim.experiment.scenario import load_scenario
     sc = load_scenario(short_pdf)
     truth, path, _ = cached_flight(sc.flight)
     key = {"scenario_hash": "x", "seed": 4, "runs": 5, "chunk_runs": 2}
     store = ChunkStore(tmp_path / "chunks", key, mode="new")
-    memory = run_monte_carlo(sc, truth, path, 5, 4, 1, chunk_runs=2)
-    stored = run_monte_carlo(sc, truth, path, 5, 4, 1, chunk_runs=2, store=store)
+    memory = run_monte_carlo(sc, truth, path, RunOptions(runs=5, seed=4, workers=1, chunk_runs=2))
+    stored = run_monte_carlo(sc, truth, path, RunOptions(runs=5, seed=4, workers=1, chunk_runs=2), store=store)
     assert sorted(p.name for p in (tmp_path / "chunks").iterdir()) == [
         "chunk_0-1.npz", "chunk_2-3.npz", "chunk_4-4.npz", "index.json"]
     assert list(stored.runs) == list(memory.runs) == [0, 1, 2, 3, 4]
@@ -198,10 +199,10 @@ def test_sweep_passes_the_executor_to_every_point(short_pdf, tmp_path, monkeypat
     seen = []
 
     def record(*args, **kwargs):
-        seen.append((kwargs["executor"], kwargs["scheduler"]))
+        seen.append((args[3].executor, args[3].scheduler))     # run_monte_carlo(scenario, truth, path, options)
         return navsim.experiment.runner.RunResult({}, np.array([0, 1]))
 
-    monkeypatch.setattr(navsim.api, "run_monte_carlo", record)
+    monkeypatch.setattr(navsim.api.runs, "run_monte_carlo", record)
     sweep = tmp_path / "sweep.yaml"
     sweep.write_text(f"scenario: {short_pdf.name}\nruns: 2\npoints: [{{montecarlo.seed: 1}}, {{montecarlo.seed: 2}}]\n")
     assert main(["sweep", str(sweep), "--out", str(tmp_path / "out"), "--executor", "dask",

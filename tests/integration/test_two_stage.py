@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from navsim.experiment.driver import ARCSEC, InitialErrors, run_batch
+from navsim.experiment.driver import ARCSEC, Batch, InitialErrors, run_batch
 from navsim.flight import fly, load_track
 from navsim.navigation.estimators.error_model import PRESETS, Layout
-from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.eskf import ErrorStateKF, ExtraStates
 from navsim.navigation.estimators.measurements import GnssPosition, Height, Velocity
 from navsim.navigation.estimators.two_stage import TwoStageAdaptiveKF
 from navsim.scoring.stats import chi2_band
@@ -37,10 +37,10 @@ def models(pos_sigma):
 def test_two_stage_equals_the_augmented_filter(p0):
     truth = p0.slice(0, 20001)
     spec, imu, data = sensors(truth, range(3))
-    kw = dict(baro_sigma_m=3.0, baro_tau_s=600.0)
+    kw = dict(extra_states=ExtraStates(baro_sigma_m=3.0, baro_tau_s=600.0))
     full = ErrorStateKF.from_imu_spec(Layout(PRESETS["p0_16"]), spec, models(2.0), **kw)
     two = TwoStageAdaptiveKF.from_imu_spec(Layout(PRESETS["p0_16"]), spec, models(2.0), adaptive=False, **kw)
-    r = run_batch(truth, imu, data, {"full": full, "two": two}, P0_INITIAL, 1, range(3))
+    r = run_batch(truth, imu, data, {"full": full, "two": two}, Batch(P0_INITIAL, 1, range(3)))
     for key in ("pos_err_m", "vel_err_mps", "att_err_rad", "sigma"):
         np.testing.assert_allclose(getattr(r["two"], key), getattr(r["full"], key), rtol=0, atol=1e-9)
     np.testing.assert_allclose(r["two"].nees, r["full"].nees, rtol=1e-9)
@@ -59,12 +59,12 @@ def test_adaptive_filter_stays_consistent_when_R_is_ten_times_too_small(p0):
     imu = emulate(truth, SensorConfig("imu", "p0_imu", spec), 1, runs)
     data = {name: emulate(truth, SensorConfig(name, model, load_spec(model)), 1, runs)
             for name, model in (("bd", "p0_bd2"), ("ads", "p0_ads"))}
-    kw = dict(baro_sigma_m=3.0, baro_tau_s=600.0)
+    kw = dict(extra_states=ExtraStates(baro_sigma_m=3.0, baro_tau_s=600.0))
     right, wrong = 8.0, 8.0 / np.sqrt(10.0)
     est = {"std": ErrorStateKF.from_imu_spec(Layout(PRESETS["p0_16"]), spec, p0_models(right), **kw),
            "std_wrong": ErrorStateKF.from_imu_spec(Layout(PRESETS["p0_16"]), spec, p0_models(wrong), **kw),
            "ada_wrong": TwoStageAdaptiveKF.from_imu_spec(Layout(PRESETS["p0_16"]), spec, p0_models(wrong), **kw)}
-    r = run_batch(truth, imu, data, est, P0_INITIAL, 1, runs)
+    r = run_batch(truth, imu, data, est, Batch(P0_INITIAL, 1, runs))
     lo, hi = chi2_band(9, 30)
     after = r["std"].t_s >= 60
     nees = {k: h.nees.mean(axis=0)[after] for k, h in r.items()}

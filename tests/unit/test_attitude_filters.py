@@ -4,8 +4,8 @@ quaternion normalisation, the divergence monitor and its angle wrapping, batch =
 import numpy as np
 import pytest
 
-from navsim.experiment.driver import InitialErrors, run_batch
-from navsim.flight.truth import Truth
+from navsim.experiment.driver import Batch, InitialErrors, run_batch
+from navsim.flight.truth import Pose, Truth
 from navsim.foundations.transform import (
     dcm_from_quat,
     euler_from_quat,
@@ -15,7 +15,8 @@ from navsim.foundations.transform import (
 )
 from navsim.navigation.estimators.attitude import dcm_homogeneous, euler_distance2, rk4_step
 from navsim.navigation.estimators.cpf import ComplementaryFilter
-from navsim.navigation.estimators.cpf_ekf import AZ, MB, ME, N_STATES, WB, CpfEkf, Q, dcm_times_vec_jacobian
+from navsim.navigation.estimators.cpf_ekf import (AZ, MB, ME, N_STATES, WB, CpfEkf, CpfEkfConfig, Q,
+                                                  dcm_times_vec_jacobian)
 from navsim.navigation.strapdown import NavState
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.gnss import emulate_gnss
@@ -66,7 +67,7 @@ def test_rotation_jacobian_against_finite_differences(transpose):
 
 
 def _ekf(B=2, **kw):
-    est = CpfEkf(mag="mag", gnss=None, field_n_T=[21e-6, -3e-6, 45e-6], **kw)
+    est = CpfEkf(CpfEkfConfig(mag="mag", gnss=None, field_n_T=[21e-6, -3e-6, 45e-6], **kw))
     nav = NavState(np.full(B, 0.7), np.full(B, 2.1), np.full(B, 200.0), np.zeros((B, 3)),
                    dcm_from_quat(quat_from_euler(np.full(B, 0.1), np.full(B, -0.2), np.full(B, 1.0))))
     est.initialize(nav, {"att": np.radians([1, 1, 2]), "vel": np.full(3, 0.1), "pos": np.array([1e-6, 1e-6, 2.0])})
@@ -116,7 +117,7 @@ def test_divergence_distance_wraps_the_yaw():
 def _static_case(runs, seconds=60.0):
     """P4's sensors at rest, motors off, calibrated as in p4_static (accelerometer 0.5 mg,
     0.1 mrad; magnetometer 0.05 uT hard iron, 0.1 % soft iron)."""
-    truth = Truth.static(seconds, 100.0, 43.88, 125.35, 220.0, 63.0, roll_deg=0.4, pitch_deg=-0.3)
+    truth = Truth.static(seconds, 100.0, Pose(43.88, 125.35, 220.0, 63.0, roll_deg=0.4, pitch_deg=-0.3))
     spec = load_spec("mpu6050", {"accel": {"bias_sigma": "0.5 mg", "misalignment_sigma": "0.1 mrad"}},
                      ("vibration",))
     imu = emulate_imu(truth, spec, 7, runs, keep_rates=False)
@@ -128,8 +129,8 @@ def _static_case(runs, seconds=60.0):
 
 
 def _monitored():
-    return CpfEkf(mag="mag", gnss="gps", monitor="cpf", initial={"mag_bias_uT": 0.05},
-                  noise={"accel_mps2_rthz": 0.004, "gyro_rad_s_rthz": 1e-4})
+    return CpfEkf(CpfEkfConfig(mag="mag", gnss="gps", monitor="cpf", initial={"mag_bias_uT": 0.05},
+                               noise={"accel_mps2_rthz": 0.004, "gyro_rad_s_rthz": 1e-4}))
 
 
 def test_a_batch_of_three_equals_three_single_runs():
@@ -138,7 +139,7 @@ def test_a_batch_of_three_equals_three_single_runs():
     sensors = {"gps": sensors["gps"]}
 
     def run(runs, imu, sensors):
-        est = CpfEkf(mag="mag", gnss="gps", monitor="cpf", noise={"accel_mps2_rthz": 0.004})
+        est = CpfEkf(CpfEkfConfig(mag="mag", gnss="gps", monitor="cpf", noise={"accel_mps2_rthz": 0.004}))
         from navsim.experiment.driver import perturbed_start
         nav0 = perturbed_start(truth, initial.draw(7, runs), 0)
         est.initialize(nav0, initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0]))
@@ -171,8 +172,8 @@ def test_the_cpf_monitor_resets_a_diverged_ekf_to_the_cpf_attitude():
     truth, imu, all_sensors, initial = _static_case([0], 10.0)
     for monitor, expect in (("cpf", 1), ("none", 0), ("innovation", 1)):
         sensors = all_sensors if monitor == "innovation" else {"gps": all_sensors["gps"]}
-        est = CpfEkf(mag="mag", gnss="gps", monitor=monitor, initial={"mag_bias_uT": 0.5},
-                     cycles=1 if monitor == "innovation" else 3)
+        est = CpfEkf(CpfEkfConfig(mag="mag", gnss="gps", monitor=monitor, initial={"mag_bias_uT": 0.5},
+                                  cycles=1 if monitor == "innovation" else 3))
         est.initialize(*_start(truth, initial))
         est.x[:, Q] = quat_multiply(quat_from_rotvec(np.radians([[0, 0, 40.0]])), est.x[:, Q])
         dth, dv = imu.values["dtheta_b_rad"], imu.values["dv_b_mps"]
@@ -190,7 +191,7 @@ def test_the_cpf_monitor_resets_a_diverged_ekf_to_the_cpf_attitude():
         if monitor == "innovation":
             assert resets[0] == (pytest.approx(0.1), "innovation")
     # the innovation test's weakness: without the monitor, three updates explain the knock away
-    est = CpfEkf(mag="mag", gnss="gps", monitor="none", initial={"mag_bias_uT": 0.5})
+    est = CpfEkf(CpfEkfConfig(mag="mag", gnss="gps", monitor="none", initial={"mag_bias_uT": 0.5}))
     est.initialize(*_start(truth, initial))
     est.x[:, Q] = quat_multiply(quat_from_rotvec(np.radians([[0, 0, 40.0]])), est.x[:, Q])
     nis = []
@@ -215,7 +216,7 @@ def test_static_attitude_converges_and_is_consistent():
     these 64 runs (seed 7; groups of 8 runs from 0.95 to 1.84, so the 64-run figure spreads by
     about 0.12): the bound is that plus twice its spread."""
     truth, imu, sensors, initial = _static_case(range(64), 60.0)
-    h = run_batch(truth, imu, sensors, {"ekf": _monitored()}, initial, 7, range(64))["ekf"]
+    h = run_batch(truth, imu, sensors, {"ekf": _monitored()}, Batch(initial, 7, range(64)))["ekf"]
     late = h.t_s > 40.0
     ratio = h.att_err_rad[:, late] / h.sigma[:, late, :3]
     assert np.sqrt(np.mean(ratio[..., :2] ** 2)) < 1.6
@@ -226,8 +227,8 @@ def test_static_attitude_converges_and_is_consistent():
 
 def test_the_complementary_filter_levels_itself():
     truth, imu, sensors, initial = _static_case(range(4), 60.0)
-    h = run_batch(truth, imu, sensors, {"cpf": ComplementaryFilter(mag="mag", gnss="gps")}, initial, 7,
-                  range(4))["cpf"]
+    h = run_batch(truth, imu, sensors, {"cpf": ComplementaryFilter(mag="mag", gnss="gps")},
+                  Batch(initial, 7, range(4)))["cpf"]
     late = h.t_s > 40.0
     # tilt within 0.3 deg (the gyro's 1 deg/s bias is integrated out by the PI correction)
     assert np.degrees(np.abs(h.euler_err_rad[:, late, :2])).max() < 0.3
@@ -264,7 +265,7 @@ def test_a_parked_track_takes_only_hold_segments(assert_scenario_error):
 
 def test_the_magnetometer_disturbance_ramps_in_and_out():
     from navsim.sensors.base import parse_faults
-    truth = Truth.static(100.0, 100.0, 43.88, 125.35, 220.0, 63.0)
+    truth = Truth.static(100.0, 100.0, Pose(43.88, 125.35, 220.0, 63.0))
     (fault,) = parse_faults([{"type": "disturbance", "start_s": 20, "end_s": 60, "ramp_s": 10,
                               "hard_iron_uT": [30, -25, 15]}], "f")
     spec = load_spec("lsm303d", off="all")

@@ -12,7 +12,7 @@ from navsim.flight.truth import ARRAY_FIELDS, Truth
 from navsim.foundations import earth
 from navsim.navigation.covariance import CovarianceAnalysis, SourceModel, _sensitivity
 from navsim.navigation.estimators.error_model import Layout
-from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.eskf import EpochSettings, ErrorStateKF
 from navsim.navigation.estimators.measurements import GnssPosition, Velocity
 from navsim.navigation.estimators.sins import FreeInertial
 from navsim.navigation.strapdown import state_from_truth
@@ -70,7 +70,8 @@ def _matched(truth, spec: ImuSpec, gnss: GnssSpec, sigma_nav: dict, states: str 
     blocks, terms = MATCHED[states]
     est = ErrorStateKF.from_imu_spec(Layout(blocks), spec,
                                      [GnssPosition("gps", np.asarray(gnss.position_sigma)),
-                                      Velocity("gps", np.asarray(gnss.velocity_sigma))], series_order=8)
+                                      Velocity("gps", np.asarray(gnss.velocity_sigma))],
+                                     epochs=EpochSettings(series_order=8))
     ideal = emulate_gnss(truth, GnssSpec(rate_hz=gnss.rate_hz), 1, [0], name="gps")
     sources = _imu_sources(spec, terms)
     sources += [SourceModel(f"gps.{t}", "gps", linear_forms(t)(gnss)) for t in ("position_sigma", "velocity_sigma")]

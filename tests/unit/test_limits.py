@@ -32,8 +32,9 @@ def no_flight(monkeypatch):
     """Every way to fly fails the test: the checks come before anything is flown."""
     def flown(*args, **kwargs):
         pytest.fail("a flight was flown")
-    for name in ("navsim.experiment.runner.cached_flight", "navsim.api.cached_flight", "navsim.cli.cached_flight",
-                 "navsim.cli._fly_or_save", "navsim.cli.fly", "navsim.flight.simulator.fly",
+    for name in ("navsim.experiment.runner.cached_flight", "navsim.api.runs.cached_flight", "navsim.api.budgets.cached_flight",
+                 "navsim.api.results.cached_flight", "navsim.cli.flights.cached_flight",
+                 "navsim.cli.flights.fly_or_save", "navsim.cli.fly.fly", "navsim.flight.simulator.fly",
                  "navsim.experiment.runner.fly"):
         monkeypatch.setattr(name, flown, raising=False)
 

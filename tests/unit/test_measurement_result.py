@@ -101,9 +101,12 @@ def test_unpacking_or_indexing_it_as_the_former_tuple_still_works_and_warns():
 
 
 @pytest.fixture
-def registry(monkeypatch):
+def registry():
     """The measurement registry, restored after the test (its plug-in types dropped)."""
-    monkeypatch.setattr(meas, "_MEASUREMENTS", dict(meas._MEASUREMENTS))
+    before = set(meas.MEASUREMENTS.built())
+    yield meas.MEASUREMENTS
+    for name in set(meas.MEASUREMENTS.built()) - before:
+        meas.MEASUREMENTS.unregister(name)
 
 
 def _plugin(name: str, result):

@@ -88,9 +88,10 @@ def _no_flight(*args, **kwargs):
 
 
 #: every name a flight can be flown through (each module's own binding)
-FLY_BINDINGS = ("navsim.flight.simulator.fly", "navsim.cli.fly", "navsim.experiment.runner.fly",
-                "navsim.experiment.runner.cached_flight", "navsim.api.cached_flight", "navsim.cli.cached_flight",
-                "navsim.cli._fly_or_save")
+FLY_BINDINGS = ("navsim.flight.simulator.fly", "navsim.cli.fly.fly", "navsim.experiment.runner.fly",
+                "navsim.experiment.runner.cached_flight", "navsim.api.runs.cached_flight", "navsim.api.budgets.cached_flight",
+                "navsim.api.results.cached_flight", "navsim.cli.flights.cached_flight",
+                "navsim.cli.flights.fly_or_save")
 
 
 @contextlib.contextmanager

@@ -11,7 +11,7 @@ import pytest
 import navsim.sensors
 from navsim.flight import FlightConfig, fly, parse_track
 from navsim.flight.environment import parse_environment
-from navsim.flight.truth import Truth
+from navsim.flight.truth import Pose, Truth
 from navsim.foundations import plugins
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.sensors import SensorConfig, emulate, load_spec, output_fields, registry
@@ -194,7 +194,7 @@ def test_an_ads_in_the_loop_reads_what_it_reads_open_loop(override):
     spec = load_spec("p0_ads", override)
     config = SensorConfig("ads", "ads", spec)
     flown = emulate(truth, config, 3, range(4))
-    static = Truth.static(truth.duration_s, 1.0 / truth.dt_s, 37.0, 118.0, 200.0)
+    static = Truth.static(truth.duration_s, 1.0 / truth.dt_s, Pose(37.0, 118.0, 200.0))
     loop = emulate(static, config, 3, range(4))
     kind = registry.get("ads").in_loop
     kind.prepare(loop, static)

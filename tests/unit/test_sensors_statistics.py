@@ -124,7 +124,7 @@ def test_imu_markov_bias_matches_p2():
 
 def test_radar_error_std_follows_03_m_plus_3_percent():
     heights = np.repeat([20.0, 100.0, 400.0, 1000.0], 2500)
-    truth = Truth.static(len(heights) / 10 - 0.1, rate_hz=10.0, h_m=0.0, h_agl_m=heights)
+    truth = Truth.static(len(heights) / 10 - 0.1, rate_hz=10.0, h_agl_m=heights)
     spec = RadarAltimeterSpec(rate_hz=10.0)
     data = emulate_radar_altimeter(truth, spec, seed=9, runs=range(4))
     err = data.values["h_agl_m"] - heights

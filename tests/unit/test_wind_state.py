@@ -12,7 +12,7 @@ from navsim.flight.environment import (parse_environment, steady_wind_n_mps, tur
                                        turbulence_sigma_mps, wind_from)
 from navsim.foundations.errors import ScenarioError
 from navsim.navigation.estimators.error_model import Layout, PRESETS, add_markov_decay, process_noise, system_matrix
-from navsim.navigation.estimators.eskf import ErrorStateKF
+from navsim.navigation.estimators.eskf import ErrorStateKF, ExtraStates
 from navsim.sensors.catalog import load_spec
 
 
@@ -70,7 +70,7 @@ def test_the_wind_states_model_in_F_and_Q():
                           "walk_down_mps_per_rts": 1.0 * math.sqrt(2 / 300.0)}, -1 / 300.0),
                         ({"sigma_mps": 4.0, "sigma_down_mps": 1.0, "tau_s": math.inf, "walk_mps_per_rts": 0.02,
                           "walk_down_mps_per_rts": 0.01}, 0.0)):
-        est = ErrorStateKF.from_imu_spec(layout, imu, [], wind=wind)
+        est = ErrorStateKF.from_imu_spec(layout, imu, [], ExtraStates(wind=wind))
         F = system_matrix(layout, np.array([0.6]), np.array([300.0]), np.array([[13.0, 1.0, 0.0]]),
                           np.eye(3)[None], np.array([[0.0, 0.0, -9.8]]))
         F = add_markov_decay(F, layout, est.noise)[0]
@@ -91,9 +91,9 @@ def test_the_gust_states_model_in_F_Q_and_R():
     takes the gusts out of R on its axes only."""
     layout = Layout(PRESETS["p3_15"] + ("wind", "gust"))
     gust = {"sigma_mps": 1.5, "sigma_down_mps": 1.2, "tau_s": 22.0, "tau_down_s": 11.0}
-    est = ErrorStateKF.from_imu_spec(layout, load_spec("p0_imu"), [], gust=gust,
-                                     wind={"sigma_mps": 4.0, "sigma_down_mps": 4.0, "tau_s": math.inf,
-                                           "walk_mps_per_rts": 0.02, "walk_down_mps_per_rts": 0.02})
+    wind = {"sigma_mps": 4.0, "sigma_down_mps": 4.0, "tau_s": math.inf, "walk_mps_per_rts": 0.02,
+            "walk_down_mps_per_rts": 0.02}
+    est = ErrorStateKF.from_imu_spec(layout, load_spec("p0_imu"), [], ExtraStates(wind=wind, gust=gust))
     F = add_markov_decay(np.zeros((1, layout.n, layout.n)), layout, est.noise)[0]
     Q = process_noise(layout, est.noise)
     s = layout.slice("gust")

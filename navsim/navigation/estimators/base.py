@@ -42,12 +42,9 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from navsim.foundations.config import close_match
-from navsim.foundations.errors import UsageError
-from navsim.foundations.plugins import describe, load_entry_points
+from navsim.foundations.registry import Registry
 from navsim.navigation.strapdown import NavState
 
-_REGISTRY: dict[str, type] = {}
 ENTRY_POINT_GROUP = "navsim.estimators"
 
 
@@ -125,17 +122,26 @@ def sample(sensors: dict, name: str | None, t: float, t_prev: float | None = Non
     return None, None
 
 
+def _checked(name: str, cls: type) -> type:
+    """``cls`` registered as ``name``: checked for the :class:`Estimator` methods, its
+    ``type_name`` set."""
+    missing = [m for m in METHODS if not callable(getattr(cls, m, None))]
+    if missing:
+        raise TypeError(f"estimator '{name}': {cls.__name__} has no {', '.join(m + '()' for m in missing)}")
+    cls.type_name = name
+    return cls
+
+
+#: the estimator classes by name: the built-in ones and the ``navsim.estimators`` entry points'
+ESTIMATORS: Registry[type] = Registry("estimator", ENTRY_POINT_GROUP, _checked)
+#: what is registered now (a test's monkeypatch adds to it)
+_REGISTRY = ESTIMATORS.built()
+
+
 def register(name: str):
     """Class decorator: make an estimator available by ``name`` (its class checked for the
     :class:`Estimator` methods)."""
-    def deco(cls):
-        missing = [m for m in METHODS if not callable(getattr(cls, m, None))]
-        if missing:
-            raise TypeError(f"estimator '{name}': {cls.__name__} has no {', '.join(m + '()' for m in missing)}")
-        _REGISTRY[name] = cls
-        cls.type_name = name
-        return cls
-    return deco
+    return ESTIMATORS.decorator(name)
 
 
 def parse_params(cls: type, node, sensors: dict) -> dict:
@@ -154,30 +160,12 @@ def build(cls: type, params: dict):
 
 
 def available() -> list[str]:
-    _load_entry_points()
-    return sorted(_REGISTRY)
+    """The registered estimators' names, sorted (the plug-ins' included)."""
+    return ESTIMATORS.names()
 
 
-def known(name: str) -> bool:
-    """Whether ``name`` is registered; the entry points are read only for a name not
-    registered yet (reading them takes about 9 ms)."""
-    if name not in _REGISTRY:
-        _load_entry_points()
-    return name in _REGISTRY
-
-
-def get(name: str) -> type:
-    """The estimator class registered as ``name`` (built-in or from an entry point)."""
-    if not known(name):
-        raise KeyError(f"no estimator '{name}' ({close_match(name, _REGISTRY) or 'none registered'})")
-    return _REGISTRY[name]
-
-
-def _load_entry_points() -> None:
-    """Register each ``navsim.estimators`` entry point as :func:`register` does (its class
-    checked, ``type_name`` its entry point's name)."""
-    for ep, cls in load_entry_points(ENTRY_POINT_GROUP, skip=_REGISTRY):
-        try:
-            register(ep.name)(cls)
-        except TypeError as exc:
-            raise UsageError(f"{describe(ep, ENTRY_POINT_GROUP)}: {exc}") from exc
+#: whether ``name`` is registered (the entry points read only for a name not registered yet)
+known = ESTIMATORS.known
+#: the estimator class registered as ``name`` (built-in or from an entry point); a
+#: :class:`KeyError` naming the closest one
+get = ESTIMATORS.get

@@ -25,6 +25,8 @@ Registered as ``cpf``; :mod:`.cpf_ekf` runs one beside its EKF as the divergence
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from navsim.foundations.config import Node
@@ -42,18 +44,33 @@ from navsim.navigation.estimators.base import Innovation, Solution, register, sa
 from navsim.navigation.strapdown import NavState
 
 
-class ComplementaryCore:
-    """The CPF's state and steps (used by the ``cpf`` estimator and inside ``cpf_ekf``)."""
+@dataclass(frozen=True)
+class CpfGains:
+    """The complementary filter's gains and gates (see the module docstring): a scenario entry's
+    ``cpf`` keys (:data:`~navsim.navigation.estimators.attitude_config.CPF_GAINS`)."""
 
-    def __init__(self, kp_acc: float = 0.5, kp_mag: float = 0.5, ki: float = 0.05,
-                 accel_tau_s: float = 0.2, acc_gate: float = 0.1, mag_gate: float = 0.05,
-                 dip_gate_deg: float = 3.0, accel_ref_tau_s: float = 0.5,
-                 course_min_speed_mps: float | None = None):
-        self.kp_acc, self.kp_mag, self.ki = kp_acc, kp_mag, ki
-        self.accel_tau_s, self.acc_gate, self.mag_gate = accel_tau_s, acc_gate, mag_gate
-        self.accel_ref_tau_s = accel_ref_tau_s
-        self.dip_gate = np.radians(dip_gate_deg)
-        self.course_min_speed_mps = course_min_speed_mps
+    kp_acc: float = 0.5             #: the tilt correction's gain, rad/s per unit error
+    kp_mag: float = 0.5             #: the heading correction's gain, rad/s per unit error
+    ki: float = 0.05                #: the gyro bias's integral gain
+    accel_tau_s: float = 0.2        #: the specific force's low-pass time constant, s
+    acc_gate: float = 0.1           #: tilt correction skipped beyond this specific-force mismatch, g
+    mag_gate: float = 0.05          #: a field sample rejected beyond this relative magnitude error
+    dip_gate_deg: float = 3.0       #: ... or beyond this dip angle error, deg
+    accel_ref_tau_s: float = 0.5    #: the GNSS acceleration's smoothing time constant, s
+    course_min_speed_mps: float | None = None   #: the GNSS course as heading above this ground speed
+
+
+class ComplementaryCore:
+    """The CPF's state and steps (used by the ``cpf`` estimator and inside ``cpf_ekf``), set by
+    a :class:`CpfGains`."""
+
+    def __init__(self, gains: CpfGains = CpfGains()):
+        g = gains
+        self.kp_acc, self.kp_mag, self.ki = g.kp_acc, g.kp_mag, g.ki
+        self.accel_tau_s, self.acc_gate, self.mag_gate = g.accel_tau_s, g.acc_gate, g.mag_gate
+        self.accel_ref_tau_s = g.accel_ref_tau_s
+        self.dip_gate = np.radians(g.dip_gate_deg)
+        self.course_min_speed_mps = g.course_min_speed_mps
 
     def start(self, q0: np.ndarray, frame: LocalFrame) -> None:
         B = q0.shape[0]
@@ -139,7 +156,7 @@ class ComplementaryFilter:
     period_s : float
         How often it takes the magnetometer and GNSS references (their rates: 10 Hz).
     cpf : dict
-        Keyword arguments of :class:`ComplementaryCore`: the gains ``kp_acc``, ``kp_mag``, ``ki``
+        The fields of :class:`CpfGains` it sets: the gains ``kp_acc``, ``kp_mag``, ``ki``
         (rad/s per unit error; time constants ``1/kp``), the gates, ``course_min_speed_mps``.
     field_n_T : list of 3 or None
         The Earth field it assumes (NED, T); None: the WMM at the start.
@@ -154,7 +171,7 @@ class ComplementaryFilter:
                  period_s: float = 0.1, field_n_T=None, cpf: dict | None = None):
         self.mag, self.gnss, self.baro, self.period_s = mag, gnss, baro, period_s
         self.field_n_T = field_n_T
-        self.core = ComplementaryCore(**(cpf or {}))
+        self.core = ComplementaryCore(CpfGains(**(cpf or {})))
 
     @classmethod
     def parse(cls, node: Node, sensors: dict) -> dict:

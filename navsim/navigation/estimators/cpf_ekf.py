@@ -60,6 +60,8 @@ Each reset is an event ``(t_s, cause)`` in ``solution().extra["resets"]`` (one l
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from navsim.foundations.config import Node
@@ -80,7 +82,7 @@ from navsim.navigation.estimators.attitude import (
 from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema, cpf_ekf_options
 from navsim.navigation.estimators.attitude_kernels import AZ, Q0, S0, V0, WB0, cpf_ekf_block
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
-from navsim.navigation.estimators.cpf import ComplementaryCore
+from navsim.navigation.estimators.cpf import ComplementaryCore, CpfGains
 from navsim.navigation.strapdown import NavState
 
 N_STATES = 20
@@ -121,11 +123,12 @@ def dcm_times_vec_jacobian(q: np.ndarray, f: np.ndarray, transpose: bool = False
     return np.concatenate([d_w[:, :, None], d_v], axis=-1)
 
 
-@register("cpf_ekf")
-class CpfEkf:
-    """P4's CPF-EKF (see the module docstring).
+@dataclass(frozen=True)
+class CpfEkfConfig:
+    """The CPF-EKF's settings (a scenario entry's keys, read by
+    :func:`~navsim.navigation.estimators.attitude_config.cpf_ekf_options`).
 
-    Parameters
+    Attributes
     ----------
     mag, gnss, baro : str or None
         The sensors it reads (names in the scenario). Without GNSS (a replayed log), a zero
@@ -149,37 +152,60 @@ class CpfEkf:
     reset_sigma : dict
         Sigmas (keys of ``initial``) a reset re-opens instead of keeping the state's own.
     cpf : dict
-        Gains of the complementary filter (:class:`~navsim.navigation.estimators.cpf.ComplementaryCore`).
+        Gains of the complementary filter (the fields of :class:`~navsim.navigation.estimators.cpf.CpfGains`).
     field_n_T : list of 3 or None
         The reference Earth field (NED, T); None: the WMM at the start.
+    period_s : float
+        The filter epoch, s.
     """
+
+    mag: str | None = "mag"
+    gnss: str | None = "gps"
+    baro: str | None = None
+    period_s: float = 0.1
+    noise: dict | None = None
+    initial: dict | None = None
+    mag_sigma_uT: float = 0.5
+    gnss_pos_sigma_m: float = 2.0
+    gnss_vel_sigma_mps: float = 0.1
+    baro_sigma_m: float = 1.0
+    no_gnss_sigma_mps: float | None = None
+    monitor: str = "cpf"
+    threshold_rad2: float = 0.27416
+    cycles: int = 3
+    innovation_ratio: float = 3.0
+    cpf: dict | None = None
+    field_n_T: object = None
+    reset_sigma: dict | None = None
+    cpf_trust_s: float = 30.0
+
+
+@register("cpf_ekf")
+class CpfEkf:
+    """P4's CPF-EKF (see the module docstring), set by a :class:`CpfEkfConfig`."""
 
     SCHEMA = attitude_schema("cpf_ekf")
 
-    def __init__(self, mag: str | None = "mag", gnss: str | None = "gps", baro: str | None = None,
-                 period_s: float = 0.1, noise: dict | None = None, initial: dict | None = None,
-                 mag_sigma_uT: float = 0.5, gnss_pos_sigma_m: float = 2.0, gnss_vel_sigma_mps: float = 0.1,
-                 baro_sigma_m: float = 1.0, no_gnss_sigma_mps: float | None = None, monitor: str = "cpf",
-                 threshold_rad2: float = 0.27416, cycles: int = 3, innovation_ratio: float = 3.0,
-                 cpf: dict | None = None, field_n_T=None, reset_sigma: dict | None = None,
-                 cpf_trust_s: float = 30.0):
-        if monitor not in MONITORS:
-            raise ValueError(f"monitor '{monitor}': expected one of {', '.join(MONITORS)}")
-        self.mag, self.gnss, self.baro, self.period_s = mag, gnss, baro, period_s
+    def __init__(self, config: CpfEkfConfig = CpfEkfConfig()):
+        c = config
+        if c.monitor not in MONITORS:
+            raise ValueError(f"monitor '{c.monitor}': expected one of {', '.join(MONITORS)}")
+        self.config = c
+        self.mag, self.gnss, self.baro, self.period_s = c.mag, c.gnss, c.baro, c.period_s
         self.noise = _merge_known("noise", {"gyro_rad_s_rthz": 1.5e-4, "accel_mps2_rthz": 0.4,
                                             "gyro_bias_walk": 1e-5, "accel_bias_walk": 1e-4,
                                             "mag_bias_walk_uT": 0.01, "field_walk_uT": 0.001,
-                                            "quat_stab": 1e-5}, noise)
-        self.initial = _merge_known("initial", dict(INITIAL_DEFAULTS), initial)
-        self.mag_sigma_uT, self.baro_sigma_m = mag_sigma_uT, baro_sigma_m
-        self.gnss_pos_sigma_m, self.gnss_vel_sigma_mps = gnss_pos_sigma_m, gnss_vel_sigma_mps
-        self.no_gnss_sigma_mps = no_gnss_sigma_mps
-        self.monitor, self.threshold_rad2, self.cycles = monitor, threshold_rad2, int(cycles)
-        self.innovation_ratio, self.field_n_T = innovation_ratio, field_n_T
-        self.cpf_gains = dict(cpf or {})
+                                            "quat_stab": 1e-5}, c.noise)
+        self.initial = _merge_known("initial", dict(INITIAL_DEFAULTS), c.initial)
+        self.mag_sigma_uT, self.baro_sigma_m = c.mag_sigma_uT, c.baro_sigma_m
+        self.gnss_pos_sigma_m, self.gnss_vel_sigma_mps = c.gnss_pos_sigma_m, c.gnss_vel_sigma_mps
+        self.no_gnss_sigma_mps = c.no_gnss_sigma_mps
+        self.monitor, self.threshold_rad2, self.cycles = c.monitor, c.threshold_rad2, int(c.cycles)
+        self.innovation_ratio, self.field_n_T = c.innovation_ratio, c.field_n_T
+        self.cpf_gains = dict(c.cpf or {})
         self.reset_sigma = {k: v for k, v in _merge_known("reset_sigma", dict(INITIAL_DEFAULTS),
-                                                          reset_sigma).items() if k in _dps(reset_sigma or {})}
-        self.cpf_trust_s = cpf_trust_s
+                                                          c.reset_sigma).items() if k in _dps(c.reset_sigma or {})}
+        self.cpf_trust_s = c.cpf_trust_s
 
     @classmethod
     def parse(cls, node: Node, sensors: dict) -> dict:
@@ -190,7 +216,7 @@ class CpfEkf:
 
     @classmethod
     def from_params(cls, params: dict):
-        return cls(**cpf_ekf_options(params))
+        return cls(CpfEkfConfig(**cpf_ekf_options(params)))
 
     # --- contract -----------------------------------------------------------------------------
     def initialize(self, nav0: NavState, sigma0: dict) -> None:
@@ -203,7 +229,7 @@ class CpfEkf:
         self.sigma0 = sigma0
         self.P = self._initial_P(self.x[:, Q])
         self.field_ready = False
-        self.cpf = ComplementaryCore(**self.cpf_gains)
+        self.cpf = ComplementaryCore(CpfGains(**self.cpf_gains))
         self.cpf.start(self.x[:, Q], self.frame)
         self._sum_w = np.zeros((B, 3))
         self._sum_f = np.zeros((B, 3))

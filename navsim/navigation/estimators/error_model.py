@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navsim.navigation import kernels
+from navsim.navigation.kernels.dynamics import error_dynamics
 
 BLOCK_SIZES = {"att": 3, "vel": 3, "pos": 3, "gyro_bias": 3, "accel_bias": 3, "baro": 1,
                "gyro_markov": 3, "accel_markov": 3, "pitot_bias": 1, "wind": 2, "wind_down": 1, "gust": 2, "gust_down": 1}
@@ -122,7 +122,7 @@ class ProcessNoise:
 
 def system_matrix(layout: Layout, lat, h, vel_n, C_nb, f_n) -> np.ndarray:
     """Continuous error dynamics ``F`` ``(B, n, n)`` at the navigation state (batched;
-    compiled, run by run: :func:`navsim.navigation.kernels.error_dynamics`).
+    compiled, run by run: :func:`navsim.navigation.kernels.dynamics.error_dynamics`).
 
     With ``R_M = r_m + h``, ``R_N = r_n + h``, ``M = d(omega_en)/d(v)`` and
     ``D = d(omega_ie + omega_en)/d(L, lambda, h)``:
@@ -140,7 +140,7 @@ def system_matrix(layout: Layout, lat, h, vel_n, C_nb, f_n) -> np.ndarray:
     starts = [layout.slice(b).start if layout.has(b) else -1 for b in
               ("att", "vel", "pos", "gyro_bias", "gyro_markov", "accel_bias", "accel_markov")]
     f = lambda x: np.ascontiguousarray(x, float)
-    kernels.error_dynamics(f(lat), f(h), f(vel_n), f(C_nb), f(f_n), np.array(starts, np.int64), 1e-5, 1.0, F)
+    error_dynamics(f(lat), f(h), f(vel_n), f(C_nb), f(f_n), np.array(starts, np.int64), 1e-5, 1.0, F)
     return F
 
 

@@ -15,13 +15,12 @@ IMU compensation. The sensor-error states ``baro`` and ``pitot_bias`` stay in th
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from navsim.flight.environment import MAX_WIND_MPS
-from navsim.foundations.config import MAX_DURATION_S, MAX_TIME_CONSTANT_S, Node, close_match
+from navsim.foundations.config import MAX_DURATION_S, MAX_TIME_CONSTANT_S, MAX_WIND_MPS, Node, close_match
 from navsim.foundations.jsonschema import MEASUREMENT, POS, obj
-from navsim.navigation import kernels
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.estimators.error_model import (
@@ -42,6 +41,7 @@ from navsim.navigation.estimators.measurements import (
     parse_measurements,
     stack_models,
 )
+from navsim.navigation.kernels.update import feed_back
 from navsim.navigation.strapdown import BlockStrapdown, NavState
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.specs import ImuSpec
@@ -49,6 +49,30 @@ from navsim.sensors.specs import ImuSpec
 FEEDBACK = ("att", "vel", "pos", "gyro_bias", "accel_bias", "gyro_markov", "accel_markov")
 #: the models of a wind state
 WIND_MODELS = ("markov", "random_walk")
+
+
+@dataclass(frozen=True)
+class EpochSettings:
+    """How an :class:`ErrorStateKF` runs its epochs: their period, how the covariance is carried
+    over one, which sample of a sensor it takes and how it evaluates the measurement models
+    (the parameters of the same names in :class:`ErrorStateKF`)."""
+
+    period_s: float = 1.0           #: the filter period, s
+    discretization: str = "series"  #: ``series`` or ``van_loan``
+    series_order: int = 6           #: the order of the ``series``
+    latest_sample: bool = False     #: each sensor's latest sample since the last epoch, not the one at it
+    compiled_models: bool = True    #: each measurement model by its compiled form where it has one
+
+
+@dataclass(frozen=True)
+class ExtraStates:
+    """The models of the error states an IMU spec does not give (:meth:`ErrorStateKF.from_imu_spec`):
+    the baro error's (first-order Markov) and the air mass's, as :func:`filter_params` reads them."""
+
+    baro_sigma_m: float = 0.0       #: the baro error's 1-sigma, m (0: no baro state)
+    baro_tau_s: float = 300.0       #: its correlation time, s
+    wind: dict | None = None        #: the wind's model (:func:`filter_params`' ``wind``); None: none
+    gust: dict | None = None        #: the gusts' model (:func:`filter_params`' ``gust``); None: none
 
 
 @register("eskf")
@@ -61,22 +85,25 @@ class ErrorStateKF:
         The filter's own noise model.
     measurements : list
         Measurement models (see :mod:`navsim.navigation.estimators.measurements`).
-    period_s : float
-        Filter period (P0, P3: 1 s).
-    latest_sample : bool
-        False: a measurement is taken when its sensor has a sample at the epoch (simulated
-        sensors, on the truth's grid); True: each sensor's latest sample since the last epoch (a
-        replayed log, whose sensors do not fall on the epochs).
-    discretization : {"series", "van_loan"}
-        ``series``: the matrix-exponential series to ``series_order`` (P3 uses 3; over a 1 s
-        period the noise reaching the position through attitude and velocity needs 6); from
-        order 6, with no state decaying faster than 5 % per period, the propagated covariance
-        is the Taylor series of its own equation instead (the same to rounding, a third of the
-        work: :data:`SERIES_MIN_ORDER`);
-        ``van_loan``: exact, about six times slower.
-    compiled_models : bool
-        Evaluate each measurement model by its compiled form where it has one (the shipped
-        types all do; the same numbers to rounding); False: by its Python ``model``.
+    epochs : EpochSettings
+        How it runs its epochs:
+
+        ``period_s``: the filter period (P0, P3: 1 s).
+        ``latest_sample``: False, a measurement is taken when its sensor has a sample at the
+        epoch (simulated sensors, on the truth's grid); True, each sensor's latest sample since
+        the last epoch (a replayed log, whose sensors do not fall on the epochs).
+        ``discretization``: ``series``, the matrix-exponential series to ``series_order`` (P3
+        uses 3; over a 1 s period the noise reaching the position through attitude and velocity
+        needs 6); from order 6, with no state decaying faster than 5 % per period, the
+        propagated covariance is the Taylor series of its own equation instead (the same to
+        rounding, a third of the work: :data:`SERIES_MIN_ORDER`); ``van_loan``, exact, about
+        six times slower.
+        ``compiled_models``: True, each measurement model is evaluated by its compiled form
+        where it has one (the shipped types all do; the same numbers to rounding); False, by
+        its Python ``model``.
+    initial_sigma : dict or None
+        Initial 1-sigma of the sensor-error blocks (:meth:`noise_sigma0`), beside those the
+        measurement models' ``state_sigma`` give.
     """
 
     #: the JSON Schema of its entry's keys (beside ``label`` and ``type``), for ``navsim schema``
@@ -91,30 +118,31 @@ class ErrorStateKF:
                           ["sigma_mps", "tau_s"]),
               "measurements": {"type": "array", "items": MEASUREMENT}}
 
-    def __init__(self, layout: Layout, noise: ProcessNoise, measurements, period_s: float = 1.0,
-                 discretization: str = "series", initial_sigma: dict | None = None,
-                 series_order: int = 6, latest_sample: bool = False, compiled_models: bool = True):
-        if discretization not in ("series", "van_loan"):
-            raise ValueError(f"discretization '{discretization}': expected series or van_loan")
+    def __init__(self, layout: Layout, noise: ProcessNoise, measurements,
+                 epochs: EpochSettings = EpochSettings(), initial_sigma: dict | None = None):
+        if epochs.discretization not in ("series", "van_loan"):
+            raise ValueError(f"discretization '{epochs.discretization}': expected series or van_loan")
         self.layout, self.noise, self.measurements = layout, noise, list(measurements)
-        self.period_s, self.discretization = period_s, discretization
-        self.series_order, self.latest_sample = series_order, latest_sample
-        self.compiled_models, self._forms = compiled_models, None
+        self.period_s, self.discretization = epochs.period_s, epochs.discretization
+        self.series_order, self.latest_sample = epochs.series_order, epochs.latest_sample
+        self.compiled_models, self._forms = epochs.compiled_models, None
         self.initial_sigma = dict(initial_sigma or {})
         for m in self.measurements:         # the sensor-error states a measurement model observes
             self.initial_sigma.update(getattr(m, "state_sigma", {}))
         self.Qc = process_noise(layout, noise)
 
     @classmethod
-    def from_imu_spec(cls, layout: Layout, imu_spec, measurements, baro_sigma_m: float = 0.0,
-                      baro_tau_s: float = 300.0, wind: dict | None = None, gust: dict | None = None, **kw):
+    def from_imu_spec(cls, layout: Layout, imu_spec, measurements,
+                      extra_states: ExtraStates = ExtraStates(), **kw):
         """A filter whose noise model and initial bias uncertainty come from an IMU spec (a
-        catalog entry of its own: it need not be the spec that corrupted the data); ``wind``
-        and ``gust`` the air-mass states' models (:func:`filter_params`' ``wind`` and ``gust``)."""
+        catalog entry of its own: it need not be the spec that corrupted the data), those of the
+        other states from ``extra_states`` (the baro error, the wind, the gusts); ``kw``: the
+        constructor's other arguments (``epochs``, a subclass's own)."""
         g, a = imu_spec.gyro, imu_spec.accel
-        w = wind or {"walk_mps_per_rts": 0.0, "walk_down_mps_per_rts": 0.0, "tau_s": math.inf, "sigma_mps": 0.0,
-                     "sigma_down_mps": 0.0}
-        gu = gust or {"sigma_mps": 0.0, "sigma_down_mps": 0.0, "tau_s": 1.0, "tau_down_s": 1.0}
+        baro_sigma_m, baro_tau_s = extra_states.baro_sigma_m, extra_states.baro_tau_s
+        w = extra_states.wind or {"walk_mps_per_rts": 0.0, "walk_down_mps_per_rts": 0.0, "tau_s": math.inf,
+                                  "sigma_mps": 0.0, "sigma_down_mps": 0.0}
+        gu = extra_states.gust or {"sigma_mps": 0.0, "sigma_down_mps": 0.0, "tau_s": 1.0, "tau_down_s": 1.0}
         noise = ProcessNoise(
             gyro_white=g.noise_density, accel_white=a.noise_density,
             gyro_bias_walk=g.random_walk, accel_bias_walk=a.random_walk,
@@ -149,10 +177,15 @@ class ErrorStateKF:
         return cls.from_imu_spec(Layout(tuple(p["states"])), load_spec(p["noise"]["imu"], p["noise"]["override"]),
                                  build_measurements(p["measurements"]), **filter_options(p), **cls.options(p))
 
+    #: the key of :meth:`parse`'s parameters that holds a subclass's own constructor arguments
+    #: (None: it has none)
+    OPTIONS: str | None = None
+
     @classmethod
     def options(cls, params: dict) -> dict:
-        """A subclass's own constructor arguments from its parameters (none here)."""
-        return {}
+        """A subclass's own constructor arguments from its parameters: those under its
+        :attr:`OPTIONS` key (none here)."""
+        return {} if cls.OPTIONS is None else params[cls.OPTIONS]
 
     def noise_sigma0(self) -> dict:
         """Initial 1-sigma of the sensor-error blocks (the runner adds the navigation blocks)."""
@@ -330,8 +363,8 @@ class ErrorStateKF:
         """Inject the estimated errors into the mechanization and the IMU compensation."""
         L, x = self.layout, self.x
         s = self.sd.state.contiguous()      # changed in place, as the strapdown changes it
-        kernels.feed_back(x, L.slice("att").start, L.slice("vel").start, L.slice("pos").start, s.C_nb, s.vel_n_mps,
-                          s.lat_rad, s.lon_rad, s.h_m)
+        feed_back(x, L.slice("att").start, L.slice("vel").start, L.slice("pos").start, s.C_nb, s.vel_n_mps,
+                  s.lat_rad, s.lon_rad, s.h_m)
         if L.has("gyro_bias"):
             self.b_gyro = self.b_gyro + x[:, L.slice("gyro_bias")]
         if L.has("accel_bias"):
@@ -473,8 +506,10 @@ def _gust(node: Node, blocks) -> dict | None:
 
 
 def filter_options(params: dict) -> dict:
-    """The constructor arguments of :func:`filter_params`' values but the states and the IMU."""
-    return dict(baro_sigma_m=params["baro"]["sigma_m"], baro_tau_s=params["baro"]["tau_s"],
-                period_s=params["period_s"], discretization=params["discretization"],
-                series_order=params["series_order"], latest_sample=params["latest_sample"],
-                wind=params.get("wind"), gust=params.get("gust"))
+    """The arguments of :meth:`ErrorStateKF.from_imu_spec` of :func:`filter_params`' values but
+    the states and the IMU: ``extra_states`` (:class:`ExtraStates`) and ``epochs``
+    (:class:`EpochSettings`)."""
+    return dict(extra_states=ExtraStates(baro_sigma_m=params["baro"]["sigma_m"], baro_tau_s=params["baro"]["tau_s"],
+                                         wind=params.get("wind"), gust=params.get("gust")),
+                epochs=EpochSettings(period_s=params["period_s"], discretization=params["discretization"],
+                                     series_order=params["series_order"], latest_sample=params["latest_sample"]))

@@ -17,7 +17,7 @@ Each entry: ``label``, ``type`` (a registered estimator) and its parameters. For
         - {type: height, sensor: ads, field: h_pressure_m, sigma_m: 3, baro_state: true}
         - {type: landmark, sensor: camera, sigma_m: 3, ratio: 0.01}   # P1: std 3 m + 1 % of range
         - {type: mag_heading, sensor: mag, sigma_deg: 1.0, noise_uT: 0.2,   # P1: heading from the
-           forgetting: 1.0, min_turns: 2}         # magnetometer calibrated online (measurements.py)
+           forgetting: 1.0, min_turns: 2}         # magnetometer calibrated online (measurements/magnetometer.py)
 
 The other built-in types' keys are in their classes' ``parse`` docstrings
 (:meth:`~navsim.navigation.estimators.eskf.ErrorStateKF.parse` and its subclasses,

@@ -33,7 +33,7 @@ from navsim.foundations.jsonschema import POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import register
 from navsim.navigation.estimators.eskf import ErrorStateKF
-from navsim.navigation.estimators.measurements import sensor_names
+from navsim.navigation.estimators.measurements.registry import sensor_names
 
 DEFAULT_RULES = ((1.0, 1.0), (2.0, 4.0), (3.0, 9.0), (5.0, 25.0), (10.0, 100.0))
 
@@ -70,6 +70,7 @@ class FuzzyAdaptiveKF(ErrorStateKF):
         "window": {"type": "number", "minimum": 1},
         "rules": {"type": "array", "items": {"type": "array", "items": POS, "minItems": 2, "maxItems": 2}},
         "sensors": {"type": "array", "items": {"type": "string"}}})}
+    OPTIONS = "adaptive"                 #: its constructor arguments: parse's "adaptive"
 
     def __init__(self, layout, noise, measurements, rules=DEFAULT_RULES, window: float = 3.0,
                  sensors=None, **kw):
@@ -89,10 +90,6 @@ class FuzzyAdaptiveKF(ErrorStateKF):
             rules = _rules(sub)
             return out if rules is None else {**out, "rules": rules}
         return {**super().parse(node, sensors), "adaptive": node.section("fuzzy", read)}
-
-    @classmethod
-    def options(cls, params: dict) -> dict:
-        return params["adaptive"]
 
     def initialize(self, nav0, sigma0):
         super().initialize(nav0, sigma0)

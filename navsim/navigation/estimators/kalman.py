@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from navsim.navigation import kernels
+from navsim.navigation.kernels import covariance
+from navsim.navigation.kernels.update import joseph_update
 
 
 def symmetrize(P: np.ndarray) -> np.ndarray:
@@ -24,7 +25,7 @@ def discretize_series(F: np.ndarray, Qc: np.ndarray, T: float, order: int = 3):
     """Transition matrix and process noise over ``T`` by the matrix-exponential series
     (P3: third order): ``Phi = sum (F T)^k / k!``, ``Qd = sum M_k T^k / k!`` with
     ``M_1 = Qc``, ``M_{k+1} = F M_k + M_k F^T`` (compiled, one run at a time:
-    :func:`navsim.navigation.kernels.discretize_series`).
+    :func:`navsim.navigation.kernels.covariance.discretize_series`).
 
     Parameters
     ----------
@@ -36,7 +37,7 @@ def discretize_series(F: np.ndarray, Qc: np.ndarray, T: float, order: int = 3):
     Qc = np.asarray(Qc, float)
     Qc = 0.5 * (Qc + np.swapaxes(Qc, -1, -2))       # the kernel's recursion needs it symmetric
     Qc = Qc[None] if Qc.ndim == 2 else Qc
-    kernels.discretize_series(F, np.ascontiguousarray(Qc), float(T), int(order), Phi, Qd)
+    covariance.discretize_series(F, np.ascontiguousarray(Qc), float(T), int(order), Phi, Qd)
     return Phi, Qd
 
 
@@ -56,9 +57,9 @@ def discretize_van_loan(F: np.ndarray, Qc: np.ndarray, T: float):
 
 def predict(x, P, Phi, Qd):
     """``x <- Phi x``, ``P <- Phi P Phi^T + Qd`` (symmetrised; compiled:
-    :func:`navsim.navigation.kernels.predict`). The inputs are left as they are."""
+    :func:`navsim.navigation.kernels.covariance.predict`). The inputs are left as they are."""
     x, P = np.array(x, float), np.array(P, float)
-    kernels.predict(x, P, np.ascontiguousarray(Phi, float), _batch(Qd, P.shape))
+    covariance.predict(x, P, np.ascontiguousarray(Phi, float), _batch(Qd, P.shape))
     return x, P
 
 
@@ -104,14 +105,14 @@ def solve_runs(A: np.ndarray, b: np.ndarray) -> np.ndarray:
 def propagate_in_place(x, P, F, Qc, T: float, order: int) -> None:
     """``x <- Phi x``, ``P <- Phi P Phi^T + Qd`` over ``T`` by the Taylor series in ``T`` of the
     covariance equation ``P' = F P + P F^T + Qc`` to ``order`` (compiled:
-    :func:`navsim.navigation.kernels.propagate_covariance`): the same as :func:`discretize_series` then
+    :func:`navsim.navigation.kernels.covariance.propagate_covariance`): the same as :func:`discretize_series` then
     :func:`predict` less the terms above ``T^order``, in about a third of the work.
 
     ``x`` ``(B, n)`` and ``P`` ``(B, n, n)`` are contiguous float arrays, changed in place.
     """
     Qc = np.asarray(Qc, float)
     Qc = 0.5 * (Qc + np.swapaxes(Qc, -1, -2))
-    kernels.propagate_covariance(x, P, np.ascontiguousarray(F, float),
+    covariance.propagate_covariance(x, P, np.ascontiguousarray(F, float),
                                  np.ascontiguousarray(Qc[None] if Qc.ndim == 2 else Qc), float(T), int(order))
 
 
@@ -150,18 +151,18 @@ def update_stacked(x, P, z, H, R, valid, ends) -> Updates:
     """The updates of :func:`update_in_place` from the measurements stacked already: ``z``
     ``(B, M)``, ``H`` ``(B, M, n)``, ``R`` ``(B, M, M)`` (its diagonal blocks read), ``valid``
     ``(B, G)``, measurement ``g`` the rows ``ends[g]:ends[g + 1]`` (compiled:
-    :func:`navsim.navigation.kernels.joseph_update`)."""
+    :func:`navsim.navigation.kernels.update.joseph_update`)."""
     B, M = z.shape
     G = len(ends) - 1
     y, S, nis, bad = np.empty((B, M)), np.zeros((B, M, M)), np.empty((B, G)), np.zeros(B, bool)
-    kernels.joseph_update(x, P, z, H, R, valid, np.asarray(ends, np.int64), y, S, nis, bad)
+    joseph_update(x, P, z, H, R, valid, np.asarray(ends, np.int64), y, S, nis, bad)
     cut = [slice(ends[g], ends[g + 1]) for g in range(G)]
     return Updates([y[:, r] for r in cut], [S[:, r, r] for r in cut], [nis[:, g] for g in range(G)], bad)
 
 
 def update(x, P, z, H, R, valid=None):
     """Joseph-form measurement update of the runs where ``valid`` (compiled:
-    :func:`navsim.navigation.kernels.joseph_update`).
+    :func:`navsim.navigation.kernels.update.joseph_update`).
 
     Returns ``x, P, y, S, nis`` with the innovation ``y = z - H x``, its covariance
     ``S = H P H^T + R`` and the normalised innovation squared ``y^T S^-1 y`` (NaN where not
@@ -174,6 +175,6 @@ def update(x, P, z, H, R, valid=None):
     m = H.shape[1]
     valid = np.ones(B, bool) if valid is None else _batch(valid, (B,)).astype(bool)
     y, S, nis = np.empty((B, m)), np.empty((B, m, m)), np.empty((B, 1))
-    kernels.joseph_update(x, P, _batch(z, (B, m)), H, _batch(R, (B, m, m)), valid[:, None],
+    joseph_update(x, P, _batch(z, (B, m)), H, _batch(R, (B, m, m)), valid[:, None],
                           np.array([0, m]), y, S, nis, np.zeros(B, bool))
     return x, P, y, S, nis[:, 0]

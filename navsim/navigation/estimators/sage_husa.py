@@ -25,7 +25,8 @@ from navsim.foundations.jsonschema import POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import register
 from navsim.navigation.estimators.eskf import ErrorStateKF
-from navsim.navigation.estimators.measurements import reject_rotating_R, sensor_names
+from navsim.navigation.estimators.measurements.air_data import reject_rotating_R
+from navsim.navigation.estimators.measurements.registry import sensor_names
 
 
 @register("sage_husa")
@@ -36,6 +37,7 @@ class SageHusaKF(ErrorStateKF):
     SCHEMA = {**ErrorStateKF.SCHEMA, "sage_husa": obj({
         "forgetting": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1}, "floor": POS,
         "sensors": {"type": "array", "items": {"type": "string"}}})}
+    OPTIONS = "adaptive"                 #: its constructor arguments: parse's "adaptive"
 
     def __init__(self, layout, noise, measurements, forgetting: float = 0.95, floor: float = 1.0,
                  sensors=None, **kw):
@@ -55,10 +57,6 @@ class SageHusaKF(ErrorStateKF):
         params = {**super().parse(node, sensors), "adaptive": node.section("sage_husa", read)}
         reject_rotating_R(node, params["measurements"], params["adaptive"].get("sensors"), "the Sage-Husa filter")
         return params
-
-    @classmethod
-    def options(cls, params: dict) -> dict:
-        return params["adaptive"]
 
     def initialize(self, nav0, sigma0):
         super().initialize(nav0, sigma0)

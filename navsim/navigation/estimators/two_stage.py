@@ -40,7 +40,7 @@ from navsim.foundations.jsonschema import POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import Innovation, Solution, register
 from navsim.navigation.estimators.eskf import ErrorStateKF
-from navsim.navigation.estimators.measurements import reject_rotating_R
+from navsim.navigation.estimators.measurements.air_data import reject_rotating_R
 
 BIAS_BLOCKS = ("gyro_bias", "accel_bias")
 
@@ -52,6 +52,7 @@ class TwoStageAdaptiveKF(ErrorStateKF):
 
     SCHEMA = {**ErrorStateKF.SCHEMA, "adaptive": obj({"enabled": {"type": "boolean"},
                                                       "window": {"type": "integer", "minimum": 1}, "floor": POS})}
+    OPTIONS = "adaptive"                 #: its constructor arguments: parse's "adaptive"
 
     def __init__(self, layout, noise, measurements, adaptive: bool = True, window: int = 30,
                  floor: float = 1.0, **kw):
@@ -81,10 +82,6 @@ class TwoStageAdaptiveKF(ErrorStateKF):
         if params["adaptive"]["adaptive"]:
             reject_rotating_R(node, params["measurements"], None, "the two-stage adaptive filter")
         return params
-
-    @classmethod
-    def options(cls, params: dict) -> dict:
-        return params["adaptive"]
 
     def initialize(self, nav0, sigma0):
         super().initialize(nav0, sigma0)

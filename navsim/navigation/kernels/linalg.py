@@ -1,0 +1,69 @@
+"""The small dense linear algebra the Kalman kernels share, per run: a product that skips the
+zeros of its left factor (:func:`_matmul`), the symmetric part in place (:func:`_symmetrize`)
+and a solve by Gaussian elimination with partial pivoting (:func:`_solve`)."""
+
+from __future__ import annotations
+
+import math
+
+from navsim.foundations.compiled import njit
+
+
+@njit(cache=True)
+def _matmul(A, B, out):
+    """``out = A @ B`` (``out`` distinct from both), the zeros of ``A`` skipped."""
+    n, m, p = A.shape[0], A.shape[1], B.shape[1]
+    for i in range(n):
+        for j in range(p):
+            out[i, j] = 0.0
+        for k in range(m):
+            a = A[i, k]
+            if a != 0.0:
+                for j in range(p):
+                    out[i, j] += a * B[k, j]
+
+
+@njit(cache=True)
+def _symmetrize(A):
+    """``A <- (A + A^T) / 2`` of a square matrix, in place."""
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(i + 1, n):
+            v = 0.5 * (A[i, j] + A[j, i])
+            A[i, j] = v
+            A[j, i] = v
+
+
+@njit(cache=True)
+def _solve(S, Y, A, X):
+    """``X = S^-1 Y`` by Gaussian elimination with partial pivoting (``S`` ``(m, m)``, ``Y``
+    ``(m, r)``; ``A`` ``(m, m)`` scratch, ``X`` ``(m, r)`` out); False when ``S`` is singular."""
+    m, r = S.shape[0], Y.shape[1]
+    A[:, :] = S
+    X[:, :] = Y
+    for c in range(m):
+        p = c
+        for i in range(c + 1, m):
+            if abs(A[i, c]) > abs(A[p, c]):
+                p = i
+        if A[p, c] == 0.0 or not math.isfinite(A[p, c]):
+            return False
+        if p != c:
+            for j in range(m):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
+            for j in range(r):
+                X[c, j], X[p, j] = X[p, j], X[c, j]
+        for i in range(c + 1, m):
+            f = A[i, c] / A[c, c]
+            for j in range(c, m):
+                A[i, j] -= f * A[c, j]
+            for j in range(r):
+                X[i, j] -= f * X[c, j]
+    for c in range(m - 1, -1, -1):
+        d = A[c, c]
+        for j in range(r):
+            s = X[c, j]
+            for k in range(c + 1, m):
+                s -= A[c, k] * X[k, j]
+            X[c, j] = s / d
+    return True
