@@ -101,9 +101,9 @@ class RunOptions:
     @classmethod
     def of(cls, runs=None, seed=None, workers=None, **options) -> RunOptions:
         """The options of an API call, checked: ``runs``, ``seed``, ``workers`` and the other
-        fields as keywords, or ``options=RunOptions(...)`` whose ``runs``, ``seed`` and
-        ``workers`` the explicit ones (not None) replace. An unknown keyword is a
-        :class:`UsageError` naming the closest field."""
+        fields as keywords, or ``options=RunOptions(...)``, whose fields the keywords given
+        replace (None for a field whose default is None is not given: the field keeps the
+        ``options=`` value). An unknown keyword is a :class:`UsageError` naming the closest field."""
         base = options.pop("options", None)
         if base is not None and not isinstance(base, RunOptions):
             raise UsageError(f"options: {shown(base)} is not a RunOptions")
@@ -111,8 +111,10 @@ class RunOptions:
         for key in options:
             if key not in names:
                 raise UsageError(f"{key}: not an option of a run ({close_match(key, names)})")
-        given = {k: v for k, v in dict(runs=runs, seed=seed, workers=workers).items() if v is not None}
-        return dataclasses.replace(base or cls(), **options, **given).checked()
+        unset = {f.name for f in dataclasses.fields(cls) if f.default is None}
+        given = {k: v for k, v in dict(options, runs=runs, seed=seed, workers=workers).items()
+                 if not (v is None and k in unset)}
+        return dataclasses.replace(base or cls(), **given).checked()
 
     def for_scenario(self, scenario) -> RunOptions:
         """``runs``, ``seed`` and ``workers`` filled from ``scenario``'s ``montecarlo`` where None."""

@@ -1,5 +1,6 @@
 """One registry, name -> object, for everything navsim looks up by name: estimators, sensor
-kinds, measurement types, report pages, commands.
+kinds, measurement types, commands (the report's pages are an ordered list, not looked up by
+name: :data:`navsim.report.pages.PAGE_SOURCES`).
 
 A :class:`Registry` holds the built-in objects (registered when their module is imported) and,
 where it has an entry-point group, those of installed plug-ins, read only when a name is not

@@ -114,6 +114,30 @@ def test_numpy_integers_and_the_limits_themselves_are_taken(tiny):
     assert len(res.runs) == 2 and not res.failed and res.record.seed == MAX_SEED
 
 
+def test_options_as_one_object_give_the_keywords_numbers(tiny):
+    """``options=RunOptions(...)`` is the keywords' run, bit for bit; a keyword given beside it
+    replaces its field, one of None leaves it; a wrong object or an unknown option is refused."""
+    scenario, _ = tiny
+    by_keywords = navsim.run(scenario, runs=2, seed=5, workers=1, chunk_runs=1)
+    by_object = navsim.run(scenario, options=navsim.RunOptions(runs=3, seed=5, workers=1, chunk_runs=1),
+                           runs=2, chunk_runs=None)
+    assert by_object.record.chunk_runs == 1 and len(by_object.runs) == 2
+    assert json.dumps(without_cost(by_object.to_dict())) == json.dumps(without_cost(by_keywords.to_dict()))
+    with pytest.raises(UsageError, match="options: 'fast' is not a RunOptions"):
+        navsim.run(scenario, options="fast")
+    with pytest.raises(UsageError, match="chunk: not an option of a run .*chunk_runs"):
+        navsim.run(scenario, chunk=2)
+    with pytest.raises(UsageError, match="seed: -1 is below 0"):
+        navsim.run(scenario, options=navsim.RunOptions(seed=-1))
+
+
+def without_cost(metrics: dict) -> dict:
+    """metrics.json without its wall times and costs."""
+    out = {k: v for k, v in metrics.items() if k != "wall_s"}
+    out["estimators"] = {k: {q: x for q, x in e.items() if q != "cost"} for k, e in metrics["estimators"].items()}
+    return out
+
+
 @pytest.mark.parametrize("call, words", [
     (lambda sc, res: navsim.budget(sc, runs=-2), ["runs", "below 1"]),
     (lambda sc, res: navsim.budget(sc, seed="7"), ["seed", "not an integer"]),
