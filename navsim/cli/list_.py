@@ -9,6 +9,8 @@ import textwrap
 
 from navsim.cli.command import Command
 from navsim.experiment.scenario import available_aircraft
+from navsim.flight.airframe import load_airframe
+from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.track import available_tracks, load_track, nominal_duration_s
 from navsim.navigation.estimators import base, measurement_types
 from navsim.navigation.estimators.error_model import PRESETS, Layout
@@ -48,7 +50,7 @@ def _listing(title: str, rows: list) -> str:
 
 def handle(args) -> int:
     """Print each listing."""
-    print(_listing("aircraft", [(a, "", "") for a in available_aircraft()]))
+    print(_listing("aircraft", [(a, load_airframe(AIRCRAFT_DIR / a).kind, "") for a in available_aircraft()]))
     print(_listing("sensors (catalog entries)", [(n, k, d) for n, (k, d) in catalog_entries().items()]))
     tracks = [(n, load_track(n)) for n in available_tracks()]
     print(_listing("tracks", [(n, f"{nominal_duration_s(t):.0f} s", _first_sentence(t.description)) for n, t in tracks]))

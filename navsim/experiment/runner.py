@@ -29,7 +29,7 @@ from navsim.experiment.driver import Batch, run_batch
 from navsim.experiment.executors import POOL_CONTEXT, run_chunks_dask
 from navsim.experiment.options import RunOptions
 from navsim.experiment.scenario import values_read
-from navsim.flight.properties import AIRCRAFT_DIR
+from navsim.flight.airframe import model_digest
 from navsim.flight.simulator import fly
 from navsim.flight.truth import Truth
 from navsim.foundations.config import cache_dir
@@ -113,12 +113,18 @@ def data_key(scenario, seed: int) -> str:
 
 
 def flight_key(config) -> str:
-    """Hash of everything that determines a flight."""
+    """Hash of everything that determines a flight: the configuration, navsim's version and the
+    aircraft folder's files. A folder outside ``aircraft/`` (beside a scenario) enters by its
+    model's identity (:func:`~navsim.flight.airframe.model_digest`: every file, sub-folders too,
+    by name and content) in place of its path: an edited model flies again, a copy elsewhere
+    shares the flight."""
     h = hashlib.sha256()
-    h.update(json.dumps({"config": plain(config), "version": __version__}, sort_keys=True,
+    described = plain(config)
+    if config.aircraft_dir:
+        described["aircraft_dir"] = f"model {model_digest(config.folder)}"
+    h.update(json.dumps({"config": described, "version": __version__}, sort_keys=True,
                         default=str).encode())
-    adir = Path(config.aircraft_dir) if config.aircraft_dir else AIRCRAFT_DIR
-    for path in sorted((adir / config.aircraft).glob("*")):
+    for path in sorted(config.folder.glob("*")):
         if path.is_file():
             h.update(path.read_bytes())
     return h.hexdigest()[:20]

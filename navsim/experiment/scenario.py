@@ -4,7 +4,7 @@ So far a scenario describes the flight::
 
     name: p0_flight
     description: P0's track in calm air
-    aircraft: survey10          # a folder of aircraft/
+    aircraft: survey10          # a folder of aircraft/, or ./my_plane beside the scenario
     track: p0                   # a shipped track, or a mapping with start and segments
     environment: {wind: {force: 3, from_deg: 270}}
     flight: {rate_hz: 100}
@@ -30,10 +30,11 @@ import numpy as np
 from navsim.experiment.closed_loop import parse_closed_loop
 from navsim.experiment.driver import InitialErrors
 from navsim.experiment.reference import parse_reference
+from navsim.flight.airframe import ENVELOPE_FILE, check_controller, load_airframe
 from navsim.flight.environment import parse_environment
 from navsim.flight.properties import AIRCRAFT_DIR
-from navsim.flight.simulator import FlightConfig
-from navsim.flight.track import nominal_duration_s, parse_track
+from navsim.flight.simulator import DEFAULT_AIRCRAFT, FlightConfig
+from navsim.flight.track import check_segments, nominal_duration_s, parse_track
 from navsim.foundations.config import (
     MAX_DURATION_S,
     MAX_RATE_HZ,
@@ -44,6 +45,7 @@ from navsim.foundations.config import (
     close_match,
     load_yaml,
     plain_name,
+    resolve_folder,
 )
 from navsim.foundations.errors import ScenarioError
 from navsim.navigation.estimators.factory import parse_estimators
@@ -100,8 +102,9 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
                                 hint=close_match(str(key), TOP_KEYS))
     name = _name(node, file)
     description = node.get("description", str, "")
-    aircraft = _aircraft(node, file)
+    aircraft, aircraft_dir, airframe = _aircraft(node, file)
     track = _track(node, file)
+    check_segments(track, airframe.kind, file)
     node._seen.add("environment")
     environment = parse_environment(node.data.get("environment"), "environment", file)
     _check_start(track, environment, file)
@@ -125,7 +128,8 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
         closed_loop = parse_closed_loop(cl_node, [e.label for e in estimators], sensors, track,
                                         nominal_s, rate_hz)
     node.done()
-    config = FlightConfig(track=track, environment=environment, aircraft=aircraft, rate_hz=rate_hz)
+    config = FlightConfig(track=track, environment=environment, aircraft=aircraft, rate_hz=rate_hz,
+                          aircraft_dir=aircraft_dir)
     scenario = Scenario(name=name, description=description, flight=config,
                         path=Path(file) if file else None, raw=data, sensors=sensors, runs=runs, seed=seed,
                         workers=workers, estimators=estimators, initial=initial, settle_s=settle_s,
@@ -171,14 +175,36 @@ def _name(node: Node, file: str | None) -> str:
     return name
 
 
-def _aircraft(node: Node, file: str | None) -> str:
-    """``aircraft``: a folder of aircraft/."""
-    aircraft = node.get("aircraft", str, "survey10")
-    if aircraft not in available_aircraft():
-        raise ScenarioError(f"'{aircraft}' is not an aircraft of {AIRCRAFT_DIR}", file=file,
-                            key="aircraft", expected="a folder name of aircraft/",
-                            hint=close_match(aircraft, available_aircraft()))
-    return aircraft
+def _aircraft(node: Node, file: str | None) -> tuple[str, str | None, object]:
+    """``aircraft``: a shipped folder of aircraft/ by name, or a folder beside or below the
+    scenario by a relative path, holding ``<name>.xml`` and ``navsim.yaml``. Returns the model's
+    name, the folder holding it (None: a shipped one) and its airframe
+    (:func:`~navsim.flight.airframe.load_airframe`), refused where navsim has no controller for
+    its class yet."""
+    ref = node.get("aircraft", str, DEFAULT_AIRCRAFT)
+    if "/" not in ref and "\\" not in ref:
+        if ref not in available_aircraft():
+            beside = plain_name(ref) and (Path(file).resolve().parent if file else Path.cwd()).joinpath(ref).is_dir()
+            raise ScenarioError(f"'{ref}' is not a shipped aircraft ({AIRCRAFT_DIR})", file=file, key="aircraft",
+                                expected="a folder name of aircraft/ (navsim list) or a relative path to a "
+                                         "folder beside the scenario",
+                                hint=f"the folder beside the scenario is aircraft: ./{ref}" if beside
+                                else close_match(ref, available_aircraft()))
+        folder, aircraft_dir = AIRCRAFT_DIR / ref, None
+    else:
+        folder = resolve_folder(ref, file=file, key="aircraft", what="an aircraft folder")
+        aircraft_dir = str(folder.parent)
+    if not plain_name(folder.name):
+        raise ScenarioError(f"'{ref}' is a folder named '{folder.name}'", file=file, key="aircraft",
+                            expected="a folder of a plain name (letters, digits, '.', '_', '-'): JSBSim loads "
+                                     "the model by it")
+    for name, what in ((f"{folder.name}.xml", "the JSBSim model, named after its folder"),
+                       (ENVELOPE_FILE, "the aircraft's class and envelope (aircraft/README.md)")):
+        if not (folder / name).is_file():
+            raise ScenarioError(f"'{ref}' has no {name}", file=file, key="aircraft", expected=f"{name}: {what}")
+    airframe = load_airframe(folder)
+    check_controller(airframe, ref, file=file, key="aircraft")
+    return folder.name, aircraft_dir, airframe
 
 
 def _track(node: Node, file: str | None):

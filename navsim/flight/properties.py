@@ -15,6 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from navsim.foundations.errors import ScenarioError
 from navsim.foundations.resources import data_folder
 
 FT_TO_M = 0.3048
@@ -162,8 +163,15 @@ class JSBSimIO:
         fdm.set_aircraft_path(str(adir))
         fdm.set_engine_path(str(root / "engine"))
         fdm.set_systems_path(str(root / "systems"))
-        if not fdm.load_model(aircraft):
-            raise RuntimeError(f"JSBSim could not load aircraft '{aircraft}' from {adir}")
+        try:
+            loaded, reason = fdm.load_model(aircraft), "its load failed"
+        except jsbsim.BaseError as exc:       # JSBSim's reason (it prints it on stdout too)
+            loaded, reason = False, " ".join(str(exc).split())
+        if not loaded:
+            raise ScenarioError(f"JSBSim cannot load the model: {reason}", file=str(adir / aircraft / f"{aircraft}.xml"),
+                                expected="a JSBSim aircraft model (<fdm_config>)",
+                                hint="the line JSBSim names; a model beside a scenario reaches JSBSim's "
+                                     "engines and systems by name")
         fdm.set_dt(dt_s)
         self.dt_s = dt_s
         pm = fdm.get_property_manager()

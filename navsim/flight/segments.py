@@ -5,26 +5,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from navsim.flight.airframe import FixedWing
 from navsim.flight.autopilot import Autopilot, G, line_course, orbit_course
 from navsim.flight.track import Segment
 from navsim.foundations.errors import FlightError
 
 TWO_PI = 2.0 * math.pi
-
-
-@dataclass
-class Limits:
-    """Flight envelope of an aircraft (``aircraft/<name>/navsim.yaml``)."""
-
-    mass_kg: float = 10.0
-    stall_speed_mps: float = 9.6
-    min_speed_mps: float = 11.0
-    max_speed_mps: float = 28.0
-    stall_alpha_deg: float = 14.0
-    max_bank_deg: float = 35.0
-    max_climb_mps: float = 5.0
-    trim_throttle: float = 0.12
-    trim_alpha_deg: float = 4.5
 
 
 @dataclass
@@ -43,7 +29,7 @@ class State:
 class SegmentRunner:
     """Drives the autopilot through the segments of a track."""
 
-    def __init__(self, segments, ap: Autopilot, limits: Limits, local_of_latlon):
+    def __init__(self, segments, ap: Autopilot, limits: FixedWing, local_of_latlon):
         self.segments = list(segments)
         self.ap = ap
         self.limits = limits

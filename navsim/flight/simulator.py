@@ -15,13 +15,13 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-import yaml
 
 from navsim.flight import properties as P
+from navsim.flight.airframe import ENVELOPE_FILE, FixedWing, check_controller, load_airframe
 from navsim.flight.autopilot import Autopilot, Gains, Sensed
 from navsim.flight.environment import Environment, steady_wind_n_mps
-from navsim.flight.segments import Limits, SegmentRunner, State
-from navsim.flight.track import Start, Track, nominal_duration_s
+from navsim.flight.segments import SegmentRunner, State
+from navsim.flight.track import Start, Track, check_segments, nominal_duration_s
 from navsim.flight.truth import Pose, Truth, truth_from_rows
 from navsim.foundations.earth import radii
 from navsim.foundations.errors import FlightError
@@ -31,6 +31,8 @@ SPINUP_S = 2.0           #: seconds the motor runs up with the airframe held
 #: how long a steady wind above the airspeed is flown before the flight fails, s
 WIND_PERSIST_S = 10.0
 STALL_PERSIST_S = 1.0    #: alpha above stall for this long is a stall
+#: the aircraft flown where none is named (a shipped folder of ``aircraft/``)
+DEFAULT_AIRCRAFT = "survey10"
 MAX_ROLL_RAD = math.radians(75.0)
 MAX_PITCH_RAD = math.radians(50.0)
 
@@ -41,20 +43,31 @@ class FlightConfig:
 
     track: Track
     environment: Environment = field(default_factory=Environment)
-    aircraft: str = "survey10"
+    aircraft: str = DEFAULT_AIRCRAFT
     rate_hz: float = 100.0
     gains: Gains = field(default_factory=Gains)
     aircraft_dir: str | None = None
 
+    @property
+    def folder(self) -> Path:
+        """The aircraft's folder: ``aircraft`` in ``aircraft_dir``, or a shipped one."""
+        return (Path(self.aircraft_dir) if self.aircraft_dir else P.AIRCRAFT_DIR) / self.aircraft
 
-def load_limits(aircraft: str, aircraft_dir: str | Path | None = None) -> Limits:
-    """The aircraft's envelope from ``aircraft/<name>/navsim.yaml`` (defaults if absent)."""
-    adir = Path(aircraft_dir) if aircraft_dir else P.AIRCRAFT_DIR
-    path = adir / aircraft / "navsim.yaml"
-    if not path.is_file():
-        return Limits()
-    data = yaml.safe_load(path.read_text()) or {}
-    return Limits(**{k: float(v) for k, v in data.items()})
+
+def load_limits(config: FlightConfig) -> FixedWing:
+    """The envelope of ``config``'s aircraft from its ``navsim.yaml``
+    (:func:`~navsim.flight.airframe.load_airframe`).
+
+    Raises
+    ------
+    ScenarioError
+        A ``navsim.yaml`` missing or wrong; a class navsim has no controller for yet; a segment of
+        the track that the class does not fly.
+    """
+    airframe = load_airframe(config.folder)
+    check_controller(airframe, config.aircraft, file=str(config.folder / ENVELOPE_FILE), key="class")
+    check_segments(config.track, airframe.kind, None)
+    return airframe
 
 
 class _Recorder:
@@ -92,8 +105,8 @@ class Aircraft:
     def __init__(self, config: FlightConfig):
         track, env = config.track, config.environment
         self.config, self.dt = config, 1.0 / config.rate_hz
+        self.limits = load_limits(config)
         self.io = io = P.JSBSimIO(config.aircraft, self.dt, config.aircraft_dir)
-        self.limits = load_limits(config.aircraft, config.aircraft_dir)
         self.ap = ap = Autopilot(config.gains)
         start = track.start
         self.lat0, self.lon0 = lat0, lon0 = math.radians(start.lat_deg), math.radians(start.lon_deg)
@@ -138,7 +151,7 @@ class Watchdog:
     (angle of attack above the stall for :data:`STALL_PERSIST_S`), loss of control, a steady
     wind above the airspeed (for :data:`WIND_PERSIST_S`: the aircraft cannot make way)."""
 
-    def __init__(self, limits: Limits, dt: float):
+    def __init__(self, limits: FixedWing, dt: float):
         self.stall_alpha = math.radians(limits.stall_alpha_deg + 1.0)
         self.stall_steps = int(round(STALL_PERSIST_S / dt))
         self.wind_steps = int(round(WIND_PERSIST_S / dt))

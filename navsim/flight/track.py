@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from navsim.flight.airframe import CLASSES, FIXED_WING
 from navsim.foundations.config import MAX_DURATION_S, Node, close_match, load_yaml, resolve_file
 from navsim.foundations.errors import ScenarioError
 from navsim.foundations.resources import data_folder
@@ -114,6 +115,11 @@ _ONE_OF = {"straight": [("time_s",), ("distance_m",), ("until_s",)], "circle": [
            "turn": [("bank_deg",), ("rate_dps",)],
            "goto": [("north_m", "east_m"), ("lat_deg", "lon_deg")]}
 _DEFAULT_ONE = {"turn": {"bank_deg": 20.0}}
+#: the airframe classes (:mod:`navsim.flight.airframe`) that fly each segment type: today's
+#: segments are a fixed wing's; ``hold`` (a vehicle parked on the ground, no dynamics) any class's
+SEGMENT_CLASSES: dict[str, tuple[str, ...]] = {
+    "straight": (FIXED_WING,), "speed": (FIXED_WING,), "climb": (FIXED_WING,), "descend": (FIXED_WING,),
+    "turn": (FIXED_WING,), "hold": CLASSES, "circle": (FIXED_WING,), "goto": (FIXED_WING,)}
 
 
 def parse_track(data, path: str = "track", file: str | None = None) -> Track:
@@ -144,6 +150,23 @@ def parse_track(data, path: str = "track", file: str | None = None) -> Track:
                                      "[{type: hold, time_s: 360}]")
     node.done()
     return Track(name=name, start=start, segments=segments, description=description)
+
+
+def check_segments(track: Track, kind: str, file: str | None) -> None:
+    """Refuse a track with a segment that an airframe of class ``kind`` cannot fly
+    (:data:`SEGMENT_CLASSES`).
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``file``, the segment's key path ``track.segments[i]``, the class and the segment.
+    """
+    for i, seg in enumerate(track.segments):
+        if kind not in SEGMENT_CLASSES[seg.type]:
+            flown = [t for t, classes in SEGMENT_CLASSES.items() if kind in classes]
+            raise ScenarioError(f"a '{seg.type}' segment ({seg.label}) cannot be flown by a {kind}", file=file,
+                                key=f"track.segments[{i}]",
+                                expected=f"the segments a {kind} flies: {', '.join(flown) or 'none yet'}")
 
 
 def _parse_start(node: Node) -> Start:

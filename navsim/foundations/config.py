@@ -227,16 +227,50 @@ def resolve_file(ref: str, *, catalog: Path, file: str | None, key: str, what: s
         raise ScenarioError(f"'{ref}' is not {what}", file=file, key=key,
                             expected=f"a name of {catalog.name}/ or a .yaml file beside the scenario",
                             hint=close_match(ref, choices() if callable(choices) else choices))
-    base = Path(file).resolve().parent if file else Path.cwd().resolve()
     expected = "a .yaml file beside or below the scenario's folder, as a relative path"
-    if Path(ref).is_absolute() or Path(ref).suffix.lower() not in (".yaml", ".yml"):
+    if Path(ref).suffix.lower() not in (".yaml", ".yml"):
+        raise ScenarioError(f"'{ref}' is not allowed", file=file, key=key, expected=expected)
+    path = _beside(ref, file=file, key=key, expected=expected)
+    if not path.is_file():
+        raise ScenarioError(f"'{ref}' does not exist beside the scenario", file=file, key=key,
+                            expected=expected)
+    return path
+
+
+def resolve_folder(ref: str, *, file: str | None, key: str, what: str) -> Path:
+    """The folder a scenario names at ``key`` by the relative path ``ref``: beside or below the
+    folder of the scenario ``file`` (the working folder without a file), never leaving it, never
+    that folder itself; the same rules as :func:`resolve_file`'s paths.
+
+    Raises
+    ------
+    ScenarioError
+        For an absolute path, a path leaving the scenario's folder or naming it, a missing folder.
+    """
+    expected = f"{what} beside or below the scenario's folder, as a relative path (./name)"
+    path = _beside(ref, file=file, key=key, expected=expected)
+    if path == _scenario_folder(file):
+        raise ScenarioError(f"'{ref}' is not allowed (the scenario's own folder)", file=file, key=key,
+                            expected=expected)
+    if not path.is_dir():
+        raise ScenarioError(f"'{ref}' is not a folder beside the scenario", file=file, key=key, expected=expected)
+    return path
+
+
+def _scenario_folder(file: str | None) -> Path:
+    """The folder paths in the scenario ``file`` are relative to (the working folder without one)."""
+    return Path(file).resolve().parent if file else Path.cwd().resolve()
+
+
+def _beside(ref: str, *, file: str | None, key: str, expected: str) -> Path:
+    """``ref`` resolved (links followed) against the scenario ``file``'s folder; an absolute path
+    or one leaving that folder refused (:class:`ScenarioError` naming ``file`` and ``key``)."""
+    base = _scenario_folder(file)
+    if Path(ref).is_absolute():
         raise ScenarioError(f"'{ref}' is not allowed", file=file, key=key, expected=expected)
     path = (base / ref).resolve()
     if not path.is_relative_to(base):
         raise ScenarioError(f"'{ref}' leaves the scenario's folder", file=file, key=key, expected=expected)
-    if not path.is_file():
-        raise ScenarioError(f"'{ref}' does not exist beside the scenario", file=file, key=key,
-                            expected=expected)
     return path
 
 

@@ -1,0 +1,381 @@
+"""Multirotor control: rotor geometry, the mixer derived from it, and a cascade controller.
+
+Frames and signs: body axes x forward, y right, z down, origin at the centre of gravity; NED for
+the navigation frame (``pos_n_m`` from a reference point, ``vel_n_mps``); ``C_nb`` rotates a body
+vector into NED.
+
+The chain, each loop a proportional law whose gain *is* its closed-loop bandwidth (rad/s), every
+loop :data:`SEPARATION` times faster than the one around it (:class:`MultirotorGains`):
+
+* position -> velocity (P, speed limited);
+* velocity -> acceleration (PI, with gravity added back), then the thrust vector, its tilt from
+  the vertical limited to ``max_tilt_rad`` (the vertical acceleration is kept first);
+* thrust direction and yaw (:class:`YawMode`: hold a heading, nose along the course, point at a
+  place) -> attitude -> body rates (P on the rotation error of Lee, Leok and McClamroch, 2010);
+* body rates -> torques (P, scaled by the inertia, plus the gyroscopic term ``omega x J omega``);
+* collective thrust and torques -> per-rotor thrusts (:class:`Mixer`) -> per-motor commands in
+  [0, 1] through each rotor's stated thrust map ``thrust_n = thrust_per_cmd2_n * u**2``.
+
+Not yet flown by :func:`navsim.flight.simulator.fly` (the wiring is the next step of issue 52):
+its :class:`Rotor` is what the mixer needs of a rotor (thrust axis, lever arm, spin, command
+map), to be built there from the airframe's rotor table (:class:`navsim.flight.airframe.Rotor`);
+tests/integration/test_multirotor_controller.py flies JSBSim's F450 with it directly.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from navsim.foundations.atmosphere import G0 as GRAVITY_MPS2     # standard gravity, m/s^2
+#: how much faster each inner loop is than the loop around it (bandwidth ratio); 3 keeps the
+#: outer loop's phase loss from the inner one near atan(1/3) = 18 degrees at its crossover
+SEPARATION = 3.0
+#: bandwidth of the innermost (body-rate) loop, rad/s: under a fifth of a 100 Hz loop's rate;
+#: the attitude, velocity and position loops are each :data:`SEPARATION` times slower
+RATE_BW_RPS = 20.0
+#: bandwidth of the yaw-rate loop, rad/s: far below the roll and pitch rate loops because a
+#: yaw torque is made by speeding up the rotors of one spin and slowing the others, and the
+#: rotors' angular momentum changes with them; where the motors change speed within a step or
+#: two (JSBSim's brushless motor does) that reaction reaches the airframe at once, as a direct
+#: feed-through of the yaw command worth about ``I_rotor * dOmega/dQ`` (0.23 s on the F450: 8 to
+#: 20 times the drag torque's own effect over a step), which a gain of 20 rad/s turns unstable
+YAW_RATE_BW_RPS = 2.5
+UP_B = (0.0, 0.0, -1.0)  #: an untilted rotor's thrust axis in body axes (up)
+#: below this horizontal speed, m/s, the course is undefined and "nose along the course" holds
+COURSE_MIN_SPEED_MPS = 0.5
+#: nearer than this horizontal distance, m, "point at a place" holds the heading it has
+POINT_MIN_DISTANCE_M = 1.0
+
+
+def _cross(a, b) -> np.ndarray:
+    """``a x b`` of two 3-vectors (numpy's ``cross`` costs ten times more at this size)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+@dataclass(frozen=True)
+class Rotor:
+    """One rotor: where it is, which way it turns and how its command makes thrust.
+
+    Parameters
+    ----------
+    pos_b_m : tuple of 3 float
+        Hub position from the centre of gravity, body axes, m.
+    spin : int
+        +1 when the rotor turns right-handed about its thrust axis (clockwise seen from behind,
+        looking along the thrust: JSBSim's ``<sense>`` 1), -1 the other way. Its reaction torque
+        on the airframe is ``-spin * torque_per_thrust_m * thrust_n`` about the thrust axis.
+    thrust_per_cmd2_n : float
+        Thrust at command ``u`` is ``thrust_per_cmd2_n * u**2``, N (so the thrust at full command).
+    torque_per_thrust_m : float
+        Drag torque of the rotor per newton of thrust, N m/N (``k_Q / k_T``; for a propeller with
+        thrust and power coefficients C_T, C_P and diameter D it is ``C_P D / (2 pi C_T)``).
+    axis_b : tuple of 3 float
+        Unit thrust direction in body axes; straight up, :data:`UP_B`, unless tilted
+        (:func:`tilted_axis`).
+    """
+
+    pos_b_m: tuple
+    spin: int
+    thrust_per_cmd2_n: float
+    torque_per_thrust_m: float
+    axis_b: tuple = UP_B
+
+    def __post_init__(self):
+        if self.spin not in (1, -1):
+            raise ValueError(f"spin must be +1 or -1, not {self.spin}")
+        if self.thrust_per_cmd2_n <= 0.0:
+            raise ValueError("thrust_per_cmd2_n must be positive")
+        if abs(float(np.linalg.norm(self.axis_b)) - 1.0) > 1e-9:
+            raise ValueError(f"axis_b must be a unit vector, not {self.axis_b}")
+
+    def effect(self) -> np.ndarray:
+        """The wrench of one newton of this rotor's thrust: collective thrust (up, N), then roll,
+        pitch and yaw torques about the body axes (N m)."""
+        a = np.asarray(self.axis_b, float)
+        torque = np.cross(np.asarray(self.pos_b_m, float), a) - self.spin * self.torque_per_thrust_m * a
+        return np.array([-a[2], *torque])
+
+
+def tilted_axis(tilt_x_rad: float, tilt_y_rad: float) -> tuple:
+    """The thrust axis of a rotor tilted from straight up by ``tilt_x_rad`` about body x (a
+    positive tilt leans the thrust towards +y) and then by ``tilt_y_rad`` about body y."""
+    cx, sx, cy, sy = math.cos(tilt_x_rad), math.sin(tilt_x_rad), math.cos(tilt_y_rad), math.sin(tilt_y_rad)
+    # R_y(tilt_y) R_x(tilt_x) applied to (0, 0, -1)
+    return (-sy * cx, sx, -cy * cx)
+
+
+@dataclass(frozen=True)
+class Mixer:
+    """Allocation of a wrench (collective thrust N, roll, pitch, yaw torques N m) to per-rotor
+    thrusts, and of thrusts to motor commands.
+
+    ``effectiveness`` (4 x n) maps rotor thrusts to the wrench (:meth:`Rotor.effect` per column);
+    ``allocation`` is its Moore-Penrose pseudo-inverse (n x 4): below saturation the thrusts it
+    gives reproduce the wrench exactly, with the least sum of squared thrusts.
+
+    Saturation rule (:meth:`thrusts`): every thrust must lie in [0, thrust at full command]. Roll
+    and pitch are kept first (scaled down only if they alone cannot fit), the collective thrust
+    is then moved as little as needed to fit them, and yaw is given up first: scaled down to what
+    the remaining margin allows.
+    """
+
+    rotors: tuple
+    effectiveness: np.ndarray = field(repr=False)
+    allocation: np.ndarray = field(repr=False)
+
+    @classmethod
+    def from_rotors(cls, rotors) -> "Mixer":
+        """The mixer of a rotor geometry (at least four rotors, the wrench fully controllable)."""
+        rotors = tuple(rotors)
+        if len(rotors) < 4:
+            raise ValueError(f"a multirotor needs at least 4 rotors, not {len(rotors)}")
+        B = np.column_stack([r.effect() for r in rotors])
+        if np.linalg.matrix_rank(B) < 4:
+            raise ValueError("the rotors cannot produce every wrench (effectiveness rank < 4)")
+        return cls(rotors, B, np.linalg.pinv(B))
+
+    @property
+    def max_thrust_n(self) -> np.ndarray:
+        """Each rotor's thrust at full command, N."""
+        return np.array([r.thrust_per_cmd2_n for r in self.rotors])
+
+    def thrusts(self, wrench) -> np.ndarray:
+        """Per-rotor thrusts (N) for ``wrench`` = (collective thrust N, roll, pitch, yaw torques
+        N m), saturated by the rule of the class."""
+        w = np.asarray(wrench, float)
+        t_max = self.max_thrust_n
+        col, rp, yaw = self.allocation[:, 0], self.allocation[:, 1:3] @ w[1:3], self.allocation[:, 3] * w[3]
+        f = col * w[0] + rp + yaw
+        if np.all(f >= 0.0) and np.all(f <= t_max):
+            return f
+        scale = _largest_fit(col, rp, t_max)
+        lo, hi = _collective_range(col, scale * rp, t_max)
+        f = col * min(max(w[0], lo), hi) + scale * rp
+        return f + _yaw_fit(f, yaw, t_max) * yaw
+
+    def commands(self, thrusts_n) -> np.ndarray:
+        """Motor commands in [0, 1] for per-rotor thrusts, N (the inverse of each rotor's
+        ``thrust_n = thrust_per_cmd2_n * u**2``)."""
+        t = np.clip(np.asarray(thrusts_n, float) / self.max_thrust_n, 0.0, 1.0)
+        return np.sqrt(t)
+
+    def wrench(self, thrusts_n) -> np.ndarray:
+        """The wrench that per-rotor thrusts make (collective N, torques N m)."""
+        return self.effectiveness @ np.asarray(thrusts_n, float)
+
+
+def _collective_range(col: np.ndarray, rp: np.ndarray, t_max: np.ndarray) -> tuple:
+    """Collective thrusts ``c`` with ``0 <= col * c + rp <= t_max`` for every rotor (``col`` > 0)
+    as (low, high); empty when low > high."""
+    return float(np.max(-rp / col)), float(np.min((t_max - rp) / col))
+
+
+def _largest_fit(col: np.ndarray, rp: np.ndarray, t_max: np.ndarray) -> float:
+    """The largest scale in [0, 1] of the roll-pitch thrusts ``rp`` for which some collective
+    thrust fits every rotor in its range (bisection, to 1e-4)."""
+    lo, hi = _collective_range(col, rp, t_max)
+    if lo <= hi:
+        return 1.0
+    a, b = 0.0, 1.0
+    for _ in range(14):
+        m = 0.5 * (a + b)
+        lo, hi = _collective_range(col, m * rp, t_max)
+        a, b = (m, b) if lo <= hi else (a, m)
+    return a
+
+
+def _yaw_fit(f: np.ndarray, yaw: np.ndarray, t_max: np.ndarray) -> float:
+    """The largest scale in [0, 1] of the yaw thrusts ``yaw`` that keeps ``f + s * yaw`` in
+    [0, t_max] (``f`` already in range)."""
+    s = 1.0
+    up, down = yaw > 1e-12, yaw < -1e-12
+    if np.any(up):
+        s = min(s, float(np.min((t_max[up] - f[up]) / yaw[up])))
+    if np.any(down):
+        s = min(s, float(np.min(-f[down] / yaw[down])))
+    return max(s, 0.0)
+
+
+@dataclass(frozen=True)
+class YawMode:
+    """What the nose does: ``"heading"`` holds ``heading_rad`` (from north, clockwise),
+    ``"course"`` points it along the horizontal velocity (holding the last heading below
+    :data:`COURSE_MIN_SPEED_MPS`), ``"point"`` points it at ``target_n_m`` (NED, m; holding within
+    :data:`POINT_MIN_DISTANCE_M`)."""
+
+    kind: str = "heading"
+    heading_rad: float = 0.0
+    target_n_m: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        if self.kind not in ("heading", "course", "point"):
+            raise ValueError(f"yaw mode must be heading, course or point, not {self.kind!r}")
+
+
+@dataclass(frozen=True)
+class Setpoint:
+    """Where the controller flies: ``pos_n_m`` (NED from the reference, m), a velocity
+    feed-forward ``vel_n_mps``, the horizontal speed limit ``speed_max_mps`` and the yaw mode."""
+
+    pos_n_m: tuple
+    vel_n_mps: tuple = (0.0, 0.0, 0.0)
+    speed_max_mps: float = 5.0
+    yaw: YawMode = YawMode()
+
+
+@dataclass(frozen=True)
+class MultirotorState:
+    """The state the controller reads (true or estimated): ``pos_n_m`` NED from the reference
+    point (m), ``vel_n_mps`` NED (m/s), ``C_nb`` body-to-NED rotation, ``omega_b_rps`` body rates
+    (rad/s)."""
+
+    pos_n_m: np.ndarray
+    vel_n_mps: np.ndarray
+    C_nb: np.ndarray
+    omega_b_rps: np.ndarray
+
+
+@dataclass(frozen=True)
+class MultirotorGains:
+    """Gains of the cascade, each a closed-loop bandwidth in rad/s (the inner loops
+    :data:`SEPARATION` times faster than the loop around them), and the limits.
+
+    The defaults (rate 20, attitude 6.7, velocity 2.2, position 0.74 rad/s; yaw rate 2.5, heading
+    0.83 rad/s) suit a 100 Hz loop (the rate loop's 20 rad/s is a thirtieth of its 628 rad/s)
+    and a thrust-to-weight ratio above about 1.5; tuned on the jsbsim wheel's F450.
+    """
+
+    rate_bw_rps: float = RATE_BW_RPS                     #: body rates -> angular acceleration
+    att_bw_rps: float = RATE_BW_RPS / SEPARATION         #: roll and pitch attitude -> body rates
+    yaw_rate_bw_rps: float = YAW_RATE_BW_RPS             #: yaw rate -> yaw acceleration
+    yaw_bw_rps: float = YAW_RATE_BW_RPS / SEPARATION     #: heading -> yaw rate
+    vel_bw_rps: float = RATE_BW_RPS / SEPARATION ** 2    #: velocity -> acceleration
+    pos_bw_rps: float = RATE_BW_RPS / SEPARATION ** 3    #: position -> velocity
+    #: corner of the velocity loop's integral (its zero), below the loop's bandwidth by SEPARATION
+    vel_i_bw_rps: float = RATE_BW_RPS / SEPARATION ** 3
+    vel_i_max_mps2: float = 3.0        #: limit of the integral's acceleration, m/s^2
+    #: the integral runs only on an axis whose velocity error is under this, m/s (it learns the
+    #: steady push of a wind or a thrust-map error, not the lag of a manoeuvre, which would
+    #: leave a slow tail after it)
+    vel_i_band_mps: float = 0.2
+    max_tilt_rad: float = math.radians(35.0)   #: largest tilt of the thrust from the vertical
+    max_rate_rps: float = math.radians(220.0)  #: largest commanded roll and pitch rate
+    max_yaw_rate_rps: float = math.radians(90.0)  #: largest commanded yaw rate
+    max_climb_mps: float = 3.0         #: largest climb rate asked by the position loop, m/s
+    max_sink_mps: float = 2.0          #: largest sink rate asked by the position loop, m/s
+    #: largest yaw step the attitude loop sees at once (so the rotation error stays smooth), rad
+    max_yaw_step_rad: float = math.radians(60.0)
+
+
+class MultirotorController:
+    """The cascade of the module: state and setpoint in, motor commands in [0, 1] out.
+
+    Parameters
+    ----------
+    mixer : Mixer
+        The rotors' allocation.
+    mass_kg : float
+        The vehicle's mass.
+    inertia_b_kgm2 : array (3, 3)
+        Its inertia tensor about the centre of gravity, body axes.
+    gains : MultirotorGains
+    """
+
+    def __init__(self, mixer: Mixer, mass_kg: float, inertia_b_kgm2, gains: MultirotorGains = MultirotorGains()):
+        self.mixer, self.mass_kg, self.gains = mixer, float(mass_kg), gains
+        self.J = np.asarray(inertia_b_kgm2, float)
+        self.vel_i_mps2 = np.zeros(3)      # the velocity loop's integral, NED acceleration
+        self.heading_rad: float | None = None   # the heading held when a yaw mode has none
+        self.last_wrench = np.zeros(4)
+
+    def reset(self) -> None:
+        """Forget the integral and the held heading."""
+        self.vel_i_mps2[:] = 0.0
+        self.heading_rad = None
+
+    def command(self, state: MultirotorState, setpoint: Setpoint, dt_s: float) -> np.ndarray:
+        """One step of the cascade: per-motor commands in [0, 1]."""
+        acc_n = self.acceleration_n(state, setpoint, dt_s)
+        thrust_dir_n, collective_n = self.thrust_vector(acc_n, state.C_nb)
+        yaw_rad = self.yaw_setpoint(state, setpoint)
+        omega_cmd = self.rate_command(state.C_nb, thrust_dir_n, yaw_rad)
+        torque = self.torque(state.omega_b_rps, omega_cmd)
+        self.last_wrench = np.array([collective_n, *torque])
+        return self.mixer.commands(self.mixer.thrusts(self.last_wrench))
+
+    def acceleration_n(self, state: MultirotorState, setpoint: Setpoint, dt_s: float) -> np.ndarray:
+        """Position (P) and velocity (PI) loops: the NED acceleration asked, gravity not in it."""
+        g = self.gains
+        vel_cmd = g.pos_bw_rps * (np.asarray(setpoint.pos_n_m, float) - state.pos_n_m) \
+            + np.asarray(setpoint.vel_n_mps, float)
+        speed = math.hypot(vel_cmd[0], vel_cmd[1])
+        if speed > setpoint.speed_max_mps:
+            vel_cmd[:2] *= setpoint.speed_max_mps / speed
+        vel_cmd[2] = min(max(vel_cmd[2], -g.max_climb_mps), g.max_sink_mps)
+        err = vel_cmd - state.vel_n_mps
+        near = np.abs(err) < g.vel_i_band_mps
+        self.vel_i_mps2 = np.clip(self.vel_i_mps2 + near * (g.vel_bw_rps * g.vel_i_bw_rps * dt_s) * err,
+                                  -g.vel_i_max_mps2, g.vel_i_max_mps2)
+        return g.vel_bw_rps * err + self.vel_i_mps2
+
+    def thrust_vector(self, acc_n: np.ndarray, C_nb: np.ndarray) -> tuple:
+        """The thrust direction (unit, NED) for the acceleration ``acc_n``, its tilt limited with
+        the vertical kept, and the collective thrust (N): the thrust vector's projection on the
+        present thrust axis (body -z)."""
+        f_n = self.mass_kg * (acc_n - np.array([0.0, 0.0, GRAVITY_MPS2]))
+        up = max(-f_n[2], 0.1 * self.mass_kg * GRAVITY_MPS2)   # never ask for thrust downwards
+        horiz = math.hypot(f_n[0], f_n[1])
+        horiz_max = up * math.tan(self.gains.max_tilt_rad)
+        if horiz > horiz_max:
+            f_n[:2] *= horiz_max / horiz
+        f_n[2] = -up
+        thrust_dir_n = f_n / np.linalg.norm(f_n)
+        collective_n = max(float(-f_n @ C_nb[:, 2]), 0.0)
+        return thrust_dir_n, collective_n
+
+    def yaw_setpoint(self, state: MultirotorState, setpoint: Setpoint) -> float:
+        """The heading asked by the yaw mode (rad from north), the present one held when the mode
+        cannot say."""
+        mode = setpoint.yaw
+        if self.heading_rad is None:
+            self.heading_rad = math.atan2(state.C_nb[1, 0], state.C_nb[0, 0])
+        if mode.kind == "heading":
+            self.heading_rad = mode.heading_rad
+        elif mode.kind == "course":
+            if math.hypot(state.vel_n_mps[0], state.vel_n_mps[1]) > COURSE_MIN_SPEED_MPS:
+                self.heading_rad = math.atan2(state.vel_n_mps[1], state.vel_n_mps[0])
+        else:
+            dn, de = mode.target_n_m[0] - state.pos_n_m[0], mode.target_n_m[1] - state.pos_n_m[1]
+            if math.hypot(dn, de) > POINT_MIN_DISTANCE_M:
+                self.heading_rad = math.atan2(de, dn)
+        return self.heading_rad
+
+    def rate_command(self, C_nb: np.ndarray, thrust_dir_n: np.ndarray, yaw_rad: float) -> np.ndarray:
+        """Attitude loop: the body rates (rad/s) that turn the body towards the attitude with its
+        -z along ``thrust_dir_n`` and its nose towards ``yaw_rad`` (limited to
+        ``max_yaw_step_rad`` from the present heading)."""
+        g = self.gains
+        psi = math.atan2(C_nb[1, 0], C_nb[0, 0])
+        step = (yaw_rad - psi + math.pi) % (2.0 * math.pi) - math.pi
+        psi_d = psi + min(max(step, -g.max_yaw_step_rad), g.max_yaw_step_rad)
+        z_d = -thrust_dir_n
+        y_d = _cross(z_d, (math.cos(psi_d), math.sin(psi_d), 0.0))
+        y_d /= math.sqrt(y_d @ y_d)
+        C_d = np.column_stack([_cross(y_d, z_d), y_d, z_d])
+        E = C_d.T @ C_nb - C_nb.T @ C_d          # 2 * skew(e_R)
+        e_r = 0.5 * np.array([E[2, 1], E[0, 2], E[1, 0]])
+        omega = -g.att_bw_rps * e_r
+        omega[2] = -g.yaw_bw_rps * e_r[2]
+        omega[:2] = np.clip(omega[:2], -g.max_rate_rps, g.max_rate_rps)
+        omega[2] = min(max(omega[2], -g.max_yaw_rate_rps), g.max_yaw_rate_rps)
+        return omega
+
+    def torque(self, omega_b_rps: np.ndarray, omega_cmd: np.ndarray) -> np.ndarray:
+        """Rate loop: body torques (N m), ``J k (omega_cmd - omega) + omega x J omega`` with ``k``
+        the roll-pitch or the yaw rate bandwidth."""
+        J, g = self.J, self.gains
+        k = np.array([g.rate_bw_rps, g.rate_bw_rps, g.yaw_rate_bw_rps])
+        return J @ (k * (omega_cmd - omega_b_rps)) + _cross(omega_b_rps, J @ omega_b_rps)
