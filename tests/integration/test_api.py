@@ -55,9 +55,9 @@ def test_the_notebook_example_gives_navsim_runs_numbers(tmp_path, monkeypatch, c
     assert np.array_equal(ds.pos_err_m.sel(estimator="BD/SINS/ADS ES-KF 16").values, kf.pos_err_m)
 
 
-def test_a_run_held_in_memory_writes_nothing_until_asked(short, tmp_path, monkeypatch):
+def test_a_run_held_in_memory_writes_nothing_until_asked(short_pdf, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    result = navsim.run(short, runs=3, seed=4, workers=1)
+    result = navsim.run(short_pdf, runs=3, seed=4, workers=1)
     assert result.folder is None and sorted(p.name for p in tmp_path.iterdir()) == ["cache", "short.yaml"]
     assert list(result.runs) == [0, 1, 2] and result.record.seed == 4 and result.record.git_revision
     with pytest.raises(navsim.api.UsageError, match="needs a folder"):

@@ -34,6 +34,9 @@ BASE = {
                           {"type": "velocity", "sensor": "ads", "sigma_mps": [1.0, 1.0, 1.5]}]}],
     "initial_errors": {"pos_m": [5, 5, 10], "vel_mps": 0.1, "att_arcsec": [20, 20, 50]},
     "montecarlo": {"runs": 2, "seed": 1, "workers": 1},
+    # these tests read the numbers and the files navsim writes, not the pages: a PDF only (the
+    # PNGs, every page drawn a second time, cost seconds a run)
+    "report": {"formats": ["pdf"]},
 }
 SECRET = "top-secret-token-123"
 

@@ -45,6 +45,7 @@ estimators:
 initial_errors: {pos_m: [5, 5, 3], vel_mps: [0.2, 0.2, 0.1], att_arcsec: 60}
 montecarlo: {runs: 4, seed: 4, workers: 1}
 metrics: {settle_s: 1}
+report: {formats: [pdf]}
 """
 
 
