@@ -34,6 +34,7 @@ import functools
 import math
 
 import numpy as np
+from scipy.special import stdtrit
 from scipy.stats import beta, binom, chi2, norm, t as student_t
 
 #: the confidence of every interval
@@ -309,10 +310,11 @@ def student_runs(unit: float, target: float, alpha: float = 1 - CONFIDENCE, most
     """The fewest runs ``N >= 2`` whose two-sided Student half-width ``t(1 - alpha/2, N - 1) *
     unit / sqrt(N)`` is at most ``target`` (``unit``: the spread of one run); the half-width
     falls with ``N``, so a doubling then a bisection finds it. None where it takes more than
-    ``most`` or cannot be had."""
+    ``most`` or cannot be had. The quantile is scipy's ``stdtrit`` (what ``t.ppf`` computes,
+    without its argument checks: 1 µs a call instead of 80, for the 20-odd calls of a search)."""
     if not (math.isfinite(unit) and math.isfinite(target) and unit > 0 and target > 0):
         return None
-    ok = lambda n: float(student_t.ppf(1 - alpha / 2, n - 1)) * unit / math.sqrt(n) <= target
+    ok = lambda n: float(stdtrit(n - 1, 1 - alpha / 2)) * unit / math.sqrt(n) <= target
     lo, hi = 1, 2
     while not ok(hi):
         lo, hi = hi, hi * 2
