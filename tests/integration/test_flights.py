@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from navsim.experiment.runner import cached_flight
 from navsim.flight import FlightConfig, Truth, fly, load_track, parse_track
 from navsim.flight.environment import Environment, parse_environment, steady_wind_n_mps
 from navsim.foundations import earth
@@ -15,8 +16,14 @@ SETTLE_S = 20.0   # level segments are judged after this settling time
 
 
 @pytest.fixture(scope="module")
-def flights():
-    return {name: (load_track(name), fly(load_track(name))) for name in ("p0", "p3", "p2_sea")}
+def flights(shipped_flight):
+    """The three tracks flown in calm air through the suite's flight cache: the same flights
+    (the same keys) as P0's, P3's and P2's shipped scenarios, flown once for the session."""
+    out = {}
+    for name in ("p0", "p3", "p2_sea"):
+        config = FlightConfig(track=load_track(name))
+        out[name] = (config.track, cached_flight(config)[0])
+    return out
 
 
 def expected_commands(track):

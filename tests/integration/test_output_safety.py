@@ -336,7 +336,7 @@ def alive(pid: int) -> bool:
 
 def start_long_run(scenario, out):
     proc = subprocess.Popen([sys.executable, "-m", "navsim", "run", str(scenario), "--out", str(out),
-                             "--runs", "120", "--chunk-runs", "2", "--workers", "2"],
+                             "--runs", "60", "--chunk-runs", "2", "--workers", "2"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
@@ -396,12 +396,12 @@ def test_sigkill_ends_the_workers_and_resume_completes(tiny, tmp_path):
         assert not wait_gone(workers, 5), "worker processes outlived their killed parent"
     finally:
         kill_all(workers)
-    r = subprocess.run([sys.executable, "-m", "navsim", "run", str(tiny[0]), "--out", str(out), "--runs", "120",
+    r = subprocess.run([sys.executable, "-m", "navsim", "run", str(tiny[0]), "--out", str(out), "--runs", "60",
                         "--chunk-runs", "2", "--workers", "2", "--resume"], capture_output=True, text=True,
                        timeout=300)
     assert r.returncode == 0, r.stderr
     assert "taking over the lock" in r.stderr
-    assert json.loads((out / "metrics.json").read_text())["runs_done"] == 120
+    assert json.loads((out / "metrics.json").read_text())["runs_done"] == 60
 
 
 # --- 6. a full disk while the report is written ---------------------------------------------------

@@ -88,8 +88,10 @@ def test_run_writes_report_metrics_and_histories(short, tmp_path, capsys):
     assert not (out / "runs.npz").exists()                    # the per-run data once: in chunks/
     hist = navsim.open_result(out).histories["KF"].pos_err_m
     assert hist.shape[0::2] == (6, 3) and hist.shape[1] >= 45
-    # the first run flew the track, the second reads the flight from the cache
+    # the first run flew the track, the second reads the flight from the cache (its report a PDF
+    # only: the report is not part of the flight's key)
     assert json.loads((out / "run.json").read_text())["flight_cached"] is False
+    short.write_text(SHORT + "report: {formats: [pdf]}\n")
     assert run(short, tmp_path / "out2") == 0
     assert json.loads((tmp_path / "out2" / "run.json").read_text())["flight_cached"] is True
 
