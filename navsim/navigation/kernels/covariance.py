@@ -109,7 +109,8 @@ def predict(x, P, Phi, Qd):
             xn[i] = s
             for j in range(n):
                 Ft[i, j] = Fb[j, i]
-        x[b, :] = xn
+        for i in range(n):             # element by element (see linalg)
+            x[b, i] = xn[i]
         _matmul(Fb, Pb, A)
         _matmul(A, Ft, C)
         for i in range(n):

@@ -10,6 +10,7 @@ import numpy as np
 
 from navsim.foundations.compiled import njit
 from navsim.navigation.kernels.earth import OMEGA, gravity_gradient, radii
+from navsim.navigation.kernels.linalg import _copy
 
 
 @njit(cache=True)
@@ -40,7 +41,7 @@ def error_dynamics(lat, h, vel, C, f, blocks, dlat, dh, F):
         D[0, 0], D[2, 0] = -OMEGA * sl, -OMEGA * cl
         D[2, 0] += -ve / (Rn * cl * cl)
         D[0, 2], D[1, 2], D[2, 2] = -ve / (Rn * Rn), vn / (Rm * Rm), ve * tl / (Rn * Rn)
-        E[:, :] = D                    # 2 d(omega_ie) + d(omega_en)
+        _copy(E, D)                    # 2 d(omega_ie) + d(omega_en)
         E[0, 0] = 2.0 * (-OMEGA * sl)
         E[2, 0] = 2.0 * (-OMEGA * cl) + -ve / (Rn * cl * cl)
         _skew_into(Fb, a, a, -(wie0 + wen0), -wen1, -(wie2 + wen2))

@@ -1,6 +1,10 @@
 """The small dense linear algebra the Kalman kernels share, per run: a product that skips the
-zeros of its left factor (:func:`_matmul`), the symmetric part in place (:func:`_symmetrize`)
-and a solve by Gaussian elimination with partial pivoting (:func:`_solve`)."""
+zeros of its left factor (:func:`_matmul`), the symmetric part in place (:func:`_symmetrize`),
+a copy (:func:`_copy`) and a solve by Gaussian elimination with partial pivoting (:func:`_solve`).
+
+The kernels copy arrays element by element, never by a slice (``A[:, :] = S``): a slice copy
+between arrays makes numba compile its shape-mismatch error, string formatting and all, about
+3 s in every process that compiles the kernels afresh (a fresh clone, a fresh cache)."""
 
 from __future__ import annotations
 
@@ -24,6 +28,14 @@ def _matmul(A, B, out):
 
 
 @njit(cache=True)
+def _copy(dst, src):
+    """``dst[:, :] = src`` of two matrices of one shape, element by element."""
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            dst[i, j] = src[i, j]
+
+
+@njit(cache=True)
 def _symmetrize(A):
     """``A <- (A + A^T) / 2`` of a square matrix, in place."""
     n = A.shape[0]
@@ -39,8 +51,8 @@ def _solve(S, Y, A, X):
     """``X = S^-1 Y`` by Gaussian elimination with partial pivoting (``S`` ``(m, m)``, ``Y``
     ``(m, r)``; ``A`` ``(m, m)`` scratch, ``X`` ``(m, r)`` out); False when ``S`` is singular."""
     m, r = S.shape[0], Y.shape[1]
-    A[:, :] = S
-    X[:, :] = Y
+    _copy(A, S)
+    _copy(X, Y)
     for c in range(m):
         p = c
         for i in range(c + 1, m):
