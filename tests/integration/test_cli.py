@@ -53,14 +53,14 @@ track:
     ("track: [1, 2\n", "not valid YAML"),
     ("name: x\n", "track: is missing"),
 ])
-def test_malformed_scenario_exit_2_without_traceback(tmp_path, text, words):
+def test_malformed_scenario_exit_2_without_traceback(tmp_path, text, words, capsys):
+    """In this process (``python -m navsim`` itself: test_help_on_every_command): exit 2, the
+    file and the words on stderr, no exception out of ``main``."""
     path = tmp_path / "bad.yaml"
     path.write_text(text)
-    proc = subprocess.run([sys.executable, "-m", "navsim", "validate", str(path)],
-                          capture_output=True, text=True)
-    assert proc.returncode == 2
-    assert str(path) in proc.stderr and words in proc.stderr
-    assert "Traceback" not in proc.stderr
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and words in err and "Traceback" not in err
 
 
 def test_help_on_every_command(capsys):
@@ -120,10 +120,9 @@ montecarlo: {runs: 3, seed: 4}
     assert set(ratios) == {"gyro", "accel"} and all(abs(float(v) - 1) < 0.05 for v in ratios.values()), line
 
 
-def test_malformed_sensor_section_exit_2(tmp_path):
+def test_malformed_sensor_section_exit_2(tmp_path, capsys):
     path = tmp_path / "bad.yaml"
     path.write_text("track: p0\nsensors:\n  imu: {model: p0_imu, override: {gyro: {bias_sigma: 3 m}}}\n")
-    proc = subprocess.run([sys.executable, "-m", "navsim", "validate", str(path)],
-                          capture_output=True, text=True)
-    assert proc.returncode == 2 and "Traceback" not in proc.stderr
-    assert "sensors.imu.override.gyro.bias_sigma" in proc.stderr and "deg/h" in proc.stderr
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "sensors.imu.override.gyro.bias_sigma" in err and "deg/h" in err

@@ -3,8 +3,6 @@ a corpus of malformed scenarios that must each get a clear error and exit code 2
 
 import json
 import re
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -237,13 +235,14 @@ def test_malformed_scenario_corpus(i, tmp_path, capsys):
     assert words in err, err
 
 
-def test_malformed_scenario_exits_2_from_run_without_traceback(tmp_path):
+def test_malformed_scenario_exits_2_from_run_without_traceback(tmp_path, monkeypatch, capsys):
     path = tmp_path / "bad.yaml"
     path.write_text(BASE.replace("type: eskf", "type: ekf"))
-    proc = subprocess.run([sys.executable, "-m", "navsim", "run", str(path)], capture_output=True, text=True,
-                          cwd=tmp_path)          # its default output folder, reports/, under tmp_path
-    assert proc.returncode == 2 and "Traceback" not in proc.stderr
-    assert "estimators[1].type" in proc.stderr and "hint: did you mean 'eskf'?" in proc.stderr
+    monkeypatch.chdir(tmp_path)                  # its default output folder, reports/, under tmp_path
+    assert main(["run", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "estimators[1].type" in err and "hint: did you mean 'eskf'?" in err
+    assert not (tmp_path / "reports").exists()
 
 
 def test_a_sweep_point_that_cannot_be_flown_is_reported_and_the_others_run(short, tmp_path, capsys):
