@@ -30,7 +30,7 @@ import numpy as np
 from navsim.experiment.closed_loop import parse_closed_loop
 from navsim.experiment.driver import InitialErrors
 from navsim.experiment.reference import parse_reference
-from navsim.flight.airframe import ENVELOPE_FILE, check_controller, load_airframe
+from navsim.flight.airframe import ENVELOPE_FILE, FIXED_WING, check_controller, load_airframe
 from navsim.flight.environment import parse_environment
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import DEFAULT_AIRCRAFT, FlightConfig
@@ -125,6 +125,9 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     if cl_node is not None:
         if not estimators:
             raise cl_node.error("needs estimators", "fly_on", expected="an estimators list to fly on")
+        if airframe.kind != FIXED_WING:
+            raise cl_node.error(f"'{aircraft}' is a {airframe.kind}: navigation in the loop flies a fixed wing "
+                                "only, for now", expected="an aircraft of class fixed_wing (issue 52's next step)")
         closed_loop = parse_closed_loop(cl_node, [e.label for e in estimators], sensors, track,
                                         nominal_s, rate_hz)
     node.done()
@@ -278,10 +281,10 @@ def _rate_hz(node: Node | None) -> float:
 
 
 def _check_start(track, environment, file) -> None:
-    """An air start at least :data:`MIN_START_AGL_M` above the surface; a launch or a parked
-    vehicle not below it."""
+    """An air start at least :data:`MIN_START_AGL_M` above the surface, a hover at least
+    :data:`MIN_HOVER_AGL_M`; a launch or a parked vehicle not below it."""
     start = track.start
-    margin = MIN_START_AGL_M if start.type == "air" else 0.0
+    margin = {"air": MIN_START_AGL_M, "hover": MIN_HOVER_AGL_M}.get(start.type, 0.0)
     if start.alt_m < environment.surface_m + margin:
         where = "below" if start.alt_m < environment.surface_m else "just above"
         raise ScenarioError(f"is {start.alt_m:g} m, {where} the surface at {environment.surface_m:g} m",
@@ -422,6 +425,8 @@ MAX_SEED = 2**63 - 1
 RATE_HZ = (20.0, MAX_RATE_HZ)
 #: the lowest an air start may be above the surface, m
 MIN_START_AGL_M = 10.0
+#: the lowest a multirotor may start hovering above the surface, m (its skids clear of it)
+MIN_HOVER_AGL_M = 2.0
 
 
 #: the largest initial error (1-sigma per axis) of each kind: position m, velocity m/s,

@@ -14,8 +14,8 @@ Each class has its envelope, a typed object (:class:`FixedWing`, :class:`Multiro
 each class, their units and ranges are in :data:`FIXED_WING_KEYS`, :data:`MULTIROTOR_KEYS` and
 :data:`ROTOR_KEYS` (documented in ``aircraft/README.md``).
 
-navsim flies fixed wings; a multirotor's envelope is read and checked, but until its controller
-exists (a later step of issue 52) :func:`check_controller` refuses it.
+navsim flies both classes: a fixed wing under :mod:`navsim.flight.autopilot`, a multirotor under
+:mod:`navsim.flight.multirotor`'s cascade (:mod:`navsim.flight.rotorcraft`).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ FIXED_WING, MULTIROTOR = "fixed_wing", "multirotor"
 #: the airframe classes, the values of ``class:`` in ``navsim.yaml``
 CLASSES = (FIXED_WING, MULTIROTOR)
 #: the classes navsim has a controller for (the others are read and checked, then refused)
-FLOWN_CLASSES = (FIXED_WING,)
+FLOWN_CLASSES = (FIXED_WING, MULTIROTOR)
 #: the envelope file of an aircraft folder, beside ``<name>.xml``
 ENVELOPE_FILE = "navsim.yaml"
 #: the fewest rotors of a multirotor (roll, pitch and yaw from fixed-pitch rotors)
@@ -189,13 +189,12 @@ def check_controller(airframe: FixedWing | Multirotor, name: str, *, file: str |
     Raises
     ------
     ScenarioError
-        Naming ``file`` and ``key``, for a multirotor: its controller is a later step of issue 52.
+        Naming ``file`` and ``key``, for a class navsim reads but has no controller for.
     """
     if airframe.kind not in FLOWN_CLASSES:
         raise ScenarioError(f"'{name}' is a {airframe.kind}: navsim's {airframe.kind} controller is not there yet",
                             file=file, key=key, expected="an aircraft of class " + ", ".join(FLOWN_CLASSES),
-                            hint="its envelope reads and checks; the multirotor controller comes in a "
-                                 "later step of issue 52")
+                            hint="its envelope reads and checks, but nothing flies it")
 
 
 def model_digest(folder: str | Path) -> str:

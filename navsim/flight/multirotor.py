@@ -16,14 +16,15 @@ loop :data:`SEPARATION` times faster than the one around it (:class:`MultirotorG
 * collective thrust and torques -> per-rotor thrusts (:class:`Mixer`) -> per-motor commands in
   [0, 1] through each rotor's stated thrust map ``thrust_n = thrust_per_cmd2_n * u**2``.
 
-Not yet flown by :func:`navsim.flight.simulator.fly` (the wiring is the next step of issue 52):
-its :class:`Rotor` is what the mixer needs of a rotor (thrust axis, lever arm, spin, command
-map), to be built there from the airframe's rotor table (:class:`navsim.flight.airframe.Rotor`);
+:func:`navsim.flight.simulator.fly` flies it through :mod:`navsim.flight.rotorcraft`, which builds
+the mixer's :class:`Rotor` (what the mixer needs of a rotor: thrust axis, lever arm, spin, command
+map) from the airframe's rotor table (:class:`navsim.flight.airframe.Rotor`);
 tests/integration/test_multirotor_controller.py flies JSBSim's F450 with it directly.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -137,7 +138,7 @@ class Mixer:
             raise ValueError("the rotors cannot produce every wrench (effectiveness rank < 4)")
         return cls(rotors, B, np.linalg.pinv(B))
 
-    @property
+    @functools.cached_property
     def max_thrust_n(self) -> np.ndarray:
         """Each rotor's thrust at full command, N."""
         return np.array([r.thrust_per_cmd2_n for r in self.rotors])
@@ -159,8 +160,7 @@ class Mixer:
     def commands(self, thrusts_n) -> np.ndarray:
         """Motor commands in [0, 1] for per-rotor thrusts, N (the inverse of each rotor's
         ``thrust_n = thrust_per_cmd2_n * u**2``)."""
-        t = np.clip(np.asarray(thrusts_n, float) / self.max_thrust_n, 0.0, 1.0)
-        return np.sqrt(t)
+        return np.sqrt(np.minimum(np.maximum(np.asarray(thrusts_n, float) / self.max_thrust_n, 0.0), 1.0))
 
     def wrench(self, thrusts_n) -> np.ndarray:
         """The wrench that per-rotor thrusts make (collective N, torques N m)."""
@@ -218,10 +218,12 @@ class YawMode:
 @dataclass(frozen=True)
 class Setpoint:
     """Where the controller flies: ``pos_n_m`` (NED from the reference, m), a velocity
-    feed-forward ``vel_n_mps``, the horizontal speed limit ``speed_max_mps`` and the yaw mode."""
+    feed-forward ``vel_n_mps``, an acceleration feed-forward ``acc_n_mps2`` (a circle's
+    centripetal acceleration), the horizontal speed limit ``speed_max_mps`` and the yaw mode."""
 
     pos_n_m: tuple
     vel_n_mps: tuple = (0.0, 0.0, 0.0)
+    acc_n_mps2: tuple = (0.0, 0.0, 0.0)
     speed_max_mps: float = 5.0
     yaw: YawMode = YawMode()
 
@@ -287,6 +289,7 @@ class MultirotorController:
     def __init__(self, mixer: Mixer, mass_kg: float, inertia_b_kgm2, gains: MultirotorGains = MultirotorGains()):
         self.mixer, self.mass_kg, self.gains = mixer, float(mass_kg), gains
         self.J = np.asarray(inertia_b_kgm2, float)
+        self._rate_k = np.array([gains.rate_bw_rps, gains.rate_bw_rps, gains.yaw_rate_bw_rps])
         self.vel_i_mps2 = np.zeros(3)      # the velocity loop's integral, NED acceleration
         self.heading_rad: float | None = None   # the heading held when a yaw mode has none
         self.last_wrench = np.zeros(4)
@@ -307,7 +310,8 @@ class MultirotorController:
         return self.mixer.commands(self.mixer.thrusts(self.last_wrench))
 
     def acceleration_n(self, state: MultirotorState, setpoint: Setpoint, dt_s: float) -> np.ndarray:
-        """Position (P) and velocity (PI) loops: the NED acceleration asked, gravity not in it."""
+        """Position (P) and velocity (PI) loops and the setpoint's acceleration feed-forward: the
+        NED acceleration asked, gravity not in it."""
         g = self.gains
         vel_cmd = g.pos_bw_rps * (np.asarray(setpoint.pos_n_m, float) - state.pos_n_m) \
             + np.asarray(setpoint.vel_n_mps, float)
@@ -317,9 +321,9 @@ class MultirotorController:
         vel_cmd[2] = min(max(vel_cmd[2], -g.max_climb_mps), g.max_sink_mps)
         err = vel_cmd - state.vel_n_mps
         near = np.abs(err) < g.vel_i_band_mps
-        self.vel_i_mps2 = np.clip(self.vel_i_mps2 + near * (g.vel_bw_rps * g.vel_i_bw_rps * dt_s) * err,
-                                  -g.vel_i_max_mps2, g.vel_i_max_mps2)
-        return g.vel_bw_rps * err + self.vel_i_mps2
+        self.vel_i_mps2 = np.minimum(np.maximum(self.vel_i_mps2 + near * (g.vel_bw_rps * g.vel_i_bw_rps * dt_s) * err,
+                                                -g.vel_i_max_mps2), g.vel_i_max_mps2)
+        return g.vel_bw_rps * err + self.vel_i_mps2 + np.asarray(setpoint.acc_n_mps2, float)
 
     def thrust_vector(self, acc_n: np.ndarray, C_nb: np.ndarray) -> tuple:
         """The thrust direction (unit, NED) for the acceleration ``acc_n``, its tilt limited with
@@ -332,7 +336,7 @@ class MultirotorController:
         if horiz > horiz_max:
             f_n[:2] *= horiz_max / horiz
         f_n[2] = -up
-        thrust_dir_n = f_n / np.linalg.norm(f_n)
+        thrust_dir_n = f_n / math.sqrt(f_n @ f_n)
         collective_n = max(float(-f_n @ C_nb[:, 2]), 0.0)
         return thrust_dir_n, collective_n
 
@@ -364,18 +368,17 @@ class MultirotorController:
         z_d = -thrust_dir_n
         y_d = _cross(z_d, (math.cos(psi_d), math.sin(psi_d), 0.0))
         y_d /= math.sqrt(y_d @ y_d)
-        C_d = np.column_stack([_cross(y_d, z_d), y_d, z_d])
+        C_d = np.array([_cross(y_d, z_d), y_d, z_d]).T
         E = C_d.T @ C_nb - C_nb.T @ C_d          # 2 * skew(e_R)
         e_r = 0.5 * np.array([E[2, 1], E[0, 2], E[1, 0]])
         omega = -g.att_bw_rps * e_r
         omega[2] = -g.yaw_bw_rps * e_r[2]
-        omega[:2] = np.clip(omega[:2], -g.max_rate_rps, g.max_rate_rps)
-        omega[2] = min(max(omega[2], -g.max_yaw_rate_rps), g.max_yaw_rate_rps)
-        return omega
+        lim, lim_yaw = g.max_rate_rps, g.max_yaw_rate_rps
+        return np.array([min(max(omega[0], -lim), lim), min(max(omega[1], -lim), lim),
+                         min(max(omega[2], -lim_yaw), lim_yaw)])
 
     def torque(self, omega_b_rps: np.ndarray, omega_cmd: np.ndarray) -> np.ndarray:
         """Rate loop: body torques (N m), ``J k (omega_cmd - omega) + omega x J omega`` with ``k``
         the roll-pitch or the yaw rate bandwidth."""
-        J, g = self.J, self.gains
-        k = np.array([g.rate_bw_rps, g.rate_bw_rps, g.yaw_rate_bw_rps])
-        return J @ (k * (omega_cmd - omega_b_rps)) + _cross(omega_b_rps, J @ omega_b_rps)
+        J = self.J
+        return J @ (self._rate_k * (omega_cmd - omega_b_rps)) + _cross(omega_b_rps, J @ omega_b_rps)

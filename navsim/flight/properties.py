@@ -96,6 +96,17 @@ IC_PSI_DEG = "ic/psi-true-deg"
 IC_THETA_DEG = "ic/theta-deg"
 IC_PHI_DEG = "ic/phi-deg"
 
+#: a multirotor's motor ``i`` (JSBSim's engine ``i``): its command in [0, 1] and its speed
+ROTOR_CMD_NORM = "fcs/throttle-cmd-norm[{i}]"
+ROTOR_RPM = "propulsion/engine[{i}]/propeller-rpm"
+RUN_ALL_ENGINES = "propulsion/set-running"        #: -1 starts every engine
+#: the propulsive force along body z (the rotors' thrust is its negative), lbf
+PROPULSIVE_FZ_LBS = "forces/fbz-prop-lbs"
+MASS_SLUGS = "inertia/mass-slugs"
+#: the inertia tensor's moments and products (JSBSim's products are positive integrals)
+INERTIA_SLUGFT2 = {k: f"inertia/i{k}-slugs_ft2" for k in ("xx", "yy", "zz", "xy", "xz", "yz")}
+SLUGFT2_TO_KGM2 = SLUG_TO_KG * FT_TO_M ** 2
+
 TURBULENCE_TYPES = {"none": 0, "milspec": 3, "tustin": 4}
 #: the turbulence models that divide by the time step: JSBSim's Tustin (bilinear) discretisation
 #: (``C_BL = 1 / tau / tan(dt / 2 tau)``, ``sqrt(2 tau / dt)``) turns its state into NaN, for good,
@@ -260,6 +271,44 @@ class JSBSimIO:
         self._turbulence = kind
         self.fdm[TURB_WIND20_FPS] = wind20_mps / FT_TO_M
         self.fdm[TURB_SEVERITY] = int(severity)
+
+    # --- a multirotor's motors -----------------------------------------------------------------
+    def rotor_commands(self, n: int):
+        """A function setting the ``n`` motors' commands (a sequence in [0, 1]) at once, all
+        engines running."""
+        pm = self.fdm.get_property_manager()
+        setters = [pm.get_node(ROTOR_CMD_NORM.format(i=i), True).set_double_value for i in range(n)]
+        self.fdm[RUN_ALL_ENGINES] = -1
+
+        def set_all(u) -> None:
+            for set_u, ui in zip(setters, u):
+                set_u(float(ui))
+        return set_all
+
+    def rotor_rpm(self, n: int) -> list[float]:
+        """The ``n`` rotors' speeds, r/min."""
+        return [self.fdm[ROTOR_RPM.format(i=i)] for i in range(n)]
+
+    def rotor_thrust_n(self) -> float:
+        """The rotors' total thrust along body -z, N."""
+        return -self.fdm[PROPULSIVE_FZ_LBS] * LBF_TO_N
+
+    def mass_properties(self) -> tuple[float, np.ndarray]:
+        """The model's mass (kg) and inertia tensor about its centre of gravity (kg m^2, body)."""
+        i = {k: self.fdm[name] * SLUGFT2_TO_KGM2 for k, name in INERTIA_SLUGFT2.items()}
+        J = np.array([[i["xx"], -i["xy"], -i["xz"]], [-i["xy"], i["yy"], -i["yz"]], [-i["xz"], -i["yz"], i["zz"]]])
+        return self.fdm[MASS_SLUGS] * SLUG_TO_KG, J
+
+    def set_initial_still(self, lat_rad: float, lon_rad: float, h_m: float, yaw_rad: float, terrain_m: float) -> None:
+        """Start level and still (no velocity over the ground) at a geodetic position and heading."""
+        fdm = self.fdm
+        fdm[IC_TERRAIN_FT] = terrain_m / FT_TO_M
+        fdm[IC_LAT_GEOD_DEG], fdm[IC_LON_DEG] = np.degrees(lat_rad), np.degrees(lon_rad)
+        fdm[IC_H_SL_FT] = h_m / FT_TO_M
+        fdm[IC_VN_FPS] = fdm[IC_VE_FPS] = fdm[IC_VD_FPS] = 0.0
+        fdm[IC_THETA_DEG] = fdm[IC_PHI_DEG] = 0.0
+        fdm[IC_PSI_DEG] = np.degrees(yaw_rad)
+        self.run_ic()
 
     def set_booster_n(self, thrust_n: float) -> None:
         """Thrust of the launch booster along body x, N."""

@@ -17,9 +17,10 @@ from typing import NamedTuple
 import numpy as np
 
 from navsim.flight import properties as P
-from navsim.flight.airframe import ENVELOPE_FILE, FixedWing, check_controller, load_airframe
+from navsim.flight.airframe import ENVELOPE_FILE, MULTIROTOR, FixedWing, Multirotor, check_controller, load_airframe
 from navsim.flight.autopilot import Autopilot, Gains, Sensed
 from navsim.flight.environment import Environment, steady_wind_n_mps
+from navsim.flight.rotorcraft import fly_rotorcraft
 from navsim.flight.segments import SegmentRunner, State
 from navsim.flight.track import Start, Track, check_segments, nominal_duration_s
 from navsim.flight.truth import Pose, Truth, truth_from_rows
@@ -54,15 +55,15 @@ class FlightConfig:
         return (Path(self.aircraft_dir) if self.aircraft_dir else P.AIRCRAFT_DIR) / self.aircraft
 
 
-def load_limits(config: FlightConfig) -> FixedWing:
+def load_limits(config: FlightConfig) -> FixedWing | Multirotor:
     """The envelope of ``config``'s aircraft from its ``navsim.yaml``
     (:func:`~navsim.flight.airframe.load_airframe`).
 
     Raises
     ------
     ScenarioError
-        A ``navsim.yaml`` missing or wrong; a class navsim has no controller for yet; a segment of
-        the track that the class does not fly.
+        A ``navsim.yaml`` missing or wrong; a class navsim has no controller for; a start or a
+        segment of the track that the class does not fly.
     """
     airframe = load_airframe(config.folder)
     check_controller(airframe, config.aircraft, file=str(config.folder / ENVELOPE_FILE), key="class")
@@ -200,16 +201,19 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
         config = FlightConfig(track=config)
     if config.track.start.type == "ground":
         return _parked(config)
-    craft = Aircraft(config)
-    rec = _Recorder(len(P.RAW_PROPERTIES), 1 << 14)
+    airframe = load_limits(config)
+    rec, dt = _Recorder(len(P.RAW_PROPERTIES), 1 << 14), 1.0 / config.rate_hz
     try:
-        _fly_track(craft, rec, progress)
+        if airframe.kind == MULTIROTOR:
+            fly_rotorcraft(config, airframe, rec.add, progress, nominal_duration_s(config.track))
+        else:
+            _fly_track(Aircraft(config), rec, progress)
     except FlightError as exc:
         rows, seg = rec.arrays()
-        exc.truth = _make_truth(rows, seg, craft.dt, config.track, config) if len(rows) > 1 else None
+        exc.truth = _make_truth(rows, seg, dt, config.track, config) if len(rows) > 1 else None
         raise
     rows, seg = rec.arrays()
-    return _make_truth(rows, seg, craft.dt, config.track, config)
+    return _make_truth(rows, seg, dt, config.track, config)
 
 
 def _fly_track(craft: Aircraft, rec: _Recorder, progress) -> None:

@@ -13,6 +13,18 @@ A track is a mapping::
       - {type: descend, to_m: 300, rate_mps: 1.5}
       - {type: goto, north_m: 500, east_m: 1200}
 
+A multirotor (an aircraft whose ``navsim.yaml`` says ``class: multirotor``) starts hovering,
+``start: {type: hover, lat_deg, lon_deg, alt_m, heading_deg, speed_mps}`` (``speed_mps``: the
+horizontal speed its segments fly at unless they say, 5 m/s by default), and flies::
+
+      - {type: hover, time_s: 60}                       # hold the point
+      - {type: goto, north_m: 100, east_m: 0, alt_m: 40, speed_mps: 4, yaw: course}
+      - {type: circle, radius_m: 20, laps: 2, direction: left, speed_mps: 3, yaw: center}
+
+``yaw`` says what the nose does: ``hold`` (the heading it has), ``course`` (along the way
+flown), ``center`` (at the circle's centre, a circle only) or a heading, ``heading_deg``. A
+segment or start the class cannot fly is refused (:func:`check_segments`).
+
 ``start.type: launch`` starts on a launcher instead (P2's rocket-assisted launch at 14 deg
 pitch). ``start.type: ground`` parks the vehicle on the ground (P4's static test): heading
 ``heading_deg``, the ground's slope as ``roll_deg``/``pitch_deg``, and only ``hold`` segments
@@ -28,7 +40,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from navsim.flight.airframe import CLASSES, FIXED_WING
+from navsim.flight.airframe import CLASSES, FIXED_WING, MULTIROTOR
 from navsim.foundations.config import MAX_DURATION_S, Node, close_match, load_yaml, resolve_file
 from navsim.foundations.errors import ScenarioError
 from navsim.foundations.resources import data_folder
@@ -89,6 +101,14 @@ class Track:
 #: the fastest airspeed a track may ask for, m/s (the shipped 10 kg aircraft cruises at 14-18 m/s)
 MAX_AIRSPEED_MPS = 40.0
 
+#: a multirotor segment's ``yaw`` (besides a circle's ``center``): keep the heading, or the nose
+#: along the way flown
+YAW_CHOICES = ("hold", "course")
+#: the segment keys only a multirotor reads (what its nose does)
+MULTIROTOR_KEYS = ("yaw", "heading_deg")
+#: a multirotor's horizontal speed where neither its start nor a segment says, m/s
+MULTIROTOR_SPEED_MPS = 5.0
+
 # type -> {key: (kind, default or REQUIRED, constraint)}; one of the "one_of" groups is required
 _REQ = object()
 _POS = dict(exclusive_minimum=0.0)
@@ -105,11 +125,16 @@ SEGMENT_KEYS: dict[str, dict] = {
     "hold": {"time_s": (float, _REQ, _TIME)},
     "circle": {"radius_m": (float, _REQ, _POS), "laps": (float, None, _POS),
                "time_s": (float, None, _TIME),
-               "direction": (str, "right", dict(choices=("right", "left")))},
+               "direction": (str, "right", dict(choices=("right", "left"))),
+               "yaw": (str, None, dict(choices=YAW_CHOICES + ("center",))),
+               "heading_deg": (float, None, {})},
+    "hover": {"time_s": (float, _REQ, _TIME), "yaw": (str, None, dict(choices=YAW_CHOICES)),
+              "heading_deg": (float, None, {})},
     "goto": {"north_m": (float, None, {}), "east_m": (float, None, {}),
              "lat_deg": (float, None, dict(minimum=-90.0, maximum=90.0)),
              "lon_deg": (float, None, dict(minimum=-180.0, maximum=180.0)),
-             "alt_m": (float, None, {}), "acceptance_m": (float, 30.0, _POS)},
+             "alt_m": (float, None, {}), "acceptance_m": (float, 30.0, _POS),
+             "yaw": (str, None, dict(choices=YAW_CHOICES)), "heading_deg": (float, None, {})},
 }
 _ONE_OF = {"straight": [("time_s",), ("distance_m",), ("until_s",)], "circle": [("laps",), ("time_s",)],
            "turn": [("bank_deg",), ("rate_dps",)],
@@ -119,7 +144,10 @@ _DEFAULT_ONE = {"turn": {"bank_deg": 20.0}}
 #: segments are a fixed wing's; ``hold`` (a vehicle parked on the ground, no dynamics) any class's
 SEGMENT_CLASSES: dict[str, tuple[str, ...]] = {
     "straight": (FIXED_WING,), "speed": (FIXED_WING,), "climb": (FIXED_WING,), "descend": (FIXED_WING,),
-    "turn": (FIXED_WING,), "hold": CLASSES, "circle": (FIXED_WING,), "goto": (FIXED_WING,)}
+    "turn": (FIXED_WING,), "hold": CLASSES, "circle": CLASSES, "goto": CLASSES, "hover": (MULTIROTOR,)}
+#: the classes each start type is for (a ground start parks any vehicle: no dynamics)
+START_CLASSES: dict[str, tuple[str, ...]] = {
+    "air": (FIXED_WING,), "launch": (FIXED_WING,), "ground": CLASSES, "hover": (MULTIROTOR,)}
 
 
 def parse_track(data, path: str = "track", file: str | None = None) -> Track:
@@ -161,24 +189,33 @@ def check_segments(track: Track, kind: str, file: str | None) -> None:
     ScenarioError
         Naming ``file``, the segment's key path ``track.segments[i]``, the class and the segment.
     """
+    if kind not in START_CLASSES[track.start.type]:
+        starts = [t for t, classes in START_CLASSES.items() if kind in classes]
+        raise ScenarioError(f"a '{track.start.type}' start is not a {kind}'s", file=file, key="track.start.type",
+                            expected=f"the starts of a {kind}: {', '.join(starts)}")
     for i, seg in enumerate(track.segments):
         if kind not in SEGMENT_CLASSES[seg.type]:
             flown = [t for t, classes in SEGMENT_CLASSES.items() if kind in classes]
             raise ScenarioError(f"a '{seg.type}' segment ({seg.label}) cannot be flown by a {kind}", file=file,
                                 key=f"track.segments[{i}]",
                                 expected=f"the segments a {kind} flies: {', '.join(flown) or 'none yet'}")
+        extra = [k for k in MULTIROTOR_KEYS if k in seg.params] if kind != MULTIROTOR else []
+        if extra:
+            raise ScenarioError(f"'{extra[0]}' is a multirotor's key: a {kind} points its nose where it flies",
+                                file=file, key=f"track.segments[{i}].{extra[0]}",
+                                expected="no yaw or heading_deg on a fixed wing's segment")
 
 
 def _parse_start(node: Node) -> Start:
-    kind = node.get("type", str, "air", choices=("air", "launch", "ground"))
+    kind = node.get("type", str, "air", choices=tuple(START_CLASSES))
     ground = kind == "ground"
     values = dict(
         type=kind,
         lat_deg=node.get("lat_deg", float, minimum=-89.0, maximum=89.0),
         lon_deg=node.get("lon_deg", float, minimum=-180.0, maximum=180.0),
         alt_m=node.get("alt_m", float, minimum=-400.0, maximum=10000.0),
-        speed_mps=0.0 if ground else node.get("speed_mps", float, exclusive_minimum=0.0,
-                                              maximum=MAX_AIRSPEED_MPS),
+        speed_mps=0.0 if ground else node.get("speed_mps", float, *((MULTIROTOR_SPEED_MPS,) if kind == "hover" else ()),
+                                              exclusive_minimum=0.0, maximum=MAX_AIRSPEED_MPS),
         heading_deg=node.get("heading_deg", float, 0.0),
     )
     if ground:
@@ -281,7 +318,7 @@ def nominal_duration_s(track: Track) -> float:
             total += abs(math.radians(p["by_deg"])) / rate
         elif seg.type == "circle":
             total += p.get("time_s") or p["laps"] * 2 * math.pi * p["radius_m"] / speed
-        elif seg.type == "hold":
+        elif seg.type in ("hold", "hover"):
             total += p["time_s"]
         else:
             total += 60.0

@@ -177,14 +177,21 @@ def test_survey10_is_a_fixed_wing_and_a_file_without_class_is_one(tmp_path):
     assert airframe.kind == FIXED_WING and airframe == load_airframe(AIRCRAFT_DIR / "survey10")
 
 
-def test_a_multirotor_is_read_and_refused_until_its_controller_exists(tmp_path, capsys):
+#: a multirotor's start and segments
+HOVER_START = {"type": "hover", "lat_deg": 37.0, "lon_deg": 118.0, "alt_m": 20, "heading_deg": 45}
+MULTIROTOR_SEGMENTS = [{"type": "hover", "time_s": 10}, {"type": "goto", "north_m": 20, "east_m": 0, "yaw": "course"},
+                       {"type": "circle", "radius_m": 10, "laps": 1, "yaw": "center"}]
+
+
+def test_a_multirotor_is_read_and_validates_with_a_multirotors_track(tmp_path, capsys):
     folder = plane(tmp_path)
     (folder / "navsim.yaml").write_text(yaml.safe_dump(MULTIROTOR_YAML))
     airframe = load_airframe(folder)
     assert airframe.kind == MULTIROTOR and len(airframe.rotors) == 4
     assert airframe.rotors[1].position_m == (-0.16, 0.16, 0.0) and airframe.rotors[1].spin == -1
+    assert main(["validate", str(write_scenario(tmp_path, "./my_plane", MULTIROTOR_SEGMENTS, HOVER_START))]) == 0
     err = refused(capsys, ["validate", str(write_scenario(tmp_path, "./my_plane"))])
-    assert "s.yaml: aircraft" in err and "multirotor" in err and "controller is not there yet" in err, err
+    assert "s.yaml: track.start.type" in err and "'air' start is not a multirotor's" in err and "hover" in err, err
 
 
 @pytest.mark.parametrize("change, words", [
@@ -209,6 +216,16 @@ def test_a_segment_the_class_cannot_fly_is_named():
     assert set(SEGMENT_CLASSES) == set(SEGMENT_KEYS) and SEGMENT_CLASSES["hold"] == CLASSES
     check_segments(track, FIXED_WING, "s.yaml")                  # every one of them a fixed wing's
     with pytest.raises(ScenarioError) as info:
-        check_segments(track, MULTIROTOR, "s.yaml")
+        check_segments(dict_track(FIXED_WING_SEGMENTS, HOVER_START), MULTIROTOR, "s.yaml")
     text = str(info.value)
     assert "s.yaml: track.segments[0]" in text and "'straight'" in text and "multirotor" in text, text
+    check_segments(dict_track(MULTIROTOR_SEGMENTS, HOVER_START), MULTIROTOR, "s.yaml")
+    for segments, start, key in ((MULTIROTOR_SEGMENTS[:1], TRACK["start"], "track.segments[0]"),
+                                 (MULTIROTOR_SEGMENTS[1:], TRACK["start"], "track.segments[0].yaw"),
+                                 (FIXED_WING_SEGMENTS, HOVER_START, "track.start.type")):
+        with pytest.raises(ScenarioError, match=key.replace("[", r"\[").replace("]", r"\]")):
+            check_segments(dict_track(segments, start), FIXED_WING, "s.yaml")
+
+
+def dict_track(segments, start):
+    return parse_track(dict(TRACK, segments=segments, start=start))

@@ -13,6 +13,8 @@ def test_euler_quat_dcm_agree_with_scipy():
     np.testing.assert_allclose(tf.dcm_from_quat(q), ref.as_matrix(), atol=1e-12)
     np.testing.assert_allclose(tf.euler_from_quat(q), eul, atol=1e-9)
     np.testing.assert_allclose(tf.euler_from_dcm(tf.dcm_from_quat(q)), eul, atol=1e-9)
+    one = np.array([tf.dcm_from_euler_one(*e) for e in eul])
+    np.testing.assert_allclose(one, ref.as_matrix(), atol=1e-12)
 
 
 def test_quat_multiply_composes_rotations():

@@ -1,0 +1,239 @@
+"""A multirotor flown in JSBSim: its segments as setpoints, its motors commanded by the cascade
+controller of :mod:`navsim.flight.multirotor`, its mixer derived from the rotor table of its
+``navsim.yaml`` (:class:`~navsim.flight.airframe.Multirotor`).
+
+:func:`fly_rotorcraft` is what :func:`navsim.flight.simulator.fly` runs for an aircraft of class
+``multirotor``: started hovering at the track's start (``start: {type: hover}``), the motors'
+thrust map calibrated first with the airframe held (JSBSim's thrust at the declared hover
+throttle, per command squared), then the segments flown on the true state (``hover``: hold the
+point; ``goto``: a point moving along the line at the segment's speed; ``circle``: a point
+moving round the circle), each step checked for NaN, impact and loss of control.
+
+Segments chain on the commanded point, not on where the vehicle happens to be: a segment starts
+where the one before left its setpoint.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from navsim.flight import properties as P
+from navsim.flight.airframe import Multirotor, Rotor
+from navsim.flight.multirotor import Mixer, MultirotorController, MultirotorGains, MultirotorState, Setpoint, YawMode
+from navsim.flight.multirotor import Rotor as MixerRotor
+from navsim.flight.track import MULTIROTOR_SPEED_MPS, Segment, Track
+from navsim.foundations.earth import radii
+from navsim.foundations.errors import FlightError
+from navsim.foundations.transform import dcm_from_euler_one
+
+CALIBRATION_S = 1.0          #: seconds the motors run at the hover throttle, airframe held
+MAX_TILT_FAIL_RAD = math.radians(70.0)   #: roll or pitch beyond this is a loss of control
+#: a goto's moving point and a circle's reach their speed, and stop at a leg's end, at this
+#: acceleration, m/s^2
+SETPOINT_ACCEL_MPS2 = 1.0
+
+
+def mixer_rotor(rotor: Rotor, thrust_per_cmd2_n: float) -> MixerRotor:
+    """The mixer's view of an airframe rotor: its thrust axis (tilted ``tilt_deg`` about its arm,
+    the horizontal line from the centre of gravity out to the rotor), its spin about that axis
+    (an airframe's +1, clockwise seen from above, turns left-handed about the upward thrust),
+    the drag torque per thrust ``torque_coefficient / thrust_coefficient`` and the command map."""
+    x, y, _ = rotor.position_m
+    az, tilt = math.atan2(y, x), math.radians(rotor.tilt_deg)
+    axis = (-math.sin(tilt) * math.sin(az), math.sin(tilt) * math.cos(az), -math.cos(tilt))
+    return MixerRotor(pos_b_m=tuple(rotor.position_m), spin=-rotor.spin, thrust_per_cmd2_n=thrust_per_cmd2_n,
+                      torque_per_thrust_m=rotor.torque_coefficient / rotor.thrust_coefficient, axis_b=axis)
+
+
+class Rotorcraft:
+    """One JSBSim multirotor hovering at its track's start, its controller built: ready to step."""
+
+    def __init__(self, config, airframe: Multirotor):
+        track, env = config.track, config.environment
+        self.config, self.airframe, self.dt = config, airframe, 1.0 / config.rate_hz
+        self.io = io = P.JSBSimIO(config.aircraft, self.dt, config.aircraft_dir)
+        start = track.start
+        self.lat0, self.lon0 = math.radians(start.lat_deg), math.radians(start.lon_deg)
+        r_m, r_n = radii(self.lat0)
+        self.k_north, self.k_east = float(r_m), float(r_n) * math.cos(self.lat0)
+        self.h0 = start.alt_m
+        io.set_terrain(env.surface_m)
+        io.set_wind_ned(env.wind_n_mps)
+        io.set_initial_still(self.lat0, self.lon0, start.alt_m, math.radians(start.heading_deg), env.surface_m)
+        self.n = len(airframe.rotors)
+        self.set_commands = io.rotor_commands(self.n)
+        k = self._calibrate(airframe.hover_throttle)
+        mass_kg, inertia = io.mass_properties()
+        mixer = Mixer.from_rotors([mixer_rotor(r, k) for r in airframe.rotors])
+        gains = MultirotorGains(max_tilt_rad=math.radians(airframe.max_tilt_deg), max_climb_mps=airframe.max_climb_mps,
+                                max_sink_mps=airframe.max_descent_mps)
+        self.controller = MultirotorController(mixer, mass_kg, inertia, gains)
+        io.use_accurate_integrators()
+        io.run_ic()
+
+    def _calibrate(self, u: float) -> float:
+        """Thrust per command squared of one rotor (N): the motors held at ``u`` for
+        :data:`CALIBRATION_S`, the airframe re-placed at its start every step."""
+        self.set_commands([u] * self.n)
+        for _ in range(int(round(CALIBRATION_S / self.dt))):
+            self.io.run()
+            self.io.run_ic()
+        return self.io.rotor_thrust_n() / (self.n * u * u)
+
+    def state(self, row) -> MultirotorState:
+        """The controller's state of a JSBSim row (:data:`~navsim.flight.properties.RAW_PROPERTIES`)."""
+        return MultirotorState(
+            np.array([(row[P.COL_LAT] - self.lat0) * self.k_north, (row[P.COL_LON] - self.lon0) * self.k_east,
+                      self.h0 - row[P.COL_H]]),
+            np.array([row[P.COL_VN], row[P.COL_VE], row[P.COL_VD]]),
+            dcm_from_euler_one(row[P.COL_ROLL], row[P.COL_PITCH], row[P.COL_YAW]),
+            np.array([row[P.COL_P], row[P.COL_Q], row[P.COL_R]]))
+
+    def local_of_latlon(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
+        """North and east (m) of a latitude and longitude (deg) from the start."""
+        return ((math.radians(lat_deg) - self.lat0) * self.k_north, (math.radians(lon_deg) - self.lon0) * self.k_east)
+
+
+@dataclass
+class _Leg:
+    """The moving point of a segment: from ``origin`` (NED, m) along a line or round a circle."""
+
+    origin: np.ndarray
+    end: np.ndarray | None = None          #: a line's end
+    center: np.ndarray | None = None       #: a circle's centre
+    sense: float = 1.0                     #: +1 clockwise seen from above (right), -1 left
+    length_m: float = 0.0                  #: the way to go (a line's length, a circle's arc)
+    travelled_m: float = 0.0
+    speed_mps: float = 0.0                 #: the moving point's speed now
+
+
+class RotorSegments:
+    """The setpoints of a multirotor's segments, one per step, and when each ends."""
+
+    def __init__(self, track: Track, craft: Rotorcraft):
+        self.segments, self.craft = list(track.segments), craft
+        self.speed_mps = track.start.speed_mps or MULTIROTOR_SPEED_MPS
+        self.heading_rad = math.radians(track.start.heading_deg)
+        self.point = np.zeros(3)
+        self.index, self.finished, self.t0 = -1, False, 0.0
+        self.leg: _Leg | None = None
+
+    def fail(self, reason: str, t: float) -> FlightError:
+        seg = self.segments[self.index] if 0 <= self.index < len(self.segments) else None
+        return FlightError(reason, segment=self.index if seg else None, segment_label=seg.label if seg else None,
+                           time_s=t)
+
+    def next(self, t: float) -> None:
+        """Begin the next segment at time ``t`` (or finish)."""
+        self.index += 1
+        self.finished = self.index >= len(self.segments)
+        if self.finished:
+            return
+        seg, self.t0 = self.segments[self.index], t
+        speed = seg.speed_mps or self.speed_mps
+        if speed > self.craft.airframe.max_speed_mps:
+            raise self.fail(f"speed {speed:g} m/s above the aircraft's max_speed_mps "
+                            f"({self.craft.airframe.max_speed_mps:g} m/s)", t)
+        self.speed_mps = speed
+        self.leg = None if seg.type == "hover" else (self._line(seg) if seg.type == "goto" else self._circle(seg, t))
+
+    def _line(self, seg: Segment) -> _Leg:
+        if "north_m" in seg.params:
+            north, east = seg["north_m"], seg["east_m"]
+        else:
+            north, east = self.craft.local_of_latlon(seg["lat_deg"], seg["lon_deg"])
+        down = self.craft.h0 - seg["alt_m"] if "alt_m" in seg.params else self.point[2]
+        end = np.array([north, east, down])
+        return _Leg(origin=self.point.copy(), end=end, length_m=float(np.linalg.norm(end - self.point)))
+
+    def _circle(self, seg: Segment, t: float) -> _Leg:
+        """Centred ``radius_m`` to the side of the present heading (right for ``direction: right``)."""
+        sense = 1.0 if seg["direction"] == "right" else -1.0
+        side = self.heading_rad + sense * math.pi / 2.0
+        r = seg["radius_m"]
+        tilt = math.atan(self.speed_mps ** 2 / (r * 9.80665))
+        if tilt > math.radians(self.craft.airframe.max_tilt_deg):
+            raise self.fail(f"a {r:g} m circle at {self.speed_mps:g} m/s needs a {math.degrees(tilt):.0f} deg tilt "
+                            f"beyond the aircraft's max_tilt_deg ({self.craft.airframe.max_tilt_deg:g} deg)", t)
+        center = self.point + r * np.array([math.cos(side), math.sin(side), 0.0])
+        arc = 2.0 * math.pi * r * seg["laps"] if "laps" in seg.params else math.inf
+        return _Leg(origin=self.point.copy(), center=center, sense=sense, length_m=arc)
+
+    def setpoint(self, t: float, dt: float) -> Setpoint:
+        """The setpoint at time ``t``; moves to the next segment when this one is done."""
+        seg = self.segments[self.index]
+        leg = self.leg
+        vel = acc = np.zeros(3)
+        if leg is not None:
+            left = leg.length_m - leg.travelled_m          # slowing to stop at a leg's end
+            leg.speed_mps = min(self.speed_mps, leg.speed_mps + SETPOINT_ACCEL_MPS2 * dt,
+                                math.sqrt(2.0 * SETPOINT_ACCEL_MPS2 * left) if left < math.inf else math.inf)
+            leg.travelled_m = min(leg.travelled_m + leg.speed_mps * dt, leg.length_m)
+            self.point, vel, acc = self._along(leg)
+        done = (t - self.t0 >= seg["time_s"] - 1e-9) if "time_s" in seg.params else leg.travelled_m >= leg.length_m
+        sp = Setpoint(pos_n_m=tuple(self.point), vel_n_mps=tuple(vel), acc_n_mps2=tuple(acc),
+                      speed_max_mps=self.speed_mps + 1.0,
+                      yaw=self._yaw(seg))
+        if done:
+            self.next(t)
+        return sp
+
+    def _along(self, leg: _Leg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The moving point, its velocity and (round a circle) its centripetal acceleration."""
+        if leg.end is not None:
+            u = (leg.end - leg.origin) / max(leg.length_m, 1e-9)
+            return leg.origin + leg.travelled_m * u, leg.speed_mps * u * (leg.travelled_m < leg.length_m), np.zeros(3)
+        r_vec = leg.origin - leg.center
+        r = math.hypot(r_vec[0], r_vec[1])
+        a = math.atan2(r_vec[1], r_vec[0]) + leg.sense * leg.travelled_m / r
+        radial = np.array([math.cos(a), math.sin(a), 0.0])
+        tangent = leg.sense * np.array([-math.sin(a), math.cos(a), 0.0])
+        return leg.center + r * radial, leg.speed_mps * tangent, -(leg.speed_mps ** 2 / r) * radial
+
+    def _yaw(self, seg: Segment) -> YawMode:
+        mode = seg.get("yaw") or ("hold" if seg.type == "hover" else "course")
+        if "heading_deg" in seg.params:
+            return YawMode("heading", heading_rad=math.radians(seg["heading_deg"]))
+        if mode == "center":
+            return YawMode("point", target_n_m=tuple(self.leg.center))
+        return YawMode("course") if mode == "course" else YawMode("heading", heading_rad=self.heading_rad)
+
+
+def check_row(row, t: float, segments: RotorSegments) -> None:
+    """The failure checks of a step on the true state: NaN, impact, loss of control."""
+    if not (math.isfinite(row[P.COL_H]) and math.isfinite(row[P.COL_ROLL])):
+        raise segments.fail("the state became NaN (numerical failure)", t)
+    if row[P.COL_HAGL] < 0.3:
+        raise segments.fail(f"ground impact (height above surface {row[P.COL_HAGL]:.1f} m)", t)
+    if abs(row[P.COL_ROLL]) > MAX_TILT_FAIL_RAD or abs(row[P.COL_PITCH]) > MAX_TILT_FAIL_RAD:
+        raise segments.fail(f"loss of control (roll {math.degrees(row[P.COL_ROLL]):.0f} deg, "
+                            f"pitch {math.degrees(row[P.COL_PITCH]):.0f} deg)", t)
+
+
+def fly_rotorcraft(config, airframe: Multirotor, record, progress=None, nominal_s: float = 0.0) -> Rotorcraft:
+    """Fly ``config``'s track with the multirotor ``airframe``, each step's row given to
+    ``record(row, segment)``; ``progress(t_s, nominal_s)`` about once per simulated second.
+    Returns the craft. Raises FlightError."""
+    craft = Rotorcraft(config, airframe)
+    segments = RotorSegments(config.track, craft)
+    io, dt, ctrl = craft.io, craft.dt, craft.controller
+    segments.next(0.0)
+    k, next_progress = 0, 0.0
+    while True:
+        t = k * dt
+        row = io.read_row()
+        check_row(row, t, segments)
+        index = segments.index
+        if segments.finished:
+            return craft
+        setpoint = segments.setpoint(t, dt)
+        record(row, index)
+        if progress is not None and t >= next_progress:
+            progress(t, nominal_s)
+            next_progress += 1.0
+        craft.set_commands(ctrl.command(craft.state(row), setpoint, dt))
+        io.run()
+        k += 1
