@@ -10,7 +10,7 @@ import json
 
 from navsim.experiment.scenario import MAX_INITIAL, MAX_SEED, MAX_WORKERS, RATE_HZ
 from navsim.flight.environment import MAX_TURBULENCE_SEED
-from navsim.flight.track import MAX_AIRSPEED_MPS, SEGMENT_KEYS
+from navsim.flight.track import MAX_AIRSPEED_MPS, SEGMENT_KEYS, START_CLASSES
 from navsim.foundations.config import MAX_DURATION_S, MAX_RUNS, MAX_WIND_MPS, PLAIN_NAME_PATTERN
 from navsim.foundations.jsonschema import NUM, POS, merge_properties, obj
 from navsim.navigation.estimators import available as available_estimators, get as get_estimator
@@ -94,13 +94,13 @@ def _reference() -> dict:
 
 
 def _start() -> dict:
-    """``track.start``: air, launch or ground."""
-    start = obj({"type": {"enum": ["air", "launch", "ground"]}, "lat_deg": NUM, "lon_deg": NUM, "alt_m": NUM,
+    """``track.start``: air, launch, ground or (a multirotor's) hover."""
+    start = obj({"type": {"enum": list(START_CLASSES)}, "lat_deg": NUM, "lon_deg": NUM, "alt_m": NUM,
                   "speed_mps": AIRSPEED, "heading_deg": NUM, "pitch_deg": NUM, "roll_deg": NUM, "launcher_height_m": POS,
                   "booster_thrust_n": NUM, "booster_time_s": NUM},
                  ["lat_deg", "lon_deg", "alt_m"])
-    # a parked (ground) start has no speed; the others need one
-    start["if"] = {"properties": {"type": {"const": "ground"}}, "required": ["type"]}
+    # a parked (ground) start has no speed, a hover's has a default; the others need one
+    start["if"] = {"properties": {"type": {"enum": ["ground", "hover"]}}, "required": ["type"]}
     start["else"] = {"required": ["speed_mps"]}
     return start
 

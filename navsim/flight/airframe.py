@@ -35,8 +35,9 @@ CLASSES = (FIXED_WING, MULTIROTOR)
 FLOWN_CLASSES = (FIXED_WING, MULTIROTOR)
 #: the envelope file of an aircraft folder, beside ``<name>.xml``
 ENVELOPE_FILE = "navsim.yaml"
-#: the fewest rotors of a multirotor (roll, pitch and yaw from fixed-pitch rotors)
-MIN_ROTORS = 3
+#: the fewest rotors of a multirotor (thrust, roll, pitch and yaw from fixed-pitch rotors: the
+#: mixer's four)
+MIN_ROTORS = 4
 
 _POS = dict(exclusive_minimum=0.0)
 #: the fixed wing's keys (all required, SI and degrees as named) and their ranges

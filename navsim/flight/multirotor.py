@@ -259,9 +259,11 @@ class MultirotorGains:
     #: corner of the velocity loop's integral (its zero), below the loop's bandwidth by SEPARATION
     vel_i_bw_rps: float = RATE_BW_RPS / SEPARATION ** 3
     vel_i_max_mps2: float = 3.0        #: limit of the integral's acceleration, m/s^2
-    #: the integral runs only on an axis whose velocity error is under this, m/s (it learns the
-    #: steady push of a wind or a thrust-map error, not the lag of a manoeuvre, which would
-    #: leave a slow tail after it)
+    #: the integral grows only on an axis whose velocity error, or velocity, is under this, m/s:
+    #: it learns the steady push of a wind or a thrust-map error (one the vehicle holds still
+    #: against, displaced), not the lag of a manoeuvre, which would leave a slow tail after it; it
+    #: shrinks at any error (what a manoeuvre left in it would otherwise hold the vehicle off its
+    #: point for good)
     vel_i_band_mps: float = 0.2
     max_tilt_rad: float = math.radians(35.0)   #: largest tilt of the thrust from the vertical
     max_rate_rps: float = math.radians(220.0)  #: largest commanded roll and pitch rate
@@ -320,7 +322,8 @@ class MultirotorController:
             vel_cmd[:2] *= setpoint.speed_max_mps / speed
         vel_cmd[2] = min(max(vel_cmd[2], -g.max_climb_mps), g.max_sink_mps)
         err = vel_cmd - state.vel_n_mps
-        near = np.abs(err) < g.vel_i_band_mps
+        near = (np.abs(err) < g.vel_i_band_mps) | (np.abs(state.vel_n_mps) < g.vel_i_band_mps) \
+            | (err * self.vel_i_mps2 < 0.0)
         self.vel_i_mps2 = np.minimum(np.maximum(self.vel_i_mps2 + near * (g.vel_bw_rps * g.vel_i_bw_rps * dt_s) * err,
                                                 -g.vel_i_max_mps2), g.vel_i_max_mps2)
         return g.vel_bw_rps * err + self.vel_i_mps2 + np.asarray(setpoint.acc_n_mps2, float)

@@ -285,9 +285,11 @@ class JSBSimIO:
                 set_u(float(ui))
         return set_all
 
-    def rotor_rpm(self, n: int) -> list[float]:
-        """The ``n`` rotors' speeds, r/min."""
-        return [self.fdm[ROTOR_RPM.format(i=i)] for i in range(n)]
+    def rotor_rpm(self, n: int):
+        """A function reading the ``n`` rotors' speeds (r/min) as a list."""
+        pm = self.fdm.get_property_manager()
+        getters = [pm.get_node(ROTOR_RPM.format(i=i), False).get_double_value for i in range(n)]
+        return lambda: [get() for get in getters]
 
     def rotor_thrust_n(self) -> float:
         """The rotors' total thrust along body -z, N."""

@@ -21,16 +21,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.flight import properties as P
-from navsim.flight.airframe import Multirotor, Rotor
-from navsim.flight.multirotor import Mixer, MultirotorController, MultirotorGains, MultirotorState, Setpoint, YawMode
+from navsim.flight.airframe import ENVELOPE_FILE, Multirotor, Rotor
+from navsim.flight.environment import Environment, steady_wind_n_mps
+from navsim.flight.multirotor import (GRAVITY_MPS2, Mixer, MultirotorController, MultirotorGains, MultirotorState,
+                                      Setpoint, YawMode)
 from navsim.flight.multirotor import Rotor as MixerRotor
 from navsim.flight.track import MULTIROTOR_SPEED_MPS, Segment, Track
 from navsim.foundations.earth import radii
-from navsim.foundations.errors import FlightError
+from navsim.foundations.errors import FlightError, ScenarioError
 from navsim.foundations.transform import dcm_from_euler_one
 
 CALIBRATION_S = 1.0          #: seconds the motors run at the hover throttle, airframe held
 MAX_TILT_FAIL_RAD = math.radians(70.0)   #: roll or pitch beyond this is a loss of control
+MIN_AGL_M = 0.3              #: lower than this above the surface is an impact (the skids' height)
 #: a goto's moving point and a circle's reach their speed, and stop at a leg's end, at this
 #: acceleration, m/s^2
 SETPOINT_ACCEL_MPS2 = 1.0
@@ -48,11 +51,26 @@ def mixer_rotor(rotor: Rotor, thrust_per_cmd2_n: float) -> MixerRotor:
                       torque_per_thrust_m=rotor.torque_coefficient / rotor.thrust_coefficient, axis_b=axis)
 
 
+def check_environment(env: Environment, file: str | None = None) -> None:
+    """Refuse what a multirotor does not fly in yet: JSBSim's turbulence (its models are driven
+    by the airspeed, which a hover does not have; issue 52's next step).
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``file`` and ``environment.turbulence``.
+    """
+    if env.turbulence != "none":
+        raise ScenarioError(f"'{env.turbulence}' turbulence is not flown on a multirotor yet", file=file,
+                            key="environment.turbulence", expected="turbulence: none (a steady wind and its changes fly)")
+
+
 class Rotorcraft:
     """One JSBSim multirotor hovering at its track's start, its controller built: ready to step."""
 
     def __init__(self, config, airframe: Multirotor):
         track, env = config.track, config.environment
+        check_environment(env)
         self.config, self.airframe, self.dt = config, airframe, 1.0 / config.rate_hz
         self.io = io = P.JSBSimIO(config.aircraft, self.dt, config.aircraft_dir)
         start = track.start
@@ -66,8 +84,16 @@ class Rotorcraft:
         self.n = len(airframe.rotors)
         self.set_commands = io.rotor_commands(self.n)
         k = self._calibrate(airframe.hover_throttle)
+        file = str(config.folder / ENVELOPE_FILE)
+        if not k > 0.0:
+            raise ScenarioError(f"the model's {self.n} engines give no thrust at hover_throttle {airframe.hover_throttle:g}",
+                                file=file, key="rotors", expected="one JSBSim engine (a thruster) per rotor of the table")
         mass_kg, inertia = io.mass_properties()
-        mixer = Mixer.from_rotors([mixer_rotor(r, k) for r in airframe.rotors])
+        try:
+            mixer = Mixer.from_rotors([mixer_rotor(r, k) for r in airframe.rotors])
+        except ValueError as exc:            # fewer than 4 rotors, or a wrench they cannot make
+            raise ScenarioError(str(exc), file=file, key="rotors",
+                                expected="rotors whose thrusts and torques make any thrust, roll, pitch and yaw") from None
         gains = MultirotorGains(max_tilt_rad=math.radians(airframe.max_tilt_deg), max_climb_mps=airframe.max_climb_mps,
                                 max_sink_mps=airframe.max_descent_mps)
         self.controller = MultirotorController(mixer, mass_kg, inertia, gains)
@@ -106,6 +132,7 @@ class _Leg:
     center: np.ndarray | None = None       #: a circle's centre
     sense: float = 1.0                     #: +1 clockwise seen from above (right), -1 left
     length_m: float = 0.0                  #: the way to go (a line's length, a circle's arc)
+    speed_cap_mps: float = math.inf        #: a line's speed at the climb or descent limit
     travelled_m: float = 0.0
     speed_mps: float = 0.0                 #: the moving point's speed now
 
@@ -116,7 +143,8 @@ class RotorSegments:
     def __init__(self, track: Track, craft: Rotorcraft):
         self.segments, self.craft = list(track.segments), craft
         self.speed_mps = track.start.speed_mps or MULTIROTOR_SPEED_MPS
-        self.heading_rad = math.radians(track.start.heading_deg)
+        self.heading_rad = math.radians(track.start.heading_deg)   # the nose's, a `yaw: hold` keeps
+        self.course_rad = self.heading_rad     # the way flown last: a circle is centred to its side
         self.point = np.zeros(3)
         self.index, self.finished, self.t0 = -1, False, 0.0
         self.leg: _Leg | None = None
@@ -133,6 +161,8 @@ class RotorSegments:
         if self.finished:
             return
         seg, self.t0 = self.segments[self.index], t
+        if self.craft.controller.heading_rad is not None:
+            self.heading_rad = self.craft.controller.heading_rad
         speed = seg.speed_mps or self.speed_mps
         if speed > self.craft.airframe.max_speed_mps:
             raise self.fail(f"speed {speed:g} m/s above the aircraft's max_speed_mps "
@@ -147,14 +177,22 @@ class RotorSegments:
             north, east = self.craft.local_of_latlon(seg["lat_deg"], seg["lon_deg"])
         down = self.craft.h0 - seg["alt_m"] if "alt_m" in seg.params else self.point[2]
         end = np.array([north, east, down])
-        return _Leg(origin=self.point.copy(), end=end, length_m=float(np.linalg.norm(end - self.point)))
+        way = end - self.point
+        length = float(np.linalg.norm(way))
+        if math.hypot(way[0], way[1]) > 0.1:
+            self.course_rad = math.atan2(way[1], way[0])
+        # the climb or descent along the line held to the airframe's limits
+        af, sine = self.craft.airframe, abs(way[2]) / max(length, 1e-9)
+        cap = (af.max_descent_mps if way[2] > 0 else af.max_climb_mps) / sine if sine > 0 else math.inf
+        return _Leg(origin=self.point.copy(), end=end, length_m=length, speed_cap_mps=cap)
 
     def _circle(self, seg: Segment, t: float) -> _Leg:
-        """Centred ``radius_m`` to the side of the present heading (right for ``direction: right``)."""
+        """Centred ``radius_m`` to the side of the way flown last (right for ``direction: right``):
+        the last goto's direction, the start's heading before any."""
         sense = 1.0 if seg["direction"] == "right" else -1.0
-        side = self.heading_rad + sense * math.pi / 2.0
+        side = self.course_rad + sense * math.pi / 2.0
         r = seg["radius_m"]
-        tilt = math.atan(self.speed_mps ** 2 / (r * 9.80665))
+        tilt = math.atan(self.speed_mps ** 2 / (r * GRAVITY_MPS2))
         if tilt > math.radians(self.craft.airframe.max_tilt_deg):
             raise self.fail(f"a {r:g} m circle at {self.speed_mps:g} m/s needs a {math.degrees(tilt):.0f} deg tilt "
                             f"beyond the aircraft's max_tilt_deg ({self.craft.airframe.max_tilt_deg:g} deg)", t)
@@ -169,7 +207,7 @@ class RotorSegments:
         vel = acc = np.zeros(3)
         if leg is not None:
             left = leg.length_m - leg.travelled_m          # slowing to stop at a leg's end
-            leg.speed_mps = min(self.speed_mps, leg.speed_mps + SETPOINT_ACCEL_MPS2 * dt,
+            leg.speed_mps = min(self.speed_mps, leg.speed_cap_mps, leg.speed_mps + SETPOINT_ACCEL_MPS2 * dt,
                                 math.sqrt(2.0 * SETPOINT_ACCEL_MPS2 * left) if left < math.inf else math.inf)
             leg.travelled_m = min(leg.travelled_m + leg.speed_mps * dt, leg.length_m)
             self.point, vel, acc = self._along(leg)
@@ -206,7 +244,7 @@ def check_row(row, t: float, segments: RotorSegments) -> None:
     """The failure checks of a step on the true state: NaN, impact, loss of control."""
     if not (math.isfinite(row[P.COL_H]) and math.isfinite(row[P.COL_ROLL])):
         raise segments.fail("the state became NaN (numerical failure)", t)
-    if row[P.COL_HAGL] < 0.3:
+    if row[P.COL_HAGL] < MIN_AGL_M:
         raise segments.fail(f"ground impact (height above surface {row[P.COL_HAGL]:.1f} m)", t)
     if abs(row[P.COL_ROLL]) > MAX_TILT_FAIL_RAD or abs(row[P.COL_PITCH]) > MAX_TILT_FAIL_RAD:
         raise segments.fail(f"loss of control (roll {math.degrees(row[P.COL_ROLL]):.0f} deg, "
@@ -214,12 +252,15 @@ def check_row(row, t: float, segments: RotorSegments) -> None:
 
 
 def fly_rotorcraft(config, airframe: Multirotor, record, progress=None, nominal_s: float = 0.0) -> Rotorcraft:
-    """Fly ``config``'s track with the multirotor ``airframe``, each step's row given to
-    ``record(row, segment)``; ``progress(t_s, nominal_s)`` about once per simulated second.
-    Returns the craft. Raises FlightError."""
+    """Fly ``config``'s track with the multirotor ``airframe``, each step's row (its properties,
+    then its rotors' speeds in r/min) given to ``record(row, segment)``; ``progress(t_s,
+    nominal_s)`` about once per simulated second. Returns the craft. Raises FlightError."""
     craft = Rotorcraft(config, airframe)
     segments = RotorSegments(config.track, craft)
     io, dt, ctrl = craft.io, craft.dt, craft.controller
+    read_rpm = io.rotor_rpm(craft.n)
+    env = config.environment
+    wind_changes = bool(env.wind_changes)
     segments.next(0.0)
     k, next_progress = 0, 0.0
     while True:
@@ -230,10 +271,12 @@ def fly_rotorcraft(config, airframe: Multirotor, record, progress=None, nominal_
         if segments.finished:
             return craft
         setpoint = segments.setpoint(t, dt)
-        record(row, index)
+        record(row + read_rpm(), index)
         if progress is not None and t >= next_progress:
             progress(t, nominal_s)
             next_progress += 1.0
         craft.set_commands(ctrl.command(craft.state(row), setpoint, dt))
+        if wind_changes:
+            io.set_wind_ned(steady_wind_n_mps(env, t + dt))
         io.run()
         k += 1

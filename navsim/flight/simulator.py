@@ -202,7 +202,9 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
     if config.track.start.type == "ground":
         return _parked(config)
     airframe = load_limits(config)
-    rec, dt = _Recorder(len(P.RAW_PROPERTIES), 1 << 14), 1.0 / config.rate_hz
+    # a multirotor's rows carry its rotors' speeds after the properties (truth_from_rows)
+    extra = len(airframe.rotors) if airframe.kind == MULTIROTOR else 0
+    rec, dt = _Recorder(len(P.RAW_PROPERTIES) + extra, 1 << 14), 1.0 / config.rate_hz
     try:
         if airframe.kind == MULTIROTOR:
             fly_rotorcraft(config, airframe, rec.add, progress, nominal_duration_s(config.track))

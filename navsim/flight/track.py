@@ -256,6 +256,9 @@ def _parse_segment(item, path: str, file: str | None, index: int) -> Segment:
         elif len(given) > 1:
             raise node.error(f"a '{kind}' segment takes only one of "
                              + " or ".join("+".join(g) for g in groups))
+    if "yaw" in params and "heading_deg" in params:
+        raise node.error("takes yaw or heading_deg, not both", "heading_deg",
+                         expected="yaw: hold, course or center, or heading_deg: a heading to hold")
     if kind == "turn" and params["by_deg"] == 0.0:
         raise node.error("is 0", "by_deg", expected="a non-zero angle (+ right, - left)")
     return Segment(type=kind, label=label, params=params, speed_mps=speed)

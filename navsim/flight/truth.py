@@ -22,7 +22,9 @@ terrain_m          (N,)         terrain / sea-surface height above the ellipsoid
 wind_n_mps         (N, 3)       air-mass velocity (steady wind plus turbulence), NED, m/s
 wind_steady_n_mps  (N, 3)       its steady part (the scenario's wind, changing as it sets), m/s
 alpha_rad, beta_rad (N,)        angle of attack and sideslip, rad
-throttle           (N,)         throttle position, 0..1
+throttle           (N,)         throttle position, 0..1 (a multirotor's: its first motor's)
+rotor_rpm          (N, R)       each rotor's speed, r/min: the fixed wing's propeller (R = 1), a
+                                multirotor's rotors in its rotor table's order, none at rest (R = 0)
 segment            (N,)         index of the active track segment (-1 during the launch)
 =================  ===========  ==============================================================
 
@@ -46,7 +48,7 @@ from navsim.foundations.transform import dcm_from_quat, quat_from_euler
 ARRAY_FIELDS = ("t_s", "lat_rad", "lon_rad", "h_m", "vel_n_mps", "quat_nb", "euler_rad",
                 "omega_ib_b_rps", "f_b_mps2", "tas_mps", "cas_mps", "p_static_pa", "p_total_pa",
                 "temp_k", "h_agl_m", "terrain_m", "wind_n_mps", "wind_steady_n_mps", "alpha_rad", "beta_rad",
-                "throttle", "segment")
+                "throttle", "rotor_rpm", "segment")
 #: what :meth:`Truth.save` writes of a truth: the arrays, the segment labels, the meta (JSON)
 _CONTENT = (*ARRAY_FIELDS, "segment_labels", "meta")
 #: the entries a cached flight carries beside: its cache key and the SHA-256 of its contents
@@ -99,6 +101,7 @@ class Truth:
     alpha_rad: np.ndarray
     beta_rad: np.ndarray
     throttle: np.ndarray
+    rotor_rpm: np.ndarray
     segment: np.ndarray
     segment_labels: list[str] = field(default_factory=list)
     meta: dict = field(default_factory=dict)
@@ -188,7 +191,7 @@ class Truth:
             temp_k=float(atmosphere.temperature(h_m)) * ones, h_agl_m=hagl,
             terrain_m=h_m - hagl, wind_n_mps=np.zeros((n, 3)), wind_steady_n_mps=np.zeros((n, 3)),
             alpha_rad=0 * ones,
-            beta_rad=0 * ones, throttle=0 * ones, segment=np.zeros(n, np.int16),
+            beta_rad=0 * ones, throttle=0 * ones, rotor_rpm=np.zeros((n, 0)), segment=np.zeros(n, np.int16),
             segment_labels=["static"], meta={"rate_hz": rate_hz, "track": "static"})
 
     def __eq__(self, other) -> bool:  # arrays compare element-wise
@@ -201,8 +204,12 @@ class Truth:
 
 def truth_from_rows(rows: np.ndarray, t_s: np.ndarray, segment: np.ndarray,
                     segment_labels: list[str], meta: dict) -> Truth:
-    """Build the container from raw rows of :func:`JSBSimIO.read_row` (already SI)."""
+    """Build the container from raw rows of :func:`JSBSimIO.read_row` (already SI), each followed
+    by the rotors' speeds (r/min) where there are more columns than
+    :data:`~navsim.flight.properties.RAW_PROPERTIES` (a multirotor's), else the propeller's."""
     r = rows
+    n_raw = len(P.RAW_PROPERTIES)
+    rotor_rpm = r[:, n_raw:].copy() if r.shape[1] > n_raw else r[:, P.COL_RPM:P.COL_RPM + 1].copy()
     euler = r[:, [P.COL_ROLL, P.COL_PITCH, P.COL_YAW]].copy()
     euler[:, 2] = (euler[:, 2] + np.pi) % (2 * np.pi) - np.pi
     mass = r[:, P.COL_MASS:P.COL_MASS + 1]
@@ -228,6 +235,7 @@ def truth_from_rows(rows: np.ndarray, t_s: np.ndarray, segment: np.ndarray,
         alpha_rad=r[:, P.COL_ALPHA].copy(),
         beta_rad=r[:, P.COL_BETA].copy(),
         throttle=r[:, P.COL_THROTTLE].copy(),
+        rotor_rpm=rotor_rpm,
         segment=segment.astype(np.int16),
         segment_labels=list(segment_labels),
         meta=meta,
