@@ -31,7 +31,7 @@ from navsim.experiment.closed_loop import parse_closed_loop
 from navsim.experiment.driver import InitialErrors
 from navsim.experiment.reference import parse_reference
 from navsim.flight.airframe import ENVELOPE_FILE, FIXED_WING, MULTIROTOR, check_controller, load_airframe
-from navsim.flight.rotorcraft import check_environment
+from navsim.flight.rotorcraft import check_envelope, check_environment
 from navsim.flight.environment import parse_environment
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.simulator import DEFAULT_AIRCRAFT, FlightConfig
@@ -111,6 +111,7 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     _check_start(track, environment, file)
     if airframe.kind == MULTIROTOR:
         check_environment(environment, file)
+        check_envelope(track, airframe, file)
     node._seen.add("sensors")
     sensors = parse_sensors(node.data.get("sensors"), file)
     runs, seed, workers = _montecarlo(node.child("montecarlo", None))

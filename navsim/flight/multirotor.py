@@ -219,13 +219,15 @@ class YawMode:
 class Setpoint:
     """Where the controller flies: ``pos_n_m`` (NED from the reference, m), a velocity
     feed-forward ``vel_n_mps``, an acceleration feed-forward ``acc_n_mps2`` (a circle's
-    centripetal acceleration), the horizontal speed limit ``speed_max_mps`` and the yaw mode."""
+    centripetal acceleration), the horizontal speed limit ``speed_max_mps``, the yaw mode and a
+    feed-forward of the heading's rate ``yaw_rate_rps`` (a nose turning with a circle)."""
 
     pos_n_m: tuple
     vel_n_mps: tuple = (0.0, 0.0, 0.0)
     acc_n_mps2: tuple = (0.0, 0.0, 0.0)
     speed_max_mps: float = 5.0
     yaw: YawMode = YawMode()
+    yaw_rate_rps: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -306,7 +308,7 @@ class MultirotorController:
         acc_n = self.acceleration_n(state, setpoint, dt_s)
         thrust_dir_n, collective_n = self.thrust_vector(acc_n, state.C_nb)
         yaw_rad = self.yaw_setpoint(state, setpoint)
-        omega_cmd = self.rate_command(state.C_nb, thrust_dir_n, yaw_rad)
+        omega_cmd = self.rate_command(state.C_nb, thrust_dir_n, yaw_rad, setpoint.yaw_rate_rps)
         torque = self.torque(state.omega_b_rps, omega_cmd)
         self.last_wrench = np.array([collective_n, *torque])
         return self.mixer.commands(self.mixer.thrusts(self.last_wrench))
@@ -360,10 +362,12 @@ class MultirotorController:
                 self.heading_rad = math.atan2(de, dn)
         return self.heading_rad
 
-    def rate_command(self, C_nb: np.ndarray, thrust_dir_n: np.ndarray, yaw_rad: float) -> np.ndarray:
+    def rate_command(self, C_nb: np.ndarray, thrust_dir_n: np.ndarray, yaw_rad: float,
+                     yaw_rate_rps: float = 0.0) -> np.ndarray:
         """Attitude loop: the body rates (rad/s) that turn the body towards the attitude with its
         -z along ``thrust_dir_n`` and its nose towards ``yaw_rad`` (limited to
-        ``max_yaw_step_rad`` from the present heading)."""
+        ``max_yaw_step_rad`` from the present heading), plus the heading's rate ``yaw_rate_rps``
+        (about down) fed forward."""
         g = self.gains
         psi = math.atan2(C_nb[1, 0], C_nb[0, 0])
         step = (yaw_rad - psi + math.pi) % (2.0 * math.pi) - math.pi
@@ -376,6 +380,8 @@ class MultirotorController:
         e_r = 0.5 * np.array([E[2, 1], E[0, 2], E[1, 0]])
         omega = -g.att_bw_rps * e_r
         omega[2] = -g.yaw_bw_rps * e_r[2]
+        if yaw_rate_rps:                          # the heading's rate about down, in body axes
+            omega += yaw_rate_rps * C_nb[2]
         lim, lim_yaw = g.max_rate_rps, g.max_yaw_rate_rps
         return np.array([min(max(omega[0], -lim), lim), min(max(omega[1], -lim), lim),
                          min(max(omega[2], -lim_yaw), lim_yaw)])

@@ -65,6 +65,36 @@ def check_environment(env: Environment, file: str | None = None) -> None:
                             key="environment.turbulence", expected="turbulence: none (a steady wind and its changes fly)")
 
 
+def circle_tilt_rad(speed_mps: float, radius_m: float) -> float:
+    """The tilt a circle at ``speed_mps`` of ``radius_m`` needs in calm air (its centripetal
+    acceleration over gravity)."""
+    return math.atan(speed_mps ** 2 / (radius_m * GRAVITY_MPS2))
+
+
+def check_envelope(track: Track, airframe: Multirotor, file: str | None = None) -> None:
+    """Refuse a multirotor track that asks its airframe for more than its envelope: a speed above
+    ``max_speed_mps``, a circle needing more tilt than ``max_tilt_deg`` (in calm air: a wind asks
+    more, and fails the flight, exit 3).
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``file``, the segment's key and the limit.
+    """
+    speed = track.start.speed_mps or MULTIROTOR_SPEED_MPS
+    for i, seg in enumerate(track.segments):
+        speed = seg.speed_mps or speed
+        key = f"track.segments[{i}]"
+        if speed > airframe.max_speed_mps:
+            raise ScenarioError(f"flies at {speed:g} m/s", file=file, key=f"{key}.speed_mps",
+                                expected=f"at most the aircraft's max_speed_mps ({airframe.max_speed_mps:g} m/s)")
+        if seg.type == "circle" and circle_tilt_rad(speed, seg["radius_m"]) > math.radians(airframe.max_tilt_deg):
+            raise ScenarioError(
+                f"a {seg['radius_m']:g} m circle at {speed:g} m/s needs a "
+                f"{math.degrees(circle_tilt_rad(speed, seg['radius_m'])):.0f} deg tilt", file=file, key=f"{key}.radius_m",
+                expected=f"at most the aircraft's max_tilt_deg ({airframe.max_tilt_deg:g} deg): a wider circle or a lower speed")
+
+
 class Rotorcraft:
     """One JSBSim multirotor hovering at its track's start, its controller built: ready to step."""
 
@@ -192,7 +222,7 @@ class RotorSegments:
         sense = 1.0 if seg["direction"] == "right" else -1.0
         side = self.course_rad + sense * math.pi / 2.0
         r = seg["radius_m"]
-        tilt = math.atan(self.speed_mps ** 2 / (r * GRAVITY_MPS2))
+        tilt = circle_tilt_rad(self.speed_mps, r)
         if tilt > math.radians(self.craft.airframe.max_tilt_deg):
             raise self.fail(f"a {r:g} m circle at {self.speed_mps:g} m/s needs a {math.degrees(tilt):.0f} deg tilt "
                             f"beyond the aircraft's max_tilt_deg ({self.craft.airframe.max_tilt_deg:g} deg)", t)
@@ -212,9 +242,12 @@ class RotorSegments:
             leg.travelled_m = min(leg.travelled_m + leg.speed_mps * dt, leg.length_m)
             self.point, vel, acc = self._along(leg)
         done = (t - self.t0 >= seg["time_s"] - 1e-9) if "time_s" in seg.params else leg.travelled_m >= leg.length_m
+        yaw = self._yaw(seg)
+        turning = leg is not None and leg.center is not None and yaw.kind != "heading"
         sp = Setpoint(pos_n_m=tuple(self.point), vel_n_mps=tuple(vel), acc_n_mps2=tuple(acc),
-                      speed_max_mps=self.speed_mps + 1.0,
-                      yaw=self._yaw(seg))
+                      speed_max_mps=self.speed_mps + 1.0, yaw=yaw,
+                      # round a circle the course and the bearing of its centre turn at v / r
+                      yaw_rate_rps=leg.sense * leg.speed_mps / self._radius(leg) if turning else 0.0)
         if done:
             self.next(t)
         return sp
@@ -225,11 +258,16 @@ class RotorSegments:
             u = (leg.end - leg.origin) / max(leg.length_m, 1e-9)
             return leg.origin + leg.travelled_m * u, leg.speed_mps * u * (leg.travelled_m < leg.length_m), np.zeros(3)
         r_vec = leg.origin - leg.center
-        r = math.hypot(r_vec[0], r_vec[1])
+        r = self._radius(leg)
         a = math.atan2(r_vec[1], r_vec[0]) + leg.sense * leg.travelled_m / r
         radial = np.array([math.cos(a), math.sin(a), 0.0])
         tangent = leg.sense * np.array([-math.sin(a), math.cos(a), 0.0])
         return leg.center + r * radial, leg.speed_mps * tangent, -(leg.speed_mps ** 2 / r) * radial
+
+    @staticmethod
+    def _radius(leg: _Leg) -> float:
+        """A circle's radius (its start's distance from the centre), m."""
+        return math.hypot(leg.origin[0] - leg.center[0], leg.origin[1] - leg.center[1])
 
     def _yaw(self, seg: Segment) -> YawMode:
         mode = seg.get("yaw") or ("hold" if seg.type == "hover" else "course")
