@@ -85,6 +85,8 @@ def check_envelope(track: Track, airframe: Multirotor, file: str | None = None) 
     for i, seg in enumerate(track.segments):
         speed = seg.speed_mps or speed
         key = f"track.segments[{i}]"
+        if seg.type == "hover":                  # it does not move: its speed is the next ones'
+            continue
         if speed > airframe.max_speed_mps:
             raise ScenarioError(f"flies at {speed:g} m/s", file=file, key=f"{key}.speed_mps",
                                 expected=f"at most the aircraft's max_speed_mps ({airframe.max_speed_mps:g} m/s)")
@@ -194,7 +196,7 @@ class RotorSegments:
         if self.craft.controller.heading_rad is not None:
             self.heading_rad = self.craft.controller.heading_rad
         speed = seg.speed_mps or self.speed_mps
-        if speed > self.craft.airframe.max_speed_mps:
+        if speed > self.craft.airframe.max_speed_mps and seg.type != "hover":
             raise self.fail(f"speed {speed:g} m/s above the aircraft's max_speed_mps "
                             f"({self.craft.airframe.max_speed_mps:g} m/s)", t)
         self.speed_mps = speed
