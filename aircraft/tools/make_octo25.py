@@ -109,6 +109,30 @@ def engine_xml(i, k, level, pos, axis, sense, psi, s):
     </engine>"""
 
 
+def drag_axis(axis, cda_m2, velocity, rotor_drag):
+    """One body axis's drag: the body's (quadratic in the airspeed), and with ``rotor_drag`` the
+    rotors' (their speeds' sum times the air-relative ``velocity`` component)."""
+    rotor = f"""
+      <function name="aero/force/{axis}_rotor_drag">
+        <product>
+          <value> {-K_LBF:.4e} </value>
+          <property>aero/rotor-rpm-sum</property>
+          <property>velocities/{velocity}</property>
+        </product>
+      </function>""" if rotor_drag else ""
+    return f"""    <axis name="{axis}">
+      <function name="aero/force/{axis}_body_drag">
+        <product>
+          <value> {-0.5 * cda_m2 * M2FT2:.5f} </value>
+          <property>atmosphere/rho-slugs_ft3</property>
+          <property>velocities/vt-fps</property>
+          <property>velocities/{velocity}</property>
+        </product>
+      </function>{rotor}
+    </axis>
+"""
+
+
 def contact(name, typ, x, y, z, k, c, extra=""):
     return f"""    <contact type="{typ}" name="{name}">
       <location unit="M"> <x> {x:.3f} </x> <y> {y:.3f} </y> <z> {z:.3f} </z> </location>
@@ -135,6 +159,8 @@ def main():
         gear.append(contact(f"ARM{k}_END", "STRUCTURE", -R_ARM * math.cos(psi), R_ARM * math.sin(psi),
                             Z_HUB - HALF_GAP, 10000, 400))
     engines = "".join(engine_xml(*r) for r in rs)
+    drag_axes = "".join(drag_axis(a, cda, v, a != "Z") for a, cda, v in (
+        ("X", CDA_XY, "u-aero-fps"), ("Y", CDA_XY, "v-aero-fps"), ("Z", CDA_Z, "w-aero-fps")))
     xml = f"""<?xml version="1.0"?>
 <!--
   octo25: JSBSim model of P4's heavy-lift agricultural octocopter, 24.5 kg, eight arms with a
@@ -213,51 +239,7 @@ def main():
 {rpm_props}
       </sum>
     </function>
-    <axis name="X">
-      <function name="aero/force/X_body_drag">
-        <product>
-          <value> {-0.5 * CDA_XY * M2FT2:.5f} </value>
-          <property>atmosphere/rho-slugs_ft3</property>
-          <property>velocities/vt-fps</property>
-          <property>velocities/u-aero-fps</property>
-        </product>
-      </function>
-      <function name="aero/force/X_rotor_drag">
-        <product>
-          <value> {-K_LBF:.4e} </value>
-          <property>aero/rotor-rpm-sum</property>
-          <property>velocities/u-aero-fps</property>
-        </product>
-      </function>
-    </axis>
-    <axis name="Y">
-      <function name="aero/force/Y_body_drag">
-        <product>
-          <value> {-0.5 * CDA_XY * M2FT2:.5f} </value>
-          <property>atmosphere/rho-slugs_ft3</property>
-          <property>velocities/vt-fps</property>
-          <property>velocities/v-aero-fps</property>
-        </product>
-      </function>
-      <function name="aero/force/Y_rotor_drag">
-        <product>
-          <value> {-K_LBF:.4e} </value>
-          <property>aero/rotor-rpm-sum</property>
-          <property>velocities/v-aero-fps</property>
-        </product>
-      </function>
-    </axis>
-    <axis name="Z">
-      <function name="aero/force/Z_body_drag">
-        <product>
-          <value> {-0.5 * CDA_Z * M2FT2:.5f} </value>
-          <property>atmosphere/rho-slugs_ft3</property>
-          <property>velocities/vt-fps</property>
-          <property>velocities/w-aero-fps</property>
-        </product>
-      </function>
-    </axis>
-    <!-- no aerodynamic moments (declared so that JSBSim knows the moment axes: body X, Y, Z) -->
+{drag_axes}    <!-- no aerodynamic moments (declared so that JSBSim knows the moment axes: body X, Y, Z) -->
     <axis name="ROLL"/>
     <axis name="PITCH"/>
     <axis name="YAW"/>

@@ -215,9 +215,10 @@ class JSBSimIO:
         self._set_thr(throttle)
 
     # --- set-up --------------------------------------------------------------------------------
-    def set_initial(self, ic: InitialCondition) -> None:
+    def set_initial(self, ic: InitialCondition, still: bool = False) -> None:
         """Start from ``ic`` (:class:`InitialCondition`): its air velocity plus the wind set by
-        :meth:`set_wind_ned` gives the velocity over the ground."""
+        :meth:`set_wind_ned` gives the velocity over the ground; ``still``: no velocity over the
+        ground (a hovering multirotor; ``ic``'s airspeed and flight-path angle unused)."""
         lat_rad, lon_rad, h_m, tas_mps, yaw_rad, pitch_rad, roll_rad, gamma_rad, terrain_m = ic
         fdm = self.fdm
         fdm[IC_TERRAIN_FT] = terrain_m / FT_TO_M
@@ -226,7 +227,7 @@ class JSBSimIO:
         fdm[IC_H_SL_FT] = h_m / FT_TO_M
         cg = np.cos(gamma_rad)
         v_air = tas_mps * np.array([cg * np.cos(yaw_rad), cg * np.sin(yaw_rad), -np.sin(gamma_rad)])
-        vn, ve, vd = v_air / FT_TO_M + np.array(self._wind_fps)
+        vn, ve, vd = (0.0, 0.0, 0.0) if still else v_air / FT_TO_M + np.array(self._wind_fps)
         fdm[IC_VN_FPS], fdm[IC_VE_FPS], fdm[IC_VD_FPS] = vn, ve, vd
         fdm[IC_THETA_DEG] = np.degrees(pitch_rad)
         fdm[IC_PHI_DEG] = np.degrees(roll_rad)
@@ -300,17 +301,6 @@ class JSBSimIO:
         i = {k: self.fdm[name] * SLUGFT2_TO_KGM2 for k, name in INERTIA_SLUGFT2.items()}
         J = np.array([[i["xx"], -i["xy"], -i["xz"]], [-i["xy"], i["yy"], -i["yz"]], [-i["xz"], -i["yz"], i["zz"]]])
         return self.fdm[MASS_SLUGS] * SLUG_TO_KG, J
-
-    def set_initial_still(self, lat_rad: float, lon_rad: float, h_m: float, yaw_rad: float, terrain_m: float) -> None:
-        """Start level and still (no velocity over the ground) at a geodetic position and heading."""
-        fdm = self.fdm
-        fdm[IC_TERRAIN_FT] = terrain_m / FT_TO_M
-        fdm[IC_LAT_GEOD_DEG], fdm[IC_LON_DEG] = np.degrees(lat_rad), np.degrees(lon_rad)
-        fdm[IC_H_SL_FT] = h_m / FT_TO_M
-        fdm[IC_VN_FPS] = fdm[IC_VE_FPS] = fdm[IC_VD_FPS] = 0.0
-        fdm[IC_THETA_DEG] = fdm[IC_PHI_DEG] = 0.0
-        fdm[IC_PSI_DEG] = np.degrees(yaw_rad)
-        self.run_ic()
 
     def set_booster_n(self, thrust_n: float) -> None:
         """Thrust of the launch booster along body x, N."""

@@ -112,7 +112,9 @@ class Rotorcraft:
         self.h0 = start.alt_m
         io.set_terrain(env.surface_m)
         io.set_wind_ned(env.wind_n_mps)
-        io.set_initial_still(self.lat0, self.lon0, start.alt_m, math.radians(start.heading_deg), env.surface_m)
+        io.set_initial(P.InitialCondition(lat_rad=self.lat0, lon_rad=self.lon0, h_m=start.alt_m, tas_mps=0.0,
+                                          yaw_rad=math.radians(start.heading_deg), pitch_rad=0.0,
+                                          terrain_m=env.surface_m), still=True)
         self.n = len(airframe.rotors)
         self.set_commands = io.rotor_commands(self.n)
         k = self._calibrate(airframe.hover_throttle)
