@@ -21,6 +21,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import jsbsim
 import numpy as np
 
 from navsim.experiment.chunkstore import chunk_name, job_chunks
@@ -113,8 +114,9 @@ def data_key(scenario, seed: int) -> str:
 
 
 def flight_key(config) -> str:
-    """Hash of everything that determines a flight: the configuration, navsim's version and the
-    aircraft folder's files. A folder outside ``aircraft/`` (beside a scenario) enters by its
+    """Hash of everything that determines a flight: the configuration, navsim's and JSBSim's
+    versions (JSBSim's own models, such as one an airframe's ``jsbsim_model`` names, ship with it)
+    and the aircraft folder's files. A folder outside ``aircraft/`` (beside a scenario) enters by its
     model's identity (:func:`~navsim.flight.airframe.model_digest`: every file, sub-folders too,
     by name and content) in place of its path: an edited model flies again, a copy elsewhere
     shares the flight."""
@@ -122,8 +124,8 @@ def flight_key(config) -> str:
     described = plain(config)
     if config.aircraft_dir:
         described["aircraft_dir"] = f"model {model_digest(config.folder)}"
-    h.update(json.dumps({"config": described, "version": __version__}, sort_keys=True,
-                        default=str).encode())
+    h.update(json.dumps({"config": described, "version": __version__, "jsbsim": jsbsim.__version__},
+                        sort_keys=True, default=str).encode())
     for path in sorted(config.folder.glob("*")):
         if path.is_file():
             h.update(path.read_bytes())

@@ -30,7 +30,7 @@ import numpy as np
 from navsim.experiment.closed_loop import parse_closed_loop
 from navsim.experiment.driver import InitialErrors
 from navsim.experiment.reference import parse_reference
-from navsim.flight.airframe import ENVELOPE_FILE, FIXED_WING, MULTIROTOR, check_controller, load_airframe
+from navsim.flight.airframe import ENVELOPE_FILE, FIXED_WING, JSBSIM_MODEL_KEY, MULTIROTOR, check_controller, load_airframe
 from navsim.flight.rotorcraft import check_envelope, check_environment
 from navsim.flight.environment import parse_environment
 from navsim.flight.properties import AIRCRAFT_DIR
@@ -87,7 +87,8 @@ class Scenario:
 
 
 def available_aircraft() -> list[str]:
-    return sorted(p.name for p in AIRCRAFT_DIR.iterdir() if (p / f"{p.name}.xml").is_file())
+    """The shipped aircraft: the folders of aircraft/ holding a ``navsim.yaml``."""
+    return sorted(p.name for p in AIRCRAFT_DIR.iterdir() if (p / ENVELOPE_FILE).is_file())
 
 
 TOP_KEYS = ("name", "description", "aircraft", "track", "environment", "flight", "sensors",
@@ -184,7 +185,8 @@ def _name(node: Node, file: str | None) -> str:
 
 def _aircraft(node: Node, file: str | None) -> tuple[str, str | None, object]:
     """``aircraft``: a shipped folder of aircraft/ by name, or a folder beside or below the
-    scenario by a relative path, holding ``<name>.xml`` and ``navsim.yaml``. Returns the model's
+    scenario by a relative path, holding ``navsim.yaml`` and ``<name>.xml`` (or naming a model of
+    the jsbsim package in ``navsim.yaml``). Returns the model's
     name, the folder holding it (None: a shipped one) and its airframe
     (:func:`~navsim.flight.airframe.load_airframe`), refused where navsim has no controller for
     its class yet."""
@@ -205,11 +207,14 @@ def _aircraft(node: Node, file: str | None) -> tuple[str, str | None, object]:
         raise ScenarioError(f"'{ref}' is a folder named '{folder.name}'", file=file, key="aircraft",
                             expected="a folder of a plain name (letters, digits, '.', '_', '-'): JSBSim loads "
                                      "the model by it")
-    for name, what in ((f"{folder.name}.xml", "the JSBSim model, named after its folder"),
-                       (ENVELOPE_FILE, "the aircraft's class and envelope (aircraft/README.md)")):
-        if not (folder / name).is_file():
-            raise ScenarioError(f"'{ref}' has no {name}", file=file, key="aircraft", expected=f"{name}: {what}")
+    if not (folder / ENVELOPE_FILE).is_file():
+        raise ScenarioError(f"'{ref}' has no {ENVELOPE_FILE}", file=file, key="aircraft",
+                            expected=f"{ENVELOPE_FILE}: the aircraft's class and envelope (aircraft/README.md)")
     airframe = load_airframe(folder)
+    if airframe.jsbsim_model is None and not (folder / f"{folder.name}.xml").is_file():
+        raise ScenarioError(f"'{ref}' has no {folder.name}.xml", file=file, key="aircraft",
+                            expected=f"{folder.name}.xml: the JSBSim model, named after its folder",
+                            hint=f"or {JSBSIM_MODEL_KEY}: in its {ENVELOPE_FILE}, naming a model of the jsbsim package")
     check_controller(airframe, ref, file=file, key="aircraft")
     return folder.name, aircraft_dir, airframe
 

@@ -25,7 +25,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
 
-from navsim.foundations.config import Node, check_numbers, load_yaml
+import jsbsim
+
+from navsim.foundations.config import Node, check_numbers, close_match, load_yaml
 from navsim.foundations.errors import ScenarioError
 
 FIXED_WING, MULTIROTOR = "fixed_wing", "multirotor"
@@ -67,6 +69,16 @@ ROTOR_KEYS = {
     "thrust_coefficient": (None, _POS),    # thrust = k * omega^2, N/(rad/s)^2
     "torque_coefficient": (None, _POS),    # drag torque = k * omega^2, N m/(rad/s)^2
 }
+#: a rotor's JSBSim properties (``{i}``: its index in the table, JSBSim's engine index), each a
+#: key of its own in the table where the model has others: the motor's command in [0, 1] and the
+#: rotor's speed, r/min
+ROTOR_PROPERTIES = {
+    "command": "fcs/throttle-cmd-norm[{i}]",
+    "rpm": "propulsion/engine[{i}]/propeller-rpm",
+}
+#: the optional key naming a model that ships with the ``jsbsim`` package (a folder of its
+#: ``aircraft/``), flown from an aircraft folder holding ``navsim.yaml`` only
+JSBSIM_MODEL_KEY = "jsbsim_model"
 #: a rotor's spin: +1 clockwise seen from above (turning about the body's +z, down), -1 the other way
 SPINS = (1, -1)
 
@@ -86,6 +98,8 @@ class FixedWing:
     max_climb_mps: float
     trim_throttle: float
     trim_alpha_deg: float
+    #: a model of the ``jsbsim`` package flown instead of the folder's ``<name>.xml``
+    jsbsim_model: str | None = None
 
 
 @dataclass(frozen=True)
@@ -100,6 +114,8 @@ class Rotor:
     tilt_deg: float
     thrust_coefficient: float   #: N/(rad/s)^2
     torque_coefficient: float   #: N m/(rad/s)^2
+    command: str                #: the JSBSim property of its motor's command, 0..1
+    rpm: str                    #: the JSBSim property of its speed, r/min
 
 
 @dataclass(frozen=True)
@@ -115,6 +131,8 @@ class Multirotor:
     max_speed_mps: float
     hover_throttle: float
     rotors: tuple[Rotor, ...]
+    #: a model of the ``jsbsim`` package flown instead of the folder's ``<name>.xml``
+    jsbsim_model: str | None = None
 
 
 def load_airframe(folder: str | Path) -> FixedWing | Multirotor:
@@ -143,12 +161,33 @@ def load_airframe(folder: str | Path) -> FixedWing | Multirotor:
     data = load_yaml(path)
     node = Node({} if data is None else data, "", str(path))
     kind = node.get("class", str, FIXED_WING, choices=CLASSES)
-    airframe = _fixed_wing(node) if kind == FIXED_WING else _multirotor(node)
+    model = node.get(JSBSIM_MODEL_KEY, str, None)
+    if model is not None and not (jsbsim_aircraft_dir() / model / f"{model}.xml").is_file():
+        known = sorted(p.name for p in jsbsim_aircraft_dir().iterdir() if (p / f"{p.name}.xml").is_file())
+        raise node.error(f"'{model}' is not a model of the jsbsim package", JSBSIM_MODEL_KEY,
+                         expected=f"a folder of {jsbsim_aircraft_dir()} holding <name>.xml",
+                         hint=close_match(model, known))
+    airframe = _fixed_wing(node, model) if kind == FIXED_WING else _multirotor(node, model)
     node.done()
     return airframe
 
 
-def _fixed_wing(node: Node) -> FixedWing:
+def jsbsim_aircraft_dir() -> Path:
+    """The ``aircraft/`` folder of the ``jsbsim`` package: the models :data:`JSBSIM_MODEL_KEY`
+    names."""
+    return Path(jsbsim.get_default_root_dir()) / "aircraft"
+
+
+def model_location(folder: str | Path, airframe: FixedWing | Multirotor) -> tuple[str, Path]:
+    """The JSBSim model an aircraft ``folder`` flies: its name and the folder holding it (the
+    ``jsbsim`` package's ``aircraft/`` for an airframe naming a :data:`JSBSIM_MODEL_KEY`)."""
+    folder = Path(folder)
+    if airframe.jsbsim_model is not None:
+        return airframe.jsbsim_model, jsbsim_aircraft_dir()
+    return folder.name, folder.parent
+
+
+def _fixed_wing(node: Node, model: str | None) -> FixedWing:
     """A :class:`FixedWing` of ``node``'s keys, its speeds in order."""
     values = {name: node.get(name, float, **bounds) for name, bounds in FIXED_WING_KEYS.items()}
     if values["min_speed_mps"] < values["stall_speed_mps"]:
@@ -157,20 +196,20 @@ def _fixed_wing(node: Node) -> FixedWing:
     if values["max_speed_mps"] <= values["min_speed_mps"]:
         raise node.error(f"is {values['max_speed_mps']:g} m/s", "max_speed_mps",
                          expected=f"above min_speed_mps ({values['min_speed_mps']:g} m/s)")
-    return FixedWing(**values)
+    return FixedWing(**values, jsbsim_model=model)
 
 
-def _multirotor(node: Node) -> Multirotor:
+def _multirotor(node: Node, model: str | None) -> Multirotor:
     """A :class:`Multirotor` of ``node``'s keys and its ``rotors`` list."""
     values = {name: node.get(name, float, **bounds) for name, bounds in MULTIROTOR_KEYS.items()}
     raw = node.items("rotors", MIN_ROTORS, f"a list of at least {MIN_ROTORS} rotors, each "
                      "{position_m: [x, y, z], spin: 1 or -1, tilt_deg, thrust_coefficient, torque_coefficient}")
-    rotors = tuple(_rotor(Node(item, node.key(f"rotors[{i}]"), node.file)) for i, item in enumerate(raw))
-    return Multirotor(**values, rotors=rotors)
+    rotors = tuple(_rotor(Node(item, node.key(f"rotors[{i}]"), node.file), i) for i, item in enumerate(raw))
+    return Multirotor(**values, rotors=rotors, jsbsim_model=model)
 
 
-def _rotor(node: Node) -> Rotor:
-    """One rotor of the ``rotors`` list."""
+def _rotor(node: Node, index: int) -> Rotor:
+    """The rotor ``index`` of the ``rotors`` list."""
     node._seen.add("position_m")
     if not node.has("position_m"):
         raise node.missing("position_m", "[x, y, z] in body axes from the centre of gravity, m")
@@ -179,8 +218,9 @@ def _rotor(node: Node) -> Rotor:
     spin = node.get("spin", int, choices=SPINS)
     values = {name: node.get(name, float, **bounds) if default is None else node.get(name, float, default, **bounds)
               for name, (default, bounds) in ROTOR_KEYS.items()}
+    names = {key: node.get(key, str, default.format(i=index)) for key, default in ROTOR_PROPERTIES.items()}
     node.done()
-    return Rotor(position_m=tuple(position), spin=spin, **values)
+    return Rotor(position_m=tuple(position), spin=spin, **values, **names)
 
 
 def check_controller(airframe: FixedWing | Multirotor, name: str, *, file: str | None, key: str) -> None:

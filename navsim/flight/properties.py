@@ -9,7 +9,9 @@ scaled to SI by :data:`RAW_TO_SI`; column indices are the ``COL_*`` constants.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
 from pathlib import Path
 from typing import NamedTuple
 
@@ -96,9 +98,8 @@ IC_PSI_DEG = "ic/psi-true-deg"
 IC_THETA_DEG = "ic/theta-deg"
 IC_PHI_DEG = "ic/phi-deg"
 
-#: a multirotor's motor ``i`` (JSBSim's engine ``i``): its command in [0, 1] and its speed
-ROTOR_CMD_NORM = "fcs/throttle-cmd-norm[{i}]"
-ROTOR_RPM = "propulsion/engine[{i}]/propeller-rpm"
+#: a multirotor's motors' command and speed properties are its rotor table's
+#: (:data:`navsim.flight.airframe.ROTOR_PROPERTIES`)
 RUN_ALL_ENGINES = "propulsion/set-running"        #: -1 starts every engine
 #: the propulsive force along body z (the rotors' thrust is its negative), lbf
 PROPULSIVE_FZ_LBS = "forces/fbz-prop-lbs"
@@ -143,6 +144,21 @@ class InitialCondition(NamedTuple):
     terrain_m: float = 0.0      #: terrain height above the ellipsoid, m
 
 
+@contextlib.contextmanager
+def quiet_stdout():
+    """Standard output (file descriptor 1, where JSBSim's C++ writes) sent to the null device
+    for the ``with`` block."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+            yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 class JSBSimIO:
     """One JSBSim instance, spoken to in SI units.
 
@@ -175,7 +191,8 @@ class JSBSimIO:
         fdm.set_engine_path(str(root / "engine"))
         fdm.set_systems_path(str(root / "systems"))
         try:
-            loaded, reason = fdm.load_model(aircraft), "its load failed"
+            with quiet_stdout():              # JSBSim's notes on a model (version, ties) are not the user's
+                loaded, reason = fdm.load_model(aircraft), "its load failed"
         except jsbsim.BaseError as exc:       # JSBSim's reason (it prints it on stdout too)
             loaded, reason = False, " ".join(str(exc).split())
         if not loaded:
@@ -274,11 +291,19 @@ class JSBSimIO:
         self.fdm[TURB_SEVERITY] = int(severity)
 
     # --- a multirotor's motors -----------------------------------------------------------------
-    def rotor_commands(self, n: int):
-        """A function setting the ``n`` motors' commands (a sequence in [0, 1]) at once, all
-        engines running."""
+    def _nodes(self, names) -> list:
+        """The property nodes of ``names``; KeyError naming the first the model does not have."""
         pm = self.fdm.get_property_manager()
-        setters = [pm.get_node(ROTOR_CMD_NORM.format(i=i), True).set_double_value for i in range(n)]
+        nodes = [pm.get_node(name, False) for name in names]
+        for name, node in zip(names, nodes):
+            if node is None:
+                raise KeyError(name)
+        return nodes
+
+    def rotor_commands(self, names):
+        """A function setting the motors' commands (a sequence in [0, 1], one per property of
+        ``names``) at once, all engines running. KeyError naming a property the model lacks."""
+        setters = [node.set_double_value for node in self._nodes(names)]
         self.fdm[RUN_ALL_ENGINES] = -1
 
         def set_all(u) -> None:
@@ -286,11 +311,15 @@ class JSBSimIO:
                 set_u(float(ui))
         return set_all
 
-    def rotor_rpm(self, n: int):
-        """A function reading the ``n`` rotors' speeds (r/min) as a list."""
-        pm = self.fdm.get_property_manager()
-        getters = [pm.get_node(ROTOR_RPM.format(i=i), False).get_double_value for i in range(n)]
+    def rotor_rpm(self, names):
+        """A function reading the rotors' speeds (r/min, the properties ``names``) as a list.
+        KeyError naming a property the model lacks."""
+        getters = [node.get_double_value for node in self._nodes(names)]
         return lambda: [get() for get in getters]
+
+    def engine_count(self) -> int:
+        """The number of engines of the model."""
+        return self.fdm.get_propulsion().get_num_engines()
 
     def rotor_thrust_n(self) -> float:
         """The rotors' total thrust along body -z, N."""

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.flight import properties as P
-from navsim.flight.airframe import ENVELOPE_FILE, Multirotor, Rotor
+from navsim.flight.airframe import ENVELOPE_FILE, Multirotor, Rotor, model_location
 from navsim.flight.environment import Environment, steady_wind_n_mps
 from navsim.flight.multirotor import (GRAVITY_MPS2, Mixer, MultirotorController, MultirotorGains, MultirotorState,
                                       Setpoint, YawMode)
@@ -104,7 +104,8 @@ class Rotorcraft:
         track, env = config.track, config.environment
         check_environment(env)
         self.config, self.airframe, self.dt = config, airframe, 1.0 / config.rate_hz
-        self.io = io = P.JSBSimIO(config.aircraft, self.dt, config.aircraft_dir)
+        model, model_dir = model_location(config.folder, airframe)
+        self.io = io = P.JSBSimIO(model, self.dt, model_dir)
         start = track.start
         self.lat0, self.lon0 = math.radians(start.lat_deg), math.radians(start.lon_deg)
         r_m, r_n = radii(self.lat0)
@@ -116,9 +117,13 @@ class Rotorcraft:
                                           yaw_rad=math.radians(start.heading_deg), pitch_rad=0.0,
                                           terrain_m=env.surface_m), still=True)
         self.n = len(airframe.rotors)
-        self.set_commands = io.rotor_commands(self.n)
-        k = self._calibrate(airframe.hover_throttle)
         file = str(config.folder / ENVELOPE_FILE)
+        if io.engine_count() != self.n:
+            raise ScenarioError(f"the model has {io.engine_count()} engines, the rotor table {self.n} rotors", file=file,
+                                key="rotors", expected="one rotor per JSBSim engine, in the model's engine order")
+        self.set_commands = self._properties(io.rotor_commands, "command", file)
+        self.read_rpm = self._properties(io.rotor_rpm, "rpm", file)
+        k = self._calibrate(airframe.hover_throttle)
         if not k > 0.0:
             raise ScenarioError(f"the model's {self.n} engines give no thrust at hover_throttle {airframe.hover_throttle:g}",
                                 file=file, key="rotors", expected="one JSBSim engine (a thruster) per rotor of the table")
@@ -133,6 +138,18 @@ class Rotorcraft:
         self.controller = MultirotorController(mixer, mass_kg, inertia, gains)
         io.use_accurate_integrators()
         io.run_ic()
+
+    def _properties(self, bind, key: str, file: str):
+        """``bind`` (a :class:`~navsim.flight.properties.JSBSimIO` method) over the rotors'
+        property ``key``; a property the model lacks refused naming the rotor's key."""
+        names = [getattr(r, key) for r in self.airframe.rotors]
+        try:
+            return bind(names)
+        except KeyError as exc:
+            i = names.index(exc.args[0])
+            raise ScenarioError(f"the model has no property '{names[i]}'", file=file, key=f"rotors[{i}].{key}",
+                                expected="a property of the JSBSim model (its flight control system's input, "
+                                         "or the default of aircraft/README.md)") from None
 
     def _calibrate(self, u: float) -> float:
         """Thrust per command squared of one rotor (N): the motors held at ``u`` for
@@ -300,7 +317,7 @@ def fly_rotorcraft(config, airframe: Multirotor, record, progress=None, nominal_
     craft = Rotorcraft(config, airframe)
     segments = RotorSegments(config.track, craft)
     io, dt, ctrl = craft.io, craft.dt, craft.controller
-    read_rpm = io.rotor_rpm(craft.n)
+    read_rpm = craft.read_rpm
     env = config.environment
     wind_changes = bool(env.wind_changes)
     segments.next(0.0)

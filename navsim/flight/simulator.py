@@ -17,7 +17,8 @@ from typing import NamedTuple
 import numpy as np
 
 from navsim.flight import properties as P
-from navsim.flight.airframe import ENVELOPE_FILE, MULTIROTOR, FixedWing, Multirotor, check_controller, load_airframe
+from navsim.flight.airframe import (ENVELOPE_FILE, MULTIROTOR, FixedWing, Multirotor, check_controller,
+                                   load_airframe, model_location)
 from navsim.flight.autopilot import Autopilot, Gains, Sensed
 from navsim.flight.environment import Environment, steady_wind_n_mps
 from navsim.flight.rotorcraft import fly_rotorcraft
@@ -107,7 +108,8 @@ class Aircraft:
         track, env = config.track, config.environment
         self.config, self.dt = config, 1.0 / config.rate_hz
         self.limits = load_limits(config)
-        self.io = io = P.JSBSimIO(config.aircraft, self.dt, config.aircraft_dir)
+        model, model_dir = model_location(config.folder, self.limits)
+        self.io = io = P.JSBSimIO(model, self.dt, model_dir)
         self.ap = ap = Autopilot(config.gains)
         start = track.start
         self.lat0, self.lon0 = lat0, lon0 = math.radians(start.lat_deg), math.radians(start.lon_deg)

@@ -1,5 +1,6 @@
 """Aircraft folders (issue 52, items 2 and 3): ``aircraft:`` names a shipped folder or a folder
-beside the scenario holding ``<name>.xml`` and ``navsim.yaml``; the airframe's class and envelope
+beside the scenario holding ``<name>.xml`` and ``navsim.yaml`` (or ``navsim.yaml`` naming a model
+of the jsbsim package); the airframe's class and envelope
 are read from ``navsim.yaml`` and checked; each segment type names the classes that fly it.
 
 A copy of survey10 beside a scenario under another name flies survey10's flight bit for bit; each
@@ -229,3 +230,57 @@ def test_a_segment_the_class_cannot_fly_is_named():
 
 def dict_track(segments, start):
     return parse_track(dict(TRACK, segments=segments, start=start))
+
+
+def test_octo25_copied_beside_a_scenario_under_another_name_validates_and_flies(tmp_path):
+    """A user's multirotor: octo25's folder copied as ``my_octo`` (its model renamed inside),
+    flown from a scenario beside it: the same flight as the shipped octo25's, bit for bit."""
+    dest = tmp_path / "my_octo"
+    dest.mkdir()
+    xml = (AIRCRAFT_DIR / "octo25" / "octo25.xml").read_text()
+    (dest / "my_octo.xml").write_text(xml.replace('name="octo25"', 'name="my_octo"'))
+    shutil.copy(AIRCRAFT_DIR / "octo25" / "navsim.yaml", dest / "navsim.yaml")
+    segments = [{"type": "hover", "time_s": 2}, {"type": "goto", "north_m": 5, "east_m": 0}]
+    mine = load_scenario(write_scenario(tmp_path, "./my_octo", segments, HOVER_START))
+    assert mine.flight.aircraft_dir == str(tmp_path)
+    shipped = dataclasses.replace(mine.flight, aircraft="octo25", aircraft_dir=None)
+    a, b = fly(mine.flight), fly(shipped)
+    assert a.n == b.n and np.array_equal(a.lat_rad, b.lat_rad) and np.array_equal(a.h_m, b.h_m)
+    assert np.array_equal(a.rotor_rpm, b.rotor_rpm) and a.rotor_rpm.shape[1] == 16
+
+
+def f450_folder(tmp_path: Path, **change) -> Path:
+    """aircraft/f450's navsim.yaml (no model: it names the jsbsim package's F450) beside a
+    scenario as ``quad``, changed by ``change``."""
+    dest = tmp_path / "quad"
+    dest.mkdir()
+    data = yaml.safe_load((AIRCRAFT_DIR / "f450" / "navsim.yaml").read_text())
+    (dest / "navsim.yaml").write_text(yaml.safe_dump(dict(data, **change)))
+    return dest
+
+
+def test_a_folder_naming_a_jsbsim_package_model_holds_navsim_yaml_only(tmp_path):
+    f450_folder(tmp_path)
+    assert main(["validate", str(write_scenario(tmp_path, "./quad", MULTIROTOR_SEGMENTS, HOVER_START))]) == 0
+
+
+@pytest.mark.parametrize("change, code, words", [
+    ({"jsbsim_model": "F405"}, 2, ["navsim.yaml: jsbsim_model", "'F405' is not a model of the jsbsim package",
+                                   "F450"]),
+    ({"rotors": "add"}, 2, ["navsim.yaml: rotors", "4 engines, the rotor table 5 rotors"]),
+    ({"rotors": "rename"}, 2, ["navsim.yaml: rotors[2].command", "no property 'fcs/cmdFX_ext_nd'"]),
+])
+def test_a_jsbsim_package_model_the_table_does_not_fit_is_refused(tmp_path, capsys, change, code, words):
+    """A model name the jsbsim package lacks (validation), a rotor table with more rotors than
+    the model's engines or naming a command property the model lacks (at the flight's start):
+    exit 2 naming navsim.yaml and the key."""
+    rotors = yaml.safe_load((AIRCRAFT_DIR / "f450" / "navsim.yaml").read_text())["rotors"]
+    if change.get("rotors") == "add":
+        change = {"rotors": rotors + [dict(rotors[0], command="fcs/cmdFR_ext_nd")]}
+    elif change.get("rotors") == "rename":
+        change = {"rotors": rotors[:2] + [dict(rotors[2], command="fcs/cmdFX_ext_nd")] + rotors[3:]}
+    f450_folder(tmp_path, **change)
+    err = refused(capsys, ["fly", str(write_scenario(tmp_path, "./quad", MULTIROTOR_SEGMENTS[:1], HOVER_START)),
+                           "--out", str(tmp_path / "out")], code)
+    for w in words:
+        assert w in err, (w, err)
