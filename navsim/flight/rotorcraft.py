@@ -37,6 +37,8 @@ MIN_AGL_M = 0.3              #: lower than this above the surface is an impact (
 #: a goto's moving point and a circle's reach their speed, and stop at a leg's end, at this
 #: acceleration, m/s^2
 SETPOINT_ACCEL_MPS2 = 1.0
+#: the least steady wind a multirotor flies JSBSim's turbulence in, m/s (:func:`check_environment`)
+MIN_TURBULENCE_WIND_MPS = 3.0
 
 
 def mixer_rotor(rotor: Rotor, thrust_per_cmd2_n: float) -> MixerRotor:
@@ -52,17 +54,22 @@ def mixer_rotor(rotor: Rotor, thrust_per_cmd2_n: float) -> MixerRotor:
 
 
 def check_environment(env: Environment, file: str | None = None) -> None:
-    """Refuse what a multirotor does not fly in yet: JSBSim's turbulence (its models are driven
-    by the airspeed, which a hover does not have; issue 52's next step).
+    """Refuse JSBSim's turbulence on a multirotor in a wind below
+    :data:`MIN_TURBULENCE_WIND_MPS`: its models carry a frozen gust field past the vehicle at its
+    airspeed, which a hover has only from the wind (in calm air a hover would see none).
 
     Raises
     ------
     ScenarioError
         Naming ``file`` and ``environment.turbulence``.
     """
-    if env.turbulence != "none":
-        raise ScenarioError(f"'{env.turbulence}' turbulence is not flown on a multirotor yet", file=file,
-                            key="environment.turbulence", expected="turbulence: none (a steady wind and its changes fly)")
+    wind = math.hypot(env.wind_n_mps[0], env.wind_n_mps[1])
+    if env.turbulence != "none" and wind < MIN_TURBULENCE_WIND_MPS:
+        raise ScenarioError(f"'{env.turbulence}' turbulence in a {wind:g} m/s wind on a multirotor", file=file,
+                            key="environment.turbulence",
+                            expected=f"a steady wind of at least {MIN_TURBULENCE_WIND_MPS:g} m/s with it: JSBSim's "
+                                     "turbulence is a gust field carried past the vehicle at its airspeed, which a "
+                                     "hovering multirotor has only from the wind")
 
 
 def circle_tilt_rad(speed_mps: float, radius_m: float) -> float:
@@ -137,6 +144,9 @@ class Rotorcraft:
                                 max_sink_mps=airframe.max_descent_mps)
         self.controller = MultirotorController(mixer, mass_kg, inertia, gains)
         io.use_accurate_integrators()
+        if env.turbulence != "none":          # after the calibration, which it would disturb
+            io.set_turbulence(env.turbulence, env.turbulence_wind20_mps, env.turbulence_severity,
+                              env.turbulence_seed)
         io.run_ic()
 
     def _properties(self, bind, key: str, file: str):
