@@ -20,6 +20,8 @@ PLOT_POINTS = 2000
 #: y label), right, below (tick labels and x label), between two rows, above the first row
 #: (the segments' numbers)
 MARGIN_IN = {"left": 0.95, "right": 0.3, "bottom": 0.55, "row": 0.2, "numbers": 0.2}
+#: the most a heading drawn unwrapped may turn in all, deg (more: drawn wrapped to [0, 360))
+MAX_UNWRAPPED_DEG = 720.0
 
 
 def drawn(y: np.ndarray, points: int = PLOT_POINTS) -> np.ndarray:
@@ -180,12 +182,39 @@ def _wind_axis(ax, truth: Truth) -> None:
     ax.legend(fontsize=7, loc="best", ncol=2)
 
 
+def _heading_axis(ax, truth: Truth) -> None:
+    """The heading, continuous where it turns less than :data:`MAX_UNWRAPPED_DEG` in all; else
+    (a vehicle circling for long) wrapped to [0, 360) deg and drawn as dots, evenly thinned."""
+    t, yaw = truth.t_s, np.degrees(np.unwrap(truth.euler_rad[:, 2]))
+    if np.ptp(yaw) <= MAX_UNWRAPPED_DEG:
+        _plot(ax, t, yaw, label="heading")
+    else:
+        k = np.arange(0, len(t), -(-len(t) // PLOT_POINTS))
+        ax.plot(t[k], yaw[k] % 360.0, ".", ms=1.5, label="heading")
+        ax.set_ylim(0.0, 360.0)
+        ax.set_yticks([0, 90, 180, 270, 360])
+    ax.set_ylabel("heading, deg")
+
+
+def _rotor_axis(ax, truth: Truth) -> None:
+    """A multirotor's rotor speeds: their mean and the band from the slowest to the fastest."""
+    t, rpm = truth.t_s, truth.rotor_rpm
+    lo, hi = rpm.min(axis=1), rpm.max(axis=1)
+    k = np.unique(np.r_[drawn(lo), drawn(hi)])
+    ax.fill_between(t[k], lo[k], hi[k], color="tab:purple", alpha=0.3, lw=0,
+                    label=f"slowest to fastest of {rpm.shape[1]} rotors")
+    _plot(ax, t, rpm.mean(axis=1), color="tab:purple", lw=1.0, label="mean")
+    ax.set_ylabel("rotor speed, r/min")
+    ax.legend(fontsize=7, loc="best")
+
+
 def _time_figure(truth: Truth, names: list[str], figsize, footer_in: float):
-    """Height, speeds, bank and pitch, heading and (in wind) the wind against time, the
-    segments shaded and numbered."""
+    """Height, speeds, bank and pitch, heading, a multirotor's rotor speeds and (in wind) the
+    wind against time, the segments shaded and numbered."""
     import matplotlib.pyplot as plt
     windy = bool(np.any(truth.wind_n_mps))
-    fig, axs = plt.subplots(5 if windy else 4, 1, figsize=figsize or (10, 10), sharex=True)
+    rotors = truth.rotor_rpm.shape[1] > 1
+    fig, axs = plt.subplots(4 + windy + rotors, 1, figsize=figsize or (10, 10), sharex=True)
     t = truth.t_s
     _plot(axs[0], t, truth.h_m, label="height (ellipsoid)")
     _plot(axs[0], t, truth.h_agl_m, "--", lw=0.8, label="above surface")
@@ -199,10 +228,11 @@ def _time_figure(truth: Truth, names: list[str], figsize, footer_in: float):
     _plot(axs[2], t, np.degrees(truth.euler_rad[:, 1]), label="pitch")
     axs[2].set_ylabel("angle, deg")
     axs[2].legend(fontsize=7, loc="best")
-    _plot(axs[3], t, np.degrees(np.unwrap(truth.euler_rad[:, 2])), label="heading")
-    axs[3].set_ylabel("heading, deg")
+    _heading_axis(axs[3], truth)
+    if rotors:
+        _rotor_axis(axs[4], truth)
     if windy:
-        _wind_axis(axs[4], truth)
+        _wind_axis(axs[-1], truth)
     axs[-1].set_xlabel("time, s")
     for j, ax in enumerate(axs):
         _segments(truth, ax, label=(j == 0))
