@@ -27,7 +27,7 @@ from typing import ClassVar
 
 import jsbsim
 
-from navsim.foundations.config import Node, check_numbers, close_match, load_yaml
+from navsim.foundations.config import Node, check_numbers, close_match, load_yaml, plain_name
 from navsim.foundations.errors import ScenarioError
 
 FIXED_WING, MULTIROTOR = "fixed_wing", "multirotor"
@@ -162,6 +162,10 @@ def load_airframe(folder: str | Path) -> FixedWing | Multirotor:
     node = Node({} if data is None else data, "", str(path))
     kind = node.get("class", str, FIXED_WING, choices=CLASSES)
     model = node.get(JSBSIM_MODEL_KEY, str, None)
+    if model is not None and not plain_name(model):
+        raise node.error(f"'{model}' is not a model's name", JSBSIM_MODEL_KEY,
+                         expected="the plain name of a folder of the jsbsim package's aircraft/ (letters, digits, "
+                                  "'.', '_', '-')")
     if model is not None and not (jsbsim_aircraft_dir() / model / f"{model}.xml").is_file():
         known = sorted(p.name for p in jsbsim_aircraft_dir().iterdir() if (p / f"{p.name}.xml").is_file())
         raise node.error(f"'{model}' is not a model of the jsbsim package", JSBSIM_MODEL_KEY,
@@ -203,8 +207,14 @@ def _multirotor(node: Node, model: str | None) -> Multirotor:
     """A :class:`Multirotor` of ``node``'s keys and its ``rotors`` list."""
     values = {name: node.get(name, float, **bounds) for name, bounds in MULTIROTOR_KEYS.items()}
     raw = node.items("rotors", MIN_ROTORS, f"a list of at least {MIN_ROTORS} rotors, each "
-                     "{position_m: [x, y, z], spin: 1 or -1, tilt_deg, thrust_coefficient, torque_coefficient}")
+                     "{position_m: [x, y, z], spin: 1 or -1, " + ", ".join([*ROTOR_KEYS, *ROTOR_PROPERTIES]) + "}")
     rotors = tuple(_rotor(Node(item, node.key(f"rotors[{i}]"), node.file), i) for i, item in enumerate(raw))
+    for key in ROTOR_PROPERTIES:              # each motor commanded and each rotor read once
+        names = [getattr(r, key) for r in rotors]
+        for i, name in enumerate(names):
+            if name in names[:i]:
+                raise node.error(f"names '{name}' as rotors[{names.index(name)}] does", f"rotors[{i}].{key}",
+                                 expected="a JSBSim property of its own for each rotor")
     return Multirotor(**values, rotors=rotors, jsbsim_model=model)
 
 

@@ -9,9 +9,7 @@ scaled to SI by :data:`RAW_TO_SI`; column indices are the ``COL_*`` constants.
 
 from __future__ import annotations
 
-import contextlib
 import os
-import sys
 from pathlib import Path
 from typing import NamedTuple
 
@@ -144,21 +142,6 @@ class InitialCondition(NamedTuple):
     terrain_m: float = 0.0      #: terrain height above the ellipsoid, m
 
 
-@contextlib.contextmanager
-def quiet_stdout():
-    """Standard output (file descriptor 1, where JSBSim's C++ writes) sent to the null device
-    for the ``with`` block."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
-            yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-
-
 class JSBSimIO:
     """One JSBSim instance, spoken to in SI units.
 
@@ -191,8 +174,7 @@ class JSBSimIO:
         fdm.set_engine_path(str(root / "engine"))
         fdm.set_systems_path(str(root / "systems"))
         try:
-            with quiet_stdout():              # JSBSim's notes on a model (version, ties) are not the user's
-                loaded, reason = fdm.load_model(aircraft), "its load failed"
+            loaded, reason = fdm.load_model(aircraft), "its load failed (JSBSim's reason above)"
         except jsbsim.BaseError as exc:       # JSBSim's reason (it prints it on stdout too)
             loaded, reason = False, " ".join(str(exc).split())
         if not loaded:

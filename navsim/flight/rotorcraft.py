@@ -54,8 +54,8 @@ def mixer_rotor(rotor: Rotor, thrust_per_cmd2_n: float) -> MixerRotor:
 
 
 def check_environment(env: Environment, file: str | None = None) -> None:
-    """Refuse JSBSim's turbulence on a multirotor in a wind below
-    :data:`MIN_TURBULENCE_WIND_MPS`: its models carry a frozen gust field past the vehicle at its
+    """Refuse JSBSim's turbulence on a multirotor in a steady wind (at the start, or one of its
+    ``wind_changes``) below :data:`MIN_TURBULENCE_WIND_MPS`: its models carry a frozen gust field past the vehicle at its
     airspeed, which a hover has only from the wind (in calm air a hover would see none).
 
     Raises
@@ -63,7 +63,8 @@ def check_environment(env: Environment, file: str | None = None) -> None:
     ScenarioError
         Naming ``file`` and ``environment.turbulence``.
     """
-    wind = math.hypot(env.wind_n_mps[0], env.wind_n_mps[1])
+    # the calmest steady wind of the flight: its start's, or one it changes to
+    wind = min(math.hypot(w[0], w[1]) for w in (env.wind_n_mps, *(w for _, w in env.wind_changes)))
     if env.turbulence != "none" and wind < MIN_TURBULENCE_WIND_MPS:
         raise ScenarioError(f"'{env.turbulence}' turbulence in a {wind:g} m/s wind on a multirotor", file=file,
                             key="environment.turbulence",

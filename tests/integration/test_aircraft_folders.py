@@ -268,15 +268,19 @@ def test_a_folder_naming_a_jsbsim_package_model_holds_navsim_yaml_only(tmp_path)
     ({"jsbsim_model": "F405"}, 2, ["navsim.yaml: jsbsim_model", "'F405' is not a model of the jsbsim package",
                                    "F450"]),
     ({"rotors": "add"}, 2, ["navsim.yaml: rotors", "4 engines, the rotor table 5 rotors"]),
+    ({"rotors": "twice"}, 2, ["navsim.yaml: rotors[3].command", "'fcs/cmdFR_ext_nd' as rotors[0] does"]),
+    ({"jsbsim_model": "../F450"}, 2, ["navsim.yaml: jsbsim_model", "not a model's name"]),
     ({"rotors": "rename"}, 2, ["navsim.yaml: rotors[2].command", "no property 'fcs/cmdFX_ext_nd'"]),
 ])
 def test_a_jsbsim_package_model_the_table_does_not_fit_is_refused(tmp_path, capsys, change, code, words):
-    """A model name the jsbsim package lacks (validation), a rotor table with more rotors than
-    the model's engines or naming a command property the model lacks (at the flight's start):
+    """A model name the jsbsim package lacks or a path for one, two rotors naming one command
+    property (validation), a rotor table with more rotors than the model's engines or naming a command property the model lacks (at the flight's start):
     exit 2 naming navsim.yaml and the key."""
     rotors = yaml.safe_load((AIRCRAFT_DIR / "f450" / "navsim.yaml").read_text())["rotors"]
     if change.get("rotors") == "add":
-        change = {"rotors": rotors + [dict(rotors[0], command="fcs/cmdFR_ext_nd")]}
+        change = {"rotors": rotors + [dict(rotors[0], command="fcs/cmdX_ext_nd", rpm="propulsion/engine[4]/propeller-rpm")]}
+    elif change.get("rotors") == "twice":
+        change = {"rotors": rotors[:3] + [dict(rotors[3], command=rotors[0]["command"])]}
     elif change.get("rotors") == "rename":
         change = {"rotors": rotors[:2] + [dict(rotors[2], command="fcs/cmdFX_ext_nd")] + rotors[3:]}
     f450_folder(tmp_path, **change)

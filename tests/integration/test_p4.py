@@ -112,10 +112,10 @@ def test_three_switches_of_the_pump_reset_the_cpf_ekf_at_p4s_times(shipped_fligh
 def test_on_its_octocopter_a_cpf_without_the_gnss_course_resets_the_ekf_more_often(shipped_flight):
     """p4_octo_divergence: P4's vehicle circling with its nose on the centre, so the CPF has
     only the magnetometer for its heading. The EKF alone diverges as on the fixed-wing; the
-    CPF-EKF is reset first 40-100 s after the onset at 320 s, as there, but the CPF, coasting on
-    the gyros between the magnetometer samples it accepts, is no steady reference: more than one
-    reset a run (3 a run at 20 and at 100 runs, docs/papers.md) where the fixed-wing, steered by
-    its GNSS course, has one."""
+    CPF-EKF is reset within a minute of the onset at 320 s (at 341-343 s in 100 runs, 21-23 s
+    after it), but the CPF, coasting on its gyros once it rejects every magnetometer sample, is
+    no steady reference: more than one reset a run (3.03 a run at 100 runs, docs/papers.md)
+    where the fixed-wing, steered by its GNSS course, has one."""
     scenario, truth, _ = shipped_flight("p4_octo_divergence")
     res = run_monte_carlo(scenario, truth, None, RunOptions(runs=4, seed=scenario.seed, workers=1))
     ekf = res.histories["EKF alone"]
