@@ -111,7 +111,7 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     environment = parse_environment(node.data.get("environment"), "environment", file)
     _check_start(track, environment, file)
     if airframe.kind == MULTIROTOR:
-        check_environment(environment, file)
+        check_environment(environment, file, track)
         check_envelope(track, airframe, file)
     node._seen.add("sensors")
     sensors = parse_sensors(node.data.get("sensors"), file)

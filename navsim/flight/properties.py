@@ -19,6 +19,7 @@ from navsim.foundations.errors import ScenarioError
 from navsim.foundations.resources import data_folder
 
 FT_TO_M = 0.3048
+IN_TO_M = FT_TO_M / 12.0
 SLUG_TO_KG = 14.59390293720636
 LBF_TO_N = 4.4482216152605
 PSF_TO_PA = 47.88025898033584
@@ -102,6 +103,10 @@ RUN_ALL_ENGINES = "propulsion/set-running"        #: -1 starts every engine
 #: the propulsive force along body z (the rotors' thrust is its negative), lbf
 PROPULSIVE_FZ_LBS = "forces/fbz-prop-lbs"
 MASS_SLUGS = "inertia/mass-slugs"
+#: the centre of gravity's height in the structural frame (inches, z up), and whether a ground
+#: contact carries weight
+CG_Z_IN = "inertia/cg-z-in"
+GEAR_WOW = "gear/wow"
 #: the inertia tensor's moments and products (JSBSim's products are positive integrals)
 INERTIA_SLUGFT2 = {k: f"inertia/i{k}-slugs_ft2" for k in ("xx", "yy", "zz", "xy", "xz", "yz")}
 SLUGFT2_TO_KGM2 = SLUG_TO_KG * FT_TO_M ** 2
@@ -312,6 +317,20 @@ class JSBSimIO:
         i = {k: self.fdm[name] * SLUGFT2_TO_KGM2 for k, name in INERTIA_SLUGFT2.items()}
         J = np.array([[i["xx"], -i["xy"], -i["xz"]], [-i["xy"], i["yy"], -i["yz"]], [-i["xz"], -i["yz"], i["zz"]]])
         return self.fdm[MASS_SLUGS] * SLUG_TO_KG, J
+
+    def rest_height_m(self) -> float | None:
+        """The centre of gravity's height above the model's lowest ground contact (the height it
+        stands at on level ground), m; None for a model without contacts."""
+        gear = self.fdm.get_ground_reactions()
+        n = gear.get_num_gear_units()
+        if n == 0:
+            return None
+        cg_z_in = self.fdm[CG_Z_IN]       # each contact's location: structural inches, z up
+        return max(cg_z_in - np.asarray(gear.get_gear_unit(i).get_location(), float).ravel()[2] for i in range(n)) * IN_TO_M
+
+    def on_ground(self) -> bool:
+        """Whether a ground contact carries weight now."""
+        return bool(self.fdm[GEAR_WOW])
 
     def set_booster_n(self, thrust_n: float) -> None:
         """Thrust of the launch booster along body x, N."""

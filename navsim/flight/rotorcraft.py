@@ -37,6 +37,11 @@ MIN_AGL_M = 0.3              #: lower than this above the surface is an impact (
 #: a goto's moving point and a circle's reach their speed, and stop at a leg's end, at this
 #: acceleration, m/s^2
 SETPOINT_ACCEL_MPS2 = 1.0
+#: a landing's setpoint ends this far below the centre of gravity's height standing on the
+#: surface, so that it presses on the ground until it stands, m
+LAND_PUSH_M = 0.5
+#: the motors stop at touchdown; a landing ends this long after it, s
+SETTLE_S = 1.0
 #: the least steady wind a multirotor flies JSBSim's turbulence in, m/s (:func:`check_environment`)
 MIN_TURBULENCE_WIND_MPS = 3.0
 
@@ -53,10 +58,11 @@ def mixer_rotor(rotor: Rotor, thrust_per_cmd2_n: float) -> MixerRotor:
                       torque_per_thrust_m=rotor.torque_coefficient / rotor.thrust_coefficient, axis_b=axis)
 
 
-def check_environment(env: Environment, file: str | None = None) -> None:
+def check_environment(env: Environment, file: str | None = None, track: Track | None = None) -> None:
     """Refuse JSBSim's turbulence on a multirotor in a steady wind (at the start, or one of its
-    ``wind_changes``) below :data:`MIN_TURBULENCE_WIND_MPS`: its models carry a frozen gust field past the vehicle at its
-    airspeed, which a hover has only from the wind (in calm air a hover would see none).
+    ``wind_changes``) below :data:`MIN_TURBULENCE_WIND_MPS`: its models carry a frozen gust field
+    past the vehicle at its airspeed, which a hover has only from the wind (in calm air a hover
+    would see none). A ``track`` starting on the ground must stand on the surface.
 
     Raises
     ------
@@ -64,6 +70,10 @@ def check_environment(env: Environment, file: str | None = None) -> None:
         Naming ``file`` and ``environment.turbulence``.
     """
     # the calmest steady wind of the flight: its start's, or one it changes to
+    if track is not None and takes_off(track) and abs(track.start.alt_m - env.surface_m) > 0.01:
+        raise ScenarioError(f"a multirotor standing at {track.start.alt_m:g} m on a surface at {env.surface_m:g} m",
+                            file=file, key="track.start.alt_m",
+                            expected="the surface's height (environment.surface_m): it stands on it to take off")
     wind = min(math.hypot(w[0], w[1]) for w in (env.wind_n_mps, *(w for _, w in env.wind_changes)))
     if env.turbulence != "none" and wind < MIN_TURBULENCE_WIND_MPS:
         raise ScenarioError(f"'{env.turbulence}' turbulence in a {wind:g} m/s wind on a multirotor", file=file,
@@ -71,6 +81,12 @@ def check_environment(env: Environment, file: str | None = None) -> None:
                             expected=f"a steady wind of at least {MIN_TURBULENCE_WIND_MPS:g} m/s with it: JSBSim's "
                                      "turbulence is a gust field carried past the vehicle at its airspeed, which a "
                                      "hovering multirotor has only from the wind")
+
+
+def takes_off(track: Track) -> bool:
+    """Whether ``track`` starts standing on the ground and takes off (a ``ground`` start whose
+    first segment is a ``takeoff``; one of ``hold`` segments is parked, with no dynamics)."""
+    return track.start.type == "ground" and track.segments[0].type == "takeoff"
 
 
 def circle_tilt_rad(speed_mps: float, radius_m: float) -> float:
@@ -110,7 +126,7 @@ class Rotorcraft:
 
     def __init__(self, config, airframe: Multirotor):
         track, env = config.track, config.environment
-        check_environment(env)
+        check_environment(env, track=track)
         self.config, self.airframe, self.dt = config, airframe, 1.0 / config.rate_hz
         model, model_dir = model_location(config.folder, airframe)
         self.io = io = P.JSBSimIO(model, self.dt, model_dir)
@@ -119,13 +135,9 @@ class Rotorcraft:
         r_m, r_n = radii(self.lat0)
         self.k_north, self.k_east = float(r_m), float(r_n) * math.cos(self.lat0)
         self.h0 = start.alt_m
-        io.set_terrain(env.surface_m)
-        io.set_wind_ned(env.wind_n_mps)
-        io.set_initial(P.InitialCondition(lat_rad=self.lat0, lon_rad=self.lon0, h_m=start.alt_m, tas_mps=0.0,
-                                          yaw_rad=math.radians(start.heading_deg), pitch_rad=0.0,
-                                          terrain_m=env.surface_m), still=True)
-        self.n = len(airframe.rotors)
         file = str(config.folder / ENVELOPE_FILE)
+        self._place(start, env, file)
+        self.n = len(airframe.rotors)
         if io.engine_count() != self.n:
             raise ScenarioError(f"the model has {io.engine_count()} engines, the rotor table {self.n} rotors", file=file,
                                 key="rotors", expected="one rotor per JSBSim engine, in the model's engine order")
@@ -149,6 +161,24 @@ class Rotorcraft:
             io.set_turbulence(env.turbulence, env.turbulence_wind20_mps, env.turbulence_severity,
                               env.turbulence_seed)
         io.run_ic()
+
+    def _place(self, start, env: Environment, file: str) -> None:
+        """Start still: hovering at the start's height, or (a ``ground`` start) standing on the
+        surface on the model's lowest contacts. Sets :attr:`ground_down_m`, the down coordinate
+        (from the start's height) of the centre of gravity standing on the surface."""
+        io = self.io
+        rest_m = io.rest_height_m()
+        standing = takes_off(self.config.track)
+        if standing and rest_m is None:
+            raise ScenarioError("the model has no ground contacts: it cannot stand on the ground", file=file,
+                                key="track.start.type", expected="a hover start, or a model with landing gear")
+        self.ground_down_m = self.h0 - env.surface_m - (rest_m or 0.0)
+        io.set_terrain(env.surface_m)
+        io.set_wind_ned(env.wind_n_mps)
+        io.set_initial(P.InitialCondition(lat_rad=self.lat0, lon_rad=self.lon0,
+                                          h_m=env.surface_m + rest_m if standing else start.alt_m, tas_mps=0.0,
+                                          yaw_rad=math.radians(start.heading_deg), pitch_rad=0.0,
+                                          terrain_m=env.surface_m), still=True)
 
     def _properties(self, bind, key: str, file: str):
         """``bind`` (a :class:`~navsim.flight.properties.JSBSimIO` method) over the rotors'
@@ -197,6 +227,7 @@ class _Leg:
     speed_cap_mps: float = math.inf        #: a line's speed at the climb or descent limit
     travelled_m: float = 0.0
     speed_mps: float = 0.0                 #: the moving point's speed now
+    vertical: bool = False                 #: a takeoff's or a landing's: at ``speed_cap_mps``, not the segments' speed
 
 
 class RotorSegments:
@@ -207,9 +238,11 @@ class RotorSegments:
         self.speed_mps = track.start.speed_mps or MULTIROTOR_SPEED_MPS
         self.heading_rad = math.radians(track.start.heading_deg)   # the nose's, a `yaw: hold` keeps
         self.course_rad = self.heading_rad     # the way flown last: a circle is centred to its side
-        self.point = np.zeros(3)
+        self.point = np.array([0.0, 0.0, craft.ground_down_m if takes_off(track) else 0.0])
         self.index, self.finished, self.t0 = -1, False, 0.0
         self.leg: _Leg | None = None
+        #: the time a landing touched down (its motors stopped since), None in the air
+        self.landed_s: float | None = None
 
     def fail(self, reason: str, t: float) -> FlightError:
         seg = self.segments[self.index] if 0 <= self.index < len(self.segments) else None
@@ -230,7 +263,33 @@ class RotorSegments:
             raise self.fail(f"speed {speed:g} m/s above the aircraft's max_speed_mps "
                             f"({self.craft.airframe.max_speed_mps:g} m/s)", t)
         self.speed_mps = speed
-        self.leg = None if seg.type == "hover" else (self._line(seg) if seg.type == "goto" else self._circle(seg, t))
+        if seg.type in ("takeoff", "land"):
+            self.leg = self._vertical(seg)
+        else:
+            self.leg = None if seg.type == "hover" else (self._line(seg) if seg.type == "goto" else self._circle(seg, t))
+
+    def _vertical(self, seg: Segment) -> _Leg:
+        """A takeoff's climb from the ground to ``agl_m``, or a landing's descent to (and
+        :data:`LAND_PUSH_M` into) the surface, at the segment's rate within the airframe's."""
+        af, craft = self.craft.airframe, self.craft
+        if seg.type == "takeoff":
+            self.landed_s = None
+            craft.controller.reset()                    # nothing learned on the ground
+            down, rate = craft.h0 - craft.config.environment.surface_m - seg["agl_m"], min(seg["rate_mps"], af.max_climb_mps)
+        else:
+            down, rate = craft.ground_down_m + LAND_PUSH_M, min(seg["rate_mps"], af.max_descent_mps)
+        if seg.type == "takeoff":                       # from where it stands, not where a landing pressed
+            self.point[2] = min(self.point[2], craft.ground_down_m)
+        end = np.array([self.point[0], self.point[1], down])
+        return _Leg(origin=self.point.copy(), end=end, length_m=abs(down - self.point[2]), speed_cap_mps=rate,
+                    vertical=True)
+
+    def touchdown(self, t: float, on_ground: bool) -> None:
+        """During a landing: the time a ground contact first carries weight, from which its
+        motors stop (as an autopilot's land detector disarms: flying on, the attitude loop
+        would fight the contacts' forces and rock it)."""
+        if self.landed_s is None and on_ground:
+            self.landed_s = t
 
     def _line(self, seg: Segment) -> _Leg:
         if "north_m" in seg.params:
@@ -269,11 +328,15 @@ class RotorSegments:
         vel = acc = np.zeros(3)
         if leg is not None:
             left = leg.length_m - leg.travelled_m          # slowing to stop at a leg's end
-            leg.speed_mps = min(self.speed_mps, leg.speed_cap_mps, leg.speed_mps + SETPOINT_ACCEL_MPS2 * dt,
+            leg.speed_mps = min(leg.speed_cap_mps if leg.vertical else min(self.speed_mps, leg.speed_cap_mps),
+                                leg.speed_mps + SETPOINT_ACCEL_MPS2 * dt,
                                 math.sqrt(2.0 * SETPOINT_ACCEL_MPS2 * left) if left < math.inf else math.inf)
             leg.travelled_m = min(leg.travelled_m + leg.speed_mps * dt, leg.length_m)
             self.point, vel, acc = self._along(leg)
-        done = (t - self.t0 >= seg["time_s"] - 1e-9) if "time_s" in seg.params else leg.travelled_m >= leg.length_m
+        if seg.type == "land":
+            done = self.landed_s is not None and t - self.landed_s >= SETTLE_S
+        else:
+            done = (t - self.t0 >= seg["time_s"] - 1e-9) if "time_s" in seg.params else leg.travelled_m >= leg.length_m
         yaw = self._yaw(seg)
         turning = leg is not None and leg.center is not None and yaw.kind != "heading"
         sp = Setpoint(pos_n_m=tuple(self.point), vel_n_mps=tuple(vel), acc_n_mps2=tuple(acc),
@@ -301,8 +364,15 @@ class RotorSegments:
         """A circle's radius (its start's distance from the centre), m."""
         return math.hypot(leg.origin[0] - leg.center[0], leg.origin[1] - leg.center[1])
 
+    @property
+    def near_ground(self) -> bool:
+        """Whether the segment flown (or the last one, the track flown) is a takeoff or a
+        landing, which touch the ground."""
+        i = min(self.index, len(self.segments) - 1)
+        return i >= 0 and self.segments[i].type in ("takeoff", "land")
+
     def _yaw(self, seg: Segment) -> YawMode:
-        mode = seg.get("yaw") or ("hold" if seg.type == "hover" else "course")
+        mode = seg.get("yaw") or ("course" if seg.type in ("goto", "circle") else "hold")
         if "heading_deg" in seg.params:
             return YawMode("heading", heading_rad=math.radians(seg["heading_deg"]))
         if mode == "center":
@@ -311,10 +381,11 @@ class RotorSegments:
 
 
 def check_row(row, t: float, segments: RotorSegments) -> None:
-    """The failure checks of a step on the true state: NaN, impact, loss of control."""
+    """The failure checks of a step on the true state: NaN, impact (but in a takeoff or a
+    landing, which touch the ground), loss of control."""
     if not (math.isfinite(row[P.COL_H]) and math.isfinite(row[P.COL_ROLL])):
         raise segments.fail("the state became NaN (numerical failure)", t)
-    if row[P.COL_HAGL] < MIN_AGL_M:
+    if row[P.COL_HAGL] < MIN_AGL_M and not segments.near_ground:
         raise segments.fail(f"ground impact (height above surface {row[P.COL_HAGL]:.1f} m)", t)
     if abs(row[P.COL_ROLL]) > MAX_TILT_FAIL_RAD or abs(row[P.COL_PITCH]) > MAX_TILT_FAIL_RAD:
         raise segments.fail(f"loss of control (roll {math.degrees(row[P.COL_ROLL]):.0f} deg, "
@@ -332,6 +403,7 @@ def fly_rotorcraft(config, airframe: Multirotor, record, progress=None, nominal_
     env = config.environment
     wind_changes = bool(env.wind_changes)
     segments.next(0.0)
+    stopped = [0.0] * craft.n
     k, next_progress = 0, 0.0
     while True:
         t = k * dt
@@ -345,7 +417,12 @@ def fly_rotorcraft(config, airframe: Multirotor, record, progress=None, nominal_
         if progress is not None and t >= next_progress:
             progress(t, nominal_s)
             next_progress += 1.0
-        craft.set_commands(ctrl.command(craft.state(row), setpoint, dt))
+        if not segments.finished and segments.segments[segments.index].type == "land":
+            segments.touchdown(t, io.on_ground())
+        if segments.landed_s is None:
+            craft.set_commands(ctrl.command(craft.state(row), setpoint, dt))
+        else:                                       # landed: the motors stopped
+            craft.set_commands(stopped)
         if wind_changes:
             io.set_wind_ned(steady_wind_n_mps(env, t + dt))
         io.run()

@@ -201,7 +201,7 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
     """
     if isinstance(config, Track):
         config = FlightConfig(track=config)
-    if config.track.start.type == "ground":
+    if config.track.start.type == "ground" and config.track.segments[0].type == "hold":
         return _parked(config)
     airframe = load_limits(config)
     # a multirotor's rows carry its rotors' speeds after the properties (truth_from_rows)

@@ -20,13 +20,18 @@ horizontal speed its segments fly at unless they say, 5 m/s by default), and fli
       - {type: hover, time_s: 60}                       # hold the point
       - {type: goto, north_m: 100, east_m: 0, alt_m: 40, speed_mps: 4, yaw: course}
       - {type: circle, radius_m: 20, laps: 2, direction: left, speed_mps: 3, yaw: center}
+      - {type: land, rate_mps: 0.7}                     # straight down; motors stop at the touch
+
+or stands on the surface, ``start: {type: ground, ...}`` (``alt_m`` the surface's height), and
+takes off first, ``{type: takeoff, agl_m: 20, rate_mps: 1.5}`` (straight up to ``agl_m`` over
+the surface); after a ``land`` only a ``takeoff`` may follow.
 
 ``yaw`` says what the nose does: ``hold`` (the heading it has), ``course`` (along the way
 flown), ``center`` (at the circle's centre, a circle only) or a heading, ``heading_deg``. A
 segment or start the class cannot fly is refused (:func:`check_segments`).
 
 ``start.type: launch`` starts on a launcher instead (P2's rocket-assisted launch at 14 deg
-pitch). ``start.type: ground`` parks the vehicle on the ground (P4's static test): heading
+pitch). ``start.type: ground`` with ``hold`` segments parks the vehicle on the ground (P4's static test): heading
 ``heading_deg``, the ground's slope as ``roll_deg``/``pitch_deg``, and only ``hold`` segments
 (``{type: hold, time_s: 360}``); no flight dynamics are run, the truth is the vehicle at rest on
 the rotating Earth (:meth:`navsim.flight.truth.Truth.static`). Every segment may carry a ``label`` (shown on plots) and ``speed_mps`` (a new airspeed
@@ -109,6 +114,11 @@ MULTIROTOR_KEYS = ("yaw", "heading_deg")
 #: a multirotor's horizontal speed where neither its start nor a segment says, m/s
 MULTIROTOR_SPEED_MPS = 5.0
 
+#: a multirotor's climb off the ground and its descent to touchdown where the segment does not
+#: say, m/s (the airframe's max_climb_mps and max_descent_mps bound them)
+TAKEOFF_RATE_MPS = 1.5
+LAND_RATE_MPS = 0.7
+
 # type -> {key: (kind, default or REQUIRED, constraint)}; one of the "one_of" groups is required
 _REQ = object()
 _POS = dict(exclusive_minimum=0.0)
@@ -130,6 +140,11 @@ SEGMENT_KEYS: dict[str, dict] = {
                "heading_deg": (float, None, {})},
     "hover": {"time_s": (float, _REQ, _TIME), "yaw": (str, None, dict(choices=YAW_CHOICES)),
               "heading_deg": (float, None, {})},
+    "takeoff": {"agl_m": (float, _REQ, dict(exclusive_minimum=0.0, maximum=1000.0)),
+                "rate_mps": (float, TAKEOFF_RATE_MPS, _POS), "yaw": (str, None, dict(choices=YAW_CHOICES)),
+                "heading_deg": (float, None, {})},
+    "land": {"rate_mps": (float, LAND_RATE_MPS, _POS), "yaw": (str, None, dict(choices=YAW_CHOICES)),
+             "heading_deg": (float, None, {})},
     "goto": {"north_m": (float, None, {}), "east_m": (float, None, {}),
              "lat_deg": (float, None, dict(minimum=-90.0, maximum=90.0)),
              "lon_deg": (float, None, dict(minimum=-180.0, maximum=180.0)),
@@ -144,7 +159,8 @@ _DEFAULT_ONE = {"turn": {"bank_deg": 20.0}}
 #: segments are a fixed wing's; ``hold`` (a vehicle parked on the ground, no dynamics) any class's
 SEGMENT_CLASSES: dict[str, tuple[str, ...]] = {
     "straight": (FIXED_WING,), "speed": (FIXED_WING,), "climb": (FIXED_WING,), "descend": (FIXED_WING,),
-    "turn": (FIXED_WING,), "hold": CLASSES, "circle": CLASSES, "goto": CLASSES, "hover": (MULTIROTOR,)}
+    "turn": (FIXED_WING,), "hold": CLASSES, "circle": CLASSES, "goto": CLASSES, "hover": (MULTIROTOR,),
+    "takeoff": (MULTIROTOR,), "land": (MULTIROTOR,)}
 #: the classes each start type is for (a ground start parks any vehicle: no dynamics)
 START_CLASSES: dict[str, tuple[str, ...]] = {
     "air": (FIXED_WING,), "launch": (FIXED_WING,), "ground": CLASSES, "hover": (MULTIROTOR,)}
@@ -169,15 +185,33 @@ def parse_track(data, path: str = "track", file: str | None = None) -> Track:
                             expected="a list of segments",
                             hint="e.g. segments: [{type: straight, time_s: 60}]")
     segments = tuple(_parse_segment(item, f"{seg_key}[{i}]", file, i) for i, item in enumerate(raw))
-    for i, seg in enumerate(segments):
-        if (seg.type == "hold") != (start.type == "ground"):
-            raise ScenarioError(f"a '{seg.type}' segment after a '{start.type}' start", file=file,
-                                key=f"{seg_key}[{i}].type",
-                                expected="only 'hold' segments on the ground, and no 'hold' in flight",
-                                hint="a parked vehicle: start: {type: ground, ...}, segments: "
-                                     "[{type: hold, time_s: 360}]")
+    _check_order(start, segments, seg_key, file)
     node.done()
     return Track(name=name, start=start, segments=segments, description=description)
+
+
+def _check_order(start: Start, segments, seg_key: str, file: str | None) -> None:
+    """Refuse segments in an order no vehicle flies: on the ground, either ``hold`` alone (parked)
+    or a ``takeoff`` first; in the air no ``hold``; a ``takeoff`` only from the ground (the start,
+    or after a ``land``), and after a ``land`` only a ``takeoff``."""
+    on_ground = start.type == "ground"
+    parked = on_ground and segments[0].type == "hold"
+    for i, seg in enumerate(segments):
+        key = f"{seg_key}[{i}].type"
+        if parked != (seg.type == "hold"):
+            raise ScenarioError(f"a '{seg.type}' segment after a '{start.type}' start" if parked or seg.type == "hold"
+                                else f"a '{seg.type}' segment", file=file, key=key,
+                                expected="only 'hold' segments on the ground, and no 'hold' in flight",
+                                hint="a parked vehicle: start: {type: ground, ...}, segments: "
+                                     "[{type: hold, time_s: 360}]; a multirotor flies off the ground "
+                                     "with a takeoff first")
+        if parked:
+            continue
+        if on_ground != (seg.type == "takeoff"):
+            raise ScenarioError(f"a '{seg.type}' segment {'on the ground' if on_ground else 'in the air'}", file=file,
+                                key=key, expected="a takeoff first from the ground (a ground start or after a "
+                                                  "land), and a takeoff nowhere else")
+        on_ground = seg.type == "land"
 
 
 def check_segments(track: Track, kind: str, file: str | None) -> None:
@@ -323,6 +357,10 @@ def nominal_duration_s(track: Track) -> float:
             total += p.get("time_s") or p["laps"] * 2 * math.pi * p["radius_m"] / speed
         elif seg.type in ("hold", "hover"):
             total += p["time_s"]
+        elif seg.type == "takeoff":
+            total += p["agl_m"] / p["rate_mps"] + 5.0
+        elif seg.type == "land":
+            total += 30.0
         else:
             total += 60.0
     return total

@@ -155,10 +155,10 @@ def test_a_circle_beyond_the_tilt_limit_fails_naming_the_segment_and_the_limit()
     assert "segment 1" in text and "max_tilt_deg (25 deg)" in text and "5 m circle at 9 m/s" in text, text
 
 
-def write(tmp_path, segments, **extra):
+def write(tmp_path, segments, start=START, aircraft="octo25", **extra):
     path = tmp_path / "octo.yaml"
-    path.write_text(yaml.safe_dump({"name": "octo", "aircraft": "octo25",
-                                    "track": {"start": START, "segments": segments}, **extra}, sort_keys=False))
+    path.write_text(yaml.safe_dump({"name": "octo", "aircraft": aircraft,
+                                    "track": {"start": start, "segments": segments}, **extra}, sort_keys=False))
     return path
 
 
@@ -266,3 +266,58 @@ def test_octo25_holds_its_point_and_its_circle_in_force_4_with_moderate_turbulen
           f"max {np.abs(r_err).max():.3f} m")
     assert np.all(gust_std > 0.3)
     assert err.max() < 0.5 and np.sqrt(np.mean(err ** 2)) < 0.25 and np.sqrt(np.mean(r_err ** 2)) < 0.5
+
+
+#: standing on a surface 10 m up, heading 30 deg
+GROUND_START = {"type": "ground", "lat_deg": 30.0, "lon_deg": 120.0, "alt_m": 10.0, "heading_deg": 30.0}
+#: off the ground to 20 m, over to a point, down, up again to 5 m and down slower
+TAKEOFF_LAND = [{"type": "takeoff", "agl_m": 20.0}, {"type": "hover", "time_s": 5},
+                {"type": "goto", "north_m": 20, "east_m": 10}, {"type": "land"},
+                {"type": "takeoff", "agl_m": 5}, {"type": "land", "rate_mps": 0.5}]
+
+
+@pytest.mark.parametrize("aircraft, rate_hz, rest_m", [("octo25", 100.0, 0.45), ("f450", 200.0, 0.1524)])
+def test_a_multirotor_takes_off_from_the_ground_and_lands_where_it_was_sent(aircraft, rate_hz, rest_m):
+    """Standing on its skids (octo25's 0.45 m, the F450's 0.15 m below the centre of gravity;
+    the F450's contacts, 3000 N/m and 100 N s/m under 1.4 kg, need JSBSim at 200 Hz to stand):
+    up to 20 m (within 0.5 m at once, 0.05 m after a 5 s hover), over to (20, 10) and down at
+    0.7 m/s, its motors stopped at the touch; up again to 5 m and down at 0.5 m/s. Each landing
+    sinks at its rate and touches at it (within 0.1 m/s), within 0.05 m of its point, level
+    within 2 deg (the F450 stands 1.1 deg nose-down on its three contacts), the rotors stopped,
+    standing on its contacts."""
+    env = parse_environment({"surface_m": 10.0}, "environment", None)
+    truth = fly(FlightConfig(track=parse_track({"start": GROUND_START, "segments": TAKEOFF_LAND}), environment=env,
+                             aircraft=aircraft, rate_hz=rate_hz))
+    ned = local_ned(truth, GROUND_START)
+    seg = truth.segment
+    assert truth.h_agl_m[0] == pytest.approx(rest_m, abs=0.01)
+    assert abs(truth.h_agl_m[seg == 0][-1] - 20.0) < 0.5 and abs(truth.h_agl_m[seg == 1][-1] - 20.0) < 0.05
+    for land, rate in ((3, 0.7), (5, 0.5)):
+        m = seg == land
+        sink, agl = truth.vel_n_mps[m, 2], truth.h_agl_m[m]
+        touch = sink[np.flatnonzero(agl > rest_m + 0.05)[-1]]        # the last sample before the contacts
+        print(f"{aircraft} landing {land}: sinks at {np.median(sink[agl > 1.0]):.3f} m/s (rate {rate}; up to "
+              f"{sink.max():.2f} as it starts), touches at {touch:.2f} m/s, stands at {agl[-1]:.3f} m, "
+              f"{np.linalg.norm(ned[m][-1, :2] - [20.0, 10.0]):.4f} m from its point")
+        assert abs(np.median(sink[agl > 1.0]) - rate) < 0.02 and abs(touch - rate) < 0.1
+        assert agl[-1] == pytest.approx(rest_m, abs=0.02)
+        assert np.linalg.norm(ned[m][-1, :2] - [20.0, 10.0]) < 0.05
+        assert np.degrees(np.abs(truth.euler_rad[m][-1, :2])).max() < 2.0 and truth.rotor_rpm[m][-1].max() < 50.0
+    assert abs(truth.h_agl_m[seg == 4].max() - 5.0) < 0.5
+
+
+def test_a_takeoff_or_a_landing_out_of_order_is_refused(tmp_path, capsys):
+    """A takeoff in the air, a segment after a landing but a takeoff, a flight off a surface it
+    does not stand on, a takeoff on a fixed wing: exit 2 naming the key."""
+    for start, segments, extra, words in (
+            (START, [{"type": "takeoff", "agl_m": 10}], {}, ["track.segments[0].type", "'takeoff' segment in the air"]),
+            (GROUND_START, [{"type": "takeoff", "agl_m": 10}, {"type": "land"}, {"type": "hover", "time_s": 5}],
+             {"environment": {"surface_m": 10.0}}, ["track.segments[2].type", "'hover' segment on the ground"]),
+            (GROUND_START, [{"type": "takeoff", "agl_m": 10}], {},
+             ["track.start.alt_m", "standing at 10 m on a surface at 0 m"])):
+        assert main(["validate", str(write(tmp_path, segments, start=start, **extra))]) == 2
+        err = capsys.readouterr().err
+        assert all(w in err for w in words) and "Traceback" not in err, (words, err)
+    assert main(["validate", str(write(tmp_path, [{"type": "takeoff", "agl_m": 10}], start=GROUND_START,
+                                       aircraft="survey10"))]) == 2
+    assert "cannot be flown by a fixed_wing" in capsys.readouterr().err
