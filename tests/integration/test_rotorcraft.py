@@ -164,8 +164,8 @@ def write(tmp_path, segments, start=START, aircraft="octo25", **extra):
 
 def test_what_the_envelope_or_the_class_cannot_fly_is_refused_at_validation(tmp_path, capsys):
     """Exit 2 before any flight, naming the key and the limit: a speed above max_speed_mps, a
-    circle beyond the tilt limit, navigation in the loop, turbulence in calm air, yaw and heading
-    both."""
+    circle beyond the tilt limit, navigation in the loop, turbulence in calm air (at the start or
+    after a change of the wind), yaw and heading both."""
     for segments, words in (([{"type": "goto", "north_m": 50, "east_m": 0, "speed_mps": 12.0}],
                              ["octo.yaml: track.segments[0].speed_mps", "max_speed_mps (10 m/s)"]),
                             ([{"type": "circle", "radius_m": 5.0, "laps": 1, "speed_mps": 9.0}],
@@ -184,6 +184,10 @@ def test_what_the_envelope_or_the_class_cannot_fly_is_refused_at_validation(tmp_
     assert "octo.yaml: closed_loop" in err and "multirotor" in err and "fixed wing only" in err, err
     for extra, segment, words in (({"environment": {"turbulence": {"type": "milspec", "wind20_mps": 5}}},
                                    {"type": "hover", "time_s": 5.0}, "in a 0 m/s wind on a multirotor"),
+                                  ({"environment": {"wind": {"speed_mps": 7.0, "from_deg": 270},
+                                                    "wind_changes": [{"at_s": 2.0, "speed_mps": 1.0, "from_deg": 270}],
+                                                    "turbulence": {"type": "milspec", "wind20_mps": 5}}},
+                                   {"type": "hover", "time_s": 5.0}, "in a 1 m/s wind on a multirotor"),
                                   ({}, {"type": "hover", "time_s": 5.0, "yaw": "course", "heading_deg": 90},
                                    "octo.yaml: track.segments[0].heading_deg")):
         assert main(["validate", str(write(tmp_path, [segment], **extra))]) == 2
