@@ -14,7 +14,7 @@ from navsim.cli.output import open_folder, table
 from navsim.experiment import resources
 from navsim.experiment.scenario import check_scenario, load_scenario
 from navsim.sensors import emulate
-from navsim.sensors.plots import channels, plot_allan, plot_sensor
+from navsim.sensors.plots import MARKED_ORDERS, channels, plot_allan, plot_sensor, plot_spectrum
 from navsim.sensors.registry import INERTIAL
 
 
@@ -45,6 +45,8 @@ def handle(args) -> int:
         data = emulate(truth, cfg, seed, range(runs))
         folder.record([plot_sensor(data, truth, out / f"sensor_{cfg.name}.png", run=0)])
         if cfg.role == INERTIAL:
+            orders = [t.order for v in cfg.spec.vibration if v.type == "rotor" for t in v.tones] or MARKED_ORDERS
+            folder.record([plot_spectrum(data, truth, out / f"spectrum_{cfg.name}.png", sorted(set(orders)))])
             folder.record([out / f"allan_{cfg.name}.png"])
             _, ratios = plot_allan(f"{cfg.name} ({cfg.model})", cfg.spec, seed, out / f"allan_{cfg.name}.png")
             allan.append(f"{cfg.name}: white noise read from its Allan deviation at the shortest tau, over the "
@@ -54,7 +56,7 @@ def handle(args) -> int:
                  "output %"], rows))
     print("\n".join([""] + allan))
     print(f"\n{runs} run(s), seed {seed}; wrote {out}/: sensor_<name>.png (run 0)"
-          + (", allan_<imu>.png (at rest)" if allan else ""))
+          + (", spectrum_<imu>.png (run 0), allan_<imu>.png (at rest)" if allan else ""))
     return 0
 
 

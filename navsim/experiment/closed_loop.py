@@ -119,6 +119,10 @@ def parse_closed_loop(node: Node, labels: list[str], sensors, track, duration_s:
     imu = [c for c in sensors if c.role == INERTIAL]
     for c in sensors:
         _check_in_loop(c, node.file)
+    if imu and any(v.type == "rotor" for v in imu[0].spec.vibration):
+        raise ScenarioError("a rotor vibration in a closed loop", file=node.file, key=f"sensors.{imu[0].name}.vibration",
+                            expected="with closed_loop, a sine or random vibration: each run's rotor speeds are "
+                                     "not known before it flies")
     if imu and abs(imu[0].spec.rate_hz - rate_hz) > 1e-9:
         raise ScenarioError(f"runs at {imu[0].spec.rate_hz:g} Hz, the flight at {rate_hz:g} Hz",
                             file=node.file, key=f"sensors.{imu[0].name}",

@@ -10,6 +10,7 @@ scaled to SI by :data:`RAW_TO_SI`; column indices are the ``COL_*`` constants.
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 from typing import NamedTuple
 
@@ -326,7 +327,10 @@ class JSBSimIO:
         if n == 0:
             return None
         cg_z_in = self.fdm[CG_Z_IN]       # each contact's location: structural inches, z up
-        return max(cg_z_in - np.asarray(gear.get_gear_unit(i).get_location(), float).ravel()[2] for i in range(n)) * IN_TO_M
+        with warnings.catch_warnings():   # jsbsim returns it as an np.matrix
+            warnings.simplefilter("ignore", PendingDeprecationWarning)
+            lowest_in = min(float(np.asarray(gear.get_gear_unit(i).get_location()).ravel()[2]) for i in range(n))
+        return (cg_z_in - lowest_in) * IN_TO_M
 
     def on_ground(self) -> bool:
         """Whether a ground contact carries weight now."""

@@ -209,8 +209,9 @@ def _check_order(start: Start, segments, seg_key: str, file: str | None) -> None
             continue
         if on_ground != (seg.type == "takeoff"):
             raise ScenarioError(f"a '{seg.type}' segment {'on the ground' if on_ground else 'in the air'}", file=file,
-                                key=key, expected="a takeoff first from the ground (a ground start or after a "
-                                                  "land), and a takeoff nowhere else")
+                                key=key, expected="only 'hold' segments on the ground (parked), or a takeoff first "
+                                                  "(a multirotor flying off it, at the start or after a land), and "
+                                                  "a takeoff nowhere else")
         on_ground = seg.type == "land"
 
 

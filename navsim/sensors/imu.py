@@ -65,12 +65,31 @@ class AxisErrors:
 
 
 @dataclass(frozen=True)
+class Tone:
+    """One tone of a rotor vibration: at ``order`` times each rotor's turning frequency, its
+    amplitude ``level`` relative to the other tones'."""
+
+    order: float = 1.0
+    level: float = 1.0
+
+
+#: a rotor vibration's tones where its entry gives none: the shaft's frequency (an unbalanced
+#: rotor), the blade pass of a two-bladed propeller and its harmonic
+ROTOR_TONES = (Tone(1.0, 1.0), Tone(2.0, 0.5), Tone(4.0, 0.25))
+
+
+@dataclass(frozen=True)
 class Vibration:
     """Vibration seen by the accelerometers (and, if ``gyro_amplitude``, the gyros).
 
     ``type: sine``: ``amplitude`` (peak, m/s^2 per axis) at ``frequency_hz``, random phase per run.
     ``type: random``: band-limited Gaussian noise in ``band_hz`` whose peak (3 sigma) is
     ``amplitude``.
+    ``type: rotor``: made by the flight's rotors (the truth's ``rotor_rpm``): on each axis, each
+    rotor's ``tones`` at their orders of its turning frequency, each tone of rotor and axis with
+    a phase of its own per run, growing with the rotor's speed squared (an unbalanced rotor's
+    force); ``amplitude`` is the peak (3 sigma over runs and time) of their sum with every
+    rotor turning at ``reference_hz``.
     """
 
     type: str = "sine"
@@ -78,6 +97,8 @@ class Vibration:
     gyro_amplitude: np.ndarray = zeros3()
     frequency_hz: float = 30.0
     band_hz: tuple[float, float] = (10.0, 40.0)
+    tones: tuple[Tone, ...] = ROTOR_TONES
+    reference_hz: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -232,15 +253,22 @@ class SampledMotion(NamedTuple):
     incr_a: np.ndarray
     t_s: np.ndarray
     dt_s: float
+    #: each rotor's speed (r/min) and the angle it has turned (rad, from 0 at the start),
+    #: ``(n, R)``: what a rotor vibration is made of (None: no rotors)
+    rotor_rpm: np.ndarray | None = None
+    rotor_angle_rad: np.ndarray | None = None
 
     @classmethod
     def of_truth(cls, truth, rate_hz: float, name: str = "imu") -> "SampledMotion":
         """``truth`` sampled at ``rate_hz`` (dividing its rate; ``name``: the sensor's, for the
-        error)."""
+        error); the rotors' angles integrated at the truth's rate (trapezoids)."""
         step = decimation(truth.meta.get("rate_hz", 1.0 / truth.dt_s), rate_hz, name)
         inc_g, inc_a = truth_increments(truth, step)
+        rpm = truth.rotor_rpm
+        angle = np.zeros_like(rpm)
+        np.cumsum(0.5 * (rpm[1:] + rpm[:-1]) * (truth.dt_s * 2.0 * np.pi / 60.0), axis=0, out=angle[1:])
         return cls(truth.omega_ib_b_rps[::step], inc_g, truth.f_b_mps2[::step], inc_a, truth.t_s[::step],
-                   step * truth.dt_s)
+                   step * truth.dt_s, rpm[::step], angle[::step])
 
     @classmethod
     def still(cls, n: int, dt_s: float) -> "SampledMotion":
@@ -330,6 +358,7 @@ class ImuStream:
         motion = truth if isinstance(truth, SampledMotion) else SampledMotion.of_truth(truth, spec.rate_hz, name)
         self.t_s, dt_s = motion.t_s, motion.dt_s
         self.dt_s, self.n = dt_s, len(motion.t_s)
+        self.rotor_rpm, self.rotor_angle_rad = motion.rotor_rpm, motion.rotor_angle_rad
         self.meta = {"rate_hz": spec.rate_hz, "dt_s": dt_s, "runs": self.runs, "seed": seed}
         B = len(self.runs)
         self.gyro = _Triad(self.streams("gyro"), B, spec.gyro, block, motion.omega, motion.incr_g, dt_s)
@@ -570,6 +599,10 @@ def error_increments(spec: ImuSpec, seed: int, runs, n: int, dt: float, name: st
     (``I + M``), so that the measured increment is ``matrix @ ideal + error`` (then quantized):
     the same numbers as :func:`emulate_imu` with the same ``n``. Range saturation is not
     applied (it needs the rate, which a closed loop does not keep)."""
+    if any(v.type == "rotor" for v in spec.vibration):
+        raise ScenarioError("a rotor vibration in a closed loop", key=f"sensors.{name}.vibration",
+                            expected="a sine or random vibration: each run's rotor speeds are not known before "
+                                     "it flies")
     stream = ImuStream(SampledMotion.still(n, dt), spec, seed, runs, name, block=1)
     _, err_g, bias_g = stream.gyro.block(0, n, False)
     _, err_a, bias_a = stream.accel.block(0, n, False)
@@ -583,11 +616,47 @@ def error_increments(spec: ImuSpec, seed: int, runs, n: int, dt: float, name: st
 def _vibrations(stream: "ImuStream", spec: ImuSpec) -> list:
     """Each vibration's accelerometer and gyro signals ``(B, n, 3)`` (or 0), each from its own
     stream."""
-    return [(_vibration(stream.streams(f"vibration{k}")("accel"), stream.t_s, stream.dt_s, v, spec.rate_hz,
-                        "amplitude"),
-             _vibration(stream.streams(f"vibration{k}")("gyro"), stream.t_s, stream.dt_s, v, spec.rate_hz,
-                        "gyro_amplitude"))
-            for k, v in enumerate(spec.vibration)]
+    out = []
+    for k, v in enumerate(spec.vibration):
+        gens = stream.streams(f"vibration{k}")
+        if v.type == "rotor":
+            out.append(tuple(_rotor_vibration(gens(triad), stream, v, spec.rate_hz, amp)
+                             for triad, amp in (("accel", v.amplitude), ("gyro", v.gyro_amplitude))))
+        else:
+            out.append(tuple(_vibration(gens(triad), stream.t_s, stream.dt_s, v, spec.rate_hz, attr)
+                             for triad, attr in (("accel", "amplitude"), ("gyro", "gyro_amplitude"))))
+    return out
+
+
+def _rotor_vibration(gens, stream: "ImuStream", vib: Vibration, rate_hz: float, amp: np.ndarray):
+    """A rotor vibration (:class:`Vibration`, ``type: rotor``) at the IMU's samples, ``(B, n, 3)``
+    (or 0 where ``amp`` is, or no rotor turns): the tones of every rotor of the flight, point-sampled (so a tone
+    at or above the IMU's Nyquist frequency is refused: it would alias, as a MEMS IMU read
+    slower than its rotors see)."""
+    rpm, angle = stream.rotor_rpm, stream.rotor_angle_rad
+    if not np.any(amp) or rpm is None or not np.any(rpm):      # no rotor turning (a parked vehicle): none
+        return 0.0
+    if not vib.reference_hz > 0.0:
+        raise ScenarioError("a rotor vibration needs reference_hz", key="sensors.imu.vibration",
+                            expected="the rotor frequency (Hz) at which amplitude is the peak, e.g. a hover's")
+    top = max(t.order for t in vib.tones) * rpm.max() / 60.0
+    if top >= 0.5 * rate_hz:
+        raise ScenarioError(f"rotor tones up to {top:.0f} Hz reach the IMU's Nyquist frequency ({0.5 * rate_hz:g} Hz): "
+                            "point-sampled, they would alias", key="sensors.imu.vibration",
+                            expected=f"an IMU rate above {2 * top:.0f} Hz, or a random vibration in its band")
+    R, levels = rpm.shape[1], np.array([t.level for t in vib.tones])
+    # each tone of each rotor and axis a sinusoid of random phase: their sum's variance is
+    # R sum(level^2) / 2 (scale)^2, its 3 sigma the amplitude
+    scale = np.asarray(amp, float) / (3.0 * math.sqrt(0.5 * R * float(np.sum(levels ** 2))))
+    phase = np.stack([g.uniform(0.0, 2.0 * np.pi, (R, len(levels), 3)) for g in gens])    # (B, R, K, 3)
+    gain = (rpm / (60.0 * vib.reference_hz)) ** 2
+    out = np.zeros((len(gens), len(rpm), 3))
+    for r in range(R):
+        for k, tone in enumerate(vib.tones):
+            arg = tone.order * angle[:, r]
+            s, c = (gain[:, r] * np.sin(arg))[None, :, None], (gain[:, r] * np.cos(arg))[None, :, None]
+            out += tone.level * (s * np.cos(phase[:, None, r, k]) + c * np.sin(phase[:, None, r, k]))
+    return out * scale
 
 
 def quantize_increment(incr: np.ndarray, e: AxisErrors, dt: float) -> np.ndarray:
@@ -620,12 +689,15 @@ _GYRO = {
 _ACCEL = {k: f._replace(dim={"angular_rate": "acceleration", "angle_random_walk": "velocity_random_walk",
                              "rate_random_walk": "acceleration_random_walk"}.get(f.dim, f.dim))
           for k, f in _GYRO.items()}
+_TONE = {"order": Field("order", None, "plain"), "level": Field("level", None, "plain")}
 _VIBRATION = {
-    "type": Field("type", ("sine", "random"), "str"),
+    "type": Field("type", ("sine", "random", "rotor"), "str"),
     "amplitude": Field("amplitude", "acceleration", "3"),
     "gyro_amplitude": Field("gyro_amplitude", "angular_rate", "3"),
     "frequency_hz": Field("frequency_hz", None, "plain"),
     "band_hz": Field("band_hz", None, "pair"),
+    "tones": Field("tones", Group(_TONE, Tone), "list"),
+    "reference_hz": Field("reference_hz", None, "plain"),
 }
 #: a triad's error sources (``off: [gyro.noise_density]``), ``range`` off: no saturation
 _TRIAD_ERRORS = ("bias", "bias_sigma", "bias_instability", "markov_sigma", "noise_density", "random_walk",

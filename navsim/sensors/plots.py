@@ -1,6 +1,7 @@
 """Pictures of the sensors: each sensor's output against the truth and its error over a flight
-(the channels each kind declares, :class:`navsim.sensors.registry.SensorKind`), and an IMU's
-Allan deviation against its datasheet."""
+(the channels each kind declares, :class:`navsim.sensors.registry.SensorKind`), an IMU's error
+spectrum with the flight's rotor frequencies marked, and an IMU's Allan deviation against its
+datasheet."""
 
 from __future__ import annotations
 
@@ -70,6 +71,63 @@ def plot_sensor(data: SensorData, truth, path: str | Path, run: int = 0) -> Path
     axs[-1, 1].set_xlabel("time, s")
     fig.suptitle(f"{data.name} ({data.kind}, {data.meta.get('rate_hz', 0):g} Hz): output and error, run {run}",
                  fontsize=10)
+    fig.tight_layout()
+    path = write_atomic(Path(path), lambda p: fig.savefig(p, dpi=110))
+    plt.close(fig)
+    return path
+
+
+#: the orders of a rotor's turning frequency marked on an IMU's spectrum where its vibration
+#: names none (the shaft's, the blade pass of two blades)
+MARKED_ORDERS = (1.0, 2.0)
+
+
+def rotor_hz(truth, t_s: np.ndarray) -> float | None:
+    """The flight's rotors' median turning frequency over the times ``t_s`` (Hz), None where no
+    rotor turns."""
+    rpm = truth.rotor_rpm
+    if rpm.shape[1] == 0 or not np.any(rpm):
+        return None
+    k = np.clip(np.searchsorted(truth.t_s, t_s), 0, len(truth.t_s) - 1)
+    turning = rpm[k][rpm[k] > 0.0]
+    return float(np.median(turning)) / 60.0 if turning.size else None
+
+
+def plot_spectrum(data: SensorData, truth, path: str | Path, orders=MARKED_ORDERS, run: int = 0) -> Path:
+    """One PNG: an IMU's error spectrum (its output less the truth: noise, vibration, biases) on
+    each accelerometer and gyro axis, run ``run``, amplitude spectral density by Welch's method;
+    the flight's rotor frequency times each of ``orders`` marked (a tone at or above the
+    Nyquist frequency would alias: named in the title)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from scipy.signal import welch
+
+    rate = float(data.meta["rate_hz"])
+    f_rotor = rotor_hz(truth, data.t_s)
+    fig, axs = plt.subplots(2, 1, figsize=(10, 7.5), sharex=True)
+    chans = channels(data, truth, run)           # the gyro's three axes, then the accelerometer's
+    for ax, (label, unit, picked) in zip(axs, (("accelerometer", "m/s²", chans[3:6]), ("gyro", "deg/s", chans[:3]))):
+        for name, _, _, meas, true in picked:
+            err = np.asarray(meas - true, float)
+            f, psd = welch(err - err.mean(), fs=rate, nperseg=min(len(err), 4096))
+            ax.semilogy(f[1:], np.sqrt(psd[1:]), lw=0.8, label=name)
+        ax.set_ylabel(f"{label} error, {unit}/√Hz")
+        ax.grid(alpha=0.3, which="both")
+    marked = [(o, o * f_rotor) for o in orders] if f_rotor is not None else []
+    for ax in axs:
+        for order, f in marked:
+            if f < 0.5 * rate:
+                ax.axvline(f, color="k", ls="--", lw=0.7, alpha=0.6)
+                ax.text(f, 1.0, f" {order:g}× rotor, {f:.1f} Hz", transform=ax.get_xaxis_transform(),
+                        rotation=90, va="top", ha="left", fontsize=7,
+                        bbox=dict(facecolor="white", alpha=0.8, lw=0, pad=1))
+        ax.legend(fontsize=7, loc="lower left")
+    axs[-1].set_xlabel("frequency, Hz")
+    above = [f for _, f in marked if f >= 0.5 * rate]
+    note = (f"rotors at {f_rotor:.1f} Hz" + (f"; tones at {', '.join(f'{f:.0f}' for f in above)} Hz above the "
+                                             f"Nyquist frequency" if above else "")) if f_rotor else "no rotors turning"
+    fig.suptitle(f"{data.name} ({data.meta.get('rate_hz', 0):g} Hz): error spectrum, run {run}; {note}", fontsize=10)
     fig.tight_layout()
     path = write_atomic(Path(path), lambda p: fig.savefig(p, dpi=110))
     plt.close(fig)

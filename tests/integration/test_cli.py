@@ -115,6 +115,7 @@ montecarlo: {runs: 3, seed: 4}
     assert "83.9" in text
     # the IMU's Allan deviation at rest: its white noise is the datasheet's (2000 s, to 5 %)
     assert (out / "allan_imu.png").stat().st_size > 20000
+    assert (out / "spectrum_imu.png").stat().st_size > 20000          # its error spectrum
     line = next(ln for ln in text.splitlines() if ln.startswith("imu: white noise read from its Allan"))
     ratios = dict(part.split() for part in line.split(": ")[-1].split(", "))
     assert set(ratios) == {"gyro", "accel"} and all(abs(float(v) - 1) < 0.05 for v in ratios.values()), line
