@@ -148,10 +148,10 @@ class Mixer:
         N m), saturated by the rule of the class."""
         w = np.asarray(wrench, float)
         t_max = self.max_thrust_n
-        col, rp, yaw = self.allocation[:, 0], self.allocation[:, 1:3] @ w[1:3], self.allocation[:, 3] * w[3]
-        f = col * w[0] + rp + yaw
-        if np.all(f >= 0.0) and np.all(f <= t_max):
+        f = self.allocation @ w
+        if f.min() >= 0.0 and (f <= t_max).all():       # below saturation: the exact allocation
             return f
+        col, rp, yaw = self.allocation[:, 0], self.allocation[:, 1:3] @ w[1:3], self.allocation[:, 3] * w[3]
         scale = _largest_fit(col, rp, t_max)
         lo, hi = _collective_range(col, scale * rp, t_max)
         f = col * min(max(w[0], lo), hi) + scale * rp
@@ -294,6 +294,8 @@ class MultirotorController:
         self.mixer, self.mass_kg, self.gains = mixer, float(mass_kg), gains
         self.J = np.asarray(inertia_b_kgm2, float)
         self._rate_k = np.array([gains.rate_bw_rps, gains.rate_bw_rps, gains.yaw_rate_bw_rps])
+        self._rate_k_f = tuple(self._rate_k.tolist())        # as floats, for the rate loop
+        self._J = tuple(tuple(row) for row in self.J.tolist())
         self.vel_i_mps2 = np.zeros(3)      # the velocity loop's integral, NED acceleration
         self.heading_rad: float | None = None   # the heading held when a yaw mode has none
         self.last_wrench = np.zeros(4)
@@ -315,35 +317,41 @@ class MultirotorController:
 
     def acceleration_n(self, state: MultirotorState, setpoint: Setpoint, dt_s: float) -> np.ndarray:
         """Position (P) and velocity (PI) loops and the setpoint's acceleration feed-forward: the
-        NED acceleration asked, gravity not in it."""
+        NED acceleration asked, gravity not in it. (Three-vectors as floats: numpy's cost per
+        operation is tens of times an element's at this size.)"""
         g = self.gains
-        vel_cmd = g.pos_bw_rps * (np.asarray(setpoint.pos_n_m, float) - state.pos_n_m) \
-            + np.asarray(setpoint.vel_n_mps, float)
-        speed = math.hypot(vel_cmd[0], vel_cmd[1])
+        pos, vel = state.pos_n_m.tolist(), state.vel_n_mps.tolist()
+        cmd = [g.pos_bw_rps * (sp - p) + v for sp, p, v in zip(setpoint.pos_n_m, pos, setpoint.vel_n_mps)]
+        speed = math.hypot(cmd[0], cmd[1])
         if speed > setpoint.speed_max_mps:
-            vel_cmd[:2] *= setpoint.speed_max_mps / speed
-        vel_cmd[2] = min(max(vel_cmd[2], -g.max_climb_mps), g.max_sink_mps)
-        err = vel_cmd - state.vel_n_mps
-        near = (np.abs(err) < g.vel_i_band_mps) | (np.abs(state.vel_n_mps) < g.vel_i_band_mps) \
-            | (err * self.vel_i_mps2 < 0.0)
-        self.vel_i_mps2 = np.minimum(np.maximum(self.vel_i_mps2 + near * (g.vel_bw_rps * g.vel_i_bw_rps * dt_s) * err,
-                                                -g.vel_i_max_mps2), g.vel_i_max_mps2)
-        return g.vel_bw_rps * err + self.vel_i_mps2 + np.asarray(setpoint.acc_n_mps2, float)
+            k = setpoint.speed_max_mps / speed
+            cmd[0], cmd[1] = cmd[0] * k, cmd[1] * k
+        cmd[2] = min(max(cmd[2], -g.max_climb_mps), g.max_sink_mps)
+        gain_i, band, lim = g.vel_bw_rps * g.vel_i_bw_rps * dt_s, g.vel_i_band_mps, g.vel_i_max_mps2
+        out, integral = [], self.vel_i_mps2
+        for j in range(3):
+            err, i_j = cmd[j] - vel[j], float(integral[j])
+            if abs(err) < band or abs(vel[j]) < band or err * i_j < 0.0:
+                i_j = min(max(i_j + gain_i * err, -lim), lim)
+                integral[j] = i_j
+            out.append(g.vel_bw_rps * err + i_j + setpoint.acc_n_mps2[j])
+        return np.array(out)
 
     def thrust_vector(self, acc_n: np.ndarray, C_nb: np.ndarray) -> tuple:
         """The thrust direction (unit, NED) for the acceleration ``acc_n``, its tilt limited with
         the vertical kept, and the collective thrust (N): the thrust vector's projection on the
         present thrust axis (body -z)."""
-        f_n = self.mass_kg * (acc_n - np.array([0.0, 0.0, GRAVITY_MPS2]))
-        up = max(-f_n[2], 0.1 * self.mass_kg * GRAVITY_MPS2)   # never ask for thrust downwards
-        horiz = math.hypot(f_n[0], f_n[1])
+        m = self.mass_kg
+        fx, fy, fz = m * float(acc_n[0]), m * float(acc_n[1]), m * (float(acc_n[2]) - GRAVITY_MPS2)
+        up = max(-fz, 0.1 * m * GRAVITY_MPS2)      # never ask for thrust downwards
+        horiz = math.hypot(fx, fy)
         horiz_max = up * math.tan(self.gains.max_tilt_rad)
         if horiz > horiz_max:
-            f_n[:2] *= horiz_max / horiz
-        f_n[2] = -up
-        thrust_dir_n = f_n / math.sqrt(f_n @ f_n)
-        collective_n = max(float(-f_n @ C_nb[:, 2]), 0.0)
-        return thrust_dir_n, collective_n
+            fx, fy = fx * horiz_max / horiz, fy * horiz_max / horiz
+        norm = math.sqrt(fx * fx + fy * fy + up * up)
+        c02, c12, c22 = float(C_nb[0, 2]), float(C_nb[1, 2]), float(C_nb[2, 2])
+        collective_n = max(-(fx * c02 + fy * c12 - up * c22), 0.0)
+        return np.array([fx / norm, fy / norm, -up / norm]), collective_n
 
     def yaw_setpoint(self, state: MultirotorState, setpoint: Setpoint) -> float:
         """The heading asked by the yaw mode (rad from north), the present one held when the mode
@@ -367,27 +375,38 @@ class MultirotorController:
         """Attitude loop: the body rates (rad/s) that turn the body towards the attitude with its
         -z along ``thrust_dir_n`` and its nose towards ``yaw_rad`` (limited to
         ``max_yaw_step_rad`` from the present heading), plus the heading's rate ``yaw_rate_rps``
-        (about down) fed forward."""
+        (about down) fed forward. The rotation error is ``e_R = vee(C_d^T C - C^T C_d) / 2``, each
+        of its terms a dot product of the two attitudes' axes (their columns)."""
         g = self.gains
-        psi = math.atan2(C_nb[1, 0], C_nb[0, 0])
+        (c00, c01, c02), (c10, c11, c12), (c20, c21, c22) = C_nb.tolist()
+        psi = math.atan2(c10, c00)
         step = (yaw_rad - psi + math.pi) % (2.0 * math.pi) - math.pi
         psi_d = psi + min(max(step, -g.max_yaw_step_rad), g.max_yaw_step_rad)
-        z_d = -thrust_dir_n
-        y_d = _cross(z_d, (math.cos(psi_d), math.sin(psi_d), 0.0))
-        y_d /= math.sqrt(y_d @ y_d)
-        C_d = np.array([_cross(y_d, z_d), y_d, z_d]).T
-        E = C_d.T @ C_nb - C_nb.T @ C_d          # 2 * skew(e_R)
-        e_r = 0.5 * np.array([E[2, 1], E[0, 2], E[1, 0]])
-        omega = -g.att_bw_rps * e_r
-        omega[2] = -g.yaw_bw_rps * e_r[2]
+        zx, zy, zz = (-float(v) for v in thrust_dir_n)                  # the body's z asked
+        hx, hy = math.cos(psi_d), math.sin(psi_d)                        # the heading asked
+        yx, yy, yz = -zz * hy, zz * hx, zx * hy - zy * hx                # z x heading, then unit
+        n = math.sqrt(yx * yx + yy * yy + yz * yz)
+        yx, yy, yz = yx / n, yy / n, yz / n
+        xx, xy, xz = yy * zz - yz * zy, yz * zx - yx * zz, yx * zy - yy * zx   # y x z
+        # E[i, j] = (asked axis i) . (present axis j) - (present axis i) . (asked axis j)
+        e0 = 0.5 * ((zx * c01 + zy * c11 + zz * c21) - (c02 * yx + c12 * yy + c22 * yz))
+        e1 = 0.5 * ((xx * c02 + xy * c12 + xz * c22) - (c00 * zx + c10 * zy + c20 * zz))
+        e2 = 0.5 * ((yx * c00 + yy * c10 + yz * c20) - (c01 * xx + c11 * xy + c21 * xz))
+        w0, w1, w2 = -g.att_bw_rps * e0, -g.att_bw_rps * e1, -g.yaw_bw_rps * e2
         if yaw_rate_rps:                          # the heading's rate about down, in body axes
-            omega += yaw_rate_rps * C_nb[2]
+            w0, w1, w2 = w0 + yaw_rate_rps * c20, w1 + yaw_rate_rps * c21, w2 + yaw_rate_rps * c22
         lim, lim_yaw = g.max_rate_rps, g.max_yaw_rate_rps
-        return np.array([min(max(omega[0], -lim), lim), min(max(omega[1], -lim), lim),
-                         min(max(omega[2], -lim_yaw), lim_yaw)])
+        return np.array([min(max(w0, -lim), lim), min(max(w1, -lim), lim), min(max(w2, -lim_yaw), lim_yaw)])
 
     def torque(self, omega_b_rps: np.ndarray, omega_cmd: np.ndarray) -> np.ndarray:
         """Rate loop: body torques (N m), ``J k (omega_cmd - omega) + omega x J omega`` with ``k``
         the roll-pitch or the yaw rate bandwidth."""
-        J = self.J
-        return J @ (self._rate_k * (omega_cmd - omega_b_rps)) + _cross(omega_b_rps, J @ omega_b_rps)
+        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._J
+        w0, w1, w2 = omega_b_rps.tolist()
+        k0, k1, k2 = self._rate_k_f
+        a0, a1, a2 = (k0 * (float(omega_cmd[0]) - w0), k1 * (float(omega_cmd[1]) - w1),
+                      k2 * (float(omega_cmd[2]) - w2))
+        h0, h1, h2 = j00 * w0 + j01 * w1 + j02 * w2, j10 * w0 + j11 * w1 + j12 * w2, j20 * w0 + j21 * w1 + j22 * w2
+        return np.array([j00 * a0 + j01 * a1 + j02 * a2 + w1 * h2 - w2 * h1,
+                         j10 * a0 + j11 * a1 + j12 * a2 + w2 * h0 - w0 * h2,
+                         j20 * a0 + j21 * a1 + j22 * a2 + w0 * h1 - w1 * h0])

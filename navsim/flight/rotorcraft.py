@@ -37,6 +37,7 @@ MIN_AGL_M = 0.3              #: lower than this above the surface is an impact (
 #: a goto's moving point and a circle's reach their speed, and stop at a leg's end, at this
 #: acceleration, m/s^2
 SETPOINT_ACCEL_MPS2 = 1.0
+ZERO3 = (0.0, 0.0, 0.0)
 #: a landing's setpoint ends this far below the centre of gravity's height standing on the
 #: surface, so that it presses on the ground until it stands, m
 LAND_PUSH_M = 0.5
@@ -241,6 +242,7 @@ class RotorSegments:
         self.point = np.array([0.0, 0.0, craft.ground_down_m if takes_off(track) else 0.0])
         self.index, self.finished, self.t0 = -1, False, 0.0
         self.leg: _Leg | None = None
+        self.yaw = YawMode("heading", heading_rad=self.heading_rad)   # the segment's (set by next)
         #: the time a landing touched down (its motors stopped since), None in the air
         self.landed_s: float | None = None
 
@@ -267,6 +269,7 @@ class RotorSegments:
             self.leg = self._vertical(seg)
         else:
             self.leg = None if seg.type == "hover" else (self._line(seg) if seg.type == "goto" else self._circle(seg, t))
+        self.yaw = self._yaw(seg)          # the nose's mode: fixed over the segment
 
     def _vertical(self, seg: Segment) -> _Leg:
         """A takeoff's climb from the ground to ``agl_m``, or a landing's descent to (and
@@ -325,7 +328,7 @@ class RotorSegments:
         """The setpoint at time ``t``; moves to the next segment when this one is done."""
         seg = self.segments[self.index]
         leg = self.leg
-        vel = acc = np.zeros(3)
+        vel = acc = ZERO3
         if leg is not None:
             left = leg.length_m - leg.travelled_m          # slowing to stop at a leg's end
             leg.speed_mps = min(leg.speed_cap_mps if leg.vertical else min(self.speed_mps, leg.speed_cap_mps),
@@ -333,13 +336,14 @@ class RotorSegments:
                                 math.sqrt(2.0 * SETPOINT_ACCEL_MPS2 * left) if left < math.inf else math.inf)
             leg.travelled_m = min(leg.travelled_m + leg.speed_mps * dt, leg.length_m)
             self.point, vel, acc = self._along(leg)
+            vel, acc = vel.tolist(), acc.tolist()
         if seg.type == "land":
             done = self.landed_s is not None and t - self.landed_s >= SETTLE_S
         else:
             done = (t - self.t0 >= seg["time_s"] - 1e-9) if "time_s" in seg.params else leg.travelled_m >= leg.length_m
-        yaw = self._yaw(seg)
+        yaw = self.yaw
         turning = leg is not None and leg.center is not None and yaw.kind != "heading"
-        sp = Setpoint(pos_n_m=tuple(self.point), vel_n_mps=tuple(vel), acc_n_mps2=tuple(acc),
+        sp = Setpoint(pos_n_m=tuple(self.point.tolist()), vel_n_mps=tuple(vel), acc_n_mps2=tuple(acc),
                       speed_max_mps=self.speed_mps + 1.0, yaw=yaw,
                       # round a circle the course and the bearing of its centre turn at v / r
                       yaw_rate_rps=leg.sense * leg.speed_mps / self._radius(leg) if turning else 0.0)
