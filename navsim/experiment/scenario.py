@@ -118,7 +118,7 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     runs, seed, workers = _montecarlo(node.child("montecarlo", None))
     estimators = _estimators(node, sensors, file)
     initial = _initial(node.child("initial_errors", None))
-    nominal_s = _duration(track, file)
+    nominal_s = _duration(track, environment.surface_m, file)
     settle_s, windows = _metrics(node.child("metrics", None))
     reference = parse_reference(node.child("reference", None), [e.label for e in estimators],
                                 lambda path, key: check_metric_path(path, windows, file=node.file, key=key))
@@ -147,9 +147,9 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     return scenario
 
 
-def _duration(track, file: str | None) -> float:
-    """The track's nominal duration, at most :data:`MAX_DURATION_S`."""
-    duration = nominal_duration_s(track)
+def _duration(track, surface_m: float, file: str | None) -> float:
+    """The track's nominal duration (over a surface at ``surface_m``), at most :data:`MAX_DURATION_S`."""
+    duration = nominal_duration_s(track, surface_m)
     if not duration <= MAX_DURATION_S:
         raise ScenarioError(f"lasts {duration:.6g} s at its speeds", file=file, key="track",
                             expected=f"a flight of at most {MAX_DURATION_S:g} s")

@@ -51,11 +51,6 @@ COURSE_MIN_SPEED_MPS = 0.5
 POINT_MIN_DISTANCE_M = 1.0
 
 
-def _cross(a, b) -> np.ndarray:
-    """``a x b`` of two 3-vectors (numpy's ``cross`` costs ten times more at this size)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
 @dataclass(frozen=True)
 class Rotor:
     """One rotor: where it is, which way it turns and how its command makes thrust.
@@ -292,10 +287,9 @@ class MultirotorController:
 
     def __init__(self, mixer: Mixer, mass_kg: float, inertia_b_kgm2, gains: MultirotorGains = MultirotorGains()):
         self.mixer, self.mass_kg, self.gains = mixer, float(mass_kg), gains
-        self.J = np.asarray(inertia_b_kgm2, float)
-        self._rate_k = np.array([gains.rate_bw_rps, gains.rate_bw_rps, gains.yaw_rate_bw_rps])
-        self._rate_k_f = tuple(self._rate_k.tolist())        # as floats, for the rate loop
-        self._J = tuple(tuple(row) for row in self.J.tolist())
+        #: the inertia tensor (kg m^2, body) and the rate loop's gains, as floats (the rate loop's)
+        self._J = tuple(tuple(float(x) for x in row) for row in np.asarray(inertia_b_kgm2, float))
+        self._rate_k = (gains.rate_bw_rps, gains.rate_bw_rps, gains.yaw_rate_bw_rps)
         self.vel_i_mps2 = np.zeros(3)      # the velocity loop's integral, NED acceleration
         self.heading_rad: float | None = None   # the heading held when a yaw mode has none
         self.last_wrench = np.zeros(4)
@@ -403,7 +397,7 @@ class MultirotorController:
         the roll-pitch or the yaw rate bandwidth."""
         (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._J
         w0, w1, w2 = omega_b_rps.tolist()
-        k0, k1, k2 = self._rate_k_f
+        k0, k1, k2 = self._rate_k
         a0, a1, a2 = (k0 * (float(omega_cmd[0]) - w0), k1 * (float(omega_cmd[1]) - w1),
                       k2 * (float(omega_cmd[2]) - w2))
         h0, h1, h2 = j00 * w0 + j01 * w1 + j02 * w2, j10 * w0 + j11 * w1 + j12 * w2, j20 * w0 + j21 * w1 + j22 * w2

@@ -10,7 +10,6 @@ scaled to SI by :data:`RAW_TO_SI`; column indices are the ``COL_*`` constants.
 from __future__ import annotations
 
 import os
-import warnings
 from pathlib import Path
 from typing import NamedTuple
 
@@ -104,8 +103,10 @@ RUN_ALL_ENGINES = "propulsion/set-running"        #: -1 starts every engine
 #: the propulsive force along body z (the rotors' thrust is its negative), lbf
 PROPULSIVE_FZ_LBS = "forces/fbz-prop-lbs"
 MASS_SLUGS = "inertia/mass-slugs"
-#: the centre of gravity's height in the structural frame (inches, z up), and whether a ground
-#: contact carries weight
+#: the ground contacts' count, a wheel's or skid's (``BOGEY``) height and the centre of gravity's
+#: in the structural frame (inches, z up), and whether one of them carries weight
+GEAR_UNITS = "gear/num-units"
+GEAR_Z_IN = "gear/unit[{i}]/z-position"
 CG_Z_IN = "inertia/cg-z-in"
 GEAR_WOW = "gear/wow"
 #: the inertia tensor's moments and products (JSBSim's products are positive integrals)
@@ -320,17 +321,16 @@ class JSBSimIO:
         return self.fdm[MASS_SLUGS] * SLUG_TO_KG, J
 
     def rest_height_m(self) -> float | None:
-        """The centre of gravity's height above the model's lowest ground contact (the height it
-        stands at on level ground), m; None for a model without contacts."""
-        gear = self.fdm.get_ground_reactions()
-        n = gear.get_num_gear_units()
-        if n == 0:
+        """The centre of gravity's height above the model's lowest wheel or skid (a JSBSim
+        ``BOGEY`` contact: those that carry the weight :meth:`on_ground` reads; a ``STRUCTURE``
+        contact is not one to stand on), the height it stands at on level ground, m; None for a
+        model without one."""
+        pm = self.fdm.get_property_manager()
+        nodes = [pm.get_node(GEAR_Z_IN.format(i=i), False) for i in range(int(self.fdm[GEAR_UNITS]))]
+        heights_in = [node.get_double_value() for node in nodes if node is not None]
+        if not heights_in:
             return None
-        cg_z_in = self.fdm[CG_Z_IN]       # each contact's location: structural inches, z up
-        with warnings.catch_warnings():   # jsbsim returns it as an np.matrix
-            warnings.simplefilter("ignore", PendingDeprecationWarning)
-            lowest_in = min(float(np.asarray(gear.get_gear_unit(i).get_location()).ravel()[2]) for i in range(n))
-        return (cg_z_in - lowest_in) * IN_TO_M
+        return (self.fdm[CG_Z_IN] - min(heights_in)) * IN_TO_M
 
     def on_ground(self) -> bool:
         """Whether a ground contact carries weight now."""

@@ -3,11 +3,14 @@ controller of :mod:`navsim.flight.multirotor`, its mixer derived from the rotor 
 ``navsim.yaml`` (:class:`~navsim.flight.airframe.Multirotor`).
 
 :func:`fly_rotorcraft` is what :func:`navsim.flight.simulator.fly` runs for an aircraft of class
-``multirotor``: started hovering at the track's start (``start: {type: hover}``), the motors'
-thrust map calibrated first with the airframe held (JSBSim's thrust at the declared hover
-throttle, per command squared), then the segments flown on the true state (``hover``: hold the
-point; ``goto``: a point moving along the line at the segment's speed; ``circle``: a point
-moving round the circle), each step checked for NaN, impact and loss of control.
+``multirotor``: started hovering at the track's start (``start: {type: hover}``) or standing on
+the surface on its wheels or skids (``start: {type: ground}`` and a ``takeoff`` first), the
+motors' thrust map calibrated first with the airframe held (JSBSim's thrust at the declared hover
+throttle, per command squared), then the segments flown on the true state (``takeoff``: a point
+rising from where it stands; ``hover``: hold the point; ``goto``: a point moving along the line
+at the segment's speed; ``circle``: a point moving round the circle; ``land``: a point sinking
+into the surface, the motors stopped when a wheel or skid first carries weight), each step
+checked for NaN, impact (but in a takeoff or a landing) and loss of control.
 
 Segments chain on the commanded point, not on where the vehicle happens to be: a segment starts
 where the one before left its setpoint.
@@ -43,6 +46,9 @@ ZERO3 = (0.0, 0.0, 0.0)
 LAND_PUSH_M = 0.5
 #: the motors stop at touchdown; a landing ends this long after it, s
 SETTLE_S = 1.0
+#: a landing whose point has reached the surface fails if no wheel or skid carries weight this
+#: long after, s
+TOUCHDOWN_WAIT_S = 10.0
 #: the least steady wind a multirotor flies JSBSim's turbulence in, m/s (:func:`check_environment`)
 MIN_TURBULENCE_WIND_MPS = 3.0
 
@@ -123,7 +129,8 @@ def check_envelope(track: Track, airframe: Multirotor, file: str | None = None) 
 
 
 class Rotorcraft:
-    """One JSBSim multirotor hovering at its track's start, its controller built: ready to step."""
+    """One JSBSim multirotor hovering at its track's start or standing there, its controller
+    built: ready to step."""
 
     def __init__(self, config, airframe: Multirotor):
         track, env = config.track, config.environment
@@ -168,11 +175,12 @@ class Rotorcraft:
         surface on the model's lowest contacts. Sets :attr:`ground_down_m`, the down coordinate
         (from the start's height) of the centre of gravity standing on the surface."""
         io = self.io
-        rest_m = io.rest_height_m()
+        self.rest_m = rest_m = io.rest_height_m()
         standing = takes_off(self.config.track)
-        if standing and rest_m is None:
-            raise ScenarioError("the model has no ground contacts: it cannot stand on the ground", file=file,
-                                key="track.start.type", expected="a hover start, or a model with landing gear")
+        grounded = [seg.type for seg in self.config.track.segments if seg.type in ("takeoff", "land")]
+        if grounded and rest_m is None:
+            raise ScenarioError(f"the model has no wheel or skid (JSBSim BOGEY contact): it cannot {grounded[0]}",
+                                file=file, expected="a model with landing gear, or a track without takeoff or land")
         self.ground_down_m = self.h0 - env.surface_m - (rest_m or 0.0)
         io.set_terrain(env.surface_m)
         io.set_wind_ned(env.wind_n_mps)
@@ -245,6 +253,7 @@ class RotorSegments:
         self.yaw = YawMode("heading", heading_rad=self.heading_rad)   # the segment's (set by next)
         #: the time a landing touched down (its motors stopped since), None in the air
         self.landed_s: float | None = None
+        self.leg_end_s = 0.0                   #: the last time the leg's point moved
 
     def fail(self, reason: str, t: float) -> FlightError:
         seg = self.segments[self.index] if 0 <= self.index < len(self.segments) else None
@@ -276,6 +285,9 @@ class RotorSegments:
         :data:`LAND_PUSH_M` into) the surface, at the segment's rate within the airframe's."""
         af, craft = self.craft.airframe, self.craft
         if seg.type == "takeoff":
+            if seg["agl_m"] < craft.rest_m + MIN_AGL_M:
+                raise self.fail(f"a takeoff to {seg['agl_m']:g} m, where the aircraft stands at {craft.rest_m:.2f} m "
+                                f"(at least {craft.rest_m + MIN_AGL_M:.2f} m over the surface)", self.t0)
             self.landed_s = None
             craft.controller.reset()                    # nothing learned on the ground
             down, rate = craft.h0 - craft.config.environment.surface_m - seg["agl_m"], min(seg["rate_mps"], af.max_climb_mps)
@@ -334,11 +346,15 @@ class RotorSegments:
             leg.speed_mps = min(leg.speed_cap_mps if leg.vertical else min(self.speed_mps, leg.speed_cap_mps),
                                 leg.speed_mps + SETPOINT_ACCEL_MPS2 * dt,
                                 math.sqrt(2.0 * SETPOINT_ACCEL_MPS2 * left) if left < math.inf else math.inf)
+            if leg.travelled_m < leg.length_m:
+                self.leg_end_s = t                         # the last time its point moved
             leg.travelled_m = min(leg.travelled_m + leg.speed_mps * dt, leg.length_m)
             self.point, vel, acc = self._along(leg)
             vel, acc = vel.tolist(), acc.tolist()
         if seg.type == "land":
             done = self.landed_s is not None and t - self.landed_s >= SETTLE_S
+            if self.landed_s is None and leg.travelled_m >= leg.length_m and t - self.leg_end_s > TOUCHDOWN_WAIT_S:
+                raise self.fail(f"no touchdown {TOUCHDOWN_WAIT_S:g} s after the landing's point reached the surface", t)
         else:
             done = (t - self.t0 >= seg["time_s"] - 1e-9) if "time_s" in seg.params else leg.travelled_m >= leg.length_m
         yaw = self.yaw

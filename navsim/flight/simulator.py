@@ -209,7 +209,8 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
     rec, dt = _Recorder(len(P.RAW_PROPERTIES) + extra, 1 << 14), 1.0 / config.rate_hz
     try:
         if airframe.kind == MULTIROTOR:
-            fly_rotorcraft(config, airframe, rec.add, progress, nominal_duration_s(config.track))
+            fly_rotorcraft(config, airframe, rec.add, progress,
+                           nominal_duration_s(config.track, config.environment.surface_m))
         else:
             _fly_track(Aircraft(config), rec, progress)
     except FlightError as exc:

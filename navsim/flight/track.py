@@ -331,8 +331,9 @@ def _track_file(path: Path, file: str | None = None, key: str | None = None) -> 
     return parse_track(data, "", str(path))
 
 
-def nominal_duration_s(track: Track) -> float:
-    """A rough duration of the track at its speeds (for time-outs and progress bars)."""
+def nominal_duration_s(track: Track, surface_m: float = 0.0) -> float:
+    """A rough duration of the track at its speeds (for time-outs and progress bars);
+    ``surface_m``: the surface's height, where a landing ends."""
     speed = track.start.speed_mps
     alt = track.start.alt_m
     total = 0.0
@@ -360,8 +361,10 @@ def nominal_duration_s(track: Track) -> float:
             total += p["time_s"]
         elif seg.type == "takeoff":
             total += p["agl_m"] / p["rate_mps"] + 5.0
+            alt = surface_m + p["agl_m"]
         elif seg.type == "land":
-            total += 30.0
+            total += max(alt - surface_m, 0.0) / p["rate_mps"] + 5.0
+            alt = surface_m
         else:
             total += 60.0
     return total

@@ -43,6 +43,7 @@ from navsim.foundations.transform import cross, rotation
 from navsim.sensors import kernels
 from navsim.sensors.base import SensorData, decimation, normals, run_generators, zeros3
 from navsim.sensors.registry import ErrorTerm, Field, Group, LinearError, Output, SensorKind, register
+from navsim.sensors.units import UnitError
 
 
 @dataclass(frozen=True)
@@ -99,6 +100,13 @@ class Vibration:
     band_hz: tuple[float, float] = (10.0, 40.0)
     tones: tuple[Tone, ...] = ROTOR_TONES
     reference_hz: float = 0.0
+
+    def __post_init__(self):
+        if self.type == "rotor" and not self.reference_hz > 0.0:
+            raise UnitError("a rotor vibration needs reference_hz: the rotor frequency (Hz) at which amplitude is "
+                            "its peak, e.g. a hover's")
+        if self.type == "rotor" and not self.tones:
+            raise UnitError("a rotor vibration needs at least one tone ({order, level})")
 
 
 @dataclass(frozen=True)
@@ -254,7 +262,7 @@ class SampledMotion(NamedTuple):
     t_s: np.ndarray
     dt_s: float
     #: each rotor's speed (r/min) and the angle it has turned (rad, from 0 at the start),
-    #: ``(n, R)``: what a rotor vibration is made of (None: no rotors)
+    #: ``(n, R)``: what a rotor vibration is made of (R = 0, or None: no rotors)
     rotor_rpm: np.ndarray | None = None
     rotor_angle_rad: np.ndarray | None = None
 
@@ -599,10 +607,8 @@ def error_increments(spec: ImuSpec, seed: int, runs, n: int, dt: float, name: st
     (``I + M``), so that the measured increment is ``matrix @ ideal + error`` (then quantized):
     the same numbers as :func:`emulate_imu` with the same ``n``. Range saturation is not
     applied (it needs the rate, which a closed loop does not keep)."""
-    if any(v.type == "rotor" for v in spec.vibration):
-        raise ScenarioError("a rotor vibration in a closed loop", key=f"sensors.{name}.vibration",
-                            expected="a sine or random vibration: each run's rotor speeds are not known before "
-                                     "it flies")
+    # (a rotor vibration, whose rotors a closed loop does not know in advance, is refused when the
+    # scenario is read: navsim.experiment.closed_loop; here it would be zero, as on a still vehicle)
     stream = ImuStream(SampledMotion.still(n, dt), spec, seed, runs, name, block=1)
     _, err_g, bias_g = stream.gyro.block(0, n, False)
     _, err_a, bias_a = stream.accel.block(0, n, False)
@@ -636,13 +642,10 @@ def _rotor_vibration(gens, stream: "ImuStream", vib: Vibration, rate_hz: float, 
     rpm, angle = stream.rotor_rpm, stream.rotor_angle_rad
     if not np.any(amp) or rpm is None or not np.any(rpm):      # no rotor turning (a parked vehicle): none
         return 0.0
-    if not vib.reference_hz > 0.0:
-        raise ScenarioError("a rotor vibration needs reference_hz", key="sensors.imu.vibration",
-                            expected="the rotor frequency (Hz) at which amplitude is the peak, e.g. a hover's")
     top = max(t.order for t in vib.tones) * rpm.max() / 60.0
     if top >= 0.5 * rate_hz:
         raise ScenarioError(f"rotor tones up to {top:.0f} Hz reach the IMU's Nyquist frequency ({0.5 * rate_hz:g} Hz): "
-                            "point-sampled, they would alias", key="sensors.imu.vibration",
+                            "point-sampled, they would alias", key=f"sensors.{stream.name}.vibration",
                             expected=f"an IMU rate above {2 * top:.0f} Hz, or a random vibration in its band")
     R, levels = rpm.shape[1], np.array([t.level for t in vib.tones])
     # each tone of each rotor and axis a sinusoid of random phase: their sum's variance is

@@ -325,3 +325,16 @@ def test_a_takeoff_or_a_landing_out_of_order_is_refused(tmp_path, capsys):
     assert main(["validate", str(write(tmp_path, [{"type": "takeoff", "agl_m": 10}], start=GROUND_START,
                                        aircraft="survey10"))]) == 2
     assert "cannot be flown by a fixed_wing" in capsys.readouterr().err
+
+
+def test_a_hovering_start_lands_and_a_takeoff_below_the_skids_fails():
+    """A hover start flies out and lands (its height over the surface down to where it stands);
+    a takeoff to less than its standing height plus the impact margin fails naming the
+    segment (exit 3)."""
+    truth = octo_fly([{"type": "goto", "north_m": 10.0, "east_m": 0.0}, {"type": "land", "rate_mps": 1.0}])
+    assert truth.h_agl_m[-1] == pytest.approx(0.45, abs=0.02) and truth.rotor_rpm[-1].max() < 50.0
+    assert np.linalg.norm(local_ned(truth)[-1, :2] - [10.0, 0.0]) < 0.1
+    env = parse_environment({"surface_m": 10.0}, "environment", None)
+    with pytest.raises(FlightError, match=r"segment 0.*a takeoff to 0.5 m, where the aircraft stands at 0.45 m"):
+        fly(FlightConfig(track=parse_track({"start": GROUND_START, "segments": [{"type": "takeoff", "agl_m": 0.5}]}),
+                         environment=env, aircraft="octo25"))
