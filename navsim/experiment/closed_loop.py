@@ -35,6 +35,10 @@ flight rate) and every kind whose registration says how it flies in the loop
 (:class:`navsim.sensors.registry.InLoop`: GNSS without latency, lever arm or interference, which
 depend on the trajectory, and barometer). Other kinds are refused with a clear error.
 
+A multirotor (a ``hover`` start) flies its cascade controller (:mod:`navsim.flight.rotorcraft`)
+on the solution's position, velocity and attitude and the gyros' measured rates; its return is
+a ``goto`` to the recovery point and a ``land`` there.
+
 JSBSim holds one aircraft per instance, so the physics and the scalar autopilot step each run
 in turn; sensors and estimators are batched over the runs.
 """
@@ -48,10 +52,14 @@ import numpy as np
 
 from navsim.experiment.driver import Driver, perturbed_start
 from navsim.flight import properties as P
+from navsim.flight.airframe import MULTIROTOR
 from navsim.flight.autopilot import Sensed
+from navsim.flight.environment import steady_wind_n_mps
+from navsim.flight.multirotor import MultirotorState
+from navsim.flight.rotorcraft import Rotorcraft, RotorSegments, check_row
 from navsim.flight.segments import State
-from navsim.flight.simulator import Aircraft, Watchdog
-from navsim.flight.track import Segment
+from navsim.flight.simulator import Aircraft, Watchdog, load_limits
+from navsim.flight.track import LAND_RATE_MPS, Segment
 from navsim.flight.truth import Pose, Truth, truth_from_rows
 from navsim.foundations.config import MAX_DURATION_S, Node, close_match
 from navsim.foundations.errors import FlightError, ScenarioError
@@ -112,10 +120,11 @@ def parse_closed_loop(node: Node, labels: list[str], sensors, track, duration_s:
                          expected="an estimator label or 'truth'", hint=close_match(fly_on, labels))
     default_limit = (duration_s * 1.5 + 300.0) if math.isfinite(duration_s) else 3600.0
     limit = node.get("time_limit_s", float, default_limit, exclusive_minimum=0.0, maximum=MAX_DURATION_S)
-    if track.start.type != "air":
-        what = "starts on a launcher" if track.start.type == "launch" else "is parked on the ground"
-        raise ScenarioError(what, file=node.file, key="track.start.type", expected="with closed_loop, an air start",
-                            hint="launches and parked vehicles are open loop only")
+    if track.start.type not in ("air", "hover"):
+        what = "starts on a launcher" if track.start.type == "launch" else "starts on the ground"
+        raise ScenarioError(what, file=node.file, key="track.start.type",
+                            expected="with closed_loop, an air start (a multirotor's: hover)",
+                            hint="launches, takeoffs and parked vehicles are open loop only")
     imu = [c for c in sensors if c.role == INERTIAL]
     for c in sensors:
         _check_in_loop(c, node.file)
@@ -239,6 +248,10 @@ class _Fleet:
     rtl: ReturnToLand | None
     point: tuple | None          #: the recovery point, north/east from the track start
     goto: Segment | None         #: the segment flown back to it
+    #: a multirotor's: each run's segments (:class:`~navsim.flight.rotorcraft.RotorSegments`) and
+    #: the setpoint it flies (its last one once they are flown); empty for a fixed wing
+    rotor_segments: list
+    setpoints: list
 
 
 @dataclass(frozen=True)
@@ -271,8 +284,12 @@ def _recovery(rtl: ReturnToLand | None, c0) -> tuple:
     """The recovery point (north/east from the track start) and the segment back to it."""
     if rtl is None:
         return None, None
-    point = ((rtl.point["north_m"], rtl.point["east_m"]) if "north_m" in rtl.point else
-             c0.local_of_latlon(math.radians(rtl.point["lat_deg"]), math.radians(rtl.point["lon_deg"])))
+    if "north_m" in rtl.point:
+        point = (rtl.point["north_m"], rtl.point["east_m"])
+    elif isinstance(c0, Rotorcraft):
+        point = c0.local_of_latlon(rtl.point["lat_deg"], rtl.point["lon_deg"])
+    else:
+        point = c0.local_of_latlon(math.radians(rtl.point["lat_deg"]), math.radians(rtl.point["lon_deg"]))
     goto = Segment("goto", RETURN_LABEL, {"north_m": point[0], "east_m": point[1],
                                           "acceptance_m": rtl.acceptance_m,
                                           **({"alt_m": rtl.alt_m} if rtl.alt_m is not None else {})})
@@ -285,11 +302,19 @@ def _fleet(scenario, seed: int, runs: list) -> _Fleet:
     dt = 1.0 / fc.rate_hz
     n_max = int(round(cl.time_limit_s / dt)) + 1
     imu_cfg, imu_err, sensors = _sensor_streams(scenario, seed, runs, dt, n_max)
-    craft = [Aircraft(fc) for _ in runs]
-    watch = [Watchdog(c.limits, dt) for c in craft]
+    airframe = load_limits(fc)
+    if airframe.kind == MULTIROTOR:
+        craft = [Rotorcraft(fc, airframe) for _ in runs]
+        watch, segments = [], [RotorSegments(fc.track, c) for c in craft]
+        for segs in segments:
+            segs.next(0.0)
+    else:
+        craft = [Aircraft(fc) for _ in runs]
+        watch, segments = [Watchdog(c.limits, dt) for c in craft], []
     point, goto = _recovery(cl.return_to_land, craft[0])
     return _Fleet(runs=runs, dt=dt, n_max=n_max, craft=craft, watch=watch, imu_cfg=imu_cfg,
-                  imu_err=imu_err, sensors=sensors, rtl=cl.return_to_land, point=point, goto=goto)
+                  imu_err=imu_err, sensors=sensors, rtl=cl.return_to_land, point=point, goto=goto,
+                  rotor_segments=segments, setpoints=[None] * len(craft))
 
 
 def _start_navigation(scenario, seed: int, fleet: _Fleet, estimators: dict, rows: np.ndarray) -> tuple:
@@ -306,8 +331,10 @@ def _start_navigation(scenario, seed: int, fleet: _Fleet, estimators: dict, rows
     return loop, inc
 
 
-def _advance(fleet: _Fleet, loop, inc, rows: np.ndarray, k: int) -> None:
-    """Step ``k`` of the sensors (the runs' truth ``rows`` plus their errors) and the estimators."""
+def _advance(fleet: _Fleet, loop, inc, rows: np.ndarray, k: int) -> np.ndarray:
+    """Step ``k`` of the sensors (the runs' truth ``rows`` plus their errors) and the estimators;
+    returns the gyros' measured rates over the step, ``(B, 3)`` rad/s (what a multirotor's rate
+    loop reads)."""
     dt, err, spec = fleet.dt, fleet.imu_err, fleet.imu_cfg.spec
     view = _StepTruth(rows)
     dth, dv = inc.update(view.omega_ib_b_rps, view.f_b_mps2)
@@ -322,6 +349,7 @@ def _advance(fleet: _Fleet, loop, inc, rows: np.ndarray, k: int) -> None:
         if k % data.meta["step"] == 0:
             get_kind(data.kind).in_loop.fill(data, k // data.meta["step"], sample)
     loop.advance(dth[:, None], dv[:, None], k * dt, fleet.sensors, view, 0)
+    return dth / dt
 
 
 def _record(fleet: _Fleet, tally: _Tally, rows: np.ndarray, k: int, t: float, path_every: int) -> None:
@@ -370,13 +398,20 @@ def _follow(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, s: State, t: 
     runner.update(s, fleet.dt)
     if not runner.finished:
         return
+    _ended(tally, b, row, c0, (s.north, s.east), t)
+
+
+def _ended(tally: _Tally, b: int, row: np.ndarray, c0, est_ne: tuple, t: float) -> None:
+    """Run ``b`` has flown its segments at ``t``: landed where its truth ``row`` is (the
+    navigation putting it at ``est_ne``, north and east) if it was returning, else its track
+    completed."""
     tally.end_t[b] = t
-    if st[b] == "aborted":
-        st[b], tally.land_t[b] = "landed", t
+    if tally.status[b] == "aborted":
+        tally.status[b], tally.land_t[b] = "landed", t
         tally.landing[b] = ((row[P.COL_LAT] - c0.lat0) * c0.k_north, (row[P.COL_LON] - c0.lon0) * c0.k_east)
-        tally.landing_est[b] = (s.north, s.east)
+        tally.landing_est[b] = est_ne
     else:
-        st[b] = "completed"
+        tally.status[b] = "completed"
 
 
 def _step_run(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, s: State, guide, t: float) -> None:
@@ -400,6 +435,68 @@ def _step_run(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, s: State, g
     c.io.run()
 
 
+#: the landing that ends a multirotor's return home, at a track's default rate
+_LAND = Segment("land", "land", {"rate_mps": LAND_RATE_MPS})
+
+
+def _rotor_state(craft: Rotorcraft, row: np.ndarray, nav, b: int, omega_b: np.ndarray) -> MultirotorState:
+    """Run ``b``'s state for its multirotor controller: its truth ``row``'s, or (``nav``) the
+    navigation solution's position, velocity and attitude with the gyros' measured rates
+    ``omega_b`` (rad/s)."""
+    if nav is None:
+        return craft.state(row)
+    pos = np.array([(float(nav.lat_rad[b]) - craft.lat0) * craft.k_north,
+                    (float(nav.lon_rad[b]) - craft.lon0) * craft.k_east, craft.h0 - float(nav.h_m[b])])
+    return MultirotorState(pos, np.array(nav.vel_n_mps[b], float), np.array(nav.C_nb[b], float),
+                           np.asarray(omega_b, float))
+
+
+def _follow_rotor(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, est_ne: tuple, t: float) -> None:
+    """Run ``b``'s multirotor segments for one step: the failure checks, home and a landing on a
+    lost fix, the end of the track or the landing (``est_ne``: where the navigation puts it).
+    Raises FlightError."""
+    segs, st, c0 = fleet.rotor_segments[b], tally.status, fleet.craft[0]
+    check_row(row, t, segs)
+    if st[b] == "flying" and fleet.rtl is not None and t - tally.last_fix[b] > fleet.rtl.lost_s:
+        st[b], tally.abort_t[b] = "aborted", t
+        segs.segments, segs.index = [fleet.goto, _LAND], -1
+        segs.next(t)
+    if segs.finished:
+        return
+    fleet.setpoints[b] = segs.setpoint(t, fleet.dt)
+    if not segs.finished and segs.segments[segs.index].type == "land":
+        segs.touchdown(t, fleet.craft[b].io.on_ground())
+    if not segs.finished:
+        return
+    _ended(tally, b, row, c0, est_ne, t)
+
+
+def _step_rotor(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, nav, omega_b, t: float) -> None:
+    """One step of the multirotor run ``b``: segments, failure checks, controller (on the truth
+    or, ``nav``, the navigation) and physics, as :func:`~navsim.flight.rotorcraft.fly_rotorcraft`
+    steps one on the truth."""
+    c, segs = fleet.craft[b], fleet.rotor_segments[b]
+    state = _rotor_state(c, row, nav, b, omega_b)
+    index = segs.index
+    try:
+        _follow_rotor(fleet, tally, b, row, (float(state.pos_n_m[0]), float(state.pos_n_m[1])), t)
+    except FlightError as exc:
+        tally.status[b], tally.fail_t[b], tally.end_t[b] = "failed", t, t
+        tally.failed[fleet.runs[b]] = str(exc)
+        return
+    if tally.kept is not None and b == 0:
+        tally.kept.append(np.concatenate([row, c.read_rpm()]))
+        tally.seg_kept.append(len(c.config.track.segments) if tally.status[0] in ("aborted", "landed") else index)
+    if segs.landed_s is None:
+        c.set_commands(c.controller.command(state, fleet.setpoints[b], fleet.dt))
+    else:                                            # landed: the motors stopped
+        c.set_commands([0.0] * c.n)
+    env = c.config.environment
+    if env.wind_changes:
+        c.io.set_wind_ned(steady_wind_n_mps(env, t + fleet.dt))
+    c.io.run()
+
+
 def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: bool = False,
               progress=None) -> LoopBatch:
     """Fly the runs ``runs`` of ``scenario`` with navigation in the loop (see the module
@@ -418,14 +515,18 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
     status = tally.status
     for k in range(fleet.n_max):
         t = k * fleet.dt
-        if k > 0:
-            _advance(fleet, loop, inc, rows, k)
+        omega = _advance(fleet, loop, inc, rows, k) if k > 0 else rows[:, P.COL_P:P.COL_R + 1]
         _record(fleet, tally, rows, k, t, path_every)
         nav = driver.solution().nav if driver is not None else None
-        guide = _guidance(nav, c0) if nav is not None else None
-        for b in range(len(craft)):
-            if status[b] != "failed":
-                _step_run(fleet, tally, b, rows[b], states[b], guide, t)
+        if fleet.rotor_segments:
+            for b in range(len(craft)):
+                if status[b] != "failed":
+                    _step_rotor(fleet, tally, b, rows[b], nav, omega[b], t)
+        else:
+            guide = _guidance(nav, c0) if nav is not None else None
+            for b in range(len(craft)):
+                if status[b] != "failed":
+                    _step_run(fleet, tally, b, rows[b], states[b], guide, t)
         if all(st in ("landed", "completed", "failed") for st in status):
             break
         if progress is not None and k % 1000 == 0:

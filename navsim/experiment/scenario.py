@@ -30,7 +30,7 @@ import numpy as np
 from navsim.experiment.closed_loop import parse_closed_loop
 from navsim.experiment.driver import InitialErrors
 from navsim.experiment.reference import parse_reference
-from navsim.flight.airframe import ENVELOPE_FILE, FIXED_WING, JSBSIM_MODEL_KEY, MULTIROTOR, check_controller, load_airframe
+from navsim.flight.airframe import ENVELOPE_FILE, JSBSIM_MODEL_KEY, MULTIROTOR, check_controller, load_airframe
 from navsim.flight.rotorcraft import check_envelope, check_environment
 from navsim.flight.environment import parse_environment
 from navsim.flight.properties import AIRCRAFT_DIR
@@ -130,9 +130,6 @@ def parse_scenario(data, file: str | None = None) -> Scenario:
     if cl_node is not None:
         if not estimators:
             raise cl_node.error("needs estimators", "fly_on", expected="an estimators list to fly on")
-        if airframe.kind != FIXED_WING:
-            raise cl_node.error(f"'{aircraft}' is a {airframe.kind}: navigation in the loop flies a fixed wing "
-                                "only, for now", expected="an aircraft of class fixed_wing (issue 52's next step)")
         closed_loop = parse_closed_loop(cl_node, [e.label for e in estimators], sensors, track,
                                         nominal_s, rate_hz)
     node.done()

@@ -164,8 +164,8 @@ def write(tmp_path, segments, start=START, aircraft="octo25", **extra):
 
 def test_what_the_envelope_or_the_class_cannot_fly_is_refused_at_validation(tmp_path, capsys):
     """Exit 2 before any flight, naming the key and the limit: a speed above max_speed_mps, a
-    circle beyond the tilt limit, navigation in the loop, turbulence in calm air (at the start or
-    after a change of the wind), yaw and heading both."""
+    circle beyond the tilt limit, navigation in the loop off the ground (a takeoff), turbulence in
+    calm air (at the start or after a change of the wind), yaw and heading both."""
     for segments, words in (([{"type": "goto", "north_m": 50, "east_m": 0, "speed_mps": 12.0}],
                              ["octo.yaml: track.segments[0].speed_mps", "max_speed_mps (10 m/s)"]),
                             ([{"type": "circle", "radius_m": 5.0, "laps": 1, "speed_mps": 9.0}],
@@ -174,14 +174,15 @@ def test_what_the_envelope_or_the_class_cannot_fly_is_refused_at_validation(tmp_
         err = capsys.readouterr().err
         assert all(w in err for w in words) and "Traceback" not in err, err
     assert not (tmp_path / "out").exists()
-    scenario = write(tmp_path, [{"type": "hover", "time_s": 5.0}],
+    scenario = write(tmp_path, [{"type": "takeoff", "agl_m": 10.0}], start=GROUND_START,
+                     environment={"surface_m": 10.0},
                      sensors={"imu": {"model": "p0_imu"}, "gps": {"model": "p3_gps"}},
                      estimators=[{"label": "KF", "type": "eskf", "states": "p3_15", "noise": {"imu": "p0_imu"},
                                   "measurements": [{"type": "gnss_position", "sensor": "gps", "sigma_m": 2}]}],
                      closed_loop={"fly_on": "KF", "time_limit_s": 60})
     assert main(["validate", str(scenario)]) == 2
     err = capsys.readouterr().err
-    assert "octo.yaml: closed_loop" in err and "multirotor" in err and "fixed wing only" in err, err
+    assert "octo.yaml: track.start.type" in err and "starts on the ground" in err and "hover" in err, err
     for extra, segment, words in (({"environment": {"turbulence": {"type": "milspec", "wind20_mps": 5}}},
                                    {"type": "hover", "time_s": 5.0}, "in a 0 m/s wind on a multirotor"),
                                   ({"environment": {"wind": {"speed_mps": 7.0, "from_deg": 270},
