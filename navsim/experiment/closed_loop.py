@@ -33,7 +33,7 @@ sensors do not depend on the trajectory) and added to the run's own truth as it 
 (scale factor, misalignment, biases, noise, vibration, quantization; the IMU rate must be the
 flight rate) and every kind whose registration says how it flies in the loop
 (:class:`navsim.sensors.registry.InLoop`: GNSS without latency, lever arm or interference, which
-depend on the trajectory, and barometer). Other kinds are refused with a clear error.
+depend on the trajectory, barometer, air data, magnetometer). Other kinds are refused with a clear error.
 
 A multirotor (a ``hover`` start) flies its cascade controller (:mod:`navsim.flight.rotorcraft`)
 on the solution's position, velocity and attitude and the gyros' measured rates; its return is

@@ -16,9 +16,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from navsim.foundations.transform import dcm_from_quat
+from navsim.foundations.transform import dcm_from_euler_one, dcm_from_quat
 from navsim.sensors.base import SensorData, apply_outages, normals, sampling, truth_step, zeros3
-from navsim.sensors.registry import ErrorTerm, Field, Output, SensorKind, register
+from navsim.sensors.registry import ErrorTerm, Field, InLoop, Output, SensorKind, register
 
 
 #: the date of the WMM field where a magnetometer's spec or data does not give one
@@ -91,6 +91,31 @@ def emulate_magnetometer(truth, spec: MagnetometerSpec, seed: int, runs, faults=
                       meta={"rate_hz": spec.rate_hz, "runs": runs, "seed": seed, "date": spec.date})
 
 
+def prepare_magnetometer_in_loop(data: SensorData, static) -> None:
+    """A magnetometer emulated on the closed loop's static record ``static`` made ready to fly:
+    each run's white noise (its output less the static attitude's field through its soft and
+    hard iron and the disturbance) kept in ``errors`` for :func:`fill_magnetometer_in_loop`."""
+    e = data.errors
+    s = truth_step(data, static)
+    m_b = np.einsum("nji,nj->ni", dcm_from_quat(static.quat_nb[s]), e["field_n_T"])
+    e["noise_T"] = data.values["mag_b_T"] - np.einsum("bij,nj->bni", e["soft_iron"], m_b) - e["hard_iron_T"] \
+        - e["disturbance_T"]
+
+
+def fill_magnetometer_in_loop(data: SensorData, j: int, sample) -> None:
+    """Sample ``j`` of a magnetometer in the closed loop: the Earth's field at the start (WMM;
+    a flight of a few kilometres sees it change by nanotesla) in each run's true body axes
+    (``sample``: a :class:`~navsim.sensors.registry.LoopSample`), through its soft and hard iron,
+    plus the disturbance and its drawn noise. The attitude is turned run by run (scalar
+    arithmetic: a batch gives each run what it would give alone)."""
+    e = data.errors
+    m_n = e["field_n_T"][j]
+    for b, (roll, pitch, yaw) in enumerate(sample.euler_rad.tolist()):
+        m_b = dcm_from_euler_one(roll, pitch, yaw).T @ m_n
+        data.values["mag_b_T"][b, j] = e["soft_iron"][b] @ m_b + e["hard_iron_T"][b, 0] + e["disturbance_T"][j] \
+            + e["noise_T"][b, j]
+
+
 def magnetometer_channels(data: SensorData, truth, run: int = 0) -> list:
     """The plot's channels: each axis's field (µT) against the Earth's field in body axes."""
     s = truth_step(data, truth)
@@ -110,4 +135,5 @@ KIND = register(SensorKind(
             "noise": Field("noise", "magnetic_field", "3"), "date": Field("date", None, "str")},
     outputs=(Output("mag_b_T", "T", axes=("x", "y", "z")),),
     errors=tuple(ErrorTerm(n) for n in ("hard_iron", "hard_iron_sigma", "soft_iron", "soft_iron_sigma", "noise")),
-    emulate=emulate_magnetometer, faults=("outage", "disturbance"), channels=magnetometer_channels))
+    emulate=emulate_magnetometer, faults=("outage", "disturbance"), channels=magnetometer_channels,
+    in_loop=InLoop(fill_magnetometer_in_loop, prepare=prepare_magnetometer_in_loop)))

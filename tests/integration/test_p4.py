@@ -92,6 +92,7 @@ def test_the_cpf_ekf_is_reset_and_tracks_again(divergence):
     assert cpf.max() < 2.0
 
 
+@pytest.mark.slow       # 13 s of CPF-EKF epochs in numpy: the default suite's 5 min (issue 56 compiles them)
 def test_three_switches_of_the_pump_reset_the_cpf_ekf_at_p4s_times(shipped_flight):
     """P4's three resets (320, 780, 960 s): the pump's field on, off and on again, one reset
     after each, from the CPF (one run, the CPF-EKF alone: the numbers are the scenario's). The
