@@ -24,7 +24,7 @@ def pages(inp: ReportInput) -> list[Page]:
     if rtl is not None and reference.point_n_m is not None:
         pn, pe = reference.point_n_m
         land = loop.landing_n_m
-        ax.plot(land[:, 1], land[:, 0], "x", color="tab:red", ms=4, label="parachute (truth)")
+        ax.plot(land[:, 1], land[:, 0], "x", color="tab:red", ms=4, label="landing (truth)")
         ax.plot([pe], [pn], "*", color="tab:green", ms=12, label="recovery point")
         miss = np.asarray(loop.miss_m, float)
         th = np.linspace(0, 2 * np.pi, 200)
@@ -54,7 +54,7 @@ def pages(inp: ReportInput) -> list[Page]:
         guided = (scored.get("truth_guided") or {}).get("miss_m")
         if guided is not None:
             bx.axvline(guided, color="k", lw=1.5, label=f"guided on the truth {guided:.2f} m")
-        bx.set(xlabel="true miss distance at the parachute, m", ylabel="fraction of runs",
+        bx.set(xlabel="true miss distance at the landing (parachute or touchdown), m", ylabel="fraction of runs",
                title="miss distance")
         bx.legend(fontsize=7, loc="lower right")
         bx.grid(alpha=0.3)

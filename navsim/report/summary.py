@@ -229,10 +229,10 @@ def closed_loop(m: dict | None) -> Section | None:
     ref, text = r["truth_guided"], (
         f"Flown on '{m['fly_on']}'; outcomes " + ", ".join(f"{k} {v}" for k, v in m.get("outcomes", {}).items())
         + f". {r['landed']} landed, {r['reached_area']} inside the {r['area_m']:g} m recovery area; mission "
-        f"abandoned at {num(r['abort_t_s'].get('mean'))} s (mean), parachute at {num(r['land_t_s'].get('mean'))} s.")
+        f"abandoned at {num(r['abort_t_s'].get('mean'))} s (mean), landed (parachute or touchdown) at {num(r['land_t_s'].get('mean'))} s.")
     c = r.get("consistency")
     if c:
-        text += (f" At the parachute the horizontal error RMS is {num(c['horizontal_error_rms_m'])} m, the "
+        text += (f" At the landing the horizontal error RMS is {num(c['horizontal_error_rms_m'])} m, the "
                  f"sigmas predict CEP50 {num(c['predicted_cep50_m'])} m; normalised error (e/sigma)^2 "
                  f"{num(c['normalised_error'])} (95 % band {c['band'][0]:.2f}-{c['band'][1]:.2f}).")
     ci = lambda d, k: [d.get("ci95", {}).get(k)] if d.get("ci95") else None

@@ -36,7 +36,7 @@ REPORTED_SLOW = ("p0_matched_ads", "p0_two_step", "p0_wind", "p0_wind_dead_recko
                  "p0_wind_veering",
                  "p1_emi_powerline", "p1_federated", "p1_gnss_denied_landmarks", "p1_mag_calibration",
                  "p1_return_to_land", "p1_return_to_land_wind", "p4_circle", "p4_divergence", "p4_three_resets",
-                 "p4_octo_circle", "p4_octo_divergence", "p4_octo_three_resets")
+                 "p4_octo_circle", "p4_octo_divergence", "p4_octo_three_resets", "octo25_return_home")
 
 
 def test_every_shipped_scenario_with_estimators_has_its_report_drawn(shipped_scenarios):
