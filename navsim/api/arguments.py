@@ -9,9 +9,10 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from navsim.experiment.options import shown
-from navsim.experiment.scenario import Scenario, parse_scenario
+from navsim.experiment.scenario import Scenario, parse_changed
 from navsim.experiment.scenario import load_scenario as _load_file
 from navsim.foundations.errors import UsageError
+from navsim.foundations.overrides import make_override, parse_override
 
 
 def checked_path(name: str, value, what: str) -> Path:
@@ -38,20 +39,41 @@ def checked_path(name: str, value, what: str) -> Path:
     return Path(text)
 
 
-def load_scenario(source) -> Scenario:
+def load_scenario(source, set=None) -> Scenario:     # noqa: A002 -- the command line's --set
     """A scenario from a YAML file (path) or from a mapping with the file's keys (relative
-    paths then resolve from the working directory).
+    paths then resolve from the working directory), changed by ``set``.
 
     Parameters
     ----------
     source : path or mapping
         The scenario file, or its content.
+    set : mapping or sequence of str, optional
+        The command line's ``--set``: ``{"montecarlo.runs": 200, "estimators[ES-KF 16].period_s":
+        0.5}`` (the values as YAML would give them: ``"3 m"``, ``[1, 2, 3]``), or
+        ``["montecarlo.runs=200", ...]`` (each value read as YAML). The grammar is
+        :mod:`navsim.foundations.overrides`'s; the changed mapping is validated as a file is,
+        an error naming the change.
 
     Returns
     -------
     Scenario
-        Parsed and checked (:func:`navsim.experiment.scenario.parse_scenario`).
+        Parsed and checked (:func:`navsim.experiment.scenario.parse_scenario`); its
+        ``overrides`` are the changes as ``PATH=VALUE``.
     """
+    overrides = overrides_of(set)
     if isinstance(source, Mapping):
-        return parse_scenario(dict(source), None)
-    return _load_file(checked_path("scenario", source, "scenario file"))
+        return parse_changed(dict(source), None, overrides)
+    return _load_file(checked_path("scenario", source, "scenario file"), overrides)
+
+
+def overrides_of(given) -> list:
+    """``set=`` as :class:`~navsim.foundations.overrides.Override`: a mapping of paths to values,
+    or a sequence of ``PATH=VALUE`` strings; :class:`UsageError` for anything else."""
+    if given is None:
+        return []
+    if isinstance(given, Mapping) and all(isinstance(k, str) for k in given):
+        return [make_override(k, v) for k, v in given.items()]
+    if isinstance(given, (list, tuple)) and all(isinstance(x, str) for x in given):
+        return [parse_override(x) for x in given]
+    raise UsageError(f"set: {shown(given)} is not a mapping of paths to values nor a list of 'PATH=VALUE' "
+                     "strings (expected {'montecarlo.runs': 200} or ['montecarlo.runs=200'])")

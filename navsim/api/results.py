@@ -97,6 +97,8 @@ class Result:
         """The (unscored) result of the runner's ``rr``: every field of
         :class:`~navsim.experiment.runner.RunResult`, by name, and ``rest`` (``truth``, ``loop``,
         ``reference``, ...)."""
+        if scenario.overrides:
+            record = dataclasses.replace(record, overrides=list(scenario.overrides))
         return cls(scenario=scenario, metrics=None, record=record,
                    **{f.name: getattr(rr, f.name) for f in fields(rr)}, **rest)
 
@@ -208,9 +210,10 @@ def write_run(result: Result, folder: OutputFolder, record: RunRecord | None = N
     """
     record = result.record if record is None else record
     folder.json("metrics.json", result.metrics.to_dict())
+    changed = "".join(f"# --set {o}\n" for o in result.scenario.overrides)
     folder.text("scenario.resolved.yaml",
                 f"# resolved by navsim {result.record.versions['navsim']} at git {result.record.git_revision}\n"
-                + yaml.safe_dump(resolved_scenario(result), sort_keys=False))
+                + changed + yaml.safe_dump(resolved_scenario(result), sort_keys=False))
     folder.json("run.json", record.to_dict())
     if result.samples:
         folder.write(SAMPLES_FILE, lambda p: save_samples(p, result.samples))

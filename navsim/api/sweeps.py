@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from navsim.api.arguments import checked_path
+from navsim.api.arguments import checked_path, overrides_of
 from navsim.api.runs import run
 from navsim.experiment.options import RunOptions, check_flags
 from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
@@ -14,7 +14,7 @@ from navsim.foundations.errors import UsageError
 from navsim.scoring.samples import value_interval
 
 
-def sweep(path, workers: int | None = None, *, on_point=None, **options) -> SweepResult:
+def sweep(path, workers: int | None = None, *, on_point=None, set=None, **options) -> SweepResult:  # noqa: A002
     """Every point of a sweep file (``navsim sweep``) through :func:`run`, held in memory, so
     every scenario feature works at every point (closed loop, landmarks, magnetometer
     calibration). All points are parsed and checked before the first runs.
@@ -28,6 +28,8 @@ def sweep(path, workers: int | None = None, *, on_point=None, **options) -> Swee
     on_point : callable, optional
         ``on_point(index, point, values, result)`` after each point (its :class:`Result`;
         None for a point whose flight cannot be flown).
+    set : mapping or sequence of str, optional
+        Changes to the sweep's scenario before each point's, as :func:`load_scenario`'s.
     **options
         How each point's runs are made, as :func:`run`'s (``executor``, ``scheduler``,
         ``chunk_runs``, or ``options=RunOptions(...)``); ``runs`` and ``seed``, when given,
@@ -46,7 +48,7 @@ def sweep(path, workers: int | None = None, *, on_point=None, **options) -> Swee
     check_flags({}, dict(on_point=on_point))
     if how.resume:
         raise UsageError("resume: a sweep is held in memory, there is nothing to resume (expected False)")
-    plan = plan_sweep(checked_path("path", path, "sweep file"))
+    plan = plan_sweep(checked_path("path", path, "sweep file"), overrides_of(set))
     result = SweepResult([], plan.metric)
     for i, (point, sc) in enumerate(zip(plan.points, plan.scenarios)):
         res = None

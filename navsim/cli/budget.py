@@ -11,11 +11,11 @@ from pathlib import Path
 from navsim import api
 from navsim.cli.command import Command
 from navsim.cli.options import executor_options, monte_carlo_options, out_option, run_options, scenario_argument
+from navsim.cli.options import scenario_of
 from navsim.cli.output import open_folder, table
 from navsim.experiment import resources
 from navsim.experiment.budget import GROUPS as BUDGET_GROUP_NAMES, SCALE_RANGE, budget_sources, check_method
 from navsim.experiment.budget import find_source, scale_ok
-from navsim.experiment.scenario import load_scenario
 from navsim.foundations.errors import UsageError
 from navsim.foundations.progress import Progress
 from navsim.report.budget import check_text, chosen as budget_chosen, covariance_notes, left_out_rows, rank_notes
@@ -76,7 +76,7 @@ def parse_budget_metrics(items: list[str] | None, windows=()):
 def handle(args) -> int:
     """Check every argument, run the budget into the output folder (its finished Monte Carlos
     kept for ``--resume``), print and write it; 130 when interrupted."""
-    scenario = load_scenario(args.scenario)
+    scenario = scenario_of(args)
     options = run_options(args)
     scales = parse_scales(args.scale)
     metrics = parse_budget_metrics(args.metric, [w[0] for w in scenario.windows])

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from navsim.cli.output import progress, table
 from navsim.experiment.runner import cached_flight
@@ -32,10 +33,17 @@ def flight_summary(truth) -> str:
 
 def save_flight(out: OutputFolder, truth, scenario_file, scenario, wall_s: float, failure=None) -> list[Path]:
     """Write a flight (or the part flown before ``failure``) into ``out``: ``truth.npz``, the
-    flight PNGs, ``scenario.yaml`` (a copy) and ``run.json``; returns the files written."""
-    files = [out.write("scenario.yaml", lambda p: shutil.copyfile(scenario_file, p))]
+    flight PNGs, ``scenario.yaml`` (a copy; with ``--set`` changes, the changed mapping) and
+    ``run.json``; returns the files written."""
+    if scenario.overrides:
+        files = [out.text("scenario.yaml", f"# {scenario_file} with " + " ".join(
+            f"--set {o}" for o in scenario.overrides) + "\n" + yaml.safe_dump(scenario.raw, sort_keys=False))]
+    else:
+        files = [out.write("scenario.yaml", lambda p: shutil.copyfile(scenario_file, p))]
     record = {"scenario": str(scenario_file), "name": scenario.name, **provenance(),
               "wall_s": wall_s, "failure": str(failure) if failure else None}
+    if scenario.overrides:
+        record["overrides"] = list(scenario.overrides)
     if truth is not None:
         files.append(out.write("truth.npz", truth.save))
         plots = plot_flight(truth, out.path)

@@ -8,10 +8,10 @@ from pathlib import Path
 
 from navsim.cli.command import Command
 from navsim.cli.flights import flight_summary, save_flight
-from navsim.cli.options import NOTHING_RESUMED, number, out_option, scenario_argument
+from navsim.cli.options import NOTHING_RESUMED, number, out_option, scenario_argument, scenario_of
 from navsim.cli.output import open_folder, progress
 from navsim.experiment import resources
-from navsim.experiment.scenario import RATE_HZ, load_scenario
+from navsim.experiment.scenario import RATE_HZ
 from navsim.flight.simulator import fly
 from navsim.foundations.errors import FlightError
 
@@ -27,7 +27,7 @@ def arguments(p) -> None:
 def handle(args) -> int:
     """Fly (no cache: the flight is what is shown), save and summarise; exit 3 for a track that
     cannot be flown (the part flown is saved)."""
-    scenario = load_scenario(args.scenario)
+    scenario = scenario_of(args)
     if args.rate_hz is not None:
         scenario.flight.rate_hz = args.rate_hz
     resources.check_flight(scenario)

@@ -1,4 +1,5 @@
-"""The options several commands share, each declared once: the scenario argument, the Monte
+"""The options several commands share, each declared once: the scenario argument and its
+``--set`` changes, the Monte
 Carlo numbers (read with the words the API checks them in), the executor, the output folder and
 what a command writing one says about locks and signals; and :func:`run_options`, the one
 :class:`~navsim.experiment.options.RunOptions` a command builds from its parsed arguments."""
@@ -9,9 +10,10 @@ import argparse
 import dataclasses
 
 from navsim.experiment.options import CHUNK_RUNS, EXECUTORS, RUNS, SEED, WORKERS, RunOptions, check_scheduler
-from navsim.experiment.scenario import MAX_WORKERS
+from navsim.experiment.scenario import MAX_WORKERS, Scenario, load_scenario
 from navsim.foundations.config import Argument
 from navsim.foundations.errors import UsageError
+from navsim.foundations.overrides import parse_override
 
 
 def option_type(argument: Argument):
@@ -68,8 +70,29 @@ def writer_options(p, kept: str) -> None:
 
 
 def scenario_argument(p) -> None:
-    """The scenario file, a command's first argument."""
+    """The scenario file, a command's first argument, and ``--set``."""
     p.add_argument("scenario", help="scenario YAML file")
+    set_option(p)
+
+
+def set_option(p, what: str = "the scenario") -> None:
+    """``--set PATH=VALUE``, repeatable: a change to ``what`` (:mod:`navsim.foundations.overrides`)."""
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="PATH=VALUE",
+                   help=f"change {what}, repeatable, validated as the file is: a dotted key path, a list "
+                   "entry by [index] or [label], a YAML value (--set montecarlo.runs=200 --set "
+                   "sensors.gps.override.position_sigma='3 m' --set 'estimators[ES-KF 16].period_s=0.5'); "
+                   "recorded in scenario.resolved.yaml and run.json")
+
+
+def overrides_given(args) -> list:
+    """The command's ``--set`` as :class:`~navsim.foundations.overrides.Override` (a malformed
+    one: :class:`ScenarioError`, exit 2)."""
+    return [parse_override(text) for text in getattr(args, "overrides", None) or []]
+
+
+def scenario_of(args) -> Scenario:
+    """The command's scenario file with its ``--set`` changes, validated."""
+    return load_scenario(args.scenario, overrides_given(args))
 
 
 def out_option(p, default: str) -> None:

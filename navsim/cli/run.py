@@ -10,11 +10,10 @@ from navsim import api
 from navsim.cli import flights
 from navsim.cli.command import Command
 from navsim.cli.options import CHUNK_RUNS_TYPE, executor_options, monte_carlo_options, out_option, run_options
-from navsim.cli.options import scenario_argument
+from navsim.cli.options import scenario_argument, scenario_of
 from navsim.cli.output import open_folder, table
 from navsim.experiment import resources
 from navsim.experiment.chunkstore import listed_runs
-from navsim.experiment.scenario import load_scenario
 from navsim.foundations.progress import Progress
 from navsim.report.summary import sections as summary_sections, text_table
 
@@ -36,7 +35,7 @@ def arguments(p) -> None:
 def handle(args) -> int:
     """Run the Monte Carlo into the output folder, write its report, print its summary; exit
     1 when no run succeeded, 130 when interrupted (the finished chunks kept)."""
-    scenario = load_scenario(args.scenario)
+    scenario = scenario_of(args)
     options = run_options(args)
     runs = scenario.runs if options.runs is None else options.runs
     resources.check_run(scenario, runs, options.chunk_runs, Path(args.out) if args.out else Path("reports"),

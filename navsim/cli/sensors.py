@@ -9,10 +9,10 @@ import numpy as np
 
 from navsim.cli import flights
 from navsim.cli.command import Command
-from navsim.cli.options import NOTHING_RESUMED, monte_carlo_options, out_option, scenario_argument
+from navsim.cli.options import NOTHING_RESUMED, monte_carlo_options, out_option, scenario_argument, scenario_of
 from navsim.cli.output import open_folder, table
 from navsim.experiment import resources
-from navsim.experiment.scenario import check_scenario, load_scenario
+from navsim.experiment.scenario import check_scenario
 from navsim.sensors import emulate
 from navsim.sensors.plots import MARKED_ORDERS, channels, plot_allan, plot_sensor, plot_spectrum
 from navsim.sensors.registry import INERTIAL
@@ -28,7 +28,7 @@ def arguments(p) -> None:
 def handle(args) -> int:
     """Emulate every sensor over the runs, plot run 0 (and the IMUs' Allan deviation), print the
     error statistics over all runs."""
-    scenario = load_scenario(args.scenario)
+    scenario = scenario_of(args)
     if not scenario.sensors:
         print(f"error: {args.scenario} has no 'sensors'", file=sys.stderr)
         return 2

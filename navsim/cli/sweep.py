@@ -12,7 +12,8 @@ from pathlib import Path
 
 from navsim import api
 from navsim.cli.command import Command
-from navsim.cli.options import executor_options, out_option, run_options, workers_option
+from navsim.cli.options import RUNS_TYPE, SEED_TYPE, executor_options, out_option, run_options, set_option
+from navsim.cli.options import workers_option
 from navsim.cli.output import open_folder, table
 from navsim.experiment.sweep import parse_sweep
 from navsim.foundations.outputs import OutputFolder
@@ -22,8 +23,12 @@ from navsim.scoring.verdicts import num, with_interval
 
 
 def arguments(p) -> None:
-    """The sweep file, ``--workers``, ``--out`` and the executor."""
+    """The sweep file, ``--set``, ``--runs``, ``--seed``, ``--workers``, ``--out`` and the executor."""
     p.add_argument("sweep", help="sweep YAML file")
+    set_option(p, "the sweep's scenario (before each point's changes)")
+    p.add_argument("--runs", type=RUNS_TYPE, help="runs per point, >= 1 (default: the sweep file's runs, "
+                   "else montecarlo.runs)")
+    p.add_argument("--seed", type=SEED_TYPE, help="every point's seed, >= 0 (default: montecarlo.seed)")
     workers_option(p)
     out_option(p, "reports/<sweep name>")
     executor_options(p)
@@ -49,7 +54,7 @@ def handle(args) -> int:
     folder = open_folder(args, Path("reports") / Path(args.sweep).stem)
     options = run_options(args)
     with Progress(len(points), f"sweep {Path(args.sweep).stem}", unit="point") as bar:
-        sweep = api.sweep(args.sweep, options=dataclasses.replace(options, progress=bar.update),
+        sweep = api.sweep(args.sweep, options=dataclasses.replace(options, progress=bar.update), set=args.overrides,
                           on_point=lambda i, p, v, r: print(_point_line(i, len(points), p, v, r), flush=True))
     labels = list(sweep.rows[0][1]) if sweep.rows else []
     ci = lambda n, lb: [sweep.interval(n, lb)] if sweep.interval(n, lb) else None

@@ -3,18 +3,21 @@
 from __future__ import annotations
 
 from navsim.cli.command import Command
+from navsim.cli.options import overrides_given, set_option
 from navsim.experiment.scenario import load_scenario
 
 
 def arguments(p) -> None:
-    """The scenario files."""
+    """The scenario files and ``--set``."""
     p.add_argument("files", nargs="+", help="scenario YAML files")
+    set_option(p, "each file")
 
 
 def handle(args) -> int:
     """Load each file (a malformed one raises its :class:`ScenarioError`, exit 2) and say what it holds."""
+    overrides = overrides_given(args)
     for path in args.files:
-        s = load_scenario(path)
+        s = load_scenario(path, overrides)
         print(f"{path}: ok ({s.name}: track {s.flight.track.name}, "
               f"{len(s.flight.track.segments)} segments)")
     return 0

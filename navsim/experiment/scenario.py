@@ -49,6 +49,7 @@ from navsim.foundations.config import (
     resolve_folder,
 )
 from navsim.foundations.errors import ScenarioError
+from navsim.foundations.overrides import apply_overrides, blame
 from navsim.navigation.estimators.factory import parse_estimators
 from navsim.navigation.estimators.measurements import measurement_class, values_read as measurement_values_read
 from navsim.records.reference import Reference
@@ -84,6 +85,8 @@ class Scenario:
     #: the track's duration at its speeds, s (:func:`~navsim.flight.track.nominal_duration_s`,
     #: computed once by :func:`parse_scenario`): time-outs, progress, memory and window checks
     nominal_duration_s: float = math.nan
+    #: the ``--set PATH=VALUE`` changes made to the file's mapping (already in :attr:`raw`)
+    overrides: tuple = ()
 
 
 def available_aircraft() -> list[str]:
@@ -482,9 +485,30 @@ def _windows(node):
     return tuple(out)
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario file."""
+def load_scenario(path: str | Path, overrides=()) -> Scenario:
+    """Read and validate a scenario file, changed first by ``overrides``
+    (:func:`parse_changed`)."""
     data = load_yaml(path)
-    if data is None:
+    if data is None and not overrides:
         raise ScenarioError("is empty", file=str(path), expected="a mapping with at least 'track'")
-    return parse_scenario(data, str(path))
+    return parse_changed(data, str(path), overrides)
+
+
+def parse_changed(data, file: str | None, overrides=()) -> Scenario:
+    """:func:`parse_scenario` of ``data`` changed by ``overrides``
+    (:class:`~navsim.foundations.overrides.Override`, the ``--set`` of every command): the
+    changed mapping is validated as a file would be, an error at a path a ``--set`` wrote naming
+    it; the scenario's :attr:`Scenario.raw` is the changed mapping and
+    :attr:`Scenario.overrides` the changes as ``PATH=VALUE``."""
+    if not overrides:
+        return parse_scenario(data, file)
+    try:
+        changed, written = apply_overrides(data, overrides)
+    except ScenarioError as exc:
+        raise (exc.with_file(file) if file else exc) from None
+    try:
+        scenario = parse_scenario(changed, file)
+    except ScenarioError as exc:
+        raise blame(exc, written) from None
+    scenario.overrides = tuple(o.as_text() for o in overrides)
+    return scenario

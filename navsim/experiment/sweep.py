@@ -17,7 +17,6 @@ import copy
 import dataclasses
 import itertools
 import math
-import re
 import types
 import typing
 from dataclasses import dataclass, field
@@ -27,41 +26,25 @@ import numpy as np
 
 from navsim.experiment.resources import check_held
 from navsim.experiment.runner import cached_flight
-from navsim.experiment.scenario import check_scenario, parse_scenario
+from navsim.experiment.scenario import check_scenario, parse_changed, parse_scenario
 from navsim.foundations.config import MAX_RUNS, Node, close_match, load_yaml
 from navsim.foundations.errors import FlightError, ScenarioError, UsageError
+from navsim.foundations.overrides import make_override, set_in
 from navsim.records.metrics import EstimatorMetrics, Window
 from navsim.records.vocabulary import check_metric_path, plain_type
 
-_INDEX = re.compile(r"^(.*)\[(\d+)\]$")
 #: the most points a sweep may have (each is a Monte Carlo of its own)
 MAX_POINTS = 10_000
 
 
 def set_path(data, path: str, value, file=None, where="grid"):
-    """Set ``value`` at dotted ``path`` (``a.b[2].c``) in nested mappings and lists."""
-    parts = path.split(".")
-    node = data
-    for i, part in enumerate(parts):
-        m = _INDEX.match(part)
-        key, idx = (m.group(1), int(m.group(2))) if m else (part, None)
-        last = i == len(parts) - 1
-        if idx is None:
-            if last:
-                node[key] = value
-                return
-            node = node.setdefault(key, {})
-            if not isinstance(node, dict):
-                raise ScenarioError(f"'{key}' is not a mapping", file=file, key=f"{where}.{path}")
-        else:
-            seq = node.get(key)
-            if not isinstance(seq, list) or idx >= len(seq):
-                raise ScenarioError(f"'{key}[{idx}]' does not exist in the scenario", file=file,
-                                    key=f"{where}.{path}")
-            if last:
-                seq[idx] = value
-                return
-            node = seq[idx]
+    """Set ``value`` at ``path`` (``a.b[2].c``, ``estimators[ES-KF 16].period_s``: the grammar of
+    :mod:`navsim.foundations.overrides`) in ``data``, in place; an error names ``file`` and
+    ``where.path``."""
+    try:
+        set_in(data, make_override(path, value))
+    except ScenarioError as exc:
+        raise ScenarioError(exc.detail, file=file, key=f"{where}.{path}", hint=exc.hint) from None
 
 
 def parse_sweep(path: str | Path):
@@ -218,13 +201,17 @@ class SweepPlan:
     unflown: dict = field(default_factory=dict)
 
 
-def plan_sweep(path) -> SweepPlan:
+def plan_sweep(path, overrides=()) -> SweepPlan:
     """Every point of the sweep file ``path`` parsed, flown (or read from the flight cache) and
     checked against the duration flown, so a bad point stops the sweep before any Monte Carlo
     starts; a :class:`ScenarioError` names the sweep file and the point. A point whose flight
-    cannot be flown (a wind the aircraft cannot make way against) is in ``unflown``."""
+    cannot be flown (a wind the aircraft cannot make way against) is in ``unflown``.
+    ``overrides`` (the ``--set``) change the scenario before each point's changes."""
     base_path, runs, metric, points = parse_sweep(path)
     base = load_yaml(base_path)
+    if overrides:
+        checked = parse_changed(base, str(base_path), overrides)    # a bad --set named before any point
+        base = checked.raw
     where = lambda i: f"{path}: point {i + 1}/{len(points)} ({points[i]}) of {base_path}"
     scenarios, unflown = [], {}
     for i, point in enumerate(points):
@@ -242,6 +229,7 @@ def plan_sweep(path) -> SweepPlan:
             raise (exc.with_file(where(i)) if exc.file in (None, str(base_path)) else exc) from None
         except FlightError as exc:
             unflown[i] = str(exc)
+        sc.overrides = tuple(o.as_text() for o in overrides)
         scenarios.append(sc)
     return SweepPlan(points, scenarios, runs, metric, Path(path), unflown)
 

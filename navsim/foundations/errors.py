@@ -17,15 +17,18 @@ class ScenarioError(NavsimError):
     exit_code = 2
 
     def __init__(self, message: str, *, file=None, key: str | None = None,
-                 expected: str | None = None, hint: str | None = None):
-        # ``file``: a str or a path (a Scenario's ``path``), kept as text
+                 expected: str | None = None, hint: str | None = None, origin: str | None = None):
+        # ``file``: a str or a path (a Scenario's ``path``), kept as text; ``origin``: what
+        # wrote the key beside the file (``--set PATH=VALUE``)
         self.file = None if file is None else str(file)
-        self.key, self.expected, self.hint = key, expected, hint
+        self.key, self.expected, self.hint, self.origin = key, expected, hint, origin
         self.detail = message
         super().__init__(self._format())
 
     def _format(self) -> str:
-        where = self.file or "<scenario>"
+        where = self.file or ("" if self.origin else "<scenario>")
+        if self.origin:
+            where = f"{where} ({self.origin})" if where else self.origin
         if self.key:
             where += f": {self.key}"
         text = f"{where}: {self.detail}"
@@ -38,7 +41,7 @@ class ScenarioError(NavsimError):
     def with_file(self, file: str) -> "ScenarioError":
         """The same error, naming ``file``."""
         return ScenarioError(self.detail, file=file, key=self.key, expected=self.expected,
-                             hint=self.hint)
+                             hint=self.hint, origin=self.origin)
 
 
 class FlightError(NavsimError):

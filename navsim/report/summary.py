@@ -301,10 +301,47 @@ def windows(metrics: RunMetrics, spans=()) -> list[Section]:
     return out
 
 
+#: the window quantities the summary's one line per window and estimator shows (their RMS;
+#: the rest are on the windows' own pages)
+WINDOW_LINE = ("height_m", "heading_deg")
+
+
+def window_lines(metrics: RunMetrics, spans=()) -> Section | None:
+    """What a scenario with metrics windows exists for, one line per window and estimator: the
+    horizontal drift at the window's end and its largest (an outage's drift), with their 95 %
+    intervals, the RMS of height, speed and attitude and the NEES over the window; the windows'
+    whole tables are on pages of their own (:func:`windows`). None without windows."""
+    names = list(dict.fromkeys(w for m in metrics.estimators.values() for w in (m.windows or {})))
+    times = {name: (a, b) for name, a, b in spans}
+    rows = []
+    for name in names:
+        shown = name + (f" ({times[name][0]:g}-{times[name][1]:g} s)" if name in times else "")
+        for label, m in metrics.estimators.items():
+            w = (m.windows or {}).get(name)
+            if w is None:
+                continue
+            first, shown = shown, ""           # the window named on its first line only
+            ci = lambda key: m.interval(f"windows.{name}.{key}")
+            h, q = w.horizontal_m, w.quantities
+            rows.append([first, label,
+                         "-" if h is None else with_interval(h.final, ci("horizontal_m.final")),
+                         "-" if h is None else with_interval(h.max, ci("horizontal_m.max")),
+                         *[num(q[k].rms) if k in q else "-" for k in WINDOW_LINE],
+                         "-" if w.nees is None else f"{num(w.nees.average)}, {pct(w.nees.fraction_inside)}"])
+    return Section.of_rows(
+        "Metrics windows", "What the scenario measures over its windows, every run: the horizontal position "
+        "error at each window's end and its largest (RMS over the runs, an outage's drift, 95 % intervals), "
+        "the RMS of the height and heading errors and the NEES (average, share in its band); each window's "
+        "whole table is on its own page.",
+        ["window", "estimator", "horizontal\nat end, m", "horizontal\nmax, m", "height\nRMS, m",
+         "heading\nRMS, deg", "NEES,\nin band"], rows)
+
+
 def sections(metrics: RunMetrics, scenario) -> list[Section]:
-    """Every section of the summary, in order (the windows after the rest)."""
+    """Every section of the summary, in order (the windows' lines last)."""
     out = [results(metrics, scenario.settle_s), intervals(metrics), paper_checks(metrics, scenario.reference), consistency(metrics),
-           divergence(metrics), attitude(metrics), landmarks(metrics), wind(metrics), closed_loop(metrics.closed_loop)]
+           divergence(metrics), attitude(metrics), landmarks(metrics), wind(metrics), closed_loop(metrics.closed_loop),
+           window_lines(metrics, scenario.windows)]
     return [s for s in out if s is not None]
 
 

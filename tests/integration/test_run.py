@@ -84,6 +84,11 @@ def test_run_writes_report_metrics_and_histories(short, tmp_path, capsys):
     assert "short_run: 6 runs: 6/6 runs (100 %)" in captured.err and "flight custom: 99%, " in captured.err
     assert "Paper against ours: 0 of 0 paper checks pass (2 shown without a verdict)" in text and "6/6 runs" in text
     assert not (out / "runs.npz").exists()                    # the per-run data once: in chunks/
+    # what the scenario measures over its window, a line per estimator, the drift with its interval
+    m = json.loads((out / "metrics.json").read_text())["estimators"]["KF"]["windows"]["turn"]["horizontal_m"]
+    lines = text[text.index("Metrics windows:"):].splitlines()
+    assert lines[3].split()[:4] == ["turn", "(20-30", "s)", "free"] and lines[4].split()[0] == "KF"
+    assert f"{m['final']:.3g} [" in lines[4], lines[4]
     hist = navsim.open_result(out).histories["KF"].pos_err_m
     assert hist.shape[0::2] == (6, 3) and hist.shape[1] >= 45
     # the first run flew the track, the second reads the flight from the cache (its report a PDF
