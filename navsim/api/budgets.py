@@ -141,7 +141,7 @@ def _run_budget(b: _Budgeting, t0: float) -> Budget:
     if method != "covariance":
         extra["curves"] = monte_carlo_curves(squares, [s.name for s in sources])
     return Budget(sc.name, b.how.runs if method != "covariance" or plan else 0, b.how.seed, [s.name for s in sources],
-                  b.group, metrics, what_if, time.perf_counter() - t0, method, **extra)
+                  b.group, metrics, what_if, time.perf_counter() - t0, method, **extra, overrides=list(sc.overrides))
 
 
 def _budget_plan(sc: Scenario, sources, scaled_runs, method: str) -> list:

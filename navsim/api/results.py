@@ -29,6 +29,7 @@ from navsim.experiment.runner import cached_flight
 from navsim.experiment.scenario import Scenario, parse_scenario
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.foundations.outputs import OutputFolder
+from navsim.foundations.overrides import set_comments
 from navsim.records.history import ARRAYS, ARRAY_FIELDS, EPOCH_ARRAYS, EstimatorHistory
 from navsim.records.metrics import RunMetrics
 from navsim.records.run import RunRecord
@@ -210,7 +211,7 @@ def write_run(result: Result, folder: OutputFolder, record: RunRecord | None = N
     """
     record = result.record if record is None else record
     folder.json("metrics.json", result.metrics.to_dict())
-    changed = "".join(f"# --set {o}\n" for o in result.scenario.overrides)
+    changed = set_comments(result.scenario.overrides)
     folder.text("scenario.resolved.yaml",
                 f"# resolved by navsim {result.record.versions['navsim']} at git {result.record.git_revision}\n"
                 + changed + yaml.safe_dump(resolved_scenario(result), sort_keys=False))
@@ -406,6 +407,7 @@ def open_result(folder) -> Result:
         scenario = parse_scenario(raw, record.scenario)
     except ScenarioError as exc:
         raise UsageError(f"{folder}: its scenario.resolved.yaml does not parse any more ({exc})") from None
+    scenario.overrides = tuple(record.overrides or ())      # already in the resolved mapping
     store = ChunkStore.open(folder / "chunks") if (folder / "chunks" / "index.json").is_file() else None
     histories, runs, bias, calib = {}, np.array([], int), None, {}
     merged = store.merged(runner.REPORT_RUNS) if store is not None else None

@@ -48,8 +48,9 @@ def sweep(path, workers: int | None = None, *, on_point=None, set=None, **option
     check_flags({}, dict(on_point=on_point))
     if how.resume:
         raise UsageError("resume: a sweep is held in memory, there is nothing to resume (expected False)")
-    plan = plan_sweep(checked_path("path", path, "sweep file"), overrides_of(set))
-    result = SweepResult([], plan.metric)
+    overrides = overrides_of(set)
+    plan = plan_sweep(checked_path("path", path, "sweep file"), overrides)
+    result = SweepResult([], plan.metric, overrides=tuple(o.as_text() for o in overrides))
     for i, (point, sc) in enumerate(zip(plan.points, plan.scenarios)):
         res = None
         if i in plan.unflown:

@@ -17,6 +17,7 @@ from navsim.experiment.runner import cached_flight
 from navsim.flight.plots import plot_flight
 from navsim.foundations.errors import FlightError
 from navsim.foundations.outputs import OutputFolder
+from navsim.foundations.overrides import set_comments
 from navsim.foundations.provenance import provenance
 
 
@@ -36,8 +37,8 @@ def save_flight(out: OutputFolder, truth, scenario_file, scenario, wall_s: float
     flight PNGs, ``scenario.yaml`` (a copy; with ``--set`` changes, the changed mapping) and
     ``run.json``; returns the files written."""
     if scenario.overrides:
-        files = [out.text("scenario.yaml", f"# {scenario_file} with " + " ".join(
-            f"--set {o}" for o in scenario.overrides) + "\n" + yaml.safe_dump(scenario.raw, sort_keys=False))]
+        files = [out.text("scenario.yaml", f"# {scenario_file}, changed by\n" + set_comments(scenario.overrides)
+                          + yaml.safe_dump(scenario.raw, sort_keys=False))]
     else:
         files = [out.write("scenario.yaml", lambda p: shutil.copyfile(scenario_file, p))]
     record = {"scenario": str(scenario_file), "name": scenario.name, **provenance(),

@@ -14,6 +14,9 @@ from navsim.experiment.scenario import MAX_WORKERS, Scenario, load_scenario
 from navsim.foundations.config import Argument
 from navsim.foundations.errors import UsageError
 from navsim.foundations.overrides import parse_override
+from navsim.foundations.plugins import load_file
+from navsim.navigation.estimators.base import ESTIMATORS
+from navsim.navigation.estimators.measurements.registry import MEASUREMENTS
 
 
 def option_type(argument: Argument):
@@ -69,10 +72,33 @@ def writer_options(p, kept: str) -> None:
     p.epilog = WRITER_EPILOG.format(kept=kept)
 
 
+#: what a ``--plugin`` file may register into
+PLUGIN_REGISTRIES = {"estimator": ESTIMATORS, "measurement type": MEASUREMENTS}
+
+
 def scenario_argument(p) -> None:
-    """The scenario file, a command's first argument, and ``--set``."""
+    """The scenario file, a command's first argument, ``--set`` and ``--plugin``."""
     p.add_argument("scenario", help="scenario YAML file")
     set_option(p)
+    plugin_option(p)
+
+
+def plugin_option(p) -> None:
+    """``--plugin FILE.py``, repeatable: a filter in one file, imported before anything is read."""
+    p.add_argument("--plugin", dest="plugins", action="append", default=[], metavar="FILE.py",
+                   help="import this Python file first, whose classes register filters with "
+                   "navsim.plugin.register (a scenario names them by type); repeatable")
+
+
+def load_plugins(args) -> list[str]:
+    """Import the command's ``--plugin`` files (:func:`navsim.foundations.plugins.load_file`);
+    returns what they registered. Refused with ``--executor dask``, whose workers would not
+    import them."""
+    files = getattr(args, "plugins", None) or []
+    if files and getattr(args, "executor", "local") == "dask":
+        raise UsageError("--plugin with --executor dask: the Dask workers do not import the file (hint: run it "
+                         "on the local executor, or package it as a plug-in with an entry point: docs/plugins.md)")
+    return [item for f in files for item in load_file(f, PLUGIN_REGISTRIES)]
 
 
 def set_option(p, what: str = "the scenario") -> None:
@@ -91,7 +117,9 @@ def overrides_given(args) -> list:
 
 
 def scenario_of(args) -> Scenario:
-    """The command's scenario file with its ``--set`` changes, validated."""
+    """The command's scenario file with its ``--set`` changes, validated (its ``--plugin``
+    files imported first)."""
+    load_plugins(args)
     return load_scenario(args.scenario, overrides_given(args))
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import yaml
 
 from navsim.cli.command import Command
-from navsim.cli.options import NOTHING_RESUMED, number, out_option
+from navsim.cli.options import NOTHING_RESUMED, load_plugins, number, out_option, plugin_option
 from navsim.cli.output import open_folder, progress, table
 from navsim.foundations.errors import UsageError
 from navsim.foundations.provenance import provenance
@@ -39,6 +39,7 @@ def arguments(p) -> None:
                    help="coarse-alignment window from the first sample, s (default 1)")
     p.add_argument("--allow-damaged", action="store_true",
                    help="replay what a truncated or corrupt log still holds instead of refusing it")
+    plugin_option(p)
 
 
 def parse_settings(items: list[str] | None) -> dict:
@@ -59,6 +60,7 @@ def parse_settings(items: list[str] | None) -> dict:
 def handle(args) -> int:
     """Replay the log, write metrics.json and the report, print the differences from PX4's
     attitude and the cost."""
+    load_plugins(args)
     name = args.estimator or DEFAULT_REPLAY_ESTIMATOR
     if name not in base.available():
         raise UsageError(f"no estimator '{name}' registered; choose one with --estimator: "

@@ -13,7 +13,7 @@ from pathlib import Path
 from navsim import api
 from navsim.cli.command import Command
 from navsim.cli.options import RUNS_TYPE, SEED_TYPE, executor_options, out_option, run_options, set_option
-from navsim.cli.options import workers_option
+from navsim.cli.options import load_plugins, overrides_given, plugin_option, workers_option
 from navsim.cli.output import open_folder, table
 from navsim.experiment.sweep import parse_sweep
 from navsim.foundations.outputs import OutputFolder
@@ -26,6 +26,7 @@ def arguments(p) -> None:
     """The sweep file, ``--set``, ``--runs``, ``--seed``, ``--workers``, ``--out`` and the executor."""
     p.add_argument("sweep", help="sweep YAML file")
     set_option(p, "the sweep's scenario (before each point's changes)")
+    plugin_option(p)
     p.add_argument("--runs", type=RUNS_TYPE, help="runs per point, >= 1 (default: the sweep file's runs, "
                    "else montecarlo.runs)")
     p.add_argument("--seed", type=SEED_TYPE, help="every point's seed, >= 0 (default: montecarlo.seed)")
@@ -50,7 +51,8 @@ def _point_line(n: int, total: int, point: dict, values: dict, res) -> str:
 def handle(args) -> int:
     """Run the points (a line each as it ends), print the table, write the files; exit 1 for a
     point not flown or without a run, 130 when interrupted (the finished points written)."""
-    _, _, _, points = parse_sweep(args.sweep)
+    load_plugins(args)
+    _, _, _, points = parse_sweep(args.sweep, overrides_given(args))      # a bad --set: before any file
     folder = open_folder(args, Path("reports") / Path(args.sweep).stem)
     options = run_options(args)
     with Progress(len(points), f"sweep {Path(args.sweep).stem}", unit="point") as bar:
@@ -82,7 +84,7 @@ def write_sweep_files(folder: OutputFolder, sweep) -> None:
     """``sweep.json``: each point with its values, their 95 % intervals and its whole
     ``metrics.json``; ``sweep.csv``: one row per point (numbered from 1), the swept parameters
     then the metric of each estimator and its interval's ends (empty where there is none)."""
-    folder.json("sweep.json", {"metric": sweep.metric, "points": [
+    folder.json("sweep.json", {"metric": sweep.metric, "overrides": list(sweep.overrides), "points": [
         {"point": p, "values": v, "ci95": sweep.intervals[i] if i < len(sweep.intervals) else {},
          "metrics": None if m is None else m.to_dict()} for i, ((p, v), m) in enumerate(zip(sweep.rows, sweep.metrics))],
         "failed_points": sweep.failed_points, "interrupted": sweep.interrupted})

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from navsim.cli.command import Command
-from navsim.cli.options import overrides_given, set_option
+from navsim.cli.options import load_plugins, overrides_given, plugin_option, set_option
 from navsim.experiment.scenario import load_scenario
 
 
@@ -11,10 +11,12 @@ def arguments(p) -> None:
     """The scenario files and ``--set``."""
     p.add_argument("files", nargs="+", help="scenario YAML files")
     set_option(p, "each file")
+    plugin_option(p)
 
 
 def handle(args) -> int:
     """Load each file (a malformed one raises its :class:`ScenarioError`, exit 2) and say what it holds."""
+    load_plugins(args)
     overrides = overrides_given(args)
     for path in args.files:
         s = load_scenario(path, overrides)

@@ -47,7 +47,10 @@ def set_path(data, path: str, value, file=None, where="grid"):
         raise ScenarioError(exc.detail, file=file, key=f"{where}.{path}", hint=exc.hint) from None
 
 
-def parse_sweep(path: str | Path):
+def parse_sweep(path: str | Path, overrides=()):
+    """The sweep file's ``(scenario path, runs, metric, points)``, checked; ``overrides`` (the
+    ``--set``) are checked on the scenario first, and its metrics windows are the changed
+    scenario's."""
     path = Path(path)
     node = Node(load_yaml(path), "", str(path))
     scenario = node.get("scenario", str)
@@ -61,7 +64,10 @@ def parse_sweep(path: str | Path):
         raise node.error(f"'{scenario}' not found next to the sweep file", "scenario", expected=relative)
     runs = node.get("runs", int, None, minimum=1, maximum=MAX_RUNS)
     metric = node.get("metric", str, "rms.pos_m")
-    check_metric_path(metric, [(w, 0, 0) for w in _window_names(base_path)], file=str(path), key="metric")
+    base = load_yaml(base_path)
+    if overrides:                             # a bad --set named before anything runs
+        base = parse_changed(base, str(base_path), overrides).raw
+    check_metric_path(metric, [(w, 0, 0) for w in _window_names(base)], file=str(path), key="metric")
     check_number_path(metric, file=str(path), key="metric")
     grid = node.child("grid", None)
     node._seen.add("points")
@@ -146,10 +152,9 @@ def check_number_path(metric: str, *, file: str, key: str) -> None:
                             expected=NUMBER_EXPECTED)
 
 
-def _window_names(scenario_path: Path) -> list[str]:
-    """The names of the windows under the scenario's ``metrics.windows`` (read loosely: the
-    scenario itself is checked point by point)."""
-    data = load_yaml(scenario_path)
+def _window_names(data) -> list[str]:
+    """The names of the windows under the scenario mapping's ``metrics.windows`` (read loosely:
+    the scenario itself is checked point by point)."""
     windows = ((data or {}).get("metrics") or {}).get("windows") if isinstance(data, dict) else None
     return [w.get("name") for w in windows if isinstance(w, dict)] if isinstance(windows, list) else []
 
@@ -171,6 +176,8 @@ class SweepResult:
     intervals: list = field(default_factory=list)
     #: the indices of the points whose flight cannot be flown (a reason in ``failed_points``)
     unflown: set = field(default_factory=set)
+    #: the ``--set`` changes made to the scenario before each point's (``PATH=VALUE``)
+    overrides: tuple = ()
 
     def interval(self, row: int, label: str) -> list[float] | None:
         """The interval of point ``row``'s value of ``label`` (None: none)."""
@@ -207,11 +214,10 @@ def plan_sweep(path, overrides=()) -> SweepPlan:
     starts; a :class:`ScenarioError` names the sweep file and the point. A point whose flight
     cannot be flown (a wind the aircraft cannot make way against) is in ``unflown``.
     ``overrides`` (the ``--set``) change the scenario before each point's changes."""
-    base_path, runs, metric, points = parse_sweep(path)
+    base_path, runs, metric, points = parse_sweep(path, overrides)
     base = load_yaml(base_path)
     if overrides:
-        checked = parse_changed(base, str(base_path), overrides)    # a bad --set named before any point
-        base = checked.raw
+        base = parse_changed(base, str(base_path), overrides).raw
     where = lambda i: f"{path}: point {i + 1}/{len(points)} ({points[i]}) of {base_path}"
     scenarios, unflown = [], {}
     for i, point in enumerate(points):

@@ -164,12 +164,12 @@ def load_yaml(path: str | Path) -> Any:
         raise ScenarioError(f"is not UTF-8 text (byte {exc.start})", file=str(path),
                             expected="a YAML text file") from None
     if len(raw) > _PARSED_MAX_BYTES:
-        return _parse_yaml(text, path)
+        return parse_yaml(text, path)
     key = hashlib.blake2b(raw, digest_size=20).digest()
     with _PARSED_LOCK:
         data = _PARSED.get(key)
     if data is None:
-        data = _parse_yaml(text, path)
+        data = parse_yaml(text, path)
         with _PARSED_LOCK:
             if len(_PARSED) >= _PARSED_MAX:
                 _PARSED.pop(next(iter(_PARSED)))
@@ -177,8 +177,9 @@ def load_yaml(path: str | Path) -> Any:
     return copy.deepcopy(data)
 
 
-def _parse_yaml(text: str, path: Path) -> Any:
-    """:func:`load_yaml`'s parse and checks of ``text`` (read from ``path``)."""
+def parse_yaml(text: str, path: Path) -> Any:
+    """:func:`load_yaml`'s parse and checks of ``text`` (read from ``path``; a ``--set``'s value
+    too): the depth and size bounded, a :class:`ScenarioError` for what is not YAML."""
     try:
         data = yaml.load(text, Loader=SafeLoader)  # noqa: S506 (a SafeLoader subclass)
     except RecursionError:

@@ -20,10 +20,11 @@ from __future__ import annotations
 import copy
 import difflib
 from dataclasses import dataclass
+from pathlib import Path
 
 import yaml
 
-from navsim.foundations.config import SafeLoader, close_match
+from navsim.foundations.config import parse_yaml, close_match
 from navsim.foundations.errors import ScenarioError
 
 
@@ -33,35 +34,53 @@ class Override:
 
     path: str          #: ``sensors.gps.override.position_sigma`` as given
     parts: tuple       #: keys (str) and list selectors (``[i]`` int, ``[label]`` str in a 1-tuple)
-    value: object      #: the value (read as YAML from a ``--set``)
+    value: object      #: the value (read as YAML from a ``--set``); copied where it is set
     origin: str        #: how an error names it: ``--set PATH=VALUE``
+    text: str          #: ``PATH=VALUE`` as recorded (``run.json``): as given, or the value as YAML
 
     def as_text(self) -> str:
-        """``PATH=VALUE``, the value as one line of YAML (what ``run.json`` records)."""
-        return f"{self.path}={_yaml_line(self.value)}"
+        """``PATH=VALUE`` as recorded in ``run.json`` and ``scenario.resolved.yaml``."""
+        return self.text
 
 
-def make_override(path: str, value, origin: str | None = None) -> Override:
-    """An :class:`Override` of ``value`` at ``path`` (a malformed path is a
-    :class:`ScenarioError` naming ``origin``, default ``--set PATH=VALUE``)."""
-    origin = origin or f"--set {path}={_yaml_line(value)}"
-    return Override(path=path.strip(), parts=tuple(_split(path.strip(), origin)), value=value, origin=origin)
+def make_override(path: str, value, origin: str | None = None, text: str | None = None) -> Override:
+    """An :class:`Override` of ``value`` at ``path`` (a malformed path or a value YAML cannot
+    hold is a :class:`ScenarioError` naming ``origin``, default ``--set PATH=VALUE``)."""
+    path = path.strip()
+    try:
+        shown = text or f"{path}={_yaml_line(value)}"
+    except yaml.YAMLError:
+        raise _error(origin or f"--set {path}", f"its value {value!r} is not a YAML value",
+                     hint="plain numbers, strings, booleans, lists and mappings (not numpy's or a tuple)") from None
+    origin = origin or f"--set {shown}"
+    return Override(path=path, parts=tuple(_split(path, origin)), value=copy.deepcopy(value), origin=origin,
+                    text=shown)
 
 
 def parse_override(text: str) -> Override:
-    """``PATH=VALUE`` (the value YAML) to an :class:`Override`; a malformed one is a
-    :class:`ScenarioError` naming it."""
-    path, sep, value = text.partition("=")
+    """``PATH=VALUE`` (split at the first ``=`` outside brackets; the value YAML) to an
+    :class:`Override`; a malformed one is a :class:`ScenarioError` naming it."""
+    cut = _value_start(text)
+    path, value = (text, None) if cut is None else (text[:cut], text[cut + 1:])
     origin = f"--set {text}"
-    if not sep or not path.strip():
+    if value is None or not path.strip():
         raise _error(origin, "is not PATH=VALUE", hint="--set sensors.gps.override.position_sigma='3 m'")
     try:
-        parsed = yaml.load(value, Loader=SafeLoader) if value.strip() else None
-    except yaml.YAMLError as exc:
-        reason = " ".join(str(exc).split())
-        raise _error(origin, f"its value is not valid YAML ({reason})",
+        parsed = parse_yaml(value, Path("--set")) if value.strip() else None
+    except ScenarioError as exc:
+        raise _error(origin, f"its value is {exc.detail}",
                      hint="quote a value holding ': ' or '#': --set \"description='a: b'\"") from None
-    return make_override(path, parsed, origin)
+    return make_override(path, parsed, origin, text=text)
+
+
+def _value_start(text: str) -> int | None:
+    """The index of the first ``=`` outside brackets (None: none)."""
+    depth = 0
+    for i, c in enumerate(text):
+        depth += (c == "[") - (c == "]")
+        if c == "=" and depth <= 0:
+            return i
+    return None
 
 
 def _yaml_line(value) -> str:
@@ -69,35 +88,41 @@ def _yaml_line(value) -> str:
 
 
 def _split(path: str, origin: str) -> list:
-    """``a.b[2].c[ES-KF 16]`` -> ``['a', 'b', (2,), 'c', ('ES-KF 16',)]``."""
-    parts, key, i = [], "", 0
+    """``a.b[2].c[ES-KF 16]`` -> ``['a', 'b', (2,), 'c', ('ES-KF 16',)]``: keys joined by dots,
+    each followed by any number of ``[selector]``; a selector's text runs to its matching
+    ``]`` (brackets inside it nest); digits alone are an index."""
+    parts, i = [], 0
     while i < len(path):
-        c = path[i]
-        if c == ".":
-            if not key and (not parts or not isinstance(parts[-1], tuple)):
-                raise _error(origin, f"has an empty key in '{path}'")
-            if key:
-                parts.append(key)
-            key = ""
-        elif c == "[":
-            end = path.find("]", i)
-            if end < 0 or end == i + 1:
-                raise _error(origin, f"has an unclosed or empty [ ] in '{path}'")
-            if key:
-                parts.append(key)
-            elif not parts:
-                raise _error(origin, f"starts with [ ] in '{path}'", hint="a path starts with a key")
-            key, sel = "", path[i + 1:end].strip()
-            parts.append((int(sel),) if sel.isdigit() else (sel,))
-            i = end
-        else:
-            key += c
-        i += 1
-    if key:
+        end = min([j for j in (path.find(".", i), path.find("[", i)) if j >= 0], default=len(path))
+        key = path[i:end]
+        if not key or "]" in key:
+            raise _error(origin, f"has an empty or malformed key at '{path[i:] or path}' in '{path}'",
+                         hint="keys joined by dots, a list entry as key[0] or key[label]")
         parts.append(key)
-    elif not parts or not isinstance(parts[-1], tuple):
-        raise _error(origin, f"ends with an empty key in '{path}'")
+        i = end
+        while i < len(path) and path[i] == "[":
+            close = _closing(path, i)
+            sel = path[i + 1:close].strip() if close is not None else ""
+            if not sel:
+                raise _error(origin, f"has an unclosed or empty [ ] in '{path}'")
+            parts.append((int(sel),) if sel.isascii() and sel.isdigit() else (sel,))
+            i = close + 1
+        if i < len(path):
+            if path[i] != "." or i == len(path) - 1:
+                raise _error(origin, f"has '{path[i:]}' after a key or a [ ] in '{path}'",
+                             hint="a '.' and a key, or '[' after a key or a [ ]")
+            i += 1
     return parts
+
+
+def _closing(path: str, i: int) -> int | None:
+    """The index of the ``]`` matching the ``[`` at ``i`` (None: unclosed)."""
+    depth = 0
+    for j in range(i, len(path)):
+        depth += (path[j] == "[") - (path[j] == "]")
+        if depth == 0:
+            return j
+    return None
 
 
 def apply_overrides(data: dict | None, overrides) -> tuple[dict, dict]:
@@ -127,7 +152,7 @@ def set_in(root: dict, o: Override) -> tuple[str, list]:
         if isinstance(part, tuple):
             index = _select(node, part[0], shown, o)
             if last:
-                node[index] = o.value
+                node[index] = copy.deepcopy(o.value)
             else:
                 node = node[index]
             shown += f"[{index}]"
@@ -139,7 +164,7 @@ def set_in(root: dict, o: Override) -> tuple[str, list]:
             created.append((shown, part, [str(k) for k in node]))
         shown = f"{shown}.{part}" if shown else part
         if last:
-            node[part] = o.value
+            node[part] = copy.deepcopy(o.value)
         else:
             if node.get(part) is None:
                 node[part] = {} if not isinstance(o.parts[n + 1], tuple) else []
@@ -183,11 +208,15 @@ def blame(error: ScenarioError, written: dict) -> ScenarioError:
     when no ``--set`` wrote there."""
     key = error.key or ""
     under = lambda k, p: k == p or k.startswith((p + ".", p + "["))
-    hits = [p for p, (_, created) in written.items()
-            if under(key, p) or under(p, key) or any(under(key, _joined(a, b)) for a, b, _ in created)]
+    # a --set at or above the error's key (the deepest one), else one it added a mapping for,
+    # else one below it (the shallowest)
+    above = [p for p in written if under(key, p)]
+    added = [p for p, (_, created) in written.items() if any(under(key, _joined(a, b)) for a, b, _ in created)]
+    below = [p for p in written if under(p, key)]
+    hits = above or added or below
     if not hits:
         return error
-    o, created = written[max(hits, key=len)]
+    o, created = written[max(hits, key=len) if above or added else min(hits, key=len)]
     hint = error.hint or _closest(created)
     return ScenarioError(error.detail, file=error.file, key=error.key, expected=error.expected,
                          hint=hint, origin=o.origin)
@@ -212,3 +241,9 @@ def _kind(value) -> str:
 
 def _error(origin: str, message: str, hint: str | None = None) -> ScenarioError:
     return ScenarioError(message, hint=hint, origin=origin)
+
+
+def set_comments(texts) -> str:
+    """The ``--set`` changes as YAML comment lines (``# --set PATH=VALUE``; a value of several
+    lines keeps each commented), the head of a written scenario."""
+    return "".join("# --set " + "\n#   ".join(str(x).splitlines() or [""]) + "\n" for x in texts)

@@ -309,7 +309,7 @@ WINDOW_LINE = ("height_m", "heading_deg")
 def window_lines(metrics: RunMetrics, spans=()) -> Section | None:
     """What a scenario with metrics windows exists for, one line per window and estimator: the
     horizontal drift at the window's end and its largest (an outage's drift), with their 95 %
-    intervals, the RMS of height, speed and attitude and the NEES over the window; the windows'
+    intervals, the RMS of the height and heading errors and the NEES over the window; the windows'
     whole tables are on pages of their own (:func:`windows`). None without windows."""
     names = list(dict.fromkeys(w for m in metrics.estimators.values() for w in (m.windows or {})))
     times = {name: (a, b) for name, a, b in spans}

@@ -198,6 +198,8 @@ class Budget:
     curves: dict = field(default_factory=dict)
     #: the same by covariance analysis
     covariance_curves: dict = field(default_factory=dict)
+    #: the ``--set`` changes made to the scenario file (``PATH=VALUE``)
+    overrides: list = field(default_factory=list)
 
     def get(self, estimator: str, metric: str, component: str = "") -> MetricBudget | None:
         return next((m for m in self.metrics if (m.estimator, m.metric, m.component) == (estimator, metric, component)),
@@ -206,7 +208,8 @@ class Budget:
     def to_dict(self) -> dict:
         clean = lambda v: ([clean(x) for x in v] if isinstance(v, list) else
                            None if isinstance(v, float) and not math.isfinite(v) else v)
-        return {"scenario": self.scenario, "runs": self.runs, "seed": self.seed, "sources": self.sources,
+        return {"scenario": self.scenario, "overrides": self.overrides, "runs": self.runs, "seed": self.seed,
+                "sources": self.sources,
                 "group": self.group, "method": self.method, "wall_s": clean(self.wall_s),
                 "covariance_s": clean(self.covariance_s), "monte_carlo_only": self.monte_carlo_only,
                 "left_out": self.left_out,

@@ -13,7 +13,7 @@ PACKAGE = Path(navsim.__file__).resolve().parent
 #: layer and the layers before it (the longest prefix of a module's name gives its layer)
 LAYERS = ("navsim.data", "navsim.version", "navsim.foundations", "navsim.flight", "navsim.sensors",
           "navsim.navigation", "navsim.records", "navsim.experiment", "navsim.scoring", "navsim.replay", "navsim.report", "navsim.api",
-          "navsim.cli", "navsim.__main__", "navsim")
+          "navsim.plugin", "navsim.cli", "navsim.__main__", "navsim")
 #: layers that must not import each other although the order would let them: the scoring reads
 #: the records (navsim.records), never the experiment that made them
 APART = {"navsim.scoring": ("navsim.experiment",)}

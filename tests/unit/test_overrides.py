@@ -22,6 +22,9 @@ DATA = {"sensors": {"gps": {"model": "p3_gps"}, "imu": "p3_imu"},
     ("estimators[a.b c].x=[1, 2, 3]", ("estimators", ("a.b c",), "x"), [1, 2, 3]),
     ("metrics.windows[0]=", ("metrics", "windows", (0,)), None),
     ("description=a=b", ("description",), "a=b"),
+    ("estimators[a=b].x=1", ("estimators", ("a=b",), "x"), 1),
+    ("estimators[a[b]c][0]=1", ("estimators", ("a[b]c",), (0,)), 1),
+    ("estimators[²]=1", ("estimators", ("²",)), 1),
 ])
 def test_a_path_splits_into_keys_and_selectors_and_the_value_is_yaml(text, parts, value):
     o = parse_override(text)
@@ -29,10 +32,12 @@ def test_a_path_splits_into_keys_and_selectors_and_the_value_is_yaml(text, parts
 
 
 @pytest.mark.parametrize("text, words", [
-    ("montecarlo.runs", "is not PATH=VALUE"), ("=3", "is not PATH=VALUE"),
-    ("a..b=1", "empty key"), ("a.=1", "empty key"), ("a[=1", "unclosed or empty"),
-    ("a[]=1", "unclosed or empty"), ("[0].a=1", "starts with [ ]"),
-    ("a=[1, 2", "not valid YAML"), ("a={b: }}", "not valid YAML"),
+    ("montecarlo.runs", "is not PATH=VALUE"), ("=3", "is not PATH=VALUE"), ("a[=1", "is not PATH=VALUE"),
+    ("a..b=1", "empty or malformed key"), ("a.=1", "after a key"), ("a[0]..b=1", "empty or malformed key"),
+    ("a.[0]=1", "empty or malformed key"), ("a[0].=1", "after a key"), ("a[0]b=1", "after a key"),
+    ("a[]=1", "unclosed or empty"), ("a[0=1]", "is not PATH=VALUE"), ("[0].a=1", "empty or malformed key"),
+    ("a]=1", "empty or malformed key"),
+    ("a=[1, 2", "not valid YAML"), ("a={b: }}", "not valid YAML"), ("a=" + "[" * 200 + "]" * 200, "nested"),
 ])
 def test_a_malformed_set_is_refused_naming_it(text, words):
     with pytest.raises(ScenarioError) as exc:
@@ -64,6 +69,27 @@ def test_a_path_that_does_not_fit_the_mapping_is_refused(text, words):
     with pytest.raises(ScenarioError) as exc:
         apply_overrides(DATA, [parse_override(text)])
     assert f"--set {text}" in str(exc.value) and words in str(exc.value), str(exc.value)
+
+
+def test_a_value_is_copied_where_it_is_set_and_recorded_as_given():
+    """Two changes on one value do not write into each other, nor into the caller's object."""
+    given = {"model": "p3_gps"}
+    first, second = make_override("sensors.gps", given), parse_override("sensors.gps.override.position_sigma=4 m")
+    out, _ = apply_overrides(DATA, [first, second])
+    assert given == {"model": "p3_gps"} and first.as_text() == "sensors.gps={model: p3_gps}"
+    assert out["sensors"]["gps"] == {"model": "p3_gps", "override": {"position_sigma": "4 m"}}
+    assert second.as_text() == "sensors.gps.override.position_sigma=4 m"
+    with pytest.raises(ScenarioError, match="is not a YAML value"):
+        make_override("a", object())
+
+
+def test_an_error_is_blamed_on_the_set_at_or_above_its_key():
+    _, written = apply_overrides(DATA, [parse_override("sensors.gps={model: x}"),
+                                        parse_override("sensors.gps.override.position_sigma=4 m")])
+    err = blame(ScenarioError("no sensor model 'x'", file="s.yaml", key="sensors.gps.model"), written)
+    assert err.origin == "--set sensors.gps={model: x}", err.origin
+    err = blame(ScenarioError("is not a mapping", file="s.yaml", key="sensors"), written)
+    assert err.origin == "--set sensors.gps={model: x}", err.origin
 
 
 def test_a_misspelt_label_gets_the_closest_one():
