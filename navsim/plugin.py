@@ -1,7 +1,8 @@
 """Everything a plug-in needs, from one module: ``from navsim.plugin import ...``.
 
 A filter in one file is a class registered with :func:`register`, run by ``navsim run
-scenario.yaml --plugin my_filter.py`` (also ``budget``, ``sweep``, ``validate``, ``replay``)
+scenario.yaml --plugin my_filter.py`` (also ``budget``, ``sweep``, ``validate``, ``fly``,
+``sensors``, ``replay``)
 and named in the scenario by ``type: <its name>``. It follows one of two contracts:
 
 - **one vehicle** (filterpy-style, for prototyping): ``initialize(nav0, P0)``,

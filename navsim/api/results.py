@@ -30,6 +30,7 @@ from navsim.experiment.scenario import Scenario, parse_scenario
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.overrides import set_comments
+from navsim.navigation.estimators.base import plugin_sources
 from navsim.records.history import ARRAYS, ARRAY_FIELDS, EPOCH_ARRAYS, EstimatorHistory
 from navsim.records.metrics import RunMetrics
 from navsim.records.run import RunRecord
@@ -100,6 +101,9 @@ class Result:
         ``reference``, ...)."""
         if scenario.overrides:
             record = dataclasses.replace(record, overrides=list(scenario.overrides))
+        sources = plugin_sources(e.type for e in scenario.estimators)
+        if sources:
+            record = dataclasses.replace(record, plugins=sources)
         return cls(scenario=scenario, metrics=None, record=record,
                    **{f.name: getattr(rr, f.name) for f in fields(rr)}, **rest)
 

@@ -421,7 +421,11 @@ class _Recorder:
         own = np.asarray(sol.extra.get("diverged", False), bool)
         code[(code == 0) & own] = 6
         code[self.flagged] = 0
-        self._flag(t, [CAUSES[c] for c in code] if code.any() else [])
+        why = [CAUSES[c] for c in code]
+        for b, raised in enumerate(sol.extra.get("causes") or ()):     # a run's own exception
+            if raised and code[b]:
+                why[b] = f"raised {raised}"
+        self._flag(t, why if code.any() else [])
 
     def _flag(self, t, cause: list) -> None:
         for b, c in enumerate(cause):

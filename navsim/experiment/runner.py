@@ -36,6 +36,7 @@ from navsim.flight.truth import Truth
 from navsim.foundations.config import cache_dir
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.navigation.estimators import factory
+from navsim.navigation.estimators.base import plugin_sources
 from navsim.navigation.magcal import calibration_history
 from navsim.records.chunk import ChunkPart, merge_parts
 from navsim.records.history import EPOCH_ARRAYS
@@ -92,6 +93,8 @@ def scenario_hash(scenario) -> str:
     h.update(__version__.encode())
     h.update(f"streams {RANDOM_STREAMS}".encode())
     h.update(flight_key(scenario.flight).encode())
+    for source in plugin_sources(e.type for e in scenario.estimators):    # a --plugin file's text
+        h.update(source["sha256"].encode())
     return h.hexdigest()[:20]
 
 

@@ -90,6 +90,8 @@ def load_file(path, registries: dict) -> list[str]:
     name = name_of(path)
     if name in _FILES:                        # imported once per process, as a package is
         return _FILES[name]
+    for reg in registries.values():          # the installed plug-ins' names taken too
+        reg.names()
     before = {what: dict(reg.built()) for what, reg in registries.items()}
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
@@ -103,6 +105,11 @@ def load_file(path, registries: dict) -> list[str]:
             raise
         raise UsageError(f"--plugin {path}{_line(exc, path)}: raised {type(exc).__name__} on import: {exc}") from None
     _FILES[name] = _registered(path, registries, before)
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    for what, reg in registries.items():      # where each registered class came from
+        for key, obj in reg.built().items():
+            if key not in before[what] and isinstance(obj, type):
+                obj.source_file, obj.source_sha256 = str(path.resolve()), digest
     return _FILES[name]
 
 

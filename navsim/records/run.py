@@ -50,6 +50,8 @@ class RunRecord:
     runs_plotted: int | None = None     #: runs whose histories the report draws; None: all done
     #: the ``--set PATH=VALUE`` changes made to the scenario file (in scenario.resolved.yaml)
     overrides: list | None = _optional()
+    #: the ``--plugin`` files its estimators came from (``type``, ``file``, ``sha256``)
+    plugins: list | None = _optional()
     extra: dict = field(default_factory=dict, repr=False)   #: keys of a newer or older navsim
 
     @property

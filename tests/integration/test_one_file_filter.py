@@ -87,6 +87,20 @@ def test_a_run_whose_filter_raises_is_flagged_and_the_others_complete(short, tmp
     m = json.loads((out / "metrics.json").read_text())["estimators"]["fragile"]
     assert 0 < m["diverged_runs"] < 6, m["diverged_runs"]
     assert json.loads((out / "metrics.json").read_text())["estimators"]["KF"]["diverged_runs"] == 0
+    causes = m["divergence"]["causes"]
+    assert causes == {"raised FloatingPointError: the covariance lost its positive definiteness": m["diverged_runs"]}
+    record = json.loads((out / "run.json").read_text())
+    # the run records the file its filter came from, its text's digest in the run's identity
+    import hashlib
+    assert record["plugins"] == [{"type": "fragile_one_file", "file": str((tmp_path / "fragile.py").resolve()),
+                                  "sha256": hashlib.sha256((tmp_path / "fragile.py").read_bytes()).hexdigest()}]
+
+
+def test_a_key_the_filter_does_not_take_is_refused_when_the_scenario_is_read(beside, tmp_path, capsys):
+    beside.write_text(beside.read_text().replace("    sigma_mps: 0.05\n", "    sigma_mp: 0.05\n"))
+    assert run(beside, tmp_path / "out", "--plugin", str(FILTER)) == 2
+    err = capsys.readouterr().err
+    assert "estimators[2]" in err and "sigma_mp" in err and "sigma_mps" in err, err
 
 
 FRAGILE = """

@@ -159,6 +159,18 @@ def build(cls: type, params: dict):
     return cls.from_params(params) if hasattr(cls, "from_params") else cls(**params)
 
 
+def plugin_sources(types) -> list[dict]:
+    """The ``--plugin`` files (``{"type", "file", "sha256"}``) the estimator types ``types``
+    come from (none for a shipped or packaged type): what a run records and its identity
+    hashes, so that ``--resume`` never mixes runs of an edited file."""
+    out = []
+    for name in dict.fromkeys(types):
+        cls = ESTIMATORS.built().get(name)
+        if getattr(cls, "source_sha256", None):
+            out.append({"type": name, "file": cls.source_file, "sha256": cls.source_sha256})
+    return out
+
+
 def available() -> list[str]:
     """The registered estimators' names, sorted (the plug-ins' included)."""
     return ESTIMATORS.names()

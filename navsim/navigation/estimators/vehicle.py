@@ -21,6 +21,7 @@ exception as its cause; the other runs go on.
 
 from __future__ import annotations
 
+import inspect
 import logging
 from dataclasses import dataclass, field
 
@@ -158,12 +159,25 @@ class VehicleBatch:
 
     def __init__(self, params: dict):
         self.params = params
-        self.period_s = float(params.get("period_s", getattr(self.vehicle_class, "period_s", 1.0)))
+        v = self.vehicle_class
+        given = inspect.signature(v).parameters.get("period_s") if not hasattr(v, "from_params") else None
+        default = given.default if given is not None and given.default is not given.empty else None
+        self.period_s = float(params.get("period_s", default if default is not None else getattr(v, "period_s", 1.0)))
+        self._t_prev = None
 
     @classmethod
     def parse(cls, node, sensors: dict) -> dict:
-        """The single-vehicle class's ``parse``, or its entry's keys as keyword arguments."""
-        return parse_params(cls.vehicle_class, node, sensors)
+        """The single-vehicle class's ``parse``, or its entry's keys as keyword arguments, checked
+        against its constructor's (an unknown or missing key is an error naming the entry)."""
+        params = parse_params(cls.vehicle_class, node, sensors)
+        if not hasattr(cls.vehicle_class, "parse") and not hasattr(cls.vehicle_class, "from_params"):
+            try:
+                inspect.signature(cls.vehicle_class).bind(**params)
+            except TypeError as exc:
+                raise node.error(f"does not fit {cls.vehicle_class.__name__}: {exc}",
+                                 expected="the keyword arguments of its constructor: "
+                                 + ", ".join(inspect.signature(cls.vehicle_class).parameters)) from None
+        return params
 
     @classmethod
     def from_params(cls, params: dict) -> "VehicleBatch":
@@ -178,71 +192,94 @@ class VehicleBatch:
         P0 = np.diag(np.concatenate([np.asarray(sigma0[k], float) for k in NAV_BLOCKS]) ** 2)
         self.filters, self.causes = [self._build() for _ in range(B)], [None] * B
         self._each(lambda b, f: f.initialize(one_run(nav0, b), P0.copy()))
-        self.last = [None] * B
 
     def _each(self, call) -> list:
-        """``call(b, filter)`` for each run not diverged; a run whose filter raises is flagged
-        with its exception."""
-        out = []
+        """``call(b, filter)`` for each run not failed; a run whose filter raises is flagged
+        with its exception (its solution NaN from then on). When every run has failed, the last
+        exception is raised: the driver then flags them all with it (and a replay, a closed
+        loop of one run, stop on it)."""
+        out, last = [], None
         for b, f in enumerate(self.filters):
             if self.causes[b] is None:
                 try:
                     out.append((b, call(b, f)))
                 except Exception as exc:         # the user's code: anything may be raised
-                    self.causes[b] = f"{type(exc).__name__}: {exc}"
+                    self.causes[b], last = f"{type(exc).__name__}: {exc}", exc
                     log.warning("%s raised in run %d of its batch, flagged diverged (the other runs go on)",
                                 self.vehicle_class.__name__, b, exc_info=exc)
+        if last is not None and all(c is not None for c in self.causes):
+            raise last
         return out
 
     def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
-        self._each(lambda b, f: f.predict(ImuBlock(dtheta_b[b], dv_b[b], dt)))
+        self._each(lambda b, f: f.predict(ImuBlock(dtheta_b[b].copy(), dv_b[b].copy(), dt)))
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
-        at = {name: sample(sensors, name, t) for name in sensors}
+        """Each run's ``update`` with the sensors' latest samples since the last epoch (at ``t``
+        exactly at the first)."""
+        at = {name: sample(sensors, name, t, self._t_prev) for name in sensors}
         at = {name: (data, j) for name, (data, j) in at.items() if data is not None}
-        got = self._each(lambda b, f: f.update(t, self._samples(at, b, t)))
-        return self._innovations(t, got, len(self.filters))
-
-    @staticmethod
-    def _samples(at: dict, b: int, t: float) -> dict:
-        """Sensor name -> :class:`Sample` of run ``b`` (only the sensors with a valid sample)."""
-        return {name: Sample(name, data.kind, float(data.t_s[j]),
-                             {k: v[b, j] if np.ndim(v[b, j]) else float(v[b, j]) for k, v in data.values.items()},
-                             data.meta)
-                for name, (data, j) in at.items() if data.valid[b, j]}
-
-    @staticmethod
-    def _innovations(t: float, got: list, B: int) -> list[Innovation]:
-        """The runs' :class:`VehicleInnovation` lists as one :class:`Innovation` per
-        measurement and sensor (NaN for the runs without it)."""
-        out = {}
-        for b, items in got:
-            for v in items or []:
-                y, S = np.atleast_1d(np.asarray(v.y, float)), np.atleast_2d(np.asarray(v.S, float))
-                key = (v.measurement, v.sensor)
-                if key not in out:
-                    m = y.shape[0]
-                    out[key] = Innovation(v.measurement, v.sensor, t, np.full((B, m), np.nan),
-                                          np.full((B, m, m), np.nan), np.full(B, np.nan))
-                inn = out[key]
-                inn.y[b], inn.S[b] = y, S
-                inn.nis[b] = float(y @ np.linalg.solve(S, y))
+        self._t_prev = t
+        B, out = len(self.filters), {}
+        self._each(lambda b, f: _innovations(out, b, B, t, f.update(t, _samples(at, b))))
         return list(out.values())
 
     def solution(self) -> Solution:
-        got = dict(self._each(lambda b, f: f.solution()))
-        for b, s in got.items():
-            self.last[b] = s
         B = len(self.filters)
-        sols = [self.last[b] for b in range(B)]
+        sols = [None] * B
+        for b, s in self._each(lambda b, f: _checked_solution(f.solution())):
+            sols[b] = s
         nav = _stacked([s.nav if s is not None else None for s in sols])
-        pick = lambda name, shape: (None if all(getattr(s, name, None) is None for s in sols) else np.stack(
+        pick = lambda name, shape: (None if all(s is None or getattr(s, name) is None for s in sols) else np.stack(
             [np.full(shape, np.nan) if s is None or getattr(s, name) is None else np.asarray(getattr(s, name), float)
              for s in sols]))
+        biases = {name: pick(name, (3,)) for name in ("gyro_bias", "accel_bias")}
+        if any(v is not None for v in biases.values()):      # the driver reads both or none
+            biases = {k: np.full((B, 3), np.nan) if v is None else v for k, v in biases.items()}
         diverged = np.array([c is not None for c in self.causes])
-        return Solution(nav=nav, P_nav=pick("P", (9, 9)), gyro_bias=pick("gyro_bias", (3,)),
-                        accel_bias=pick("accel_bias", (3,)),
+        return Solution(nav=nav, P_nav=pick("P", (9, 9)), **biases,
                         extra={"diverged": diverged, "causes": list(self.causes)})
+
+
+def _samples(at: dict, b: int) -> dict:
+    """Sensor name -> :class:`Sample` of run ``b`` (only the sensors with a valid sample; the
+    values copied, so that no filter changes what the others read)."""
+    return {name: Sample(name, data.kind, float(data.t_s[j]),
+                         {k: np.array(v[b, j]) if np.ndim(v[b, j]) else float(v[b, j]) for k, v in data.values.items()},
+                         data.meta)
+            for name, (data, j) in at.items() if data.valid[b, j]}
+
+
+def _innovations(out: dict, b: int, B: int, t: float, items) -> None:
+    """Run ``b``'s :class:`VehicleInnovation` list into ``out``, one :class:`Innovation` per
+    measurement and sensor (NaN for the runs without it); a malformed one raises (the run is
+    flagged, not the batch)."""
+    for v in items or []:
+        y, S = np.atleast_1d(np.asarray(v.y, float)), np.atleast_2d(np.asarray(v.S, float))
+        if y.ndim != 1 or S.shape != (y.shape[0], y.shape[0]):
+            raise ValueError(f"innovation {v.measurement}:{v.sensor}: y {y.shape} and S {S.shape} (expected (m,) "
+                             "and (m, m))")
+        key = (v.measurement, v.sensor)
+        if key not in out:
+            out[key] = Innovation(v.measurement, v.sensor, t, np.full((B, y.shape[0]), np.nan),
+                                  np.full((B, y.shape[0], y.shape[0]), np.nan), np.full(B, np.nan))
+        inn = out[key]
+        if inn.y.shape[1] != y.shape[0]:
+            raise ValueError(f"innovation {v.measurement}:{v.sensor}: {y.shape[0]} values, "
+                             f"{inn.y.shape[1]} in another run")
+        inn.y[b], inn.S[b] = y, S
+        inn.nis[b] = float(y @ np.linalg.solve(S, y))
+
+
+def _checked_solution(s) -> VehicleSolution:
+    """``s`` if it is a :class:`VehicleSolution` of the contract's shapes; raises otherwise."""
+    if not isinstance(s, VehicleSolution):
+        raise TypeError(f"solution() returned {type(s).__name__}, not a VehicleSolution")
+    for name, shape in (("P", (9, 9)), ("gyro_bias", (3,)), ("accel_bias", (3,))):
+        value = getattr(s, name)
+        if value is not None and np.shape(value) != shape:
+            raise ValueError(f"solution().{name} has shape {np.shape(value)}, expected {shape}")
+    return s
 
 
 def _stacked(navs: list) -> NavState:
