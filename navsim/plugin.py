@@ -22,9 +22,11 @@ from __future__ import annotations
 from navsim.foundations.config import Node, load_yaml
 from navsim.foundations.earth import OMEGA_IE_RPS, gravity_n, radii
 from navsim.foundations.jsonschema import NUM, POS, VEC3, obj
+from navsim.foundations.plugins import load_file
 from navsim.foundations.transform import dcm_from_euler, euler_from_dcm, rotation, skew
 from navsim.navigation.estimators.base import ESTIMATORS, Estimator, Innovation, Solution, sample
 from navsim.navigation.estimators.measurements import Linearised, build_measurements, measurement, parse_measurements
+from navsim.navigation.estimators.measurements.registry import MEASUREMENTS
 from navsim.navigation.estimators.vehicle import (ImuBlock, Sample, VehicleFilter, VehicleInnovation, VehicleSolution,
                                                   VehicleStrapdown, batch_class, is_vehicle_filter, remove_errors)
 from navsim.navigation.strapdown import BlockStrapdown, NavState
@@ -42,6 +44,17 @@ def register(name: str):
     return deco
 
 
+#: what a plug-in file may register into (:func:`load`, ``--plugin``)
+REGISTRIES = {"estimator": ESTIMATORS, "measurement type": MEASUREMENTS}
+
+
+def load(path) -> list[str]:
+    """Import the plug-in file ``path`` as ``--plugin`` does (once per process); returns what it
+    registered (``["estimator 'my_filter'"]``); a :class:`~navsim.foundations.errors.UsageError`
+    names the file for one that raises on import, registers nothing or takes a registered name."""
+    return load_file(path, REGISTRIES)
+
+
 def imu_spec(name: str, override: dict | None = None):
     """An IMU catalog entry (``sensors/<name>.yaml``, or a file) in SI: ``.gyro`` and ``.accel``
     with ``noise_density`` (rad/s/√Hz, m/s²/√Hz), ``random_walk``, ``bias_sigma``, ``bias``
@@ -52,5 +65,5 @@ def imu_spec(name: str, override: dict | None = None):
 __all__ = ["BlockStrapdown", "Estimator", "ImuBlock", "Innovation", "Linearised", "Measurements", "NUM", "NavState",
            "Node", "OMEGA_IE_RPS", "POS", "Sample", "Solution", "VEC3", "VehicleFilter", "VehicleInnovation",
            "VehicleSolution", "VehicleStrapdown", "build_measurements", "dcm_from_euler", "euler_from_dcm",
-           "gravity_n", "imu_spec", "load_yaml", "measurement", "obj", "parse_measurements", "radii", "register",
+           "gravity_n", "imu_spec", "load", "load_yaml", "measurement", "obj", "parse_measurements", "radii", "register",
            "remove_errors", "rotation", "sample", "skew"]

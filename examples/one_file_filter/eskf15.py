@@ -1,8 +1,10 @@
-"""A 15-state error-state Kalman filter for one vehicle, in one file (filterpy-style).
+"""eskf15: a 15-state error-state Kalman filter for one vehicle, in one file (filterpy-style),
+written by ``navsim new estimator eskf15``: change it into yours.
 
-Run it on P3's flight beside navsim's own 15-state ES-KF::
+Run it on P3's flight beside navsim's own 15-state ES-KF, and its test::
 
-    navsim run examples/one_file_filter/p3_one_file.yaml --plugin examples/one_file_filter/eskf15.py
+    navsim run eskf15_p3.yaml --plugin eskf15.py
+    python -m pytest test_eskf15.py
 
 States (navsim's error states: estimate minus truth): attitude error ``phi`` (rad, N E D, with
 ``C_nb_est = (I - [phi x]) C_nb``), velocity error (m/s), position error (latitude and longitude
@@ -28,8 +30,8 @@ from navsim.plugin import (VehicleFilter, VehicleInnovation, VehicleSolution, Ve
 ATT, VEL, POS, BG, BA = (slice(i, i + 3) for i in range(0, 15, 3))
 
 
-@register("eskf15_one_file")
-class OneFileESKF(VehicleFilter):
+@register("eskf15")
+class Eskf15(VehicleFilter):
     """P3's 15 states for one vehicle, numpy only."""
 
     def __init__(self, imu="p3_imu", gnss="gps", sigma_m=(2.0, 2.0, 1.0), sigma_mps=0.05, period_s=1.0):

@@ -10,7 +10,7 @@ line) adds one with :func:`register_command` and takes it away with
 
 from __future__ import annotations
 
-from navsim.cli import budget, compare, fly, list_, replay, run, schema, sensors, sweep, validate
+from navsim.cli import budget, compare, fly, list_, new, replay, run, schema, sensors, sweep, validate
 from navsim.cli.command import Command
 from navsim.foundations.registry import Registry
 
@@ -20,6 +20,7 @@ BUILT_IN: tuple[Command, ...] = (
     fly.COMMAND,
     sensors.COMMAND,
     validate.COMMAND,
+    new.COMMAND,
     sweep.COMMAND,
     replay.COMMAND,
     compare.COMMAND,

@@ -1,5 +1,5 @@
-"""``navsim list``: the shipped aircraft, sensor catalog entries and tracks, and the registered
-estimators, state presets and measurement types (the installed plug-ins' included)."""
+"""``navsim list``: the shipped aircraft, sensor catalog entries, tracks and scenarios, and the
+registered estimators, state presets and measurement types (the installed plug-ins' included)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,13 @@ import sys
 import textwrap
 
 from navsim.cli.command import Command
+from navsim.cli.new import shipped_scenarios
 from navsim.experiment.scenario import available_aircraft
 from navsim.flight.airframe import load_airframe
 from navsim.flight.properties import AIRCRAFT_DIR
 from navsim.flight.track import available_tracks, load_track, nominal_duration_s
+from navsim.foundations.config import load_yaml
+from navsim.foundations.resources import data_folder
 from navsim.navigation.estimators import base, measurement_types
 from navsim.navigation.estimators.error_model import PRESETS, Layout
 from navsim.navigation.estimators.measurements import measurement_class
@@ -54,6 +57,9 @@ def handle(args) -> int:
     print(_listing("sensors (catalog entries)", [(n, k, d) for n, (k, d) in catalog_entries().items()]))
     tracks = [(n, load_track(n)) for n in available_tracks()]
     print(_listing("tracks", [(n, f"{nominal_duration_s(t):.0f} s", _first_sentence(t.description)) for n, t in tracks]))
+    print(_listing("scenarios (navsim new scenario NAME --from ...)",
+                   [(n, "", _first_sentence((load_yaml(data_folder("scenarios") / f"{n}.yaml") or {}).get("description", "")))
+                    for n in shipped_scenarios()]))
     print(_listing("estimators (type:)", [(n, "" if base.get(n).__module__.startswith("navsim.") else "plug-in",
                                            _summary(base.get(n))) for n in base.available()]))
     print(_listing("state presets (states:)", [(n, f"{Layout(b).n} states", ", ".join(b)) for n, b in PRESETS.items()]))

@@ -14,9 +14,7 @@ from navsim.experiment.scenario import MAX_WORKERS, Scenario, load_scenario
 from navsim.foundations.config import Argument
 from navsim.foundations.errors import UsageError
 from navsim.foundations.overrides import parse_override
-from navsim.foundations.plugins import load_file
-from navsim.navigation.estimators.base import ESTIMATORS
-from navsim.navigation.estimators.measurements.registry import MEASUREMENTS
+from navsim.plugin import load
 
 
 def option_type(argument: Argument):
@@ -72,10 +70,6 @@ def writer_options(p, kept: str) -> None:
     p.epilog = WRITER_EPILOG.format(kept=kept)
 
 
-#: what a ``--plugin`` file may register into
-PLUGIN_REGISTRIES = {"estimator": ESTIMATORS, "measurement type": MEASUREMENTS}
-
-
 def scenario_argument(p) -> None:
     """The scenario file, a command's first argument, ``--set`` and ``--plugin``."""
     p.add_argument("scenario", help="scenario YAML file")
@@ -98,7 +92,7 @@ def load_plugins(args) -> list[str]:
     if files and getattr(args, "executor", "local") == "dask":
         raise UsageError("--plugin with --executor dask: the Dask workers do not import the file (hint: run it "
                          "on the local executor, or package it as a plug-in with an entry point: docs/plugins.md)")
-    return [item for f in files for item in load_file(f, PLUGIN_REGISTRIES)]
+    return [item for f in files for item in load(f)]
 
 
 def set_option(p, what: str = "the scenario") -> None:

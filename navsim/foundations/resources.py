@@ -2,8 +2,9 @@
 editable install and a checkout find the same files.
 
 The aircraft (``navsim.data.aircraft``, edited in the repository's ``aircraft/``), the sensor
-catalog (``navsim.data.sensors``, edited in ``sensors/``) and the tracks (``navsim/tracks``) are
-package data (see pyproject.toml).
+catalog (``navsim.data.sensors``, edited in ``sensors/``), the shipped scenarios
+(``navsim.data.scenarios``, edited in ``scenarios/``), the tracks (``navsim/tracks``) and the
+templates of ``navsim new`` (``navsim/cli/templates``) are package data (see pyproject.toml).
 """
 
 from __future__ import annotations
@@ -13,7 +14,8 @@ from pathlib import Path
 
 #: the package of each kind of shipped data, and the folder inside it
 DATA = {"aircraft": ("navsim.data.aircraft", ""), "sensors": ("navsim.data.sensors", ""),
-        "tracks": ("navsim", "tracks")}
+        "tracks": ("navsim", "tracks"), "scenarios": ("navsim.data.scenarios", ""),
+        "templates": ("navsim.cli", "templates")}
 
 
 def data_folder(kind: str) -> Path:

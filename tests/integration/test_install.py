@@ -17,7 +17,7 @@ import pytest
 import navsim
 
 #: what the wheel is built from (copied to tmp_path: a build in the checkout writes build/ there)
-WHEEL_SOURCES = ("pyproject.toml", "README.md", "navsim", "aircraft", "sensors")
+WHEEL_SOURCES = ("pyproject.toml", "README.md", "navsim", "aircraft", "sensors", "scenarios")
 #: the package under test and the checkout it comes from (the checkout's files, not a copy's)
 PACKAGE = Path(navsim.__file__).resolve().parent
 CHECKOUT = PACKAGE.parent
@@ -48,10 +48,12 @@ def test_the_wheel_holds_the_aircraft_the_catalog_the_tracks_and_every_module(tm
     names = set(zipfile.ZipFile(build_wheel(tmp_path)).namelist())
     want = {str(p.relative_to(CHECKOUT)) for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts}
     want |= {f"navsim/tracks/{p.name}" for p in (PACKAGE / "tracks").glob("*.yaml")}
-    for folder in ("aircraft", "sensors"):
+    want |= {f"navsim/cli/templates/{p.name}" for p in (PACKAGE / "cli" / "templates").glob("*.txt")}
+    for folder in ("aircraft", "sensors", "scenarios"):
         want |= {f"navsim/data/{p.relative_to(CHECKOUT)}" for p in (CHECKOUT / folder).rglob("*")
                  if p.is_file() and "__pycache__" not in p.parts and p.suffix in (".xml", ".yaml", ".md", ".py")}
     assert "navsim/data/aircraft/survey10/survey10.xml" in want and "navsim/data/sensors/p0_imu.yaml" in want
+    assert "navsim/data/scenarios/p0_bd_sins_ads.yaml" in want and "navsim/cli/templates/estimator.py.txt" in want
     assert not want - names, sorted(want - names)
 
 

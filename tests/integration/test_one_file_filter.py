@@ -14,7 +14,7 @@ from navsim.navigation.estimators.base import ESTIMATORS
 ROOT = Path(__file__).resolve().parents[2]
 FILTER = ROOT / "examples" / "one_file_filter" / "eskf15.py"
 ONE_FILE = """  - label: one-file ES-KF
-    type: eskf15_one_file
+    type: eskf15
     gnss: gps
     sigma_m: [2, 2, 1]
     sigma_mps: 0.05
