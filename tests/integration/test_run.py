@@ -154,7 +154,9 @@ def test_interrupted_run_keeps_what_finished(short_pdf, tmp_path, monkeypatch):
     assert (tmp_path / "out" / "report.pdf").exists()
 
 
-@pytest.mark.parametrize("name", ["p0_bd_sins_ads", "p0_two_step", "p2_sea_height", "p3_sins_gps",
+# p2_sea_height and p3_sins_gps run through navsim.run with their reports in test_report_pages.py,
+# P3's 20 runs in test_budget.py, P2's filters in test_p2_height.py: not a third time here (22 s)
+@pytest.mark.parametrize("name", ["p0_bd_sins_ads", "p0_two_step",
                                   "p1_emi_powerline", "p1_federated",
                                   # a closed loop flies JSBSim per run (42 s): its features have
                                   # tests of their own on a short track (test_closed_loop.py)

@@ -191,6 +191,7 @@ class VehicleBatch:
         B = nav0.lat_rad.shape[0]
         P0 = np.diag(np.concatenate([np.asarray(sigma0[k], float) for k in NAV_BLOCKS]) ** 2)
         self.filters, self.causes = [self._build() for _ in range(B)], [None] * B
+        self._solution = None
         self._each(lambda b, f: f.initialize(one_run(nav0, b), P0.copy()))
 
     def _each(self, call) -> list:
@@ -212,6 +213,7 @@ class VehicleBatch:
         return out
 
     def propagate(self, dtheta_b: np.ndarray, dv_b: np.ndarray, dt: float) -> None:
+        self._solution = None
         self._each(lambda b, f: f.predict(ImuBlock(dtheta_b[b].copy(), dv_b[b].copy(), dt)))
 
     def epoch(self, t: float, sensors: dict) -> list[Innovation]:
@@ -219,12 +221,19 @@ class VehicleBatch:
         exactly at the first)."""
         at = {name: sample(sensors, name, t, self._t_prev) for name in sensors}
         at = {name: (data, j) for name, (data, j) in at.items() if data is not None}
-        self._t_prev = t
+        self._t_prev, self._solution = t, None
         B, out = len(self.filters), {}
         self._each(lambda b, f: _innovations(out, b, B, t, f.update(t, _samples(at, b))))
         return list(out.values())
 
     def solution(self) -> Solution:
+        """The runs' solutions stacked (asked again before the next ``propagate`` or ``epoch``,
+        as the closed loop does every IMU step: the same object)."""
+        if self._solution is None:
+            self._solution = self._stacked_solution()
+        return self._solution
+
+    def _stacked_solution(self) -> Solution:
         B = len(self.filters)
         sols = [None] * B
         for b, s in self._each(lambda b, f: _checked_solution(f.solution())):
