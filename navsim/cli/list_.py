@@ -69,7 +69,7 @@ def handle(args) -> int:
 
 
 COMMAND = Command(
-    "list", "list the aircraft, sensors, tracks, estimators, measurements", usage="",
-    description="List the shipped aircraft, sensor catalog entries and tracks, and the registered estimators "
-    "and measurement types (installed plug-ins' included).",
+    "list", "list the aircraft, sensors, tracks, scenarios, estimators, measurements", usage="",
+    description="List the shipped aircraft, sensor catalog entries, tracks and scenarios, and the registered "
+    "estimators and measurement types (installed plug-ins' included).",
     handler=handle)

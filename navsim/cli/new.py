@@ -11,15 +11,22 @@ already is never replaced (exit 2, nothing written).
 
 from __future__ import annotations
 
+import importlib.util
+import keyword
 import re
 from pathlib import Path
 from string import Template
+
+import yaml
+
+from navsim import plugin
 
 from navsim.cli.command import Command
 from navsim.experiment.scenario import parse_scenario
 from navsim.foundations.config import close_match, parse_yaml, plain_name
 from navsim.foundations.errors import UsageError
 from navsim.foundations.resources import data_folder
+from navsim.navigation.estimators import base
 
 #: the files ``navsim new estimator NAME`` writes: template -> file name (``$name`` the name)
 ESTIMATOR_FILES = {"estimator.py.txt": "${name}.py", "estimator_p3.yaml.txt": "${name}_p3.yaml",
@@ -68,10 +75,30 @@ def _files(args) -> dict[str, str]:
         return {f"{args.name}.yaml": scenario_text(args.name, args.source or "p0_bd_sins_ads")}
     if args.source:
         raise UsageError("--from: only for navsim new scenario")
-    if not (args.name.isidentifier() and args.name.isascii() and args.name == args.name.lower()):
-        raise UsageError(f"{args.name!r}: not a lower-case Python identifier (expected my_filter: the module "
-                         "and the scenario's type)")
+    check_estimator_name(args.name)
     return estimator_texts(args.name)
+
+
+def check_estimator_name(name: str) -> None:
+    """Refuse (:class:`UsageError`) a filter name that would not make working files: not a
+    lower-case identifier, one whose class name is not an identifier or is a keyword, a YAML
+    word (``true``, ``null``, ...), a registered estimator type, a name of :mod:`navsim.plugin`
+    the template imports, or a module Python finds already (the file would hide it)."""
+    cls = "".join(w[:1].upper() + w[1:] for w in name.split("_") if w)
+    why = None
+    if not (name.isidentifier() and name.isascii() and name == name.lower()) or keyword.iskeyword(name):
+        why = "is not a lower-case Python identifier"
+    elif not cls.isidentifier() or keyword.iskeyword(cls) or cls in plugin.__all__:
+        why = f"makes the class name {cls!r}, which Python or the template cannot use"
+    elif not isinstance(yaml.safe_load(name), str):
+        why = "is a YAML word (true, false, null, ...), not a string in the scenario"
+    elif name in base.available() and not getattr(base.get(name), "source_sha256", None):
+        why = "is a registered estimator type already"      # shipped or installed (not a --plugin file's)
+    elif importlib.util.find_spec(name) is not None:
+        why = "is the name of a module Python finds already (the file would hide it)"
+    if why:
+        raise UsageError(f"{name!r} {why} (expected a name of your own, as my_filter: the module, the class "
+                         "MyFilter and the scenario's type)")
 
 
 def handle(args) -> int:
@@ -86,9 +113,18 @@ def handle(args) -> int:
         name = next(iter(files))
         parse_scenario(parse_yaml(files[name], out / name), str(out / name))   # a ScenarioError: exit 2
     out.mkdir(parents=True, exist_ok=True)
-    for n, text in files.items():
-        (out / n).write_text(text)
-        print(f"wrote {out / n}")
+    written = []
+    try:
+        for n, text in files.items():
+            with open(out / n, "x") as f:          # never over a file made meanwhile
+                written.append(out / n)
+                f.write(text)
+    except OSError:
+        for path in written:                       # all three files or none
+            path.unlink(missing_ok=True)
+        raise
+    for path in written:
+        print(f"wrote {path}")
     if args.what == "estimator":
         print(f"run it: navsim run {out / (args.name + '_p3.yaml')} --plugin {out / (args.name + '.py')}\n"
               f"test it: python -m pytest {out / ('test_' + args.name + '.py')}")

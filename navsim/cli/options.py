@@ -93,7 +93,7 @@ def load_plugins(args) -> list[str]:
     if files and getattr(args, "executor", "local") == "dask":
         raise UsageError("--plugin with --executor dask: the Dask workers do not import the file (hint: run it "
                          "on the local executor, or package it as a plug-in with an entry point: docs/plugins.md)")
-    if files and "fork" not in multiprocessing.get_all_start_methods() and getattr(args, "workers", 1) != 1:
+    if files and "fork" not in multiprocessing.get_all_start_methods() and getattr(args, "workers", None) not in (None, 1):
         raise UsageError("--plugin: the worker processes of this system do not inherit the file (they are not "
                          "forked; hint: --workers 1, or package it as a plug-in with an entry point)")
     return [item for f in files for item in load(f)]

@@ -1,10 +1,11 @@
 """navsim's shipped data, installed as packages: ``navsim.data.aircraft`` (the JSBSim aircraft,
-edited in the repository's top-level ``aircraft/``) and ``navsim.data.sensors`` (the sensor
-catalog, edited in ``sensors/``); pyproject.toml maps the two folders here. Read them with
+edited in the repository's top-level ``aircraft/``), ``navsim.data.sensors`` (the sensor catalog,
+edited in ``sensors/``) and ``navsim.data.scenarios`` (the shipped scenarios, edited in
+``scenarios/``); pyproject.toml maps the three folders here. Read them with
 :func:`navsim.foundations.resources.data_folder`.
 
-In a checkout imported without installing (``PYTHONPATH``), the two folders are found beside the
-``navsim`` package."""
+In a checkout imported without installing (``PYTHONPATH``), the three folders are found beside
+the ``navsim`` package."""
 
 from pathlib import Path
 

@@ -46,6 +46,12 @@ def test_a_new_scenario_keeps_the_shipped_comments_and_validates(tmp_path):
     (["scenario", "mine", "--from", "p3_sins_gs"], ["no shipped scenario", "p3_sins_gps"]),
     (["scenario", "../mine"], ["not a plain file name"]),
     (["estimator", "My-Filter"], ["not a lower-case Python identifier"]),
+    (["estimator", "none"], ["class name 'None'"]),
+    (["estimator", "_"], ["class name ''"]),
+    (["estimator", "vehicle_strapdown"], ["class name 'VehicleStrapdown'"]),
+    (["estimator", "yes"], ["YAML word"]),
+    (["estimator", "eskf"], ["registered estimator type"]),
+    (["estimator", "numpy"], ["module Python finds"]),
     (["estimator", "mine", "--from", "p3_sins_gps"], ["only for navsim new scenario"]),
 ])
 def test_a_bad_name_or_source_is_refused_with_nothing_written(tmp_path, capsys, argv, words):
@@ -55,11 +61,11 @@ def test_a_bad_name_or_source_is_refused_with_nothing_written(tmp_path, capsys, 
 
 
 def test_a_file_that_is_there_is_not_replaced(tmp_path, capsys):
-    (tmp_path / "my_filter_p3.yaml").write_text("mine\n")
-    assert main(["new", "estimator", "my_filter", "--out", str(tmp_path)]) == 2
-    assert "my_filter_p3.yaml exists already" in capsys.readouterr().err
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["my_filter_p3.yaml"]
-    assert (tmp_path / "my_filter_p3.yaml").read_text() == "mine\n"
+    (tmp_path / "their_filter_p3.yaml").write_text("mine\n")
+    assert main(["new", "estimator", "their_filter", "--out", str(tmp_path)]) == 2
+    assert "their_filter_p3.yaml exists already" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["their_filter_p3.yaml"]
+    assert (tmp_path / "their_filter_p3.yaml").read_text() == "mine\n"
 
 
 @pytest.mark.slow              # P3's 3000 s flight flown, 4 runs of both filters: ~40 s
