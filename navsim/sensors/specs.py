@@ -15,7 +15,8 @@ from navsim.sensors import registry
 from navsim.sensors.airdata import AdsSpec, BaroSpec
 from navsim.sensors.camera import CameraSpec
 from navsim.sensors.gnss import GnssSpec
-from navsim.sensors.imu import AxisErrors, ImuSpec, Vibration
+from navsim.sensors.imu import AxisErrors, ImuSpec
+from navsim.sensors.vibration import Vibration
 from navsim.sensors.magnetometer import MagnetometerSpec
 from navsim.sensors.radar import RadarAltimeterSpec
 from navsim.sensors.registry import kind_of

@@ -12,7 +12,8 @@ from navsim.flight import FlightConfig, fly, parse_track
 from navsim.foundations.config import load_yaml
 from navsim.foundations.errors import ScenarioError
 from navsim.sensors import parse_sensors
-from navsim.sensors.imu import ROTOR_TONES, ImuSpec, Vibration, emulate_imu
+from navsim.sensors.imu import ImuSpec, emulate_imu
+from navsim.sensors.vibration import ROTOR_TONES, Vibration
 
 G = 9.80665
 #: P4's vibration: +/-0.488 g on x and y, +/-0.732 g on z (peak)
