@@ -24,7 +24,9 @@ The Python API (:mod:`navsim.api`): :func:`load_scenario`, :func:`run` (a :class
 :func:`open_result` (a finished run's folder, read-only), :func:`write_report`, :func:`report_figures`
 (the report's pages as figures), :func:`sweep`, and :func:`compare` (two estimators, ``B - A`` with
 95 % intervals, run by run where they flew the same runs) with :func:`write_comparison`, and
-:func:`budget` (each error source's share of the errors) with :func:`write_budget`; how the runs
+:func:`budget` (each error source's share of the errors) with :func:`write_budget`, and
+:func:`read_log` with :func:`replay_log` (an INS/GNSS log, KF-GINS text or CSV, through a
+scenario's estimators, scored as one run); how the runs
 are made, one :class:`RunOptions` (``options=``, or its fields as keywords).
 
 The subpackages follow the data flow; each imports only from those before it:
@@ -33,12 +35,13 @@ The subpackages follow the data flow; each imports only from those before it:
 :mod:`navsim.navigation` (strapdown, kernels, estimators) -> :mod:`navsim.records` (what the driver
 records and the scorer reads, the metric vocabulary) -> :mod:`navsim.experiment` (scenario,
 driver, chunks, executors, closed loop, sweep) -> :mod:`navsim.scoring` (typed metrics) and
-:mod:`navsim.replay` (PX4 logs) -> :mod:`navsim.report` -> :mod:`navsim.api` -> :mod:`navsim.cli`.
+:mod:`navsim.replay` (PX4 logs, INS/GNSS logs) -> :mod:`navsim.report` -> :mod:`navsim.api` -> :mod:`navsim.cli`.
 """
 
 from navsim.api import (Result, RunOptions, budget, compare, load_scenario, open_result,  # noqa: E402
-                        report_figures, run, sweep, write_budget, write_comparison, write_report)
+                        read_log, replay_log, report_figures, run, sweep, write_budget, write_comparison,
+                        write_report)
 from navsim.version import __version__  # noqa: E402
 
-__all__ = ["Result", "RunOptions", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "report_figures", "run", "sweep", "write_report",
+__all__ = ["Result", "RunOptions", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "read_log", "replay_log", "report_figures", "run", "sweep", "write_report",
            "__version__"]

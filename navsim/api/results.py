@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import zipfile
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -27,6 +28,7 @@ from navsim.experiment.options import check_flags, shown
 from navsim.experiment.results import check_not_being_written, read_files
 from navsim.experiment.runner import cached_flight
 from navsim.experiment.scenario import Scenario, parse_scenario
+from navsim.flight.truth import Truth
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.overrides import set_comments
@@ -315,7 +317,8 @@ def write_report(result: Result, out=None, *, force: bool = False) -> list[Path]
     out = None if out is None else checked_path("out", out, "output folder")
     if out is None and result.folder is None:
         raise UsageError("write_report needs a folder: out=... (the run was held in memory)")
-    with OutputFolder(Path(out) if out is not None else result.folder, command="run", force=force) as folder:
+    command = "run" if result.record.log is None else "replay"      # a replayed log's folder is replay's
+    with OutputFolder(Path(out) if out is not None else result.folder, command=command, force=force) as folder:
         return _write_report_into(folder, result)
 
 
@@ -427,6 +430,22 @@ def open_result(folder) -> Result:
         samples = {}
     return Result(scenario, every, histories, metrics, record, folder=folder, truth_bias=bias, calibration=calib,
                   failed=dict(record.failed_runs), interrupted=bool(record.interrupted), store=store,
-                  history_runs=None if len(runs) == len(every) else runs, samples=samples)
+                  history_runs=None if len(runs) == len(every) else runs, samples=samples,
+                  truth=_log_reference(folder, record))
+
+
+#: a replayed log's reference, as a truth, in its folder (``navsim replay``): the report's flight
+LOG_REFERENCE_FILE = "reference.npz"
+
+
+def _log_reference(folder: Path, record: RunRecord):
+    """The reference a replayed log was scored against (None for a scenario's run: its flight
+    is the cached one)."""
+    if record.log is None:
+        return None
+    try:
+        return Truth.load(folder / LOG_REFERENCE_FILE)
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
+        raise UsageError(f"{folder}: a replayed log's {LOG_REFERENCE_FILE} cannot be read ({exc})") from None
 
 

@@ -95,7 +95,7 @@ def _run(scenario, how: RunOptions, folder, flight) -> Result:
     result.record = dataclasses.replace(result.record, scenario=None if scenario.path is None else str(scenario.path),
                                         runs=how.runs, runs_done=int(len(result.runs)), seed=how.seed,
                                         workers=how.workers, data_key=runner.data_key(scenario, how.seed))
-    _score(result, time.perf_counter() - t0)
+    score_result(result, time.perf_counter() - t0)
     if folder is not None:
         write_run(result, folder)
         result.folder = folder.path
@@ -147,7 +147,7 @@ def _open_store(out: Path, scenario, how: RunOptions) -> ChunkStore:
     return ChunkStore(folder, key, mode="resume" if how.resume else "new")
 
 
-def _score(result: Result, wall_s: float) -> None:
+def score_result(result: Result, wall_s: float) -> None:
     """``result.metrics`` and the rest of ``result.record``: scored chunk by chunk from the
     store when there is one (flat memory), else the histories in memory as one chunk."""
     sc = result.scenario

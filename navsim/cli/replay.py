@@ -1,5 +1,5 @@
-"""``navsim replay``: a real PX4 flight log through an estimator, its attitude compared with
-PX4's own."""
+"""``navsim replay``: a flight log through navsim's estimators: a PX4 ULog's attitude compared
+with PX4's own, or an INS/GNSS text log (KF-GINS, CSV) scored as one Monte Carlo run."""
 
 from __future__ import annotations
 
@@ -10,36 +10,82 @@ from pathlib import Path
 
 import yaml
 
+from navsim import api
+from navsim.api.replays import DEFAULT_LOG_SCENARIO, LOG_FORMATS, log_format
 from navsim.cli.command import Command
 from navsim.cli.options import NOTHING_RESUMED, load_plugins, number, out_option, plugin_option
 from navsim.cli.output import open_folder, progress, table
+from navsim.cli.run import artifacts, print_run_summary
 from navsim.foundations.errors import UsageError
+from navsim.foundations.progress import Progress
 from navsim.foundations.provenance import provenance
+from navsim.foundations.resources import data_folder
 from navsim.navigation.estimators import base
 from navsim.replay import ReplayOptions, load_ulog, replay, replay_metrics
-from navsim.replay.run import IMU_RATE_HZ
+from navsim.replay.run import ALIGN_S, IMU_RATE_HZ
 from navsim.report.replay import difference_table, write_replay_report
 
 DEFAULT_REPLAY_ESTIMATOR = "cpf_ekf"
 
 
 def arguments(p) -> None:
-    """The log, the estimator and its settings, ``--out``, the settling and alignment times,
-    the IMU rate and whether a damaged log is read."""
-    p.add_argument("log", help="PX4 .ulg file (example: tests/data/px4_quad_real_69s.ulg.gz)")
-    p.add_argument("--estimator", help=f"registered estimator (default {DEFAULT_REPLAY_ESTIMATOR})")
-    out_option(p, "reports/replay_<log>_<estimator>")
-    p.add_argument("--settle", type=number(float, minimum=0.0), default=10.0,
-                   help="seconds left out of the metrics while the estimator converges (default 10)")
+    """The log and its companion files, the estimator or scenario and its settings, ``--out``,
+    the settling and alignment times, the IMU rate and whether a damaged log is read."""
+    p.add_argument("log", help="a PX4 .ulg (example: tests/data/px4_quad_real_69s.ulg.gz), a KF-GINS IMU file or "
+                   "configuration (.txt, .yaml), or an IMU CSV (.csv); docs/data.md has the formats")
+    p.add_argument("--format", choices=FORMATS, help="the log's format (default: by its name: .ulg ulog, .csv csv, "
+                   "else kfgins)")
+    p.add_argument("--gnss", metavar="FILE", help="text logs: the GNSS fixes (KF-GINS: default the configuration's)")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--reference", metavar="FILE", help="text logs: the reference trajectory the estimators are "
+                       "scored against (KF-GINS truth.nav or a reference CSV)")
+    group.add_argument("--solution", metavar="FILE", help="text logs: the log's own navigation solution (the same "
+                       "layout); the scores are differences from it, not errors")
+    p.add_argument("--start", metavar="FILE", help="text logs: a YAML with KF-GINS's start keys (starttime, initpos, "
+                   "initvel, initatt and their std; default: the reference's first state and the scenario's "
+                   "initial_errors)")
+    p.add_argument("--scenario", metavar="FILE", help="text logs: the scenario whose estimators run (default the "
+                   f"shipped {DEFAULT_LOG_SCENARIO}); its IMU and first GNSS receiver take the log's data")
+    p.add_argument("--estimator", help=f"PX4 logs: registered estimator (default {DEFAULT_REPLAY_ESTIMATOR})")
+    out_option(p, "reports/replay_<log>_<estimator or scenario>")
+    p.add_argument("--settle", type=number(float, minimum=0.0),
+                   help="seconds left out of the metrics while the estimator converges (PX4 logs: default 10; "
+                   "text logs: the scenario's metrics.settle_s)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="estimator parameter (YAML value), repeatable: --set period_s=0.02")
+                   help="PX4 logs: an estimator parameter (YAML value), --set period_s=0.02; text logs: a scenario "
+                   "path, as navsim run's --set; repeatable")
     p.add_argument("--imu-rate", type=number(float, minimum=IMU_RATE_HZ[0], maximum=IMU_RATE_HZ[1]),
-                   help="IMU grid rate, Hz (default: the log's, 250 Hz for PX4's sensor_combined)")
-    p.add_argument("--align", type=number(float, exclusive_minimum=0.0), default=1.0,
-                   help="coarse-alignment window from the first sample, s (default 1)")
+                   help="PX4 logs: IMU grid rate, Hz (default: the log's, 250 Hz for PX4's sensor_combined)")
+    p.add_argument("--align", type=number(float, exclusive_minimum=0.0),
+                   help="PX4 logs: coarse-alignment window from the first sample, s (default 1)")
     p.add_argument("--allow-damaged", action="store_true",
-                   help="replay what a truncated or corrupt log still holds instead of refusing it")
+                   help="PX4 logs: replay what a truncated or corrupt log still holds instead of refusing it")
     plugin_option(p)
+
+
+#: the formats ``navsim replay`` reads
+FORMATS = ("ulog", *LOG_FORMATS)
+#: the options of one kind of log only
+ULOG_ONLY = ("estimator", "imu_rate", "align", "allow_damaged")
+TEXT_ONLY = ("gnss", "reference", "solution", "start", "scenario")
+
+
+def format_of(args) -> str:
+    """The log's format: ``--format``, else its name's."""
+    if args.format:
+        return args.format
+    name = Path(args.log).name.lower()
+    return "ulog" if name.endswith((".ulg", ".ulg.gz")) else log_format(args.log)
+
+
+def check_options(args, fmt: str) -> None:
+    """Refuse an option of the other kind of log."""
+    wrong = ULOG_ONLY if fmt != "ulog" else TEXT_ONLY
+    given = [o for o in wrong if getattr(args, o) not in (None, False)]
+    if given:
+        kind = "a PX4 log's" if fmt != "ulog" else "a text log's"
+        raise UsageError(f"{', '.join('--' + o.replace('_', '-') for o in given)}: {kind} option, and "
+                         f"{args.log} is read as {fmt}" + (" (--format says otherwise)" if not args.format else ""))
 
 
 def parse_settings(items: list[str] | None) -> dict:
@@ -58,14 +104,44 @@ def parse_settings(items: list[str] | None) -> dict:
 
 
 def handle(args) -> int:
-    """Replay the log, write metrics.json and the report, print the differences from PX4's
-    attitude and the cost."""
+    """Replay the log (a PX4 ULog: attitude against PX4's; a text log: a scenario's estimators
+    scored against its reference), write metrics.json and the report, print the summary."""
+    fmt = format_of(args)
+    check_options(args, fmt)
     load_plugins(args)
+    return _text_log(args, fmt) if fmt != "ulog" else _ulog(args)
+
+
+def _text_log(args, fmt: str) -> int:
+    """A KF-GINS or CSV log through a scenario's estimators, scored as one run."""
+    log = api.read_log(args.log, args.gnss, args.reference or args.solution, args.start, format=fmt,
+                       solution=args.solution is not None)
+    changes = list(args.set or []) + ([f"metrics.settle_s={args.settle!r}"] if args.settle is not None else [])
+    scenario = api.load_scenario(args.scenario or data_folder("scenarios") / f"{DEFAULT_LOG_SCENARIO}.yaml",
+                                 set=changes)
+    folder = open_folder(args, Path("reports") / f"replay_{log.name}_{scenario.name}")
+    with Progress(int(log.imu.t_s.size), f"replaying {log.name} through {scenario.name}", unit="sample") as bar:
+        result = api.replay_log(log, scenario, out=folder.path, progress=lambda i, n: bar.update(i - bar.n))
+    files = api.write_report(result)
+    against = result.record.log["scored_against"]
+    print(f"{log.name} ({fmt}, {log.duration_s:.1f} s): "
+          + ("differences from the log's own solution, not errors" if against == "solution"
+             else "errors against the log's reference"))
+    for note in log.notes:
+        print(f"note: {note}")
+    print_run_summary(result)
+    print(f"\nreplayed in {result.record.wall_s:.1f} s; wrote {folder.path}/: {artifacts(folder.path, files)}")
+    return 0
+
+
+def _ulog(args) -> int:
+    """A PX4 log's attitude through an estimator, against PX4's own."""
     name = args.estimator or DEFAULT_REPLAY_ESTIMATOR
     if name not in base.available():
         raise UsageError(f"no estimator '{name}' registered; choose one with --estimator: "
                          + ", ".join(base.available()))
     params = parse_settings(args.set)
+    settle = 10.0 if args.settle is None else args.settle
     folder = open_folder(args, Path("reports") / f"replay_{Path(args.log).name.split('.')[0]}_{name}")
     log = load_ulog(args.log, allow_damaged=args.allow_damaged)
     for note in log.notes:
@@ -73,7 +149,7 @@ def handle(args) -> int:
     bar, update = progress(f"replaying {Path(args.log).name} through {name}")
     t0 = time.perf_counter()
     try:
-        options = ReplayOptions(imu_rate_hz=args.imu_rate, settle_s=args.settle, align_s=args.align)
+        options = ReplayOptions(imu_rate_hz=args.imu_rate, settle_s=settle, align_s=args.align or ALIGN_S)
         result = replay(log, name, params, options, progress=update)
     finally:
         bar.close()
@@ -83,7 +159,7 @@ def handle(args) -> int:
     metrics = dataclasses.replace(replay_metrics(result), wall_s=time.perf_counter() - t0, provenance=record)
     folder.json("metrics.json", metrics.to_dict())
     folder.record(write_replay_report(out, result, metrics, record))
-    print(f"{name} against PX4's vehicle_attitude, after {args.settle:g} s:")
+    print(f"{name} against PX4's vehicle_attitude, after {settle:g} s:")
     print(table(*difference_table(metrics)))
     for reset in metrics.resets:
         print(f"reset at {reset.t_s:.2f} s: {reset.cause}")
@@ -95,11 +171,13 @@ def handle(args) -> int:
 
 
 COMMAND = Command(
-    "replay", "replay a real PX4 flight log through an estimator", usage="LOG.ulg [--estimator NAME]",
-    description="Read a PX4 ULog (pyulog), feed its IMU, magnetometer and baro to an estimator from a coarse "
-    "alignment on the first second, and compare its roll, pitch and yaw with PX4's own vehicle_attitude; write "
-    "metrics.json, attitude.png and replay.pdf, print the differences. An ES-KF-family estimator gets a zero "
-    "velocity (it levels) and the heading of PX4's calibrated magnetometer unless --set measurements=... says "
-    "otherwise; it needs the filter's IMU model: --set 'noise={imu: mpu6050}'. Exit 2 for a log that cannot be "
-    "replayed.",
+    "replay", "replay a flight log through navsim's estimators", usage="LOG [--gnss F --reference F]",
+    description="A PX4 ULog: feed its IMU, magnetometer and baro to an estimator from a coarse alignment on the "
+    "first second and compare its roll, pitch and yaw with PX4's vehicle_attitude (metrics.json, attitude.png, "
+    "replay.pdf); an ES-KF-family estimator gets a zero velocity and the heading of PX4's calibrated magnetometer "
+    "unless --set measurements=... says otherwise, and needs the filter's IMU model: --set 'noise={imu: mpu6050}'. "
+    "A text log (KF-GINS's IMU, GNSS and truth.nav files, or CSV files whose header names each column and unit): "
+    "run a scenario's estimators over it as one Monte Carlo run, scored against its reference (or the "
+    "difference from its own solution) with every metric, interval and report page of navsim run. Exit 2 for a "
+    "log that cannot be replayed, naming the file and line.",
     arguments=arguments, handler=handle, kept=NOTHING_RESUMED)

@@ -13,6 +13,7 @@ from navsim.cli.options import NOTHING_RESUMED, monte_carlo_options, out_option,
 from navsim.cli.output import open_folder, table
 from navsim.experiment import resources
 from navsim.experiment.scenario import check_scenario
+from navsim.replay.export import WRITERS, emulated_log
 from navsim.sensors import emulate
 from navsim.sensors.plots import MARKED_ORDERS, channels, plot_allan, plot_sensor, plot_spectrum
 from navsim.sensors.registry import INERTIAL
@@ -23,6 +24,10 @@ def arguments(p) -> None:
     scenario_argument(p)
     monte_carlo_options(p, runs="runs emulated", workers=False)
     out_option(p, "reports/<name>/sensors")
+    p.add_argument("--export", choices=sorted(WRITERS), action="append",
+                   help="also write run 0 as a log navsim replay reads (its IMU increments, GNSS fixes, the "
+                   "truth as reference and its start): kfgins (imu.txt, gnss.txt, truth.nav, kf-gins.yaml) or csv "
+                   "(imu.csv, gnss.csv, reference.csv, start.yaml); repeatable")
 
 
 def handle(args) -> int:
@@ -52,6 +57,11 @@ def handle(args) -> int:
             allan.append(f"{cfg.name}: white noise read from its Allan deviation at the shortest tau, over the "
                          "datasheet's: " + ", ".join(f"{k} {v:.3f}" for k, v in ratios.items()))
         rows += _error_rows(cfg, data, truth, runs)
+    for fmt in dict.fromkeys(args.export or []):
+        written = WRITERS[fmt](out, emulated_log(scenario, truth, seed, 0))
+        folder.record(written.values())
+        print(f"run 0 as a {fmt} log: " + ", ".join(p.name for p in written.values())
+              + f" (navsim replay {written.get('config', written['imu'])} ...; docs/data.md)")
     print(table(["sensor", "model", "channel", "unit", "error mean", "error std", "|error| 95%",
                  "output %"], rows))
     print("\n".join([""] + allan))

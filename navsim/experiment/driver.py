@@ -309,11 +309,14 @@ class Driver:
 @dataclass(frozen=True)
 class Batch:
     """The runs of a batch: the initial errors drawn for each (``initial``), the seed of their
-    random streams and the run indices (:meth:`InitialErrors.draw`)."""
+    random streams and the run indices (:meth:`InitialErrors.draw`); ``start``, when given, the
+    state the runs start from instead of the truth's first with the drawn errors (a log's
+    start), the filters' initial 1-sigma still ``initial``'s."""
 
     initial: InitialErrors
     seed: int
     runs: Sequence[int]
+    start: NavState | None = None
 
 
 def run_batch(truth, imu, sensors: dict, estimators: dict, batch: Batch, progress=None) -> dict[str, EstimatorHistory]:
@@ -333,8 +336,8 @@ def run_batch(truth, imu, sensors: dict, estimators: dict, batch: Batch, progres
     dt = imu.meta["dt_s"]
     step = int(round(dt / truth.dt_s))
     driver = Driver(estimators, dt, len(runs))
-    driver.start(perturbed_start(truth, errors, 0), batch.initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0]),
-                 truth, 0)
+    nav0 = perturbed_start(truth, errors, 0) if batch.start is None else batch.start
+    driver.start(nav0, batch.initial.sigma_blocks(truth.lat_rad[0], truth.h_m[0]), truth, 0)
     if hasattr(imu, "block"):                    # an ImuStream: generated block by block
         blocks = lambda a, b: imu.block(a, b)[0]
     else:

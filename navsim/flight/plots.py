@@ -212,15 +212,17 @@ def _time_figure(truth: Truth, names: list[str], figsize, footer_in: float):
     """Height, speeds, bank and pitch, heading, a multirotor's rotor speeds and (in wind) the
     wind against time, the segments shaded and numbered."""
     import matplotlib.pyplot as plt
-    windy = bool(np.any(truth.wind_n_mps))
+    windy = bool(np.nan_to_num(truth.wind_n_mps).any())      # a log's reference holds no wind (NaN)
     rotors = truth.rotor_rpm.shape[1] > 1
     fig, axs = plt.subplots(4 + windy + rotors, 1, figsize=figsize or (10, 10), sharex=True)
     t = truth.t_s
     _plot(axs[0], t, truth.h_m, label="height (ellipsoid)")
-    _plot(axs[0], t, truth.h_agl_m, "--", lw=0.8, label="above surface")
+    if not np.isnan(truth.h_agl_m).all():
+        _plot(axs[0], t, truth.h_agl_m, "--", lw=0.8, label="above surface")
     axs[0].set_ylabel("height, m")
     axs[0].legend(fontsize=7, loc="best")
-    _plot(axs[1], t, truth.tas_mps, label="true airspeed")
+    if not np.isnan(truth.tas_mps).all():
+        _plot(axs[1], t, truth.tas_mps, label="true airspeed")
     _plot(axs[1], t, np.hypot(truth.vel_n_mps[:, 0], truth.vel_n_mps[:, 1]), lw=0.8, label="ground speed")
     axs[1].set_ylabel("speed, m/s")
     axs[1].legend(fontsize=7, loc="best")

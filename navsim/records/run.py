@@ -52,6 +52,9 @@ class RunRecord:
     overrides: list | None = _optional()
     #: the ``--plugin`` files its estimators came from (``type``, ``file``, ``sha256``)
     plugins: list | None = _optional()
+    #: a replayed log (``navsim replay``): its format, files (role -> path), what it is scored
+    #: against (``reference`` or ``solution``) and what the replay worked around
+    log: dict | None = _optional()
     extra: dict = field(default_factory=dict, repr=False)   #: keys of a newer or older navsim
 
     @property

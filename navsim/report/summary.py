@@ -361,6 +361,8 @@ def _blocks(section: Section) -> list:
 
 
 def run_details(scenario, record: RunRecord) -> str:
+    if record.log is not None:
+        return log_details(record)
     plotted = record.plotted
     return (f"Scenario file {record.scenario}, track {scenario.flight.track.name}; {record.runs_done} of "
             f"{record.runs} runs done (seed {record.seed}, {record.workers} workers), "
@@ -369,6 +371,19 @@ def run_details(scenario, record: RunRecord) -> str:
             + f". Flight {'from the cache' if record.flight_cached else 'flown'} ({record.flight_key}); "
             f"wall time {record.wall_s:.1f} s; git {record.git_revision}; "
             + ", ".join(f"{k} {v}" for k, v in record.versions.items()) + ".")
+
+
+def log_details(record: RunRecord) -> str:
+    """A replayed log's run details: its files, what it is scored against, what the replay
+    worked around, the software."""
+    log = record.log
+    against = ("differences from the log's own solution, not errors" if log["scored_against"] == "solution"
+               else "errors against the log's reference trajectory")
+    files = ", ".join(f"{role} {path}" for role, path in log["files"].items())
+    notes = "".join(f" Note: {n}." for n in log.get("notes") or [])
+    return (f"A {log['format']} log replayed ({files}) through the estimators of the scenario file "
+            f"{record.scenario or '(built in Python)'}, as one run: {against}.{notes} Wall time {record.wall_s:.1f} s; "
+            f"git {record.git_revision}; " + ", ".join(f"{k} {v}" for k, v in record.versions.items()) + ".")
 
 
 def summary_figures(scenario, record: RunRecord, metrics: RunMetrics) -> list:
