@@ -1,5 +1,6 @@
 """The verb *replay* for INS/GNSS logs: :func:`read_log` reads one (KF-GINS text or CSV,
-:mod:`navsim.replay.kfgins`, :mod:`navsim.replay.csvlog`), :func:`replay_log` runs a scenario's
+:mod:`navsim.replay.kfgins`, :mod:`navsim.replay.csvlog`; a PX4 ULog with GNSS,
+:mod:`navsim.replay.ulog_nav`), :func:`replay_log` runs a scenario's
 estimators over it as one Monte Carlo run (:func:`navsim.replay.logrun.run_log`), scored by the
 same scorer into a :class:`~navsim.api.results.Result`: every metric, interval and report page a
 run has, against the log's reference (or the difference from the log's own solution).
@@ -26,20 +27,22 @@ from navsim.foundations.resources import data_folder
 from navsim.records.run import RunRecord
 from navsim.replay.csvlog import read_csv_log
 from navsim.replay.kfgins import read_kfgins
-from navsim.replay.logrun import run_log
+from navsim.replay.logrun import run_log, without_gnss_velocity
 from navsim.replay.navlog import NavLog
+from navsim.replay.ulog_nav import ulog_navlog
 
 #: the scenario whose estimators a log is replayed through unless another is named: P3's
 #: 15-state loosely coupled ES-KF (GNSS position and velocity) beside free inertial
 DEFAULT_LOG_SCENARIO = "p3_sins_gps"
-#: the text formats :func:`read_log` reads, and how a file's suffix names one
-LOG_FORMATS = ("kfgins", "csv")
+#: the formats :func:`read_log` reads
+LOG_FORMATS = ("kfgins", "csv", "ulog")
 
 
 def log_format(path) -> str:
-    """The format a log file's name says: ``.csv`` is CSV, anything else (``.txt``, ``.yaml``
-    configuration, ``.nav``) KF-GINS text."""
-    return "csv" if Path(path).suffix.lower() == ".csv" else "kfgins"
+    """The format a log file's name says: ``.ulg`` (``.ulg.gz``) a PX4 ULog, ``.csv`` CSV,
+    anything else (``.txt``, a ``.yaml`` configuration, ``.nav``) KF-GINS text."""
+    name = Path(path).name.lower()
+    return "ulog" if name.endswith((".ulg", ".ulg.gz")) else "csv" if name.endswith(".csv") else "kfgins"
 
 
 def read_log(log, gnss=None, reference=None, start=None, *, format: str | None = None,  # noqa: A002
@@ -49,13 +52,15 @@ def read_log(log, gnss=None, reference=None, start=None, *, format: str | None =
     Parameters
     ----------
     log : path
-        The IMU file, or for KF-GINS its configuration (``.yaml``, naming the other files).
+        The IMU file, or for KF-GINS its configuration (``.yaml``, naming the other files), or a
+        PX4 ULog with GNSS (:func:`navsim.replay.ulog_nav.ulog_navlog`: EKF2's solution as the
+        ``solution``).
     gnss, reference : path, optional
         The GNSS fixes and the reference trajectory (KF-GINS: default the configuration's).
     start : path, optional
         A YAML file with KF-GINS's start keys (``starttime``, ``initpos``, ..., ``initattstd``);
         for KF-GINS the configuration is one.
-    format : {"kfgins", "csv"}, optional
+    format : {"kfgins", "csv", "ulog"}, optional
         Default: :func:`log_format` of ``log``'s name.
     solution : bool
         ``reference`` is the log's own navigation solution (a KF-GINS result, a flight computer's
@@ -68,10 +73,17 @@ def read_log(log, gnss=None, reference=None, start=None, *, format: str | None =
     """
     fmt = format or log_format(log)
     if fmt not in LOG_FORMATS:
-        raise UsageError(f"format '{fmt}': the text logs navsim reads are {', '.join(LOG_FORMATS)}")
+        raise UsageError(f"format '{fmt}': the logs navsim reads are {', '.join(LOG_FORMATS)}")
+    if fmt == "ulog":
+        if gnss or reference or start or solution:
+            raise UsageError("a PX4 log holds its GNSS and its solution (EKF2's): no gnss, reference, start")
+        return ulog_navlog(log)
     if fmt == "kfgins":
-        config = start or (log if Path(log).suffix.lower() in (".yaml", ".yml") else None)
-        nav = read_kfgins(None if config == log else log, gnss, reference, config)
+        is_config = Path(log).suffix.lower() in (".yaml", ".yml")
+        if is_config and start is not None:
+            raise UsageError(f"{log} is a KF-GINS configuration, the log's start: no start file besides")
+        config = log if is_config else start
+        nav = read_kfgins(None if is_config else log, gnss, reference, config)
     else:
         nav = read_csv_log(log, gnss, reference, start)
     if solution and nav.reference is not None:
@@ -90,7 +102,8 @@ def replay_log(log: NavLog, scenario=None, *, set=None, out=None, force: bool = 
     scenario : Scenario, path or mapping, optional
         Whose estimators, initial 1-sigma (where the log gives none) and metrics settings are
         used; its sensors name the log's streams (its IMU, its first GNSS receiver); its flight
-        is not flown. Default: the shipped :data:`DEFAULT_LOG_SCENARIO`.
+        is not flown. Default: the shipped :data:`DEFAULT_LOG_SCENARIO` (its GNSS velocity
+        measurement left out, with a note, for fixes without velocity).
     set : mapping or sequence of str, optional
         ``--set`` changes to the scenario (:func:`navsim.load_scenario`).
     out : path, optional
@@ -106,11 +119,15 @@ def replay_log(log: NavLog, scenario=None, *, set=None, out=None, force: bool = 
     Result
         Scored; ``record.log`` names the log's files and what it is scored against.
     """
+    log = dataclasses.replace(log, notes=list(log.notes))      # the replay's notes, not the log's
+    default = scenario is None
     if not isinstance(scenario, Scenario):
-        scenario = load_scenario(data_folder("scenarios") / f"{DEFAULT_LOG_SCENARIO}.yaml" if scenario is None
+        scenario = load_scenario(data_folder("scenarios") / f"{DEFAULT_LOG_SCENARIO}.yaml" if default
                                  else scenario, set=set)
     elif set:
         raise UsageError("set= changes a scenario read from a file or a mapping, not a parsed Scenario")
+    if default and log.gnss.vel_n_mps is None:
+        scenario = without_gnss_velocity(scenario, log.notes)
     scenario = for_log(scenario, log)
     out = None if out is None else checked_path("out", out, "output folder")
     if out is None:
@@ -121,11 +138,25 @@ def replay_log(log: NavLog, scenario=None, *, set=None, out=None, force: bool = 
 
 def for_log(scenario: Scenario, log: NavLog) -> Scenario:
     """The scenario as a log's replay runs it: one run, named for the log, without the published
-    results it checks (they are of its own flight)."""
+    results it checks (they are of its own flight); a :class:`UsageError` where its settling time
+    or a metrics window ends after the log."""
+    late = [f"metrics.settle_s {scenario.settle_s:g} s"] if scenario.settle_s >= log.duration_s else []
+    late += [f"the window '{name}' ({a:g}-{b:g} s)" for name, a, b in scenario.windows if b > log.duration_s]
+    if late:
+        raise UsageError(f"{' and '.join(late)} of {scenario.path or 'the scenario'} end(s) after the log "
+                         f"({log.duration_s:.1f} s): --set metrics.settle_s=... or metrics.windows=[]")
     raw = {k: v for k, v in scenario.raw.items() if k != "reference"}
     raw["montecarlo"] = {**(raw.get("montecarlo") or {}), "runs": 1, "workers": 1}
+    estimators = scenario.estimators
+    if log.format == "ulog":          # a receiver's fixes fall between the filter epochs
+        late = [e.label for e in estimators if e.params.get("latest_sample") is False]
+        estimators = tuple(dataclasses.replace(e, params={**e.params, "latest_sample": True}) if e.label in late
+                           else e for e in estimators)
+        if late:
+            log.notes.append(f"latest_sample set for {', '.join(late)}: each takes the latest fix since its last "
+                             "epoch (the receiver's fixes fall between the epochs)")
     return dataclasses.replace(scenario, name=f"{log.name} ({scenario.name})", raw=raw, runs=1, workers=1,
-                               reference=None)
+                               reference=None, estimators=estimators)
 
 
 def _replay(log: NavLog, scenario: Scenario, folder, progress) -> Result:

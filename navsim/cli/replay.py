@@ -19,10 +19,10 @@ from navsim.cli.run import artifacts, print_run_summary
 from navsim.foundations.errors import UsageError
 from navsim.foundations.progress import Progress
 from navsim.foundations.provenance import provenance
-from navsim.foundations.resources import data_folder
 from navsim.navigation.estimators import base
 from navsim.replay import ReplayOptions, load_ulog, replay, replay_metrics
 from navsim.replay.run import ALIGN_S, IMU_RATE_HZ
+from navsim.replay.ulog_nav import ulog_navlog
 from navsim.report.replay import difference_table, write_replay_report
 
 DEFAULT_REPLAY_ESTIMATOR = "cpf_ekf"
@@ -44,8 +44,9 @@ def arguments(p) -> None:
     p.add_argument("--start", metavar="FILE", help="text logs: a YAML with KF-GINS's start keys (starttime, initpos, "
                    "initvel, initatt and their std; default: the reference's first state and the scenario's "
                    "initial_errors)")
-    p.add_argument("--scenario", metavar="FILE", help="text logs: the scenario whose estimators run (default the "
-                   f"shipped {DEFAULT_LOG_SCENARIO}); its IMU and first GNSS receiver take the log's data")
+    p.add_argument("--scenario", metavar="FILE", help="the scenario whose estimators run (text logs: default the "
+                   f"shipped {DEFAULT_LOG_SCENARIO}; a PX4 log with GNSS: its position and velocity compared with "
+                   "EKF2's); its IMU and first GNSS receiver take the log's data")
     p.add_argument("--estimator", help=f"PX4 logs: registered estimator (default {DEFAULT_REPLAY_ESTIMATOR})")
     out_option(p, "reports/replay_<log>_<estimator or scenario>")
     p.add_argument("--settle", type=number(float, minimum=0.0),
@@ -64,28 +65,34 @@ def arguments(p) -> None:
 
 
 #: the formats ``navsim replay`` reads
-FORMATS = ("ulog", *LOG_FORMATS)
-#: the options of one kind of log only
-ULOG_ONLY = ("estimator", "imu_rate", "align", "allow_damaged")
-TEXT_ONLY = ("gnss", "reference", "solution", "start", "scenario")
+FORMATS = LOG_FORMATS
+#: the options each kind of replay takes of those not every one takes
+OPTIONS = {"attitude": ("estimator", "imu_rate", "align", "allow_damaged"),
+           "position": ("gnss", "reference", "solution", "start", "scenario"),
+           "ulog position": ("scenario", "imu_rate", "allow_damaged")}
 
 
 def format_of(args) -> str:
     """The log's format: ``--format``, else its name's."""
-    if args.format:
-        return args.format
-    name = Path(args.log).name.lower()
-    return "ulog" if name.endswith((".ulg", ".ulg.gz")) else log_format(args.log)
+    return args.format or log_format(args.log)
 
 
-def check_options(args, fmt: str) -> None:
-    """Refuse an option of the other kind of log."""
-    wrong = ULOG_ONLY if fmt != "ulog" else TEXT_ONLY
-    given = [o for o in wrong if getattr(args, o) not in (None, False)]
+def kind_of(args, fmt: str) -> str:
+    """What the replay is: a PX4 log's ``attitude`` against PX4's, or a scenario's estimators
+    over a text log (``position``) or over a PX4 log with GNSS (``ulog position``: ``--scenario``)."""
+    if fmt != "ulog":
+        return "position"
+    return "ulog position" if args.scenario else "attitude"
+
+
+def check_options(args, kind: str) -> None:
+    """Refuse an option this kind of replay does not take."""
+    others = {o for opts in OPTIONS.values() for o in opts} - set(OPTIONS[kind])
+    given = [o for o in sorted(others) if getattr(args, o) not in (None, False)]
     if given:
-        kind = "a PX4 log's" if fmt != "ulog" else "a text log's"
-        raise UsageError(f"{', '.join('--' + o.replace('_', '-') for o in given)}: {kind} option, and "
-                         f"{args.log} is read as {fmt}" + (" (--format says otherwise)" if not args.format else ""))
+        what = {"attitude": "a PX4 log's attitude replay (without --scenario)", "position": "a text log's replay",
+                "ulog position": "a PX4 log's replay through a scenario (--scenario)"}[kind]
+        raise UsageError(f"{', '.join('--' + o.replace('_', '-') for o in given)}: not an option of {what}")
 
 
 def parse_settings(items: list[str] | None) -> dict:
@@ -107,27 +114,31 @@ def handle(args) -> int:
     """Replay the log (a PX4 ULog: attitude against PX4's; a text log: a scenario's estimators
     scored against its reference), write metrics.json and the report, print the summary."""
     fmt = format_of(args)
-    check_options(args, fmt)
+    kind = kind_of(args, fmt)
+    check_options(args, kind)
     load_plugins(args)
-    return _text_log(args, fmt) if fmt != "ulog" else _ulog(args)
+    return _ulog(args) if kind == "attitude" else _position(args, fmt)
 
 
-def _text_log(args, fmt: str) -> int:
-    """A KF-GINS or CSV log through a scenario's estimators, scored as one run."""
-    log = api.read_log(args.log, args.gnss, args.reference or args.solution, args.start, format=fmt,
-                       solution=args.solution is not None)
+def _position(args, fmt: str) -> int:
+    """A log (KF-GINS, CSV, a PX4 log with GNSS) through a scenario's estimators, scored as one run."""
+    if fmt == "ulog":
+        log = ulog_navlog(args.log, allow_damaged=args.allow_damaged, rate_hz=args.imu_rate)
+    else:
+        log = api.read_log(args.log, args.gnss, args.reference or args.solution, args.start, format=fmt,
+                           solution=args.solution is not None)
     changes = list(args.set or []) + ([f"metrics.settle_s={args.settle!r}"] if args.settle is not None else [])
-    scenario = api.load_scenario(args.scenario or data_folder("scenarios") / f"{DEFAULT_LOG_SCENARIO}.yaml",
-                                 set=changes)
-    folder = open_folder(args, Path("reports") / f"replay_{log.name}_{scenario.name}")
-    with Progress(int(log.imu.t_s.size), f"replaying {log.name} through {scenario.name}", unit="sample") as bar:
-        result = api.replay_log(log, scenario, out=folder.path, progress=lambda i, n: bar.update(i - bar.n))
+    name = Path(args.scenario).stem if args.scenario else DEFAULT_LOG_SCENARIO
+    folder = open_folder(args, Path("reports") / f"replay_{log.name}_{name}")
+    with Progress(int(log.imu.t_s.size), f"replaying {log.name} through {name}", unit="sample") as bar:
+        result = api.replay_log(log, args.scenario, set=changes, out=folder.path,
+                                progress=lambda i, n: bar.update(i - bar.n))
     files = api.write_report(result)
     against = result.record.log["scored_against"]
     print(f"{log.name} ({fmt}, {log.duration_s:.1f} s): "
           + ("differences from the log's own solution, not errors" if against == "solution"
              else "errors against the log's reference"))
-    for note in log.notes:
+    for note in result.record.log["notes"]:
         print(f"note: {note}")
     print_run_summary(result)
     print(f"\nreplayed in {result.record.wall_s:.1f} s; wrote {folder.path}/: {artifacts(folder.path, files)}")
@@ -178,6 +189,7 @@ COMMAND = Command(
     "unless --set measurements=... says otherwise, and needs the filter's IMU model: --set 'noise={imu: mpu6050}'. "
     "A text log (KF-GINS's IMU, GNSS and truth.nav files, or CSV files whose header names each column and unit): "
     "run a scenario's estimators over it as one Monte Carlo run, scored against its reference (or the "
-    "difference from its own solution) with every metric, interval and report page of navsim run. Exit 2 for a "
-    "log that cannot be replayed, naming the file and line.",
+    "difference from its own solution) with every metric, interval and report page of navsim run; a PX4 log "
+    "with GNSS given --scenario: the same, its position, velocity and attitude compared with EKF2's. Exit 2 for "
+    "a log that cannot be replayed, naming the file and line.",
     arguments=arguments, handler=handle, kept=NOTHING_RESUMED)

@@ -13,7 +13,8 @@ from navsim.cli.options import NOTHING_RESUMED, monte_carlo_options, out_option,
 from navsim.cli.output import open_folder, table
 from navsim.experiment import resources
 from navsim.experiment.scenario import check_scenario
-from navsim.replay.export import WRITERS, emulated_log
+from navsim.foundations.errors import UsageError
+from navsim.replay.export import EXPORTED, WRITERS, emulated_log
 from navsim.sensors import emulate
 from navsim.sensors.plots import MARKED_ORDERS, channels, plot_allan, plot_sensor, plot_spectrum
 from navsim.sensors.registry import INERTIAL
@@ -40,6 +41,8 @@ def handle(args) -> int:
     runs = scenario.runs if args.runs is None else args.runs
     resources.check_sensors(scenario, runs)
     seed = scenario.seed if args.seed is None else args.seed
+    if args.export and not any(c.kind == "gnss" for c in scenario.sensors):
+        raise UsageError(f"--export: {args.scenario} has no GNSS receiver, and a log is an IMU and a GNSS")
     folder = open_folder(args, Path("reports") / scenario.name / "sensors")
     out = folder.path
     truth, _, _ = flights.fly_or_save(scenario, args.scenario, folder)
@@ -58,8 +61,8 @@ def handle(args) -> int:
                          "datasheet's: " + ", ".join(f"{k} {v:.3f}" for k, v in ratios.items()))
         rows += _error_rows(cfg, data, truth, runs)
     for fmt in dict.fromkeys(args.export or []):
+        folder.record([out / name for name in EXPORTED[fmt]])      # listed before they are written
         written = WRITERS[fmt](out, emulated_log(scenario, truth, seed, 0))
-        folder.record(written.values())
         print(f"run 0 as a {fmt} log: " + ", ".join(p.name for p in written.values())
               + f" (navsim replay {written.get('config', written['imu'])} ...; docs/data.md)")
     print(table(["sensor", "model", "channel", "unit", "error mean", "error std", "|error| 95%",

@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from navsim.foundations.errors import LogError
-from navsim.replay.kfgins import config_start, read_config, start_text, start_time
-from navsim.replay.navlog import GnssLog, ImuLog, NavLog, Rows, Trajectory, log_name, read_rows, trim_gnss
-from navsim.replay.navlog import check_gnss, check_imu, check_times
+from navsim.replay.kfgins import config_start, read_config, start_text
+from navsim.replay.navlog import GnssLog, NavLog, Rows, Trajectory, imu_from, log_name, read_rows, start_time
+from navsim.replay.navlog import check_gnss, check_times, trim_gnss
 from navsim.sensors.units import UNITS
 
 _XYZ = ("x", "y", "z")
@@ -34,21 +34,23 @@ COLUMNS = {"time": "time", "lat": "angle", "lon": "angle", "height": "length",
            **{f"sigma_v{a}": "speed" for a in _NED}, "roll": "angle", "pitch": "angle", "yaw": "angle",
            **{f"dtheta_{a}": "angle" for a in _XYZ}, **{f"dv_{a}": "speed" for a in _XYZ},
            **{f"gyro_{a}": "angular_rate" for a in _XYZ}, **{f"accel_{a}": "acceleration" for a in _XYZ}}
-#: the columns of each stream: required, optional (all or none)
+#: the layouts each stream's file may have: (the columns required, the optional ones: all or none)
 STREAMS = {
-    "imu": ((("time",), [f"dtheta_{a}" for a in _XYZ] + [f"dv_{a}" for a in _XYZ]),
-            (("time",), [f"gyro_{a}" for a in _XYZ] + [f"accel_{a}" for a in _XYZ])),
+    "imu": ((("time", *(f"dtheta_{a}" for a in _XYZ), *(f"dv_{a}" for a in _XYZ)), ()),
+            (("time", *(f"gyro_{a}" for a in _XYZ), *(f"accel_{a}" for a in _XYZ)), ())),
     "gnss": ((("time", "lat", "lon", "height", "sigma_n", "sigma_e", "sigma_d"),
-              [f"vel_{a}" for a in _NED] + [f"sigma_v{a}" for a in _NED]),),
-    "reference": ((("time", "lat", "lon", "height", "vel_n", "vel_e", "vel_d", "roll", "pitch", "yaw"), []),),
+              (*(f"vel_{a}" for a in _NED), *(f"sigma_v{a}" for a in _NED))),),
+    "reference": ((("time", "lat", "lon", "height", "vel_n", "vel_e", "vel_d", "roll", "pitch", "yaw"), ()),),
 }
+#: the files :func:`write_csv_log` writes, by role
+FILES = {"imu": "imu.csv", "gnss": "gnss.csv", "reference": "reference.csv", "start": "start.yaml"}
 _HEADER = re.compile(r"^\s*([A-Za-z_]\w*)\s*\[\s*([^\]]*?)\s*\]\s*$")
 
 
 def read_header(path: Path, stream: str) -> tuple[dict, int]:
     """Column name -> (index, factor to SI) of a CSV file's header, and the header's line number."""
     try:
-        with path.open(encoding="utf-8", errors="replace") as f:
+        with path.open(encoding="utf-8-sig", errors="replace") as f:
             numbered = ((n + 1, line) for n, line in enumerate(f))
             n, header = next(((n, line) for n, line in numbered if line.strip() and line.lstrip()[0] != "#"), (0, ""))
     except OSError as exc:
@@ -71,13 +73,16 @@ def read_header(path: Path, stream: str) -> tuple[dict, int]:
         if unit not in units:
             raise LogError(f"column '{name}' is in '{unit}', not a unit of {COLUMNS[name].replace('_', ' ')}",
                            file=f"{path}:{n}", hint=f"{name}[{'|'.join(units)}]")
+        if name in columns:
+            raise LogError(f"header column {i + 1} is '{name}' again", file=f"{path}:{n}")
         columns[name] = (i, units[unit])
     return columns, n
 
 
 def _expected(stream: str) -> list[str]:
-    req, opt = STREAMS[stream][0]
-    return [f"{c}[{next(iter(UNITS[COLUMNS[c]]))}]" for c in (*req, *opt)]
+    """The columns of the stream's layouts, each with its first unit."""
+    names = dict.fromkeys(c for req, opt in STREAMS[stream] for c in (*req, *opt))
+    return [f"{c}[{next(iter(UNITS[COLUMNS[c]]))}]" for c in names]
 
 
 def read_stream(path, stream: str) -> tuple[Rows, dict]:
@@ -85,18 +90,16 @@ def read_stream(path, stream: str) -> tuple[Rows, dict]:
     a missing column (naming the header line), a short row, a value that is not a number, NaN."""
     path = Path(path)
     columns, n = read_header(path, stream)
-    layout = next((lay for lay in STREAMS[stream] if set(lay[0]) | set(lay[1][:1]) <= set(columns)), None)
+    layout = next((lay for lay in STREAMS[stream] if set(lay[0]) <= set(columns)), None)
     if layout is None:
-        missing = [c for c in (*STREAMS[stream][0][0], *STREAMS[stream][0][1]) if c not in columns]
+        closest = min(STREAMS[stream], key=lambda lay: len(set(lay[0]) - set(columns)))[0]
+        missing = [c for c in closest if c not in columns]
         raise LogError(f"lacks the column(s) {', '.join(missing)} ({stream})", file=f"{path}:{n}",
                        hint="the columns: " + ", ".join(_expected(stream)))
-    req, opt = layout
+    opt = layout[1]
     partial = [c for c in opt if c not in columns] if any(c in columns for c in opt) else []
-    if partial and stream != "imu":
+    if partial:
         raise LogError(f"has some of {', '.join(opt)} but not {', '.join(partial)}", file=f"{path}:{n}")
-    if stream == "imu" and partial:
-        raise LogError(f"lacks the column(s) {', '.join(partial)} (imu)", file=f"{path}:{n}",
-                       hint="the columns: " + ", ".join(_expected(stream)))
     rows = read_rows(path, (len(columns),), f"{stream} samples", sep=",", skip=n)
     out = {name: rows.values[:, i] * factor for name, (i, factor) in columns.items()}
     check_times(rows, out["time"], stream)
@@ -128,12 +131,10 @@ def read_csv_log(imu, gnss, reference=None, start=None) -> NavLog:
     if len(t) < 3:
         raise LogError(f"holds {len(t)} IMU samples, too few to replay", file=str(imu))
     cfg = read_config(start) if start is not None else {}
-    rates = np.isnan(dth[0, 0])
-    t0 = start_time(cfg, t) if not (rates and "starttime" not in cfg) else float(t[0])
-    keep = t > t0 + 1e-9
-    zero = np.zeros((1, 3))
-    log_imu = ImuLog(np.r_[0.0, t[keep] - t0], np.r_[zero, dth[keep]], np.r_[zero, dv[keep]])
-    check_imu(rows.subset(keep), log_imu)
+    rates = np.isnan(dth[0, 0])        # the first rate's interval is unknown: at the earliest, the start
+    t0 = start_time(cfg.get("starttime"), t)
+    t0 = max(t0, float(t[0])) if rates else t0
+    log_imu = imu_from(rows, t, dth, dv, t0, cfg["endtime"] if cfg.get("endtime", -1) > 0 else None)
     g_rows, g = read_stream(gnss, "gnss")
     vel = "vel_n" in g
     fixes = GnssLog(g["time"] - t0, g["lat"], g["lon"], g["height"], _stack(g, [f"sigma_{a}" for a in _NED]),
@@ -168,7 +169,7 @@ def write_csv_log(folder, log: NavLog) -> dict:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     imu, g, t0 = log.imu, log.gnss, log.t0_s
-    out = {"imu": folder / "imu.csv", "gnss": folder / "gnss.csv"}
+    out = {role: folder / FILES[role] for role in ("imu", "gnss")}
     _write(out["imu"], ["time[s]"] + [f"dtheta_{a}[rad]" for a in _XYZ] + [f"dv_{a}[m/s]" for a in _XYZ],
            np.c_[imu.t_s[1:] + t0, imu.dtheta_b_rad[1:], imu.dv_b_mps[1:]])
     head = ["time[s]", "lat[rad]", "lon[rad]", "height[m]"] + [f"sigma_{a}[m]" for a in _NED]
@@ -179,10 +180,10 @@ def write_csv_log(folder, log: NavLog) -> dict:
     _write(out["gnss"], head, np.column_stack(cols))
     if log.reference is not None:
         r = log.reference
-        out["reference"] = folder / "reference.csv"
+        out["reference"] = folder / FILES["reference"]
         _write(out["reference"], ["time[s]", "lat[rad]", "lon[rad]", "height[m]", "vel_n[m/s]", "vel_e[m/s]",
                                   "vel_d[m/s]", "roll[rad]", "pitch[rad]", "yaw[rad]"],
                np.column_stack([r.t_s + t0, r.lat_rad, r.lon_rad, r.h_m, r.vel_n_mps, r.euler_rad]))
-    out["start"] = folder / "start.yaml"
+    out["start"] = folder / FILES["start"]
     out["start"].write_text("# the start of the log written by navsim (KF-GINS's keys)\n" + start_text(log))
     return out

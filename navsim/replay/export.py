@@ -8,6 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from navsim.experiment.driver import perturbed_start
+from navsim.foundations.errors import UsageError
+from navsim.replay import csvlog, kfgins
 from navsim.replay.csvlog import write_csv_log
 from navsim.replay.kfgins import write_kfgins
 from navsim.replay.navlog import GnssLog, ImuLog, NavLog, Trajectory, start_of
@@ -17,6 +19,8 @@ from navsim.sensors.registry import INERTIAL
 
 #: format -> the function writing a log into a folder (returns role -> path)
 WRITERS = {"kfgins": write_kfgins, "csv": write_csv_log}
+#: format -> the files its writer may write
+EXPORTED = {"kfgins": tuple(kfgins.FILES.values()), "csv": tuple(csvlog.FILES.values())}
 
 
 def emulated_log(scenario, truth, seed: int, run: int = 0) -> NavLog:
@@ -26,7 +30,7 @@ def emulated_log(scenario, truth, seed: int, run: int = 0) -> NavLog:
     imu_cfg = next(c for c in scenario.sensors if c.role == INERTIAL)
     gnss_cfg = next((c for c in scenario.sensors if c.kind == "gnss"), None)
     if gnss_cfg is None:
-        raise ValueError(f"the scenario '{scenario.name}' has no GNSS receiver: a log needs one")
+        raise UsageError(f"the scenario '{scenario.name}' has no GNSS receiver: a log needs one")
     imu = emulate_imu(truth, imu_cfg.spec, seed, [run], name=imu_cfg.name, keep_rates=False)
     g = emulate(truth, gnss_cfg, seed, [run])
     ok = g.valid[0]

@@ -32,15 +32,15 @@ from navsim.foundations.config import load_yaml
 from navsim.foundations.errors import LogError, ScenarioError
 from navsim.replay.navlog import (
     GnssLog,
-    ImuLog,
     NavLog,
     Start,
     Trajectory,
     check_gnss,
-    check_imu,
     check_times,
+    imu_from,
     log_name,
     read_rows,
+    start_time,
     trim_gnss,
 )
 
@@ -49,6 +49,8 @@ HINT_IMU = "KF-GINS IMU file: time (s), dtheta x y z (rad), dv x y z (m/s), one 
 HINT_GNSS = ("KF-GINS GNSS file: time (s), lat (deg), lon (deg), height (m), sigma N E D (m), "
              "optionally vel N E D (m/s) and its sigma")
 HINT_NAV = "KF-GINS navigation file: week, time (s), lat, lon (deg), h (m), vel N E D (m/s), roll pitch yaw (deg)"
+#: the files :func:`write_kfgins` writes, by role
+FILES = {"imu": "imu.txt", "gnss": "gnss.txt", "reference": "truth.nav", "config": "kf-gins.yaml"}
 #: the start keys of the configuration and their units' factors to SI
 START_KEYS = {"initpos": (DEG, DEG, 1.0), "initvel": (1.0, 1.0, 1.0), "initatt": (DEG, DEG, DEG),
               "initposstd": (1.0, 1.0, 1.0), "initvelstd": (1.0, 1.0, 1.0), "initattstd": (DEG, DEG, DEG)}
@@ -94,8 +96,14 @@ def read_config(path) -> dict:
                        file=str(path))
     out = dict(cfg)
     for key in ("imupath", "gnsspath", "truthpath"):
-        if isinstance(cfg.get(key), str) and cfg[key]:
+        if key in cfg and not (isinstance(cfg[key], str) and cfg[key].strip()):
+            raise LogError(f"'{key}' is {cfg[key]!r}, not a file name", file=str(path))
+        if key in cfg:
             out[key] = _resolved(cfg[key], path, key)
+    for key in ("starttime", "endtime"):
+        if key in cfg and (isinstance(cfg[key], bool) or not isinstance(cfg[key], (int, float))
+                           or not math.isfinite(cfg[key])):
+            raise LogError(f"'{key}' is {cfg[key]!r}, not a number of seconds", file=str(path))
     return out
 
 
@@ -117,24 +125,17 @@ def config_start(cfg: dict, path) -> Start | None:
         if x is None:
             v[key] = None
             continue
-        if not (isinstance(x, list) and len(x) == 3 and all(isinstance(a, (int, float)) for a in x)):
+        if not (isinstance(x, list) and len(x) == 3 and all(isinstance(a, (int, float)) and not isinstance(a, bool)
+                                                            and math.isfinite(a) for a in x)):
             raise LogError(f"'{key}' is {x!r}, not three numbers", file=str(path))
+        if key.endswith("std") and min(x) < 0:
+            raise LogError(f"'{key}' is {x!r}: a standard deviation is not negative", file=str(path))
         v[key] = np.array(x, float) * factors
     if v["initatt"] is None:
         raise LogError("has 'initpos' but no 'initatt'", file=str(path), hint="the start needs roll, pitch, yaw (deg)")
     vel = v["initvel"] if v["initvel"] is not None else np.zeros(3)
     return Start(float(v["initpos"][0]), float(v["initpos"][1]), float(v["initpos"][2]), vel, v["initatt"],
                  v["initposstd"], v["initvelstd"], v["initattstd"])
-
-
-def start_time(cfg: dict, t: np.ndarray) -> float:
-    """The log's start: the configuration's ``starttime`` unless it is more than one IMU
-    interval before the first sample; else one interval before the first sample."""
-    dt = float(t[1] - t[0])
-    start = cfg.get("starttime")
-    if isinstance(start, (int, float)) and not isinstance(start, bool) and start >= t[0] - 1.5 * dt:
-        return float(start)
-    return float(t[0] - dt)
 
 
 def read_kfgins(imu, gnss=None, reference=None, config=None) -> NavLog:
@@ -159,15 +160,10 @@ def read_kfgins(imu, gnss=None, reference=None, config=None) -> NavLog:
     rows, t, inc = read_imu(imu)
     if len(t) < 3:
         raise LogError(f"holds {len(t)} IMU samples, too few to replay", file=str(imu))
-    t0 = start_time(cfg, t)
-    end = cfg.get("endtime")
-    keep = (t > t0 + 1e-9) & ((t <= end) if isinstance(end, (int, float)) and end > 0 else True)
-    if keep.sum() < 2:
-        raise LogError(f"has no IMU sample between starttime {t0} and endtime {end}", file=str(config or imu))
-    zero = np.zeros((1, 3))
-    log_imu = ImuLog(np.r_[0.0, t[keep] - t0], np.r_[zero, inc[keep, :3]], np.r_[zero, inc[keep, 3:]])
-    check_imu(rows.subset(keep), log_imu)
-    notes = []
+    t0 = start_time(cfg.get("starttime"), t)
+    end = cfg["endtime"] if cfg.get("endtime", -1) > 0 else None
+    log_imu = imu_from(rows, t, inc[:, :3], inc[:, 3:], t0, end)
+    notes = _config_notes(cfg, t0)
     g_rows, g = read_gnss(gnss, t0)
     try:
         g = trim_gnss(g, log_imu.t_s[-1], notes)
@@ -177,6 +173,22 @@ def read_kfgins(imu, gnss=None, reference=None, config=None) -> NavLog:
     files = {"imu": str(imu), "gnss": str(gnss)} | ({"reference": str(reference)} if reference else {}) \
         | ({"config": str(config)} if config else {})
     return NavLog(log_name(imu), "kfgins", t0, log_imu, g, ref, config_start(cfg, config), files, notes)
+
+
+def _config_notes(cfg: dict, t0: float) -> list:
+    """What of the configuration the replay does not take, for the user."""
+    notes = []
+    start = cfg.get("starttime")
+    if start is not None and abs(start - t0) > 1e-6:
+        notes.append(f"starttime {start} is not an IMU sample's time: the replay starts at {t0!r}, the last sample "
+                     "before it (or one interval before the first)")
+    lever = cfg.get("antlever")
+    if isinstance(lever, list) and any(isinstance(x, (int, float)) and x for x in lever):
+        notes.append(f"antlever {lever} not applied: the fixes are taken at the IMU (model the lever arm in the "
+                     "scenario's filter, or give fixes at the IMU)")
+    if isinstance(cfg.get("imunoise"), dict):
+        notes.append("imunoise not read: the filters' IMU model is the scenario's (--set estimators[LABEL].noise...)")
+    return notes
 
 
 def _fmt(a: np.ndarray) -> str:
@@ -191,7 +203,7 @@ def write_kfgins(folder, log: NavLog) -> dict:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     imu, g, t0 = log.imu, log.gnss, log.t0_s
-    out = {"imu": folder / "imu.txt", "gnss": folder / "gnss.txt"}
+    out = {role: folder / FILES[role] for role in ("imu", "gnss")}
     out["imu"].write_text(_fmt(np.c_[imu.t_s[1:] + t0, imu.dtheta_b_rad[1:], imu.dv_b_mps[1:]]))
     cols = [g.t_s + t0, np.degrees(g.lat_rad), np.degrees(g.lon_rad), g.h_m, g.sigma_ned_m]
     if g.vel_n_mps is not None:
@@ -199,11 +211,11 @@ def write_kfgins(folder, log: NavLog) -> dict:
     out["gnss"].write_text(_fmt(np.column_stack(cols)))
     if log.reference is not None:
         r = log.reference
-        out["reference"] = folder / "truth.nav"
+        out["reference"] = folder / FILES["reference"]
         out["reference"].write_text(_fmt(np.column_stack(
             [np.zeros_like(r.t_s), r.t_s + t0, np.degrees(r.lat_rad), np.degrees(r.lon_rad), r.h_m, r.vel_n_mps,
              np.degrees(r.euler_rad)])))
-    out["config"] = folder / "kf-gins.yaml"
+    out["config"] = folder / FILES["config"]
     out["config"].write_text(_config_text(log, out))
     return out
 

@@ -12,6 +12,7 @@ the Monte Carlo runs (:func:`navsim.experiment.driver.run_batch`): a run written
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -75,20 +76,32 @@ def reference_truth(ref: Trajectory, t_s: np.ndarray, name: str) -> Truth:
 
 
 def covered(log: NavLog, imu: ImuLog) -> ImuLog:
-    """The IMU record where the reference covers it: a :class:`LogError` when the reference
-    starts after the log (more than one IMU interval), a note when it ends before."""
+    """The IMU record where the reference covers it: a log without a start of its own starts
+    at the reference's first sample (a note says so); one with a start must be covered from
+    it (a :class:`LogError` otherwise); a reference that ends early ends the replay (noted)."""
     ref = log.reference
     dt = imu.dt_s
-    where = log.files.get("reference")
-    if ref.t_s[0] > imu.t_s[0] + dt or ref.t_s[-1] < imu.t_s[0] + 10 * dt:
-        raise LogError(f"the reference spans {ref.t_s[0]:.3f}-{ref.t_s[-1]:.3f} s from the log's start, not its "
-                       f"start (0 s)", file=where, hint="the reference must begin at or before the first IMU "
-                       "sample: set a later starttime in the start file")
+    where = log.files.get("reference", log.files.get("solution"))
+    if ref.t_s[-1] < imu.t_s[0] + 10 * dt or ref.t_s[0] > imu.t_s[-1] - 10 * dt:
+        raise LogError(f"the reference spans {ref.t_s[0]:.3f}-{ref.t_s[-1]:.3f} s from the log's start, outside its "
+                       f"IMU record (0-{imu.t_s[-1]:.3f} s)", file=where, hint="the reference and the IMU must be on "
+                       "one clock")
+    begin = 0
+    if ref.t_s[0] > imu.t_s[0] + dt:
+        if log.start is not None:
+            raise LogError(f"the reference begins {ref.t_s[0]:.3f} s after the log's start", file=where,
+                           hint="set a later starttime in the start file, or give no start (the replay then "
+                           "begins where the reference does)")
+        begin = int(np.searchsorted(imu.t_s, ref.t_s[0] - 1e-9 * dt))
+        log.notes.append(f"the reference begins {ref.t_s[0]:.2f} s into the log: replayed from there")
     end = int(np.searchsorted(imu.t_s, ref.t_s[-1] + 1e-9 * dt, side="right"))
     if end < len(imu.t_s):
         log.notes.append(f"the reference ends {imu.t_s[-1] - ref.t_s[-1]:.1f} s before the IMU: replayed to its end")
-        imu = ImuLog(imu.t_s[:end], imu.dtheta_b_rad[:end], imu.dv_b_mps[:end])
-    return imu
+    if begin == 0 and end == len(imu.t_s):
+        return imu
+    dth, dv = imu.dtheta_b_rad[begin:end].copy(), imu.dv_b_mps[begin:end].copy()
+    dth[0] = dv[0] = 0.0                       # the increment before the start is not the replay's
+    return ImuLog(imu.t_s[begin:end], dth, dv)
 
 
 def sensors_of(log: NavLog, scenario, imu: ImuLog) -> tuple[SensorData, dict]:
@@ -108,6 +121,10 @@ def sensors_of(log: NavLog, scenario, imu: ImuLog) -> tuple[SensorData, dict]:
     data = SensorData(imu_name, "imu", imu.t_s, {"dtheta_b_rad": imu.dtheta_b_rad[None], "dv_b_mps": imu.dv_b_mps[None]},
                       np.ones((1, len(imu.t_s)), bool), meta={"dt_s": dt, "rate_hz": 1.0 / dt, "source": "log"})
     g = log.gnss
+    if g.t_s[0] < imu.t_s[0] - 1e-9:                  # fixes before a late start (the reference's)
+        keep = g.t_s >= imu.t_s[0] - 1e-9
+        g = type(g)(*(None if a is None else a[keep] for a in (g.t_s, g.lat_rad, g.lon_rad, g.h_m, g.sigma_ned_m,
+                                                             g.vel_n_mps, g.sigma_vel_mps)))
     values = {"lat_rad": g.lat_rad, "lon_rad": g.lon_rad, "h_m": g.h_m, "fix_type": np.full(len(g.t_s), 3, np.int8),
               "h_acc_m": np.hypot(g.sigma_ned_m[:, 0], g.sigma_ned_m[:, 1]), "v_acc_m": g.sigma_ned_m[:, 2]}
     if g.vel_n_mps is not None:
@@ -117,17 +134,34 @@ def sensors_of(log: NavLog, scenario, imu: ImuLog) -> tuple[SensorData, dict]:
 
 def _check_reads(scenario, have: set, gnss: str, velocity: bool) -> None:
     for e in scenario.estimators:
-        reads = {m["sensor"]: m["type"] for m in e.params.get("measurements", [])}
-        lacking = sorted(set(reads) - have)
+        reads = {(m["sensor"], m["type"]) for m in e.params.get("measurements", [])}
+        lacking = sorted({s for s, _ in reads} - have)
         if lacking:
             raise LogError(f"the estimator '{e.label}' reads the sensor(s) {', '.join(lacking)}, which a log of "
                            "IMU and GNSS does not have", file=str(scenario.path or "<scenario>"),
                            hint="replay with a scenario whose estimators take the IMU and GNSS only")
-        if not velocity and any(s == gnss and t == "velocity" for s, t in reads.items()):
+        if not velocity and (gnss, "velocity") in reads:
             raise LogError(f"the estimator '{e.label}' takes the GNSS velocity, which the log's GNSS file does not "
                            "hold", file=str(scenario.path or "<scenario>"),
                            hint="add the velocity columns to the GNSS file, or replay with a scenario whose "
                            "estimators take the position only")
+
+
+def without_gnss_velocity(scenario, notes: list):
+    """``scenario`` with its estimators' GNSS ``velocity`` measurements left out (a log whose
+    fixes hold no velocity, replayed through the default scenario), a note naming them."""
+    gnss = {c.name for c in scenario.sensors if c.kind == "gnss"}
+    out, dropped = [], []
+    for e in scenario.estimators:
+        ms = e.params.get("measurements", [])
+        kept = [m for m in ms if not (m["type"] == "velocity" and m["sensor"] in gnss)]
+        if len(kept) < len(ms):
+            dropped.append(e.label)
+            e = dataclasses.replace(e, params={**e.params, "measurements": kept})
+        out.append(e)
+    if dropped:
+        notes.append(f"the GNSS file holds no velocity: the velocity measurement of {', '.join(dropped)} left out")
+    return dataclasses.replace(scenario, estimators=tuple(out))
 
 
 def start_state(start: Start | None, truth: Truth) -> NavState:

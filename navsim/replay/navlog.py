@@ -149,7 +149,7 @@ def read_rows(path, widths: tuple, what: str, sep: str | None = None, skip: int 
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        text = path.read_text(encoding="utf-8-sig", errors="replace")     # -sig: a spreadsheet's BOM
     except OSError as exc:
         raise LogError(f"cannot be read ({exc.strerror or exc})", file=str(path), hint=hint or None) from None
     numbered = [(i + 1, line) for i, line in enumerate(text.splitlines()) if i >= skip]
@@ -205,6 +205,10 @@ def check_imu(rows: Rows, imu: ImuLog) -> None:
     force above :data:`MAX_FORCE_MPS2` (the file holds rates, or degrees, or another unit).
     ``rows`` are the file's rows of ``imu``'s rows 1, 2, ..."""
     dt = np.diff(imu.t_s)[:, None]
+    bad = np.flatnonzero(~np.isfinite(imu.dtheta_b_rad[1:] + imu.dv_b_mps[1:]).all(axis=1))
+    if bad.size:
+        raise LogError("an increment is not a finite number", file=rows.where(int(bad[0])),
+                       hint="drop the rows where the IMU gave nothing")
     rate = np.linalg.norm(imu.dtheta_b_rad[1:], axis=1) / dt[:, 0]
     force = np.linalg.norm(imu.dv_b_mps[1:], axis=1) / dt[:, 0]
     for name, x, limit, unit in (("rotation", rate, MAX_RATE_RPS, "rad"), ("velocity", force, MAX_FORCE_MPS2, "m/s")):
@@ -215,6 +219,31 @@ def check_imu(rows: Rows, imu: ImuLog) -> None:
                            f"{dt[over[0], 0]:.4g} s, more than any IMU measures ({x[over[0]]:.4g} {unit}/s)",
                            file=rows.where(r), hint=f"the IMU columns must be increments in {unit}, not rates "
                            "or degrees: multiply rates by the sample interval, degrees by pi/180")
+
+
+def start_time(start_s, t: np.ndarray) -> float:
+    """The log's start: the last IMU sample at or before ``start_s`` (a configuration's
+    ``starttime``; None: not given), so that the first increment replayed is a whole sample
+    interval; one interval before the first sample where ``start_s`` is before it or not given."""
+    if start_s is not None:
+        at = int(np.searchsorted(t, start_s + 1e-9 * max(abs(start_s), 1.0), side="right")) - 1
+        if at >= 0:
+            return float(t[at])
+    return float(t[0] - (t[1] - t[0]))
+
+
+def imu_from(rows: Rows, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, t0: float, end_s=None) -> ImuLog:
+    """The IMU after the start ``t0`` (and up to ``end_s``, when given) as increments from
+    ``t0``, checked (:func:`check_imu`); a :class:`LogError` when fewer than two samples are left."""
+    keep = (t > t0) & ((t <= end_s) if end_s is not None else True)
+    if keep.sum() < 2:
+        raise LogError(f"holds {int(keep.sum())} IMU sample(s) after the start ({t0:.6f} s)"
+                       + (f" and before the end ({end_s} s)" if end_s is not None else ""), file=str(rows.path),
+                       hint="the start file's starttime and endtime must leave the IMU samples replayed")
+    zero = np.zeros((1, 3))
+    imu = ImuLog(np.r_[0.0, t[keep] - t0], np.r_[zero, dtheta[keep]], np.r_[zero, dv[keep]])
+    check_imu(rows.subset(keep), imu)
+    return imu
 
 
 def check_gnss(rows: Rows, g: GnssLog) -> None:

@@ -101,7 +101,7 @@ def check_structure(data: bytes) -> str | None:
     return None if off == n else f"is truncated: it ends inside a message header at byte {off}"
 
 
-def _read_ulog(path: Path, allow_damaged: bool, notes: list):
+def read_ulog_file(path: Path, allow_damaged: bool, notes: list):
     from pyulog import ULog
     from pyulog.core import ULogException
     if not path.is_file():
@@ -126,7 +126,7 @@ def _read_ulog(path: Path, allow_damaged: bool, notes: list):
     return ulog
 
 
-def _topics(ulog) -> dict:
+def topics_of(ulog) -> dict:
     """Topic name -> its fields (the first instance of each topic)."""
     out = {}
     for d in sorted(ulog.data_list, key=lambda d: d.multi_id):
@@ -135,7 +135,7 @@ def _topics(ulog) -> dict:
     return out
 
 
-def _vec(names: str, n: int) -> list[str]:
+def vec(names: str, n: int) -> list[str]:
     return [f"{names}[{i}]" for i in range(n)]
 
 
@@ -154,7 +154,7 @@ def require(topics: dict, topic: str, fields: list[str], path, why: str) -> dict
     return topics[topic]
 
 
-def _columns(data: dict, names: list[str]) -> np.ndarray:
+def columns(data: dict, names: list[str]) -> np.ndarray:
     return np.stack([np.asarray(data[n], float) for n in names], axis=-1)
 
 
@@ -176,12 +176,12 @@ def _distinct(t_s: np.ndarray, ok: np.ndarray, *values: np.ndarray):
 def _magnetometer(topics, sc, t0_us, path):
     if "magnetometer_ga[0]" in sc and "magnetometer_timestamp_relative" in sc:
         t, ok = _relative_times(sc, "magnetometer_timestamp_relative", t0_us)
-        t, m = _distinct(t, ok, _columns(sc, _vec("magnetometer_ga", 3)))
+        t, m = _distinct(t, ok, columns(sc, vec("magnetometer_ga", 3)))
     else:
-        mag = require(topics, "vehicle_magnetometer", _vec("magnetometer_ga", 3), path,
+        mag = require(topics, "vehicle_magnetometer", vec("magnetometer_ga", 3), path,
                       "the magnetometer: sensor_combined has no magnetometer_ga either")
         t = (np.asarray(mag["timestamp"], np.int64) - t0_us) * 1e-6
-        m = _columns(mag, _vec("magnetometer_ga", 3))
+        m = columns(mag, vec("magnetometer_ga", 3))
     return t, m * GAUSS_T
 
 
@@ -233,7 +233,7 @@ def _position(topics, notes) -> tuple:
     return lat, lon, h
 
 
-def _imu_gaps(t_s: np.ndarray, path, allow_damaged: bool, notes: list) -> list:
+def imu_gaps(t_s: np.ndarray, path, allow_damaged: bool, notes: list) -> list:
     dt = np.diff(t_s)
     if np.any(dt <= 0):
         raise LogError(f"sensor_combined timestamps go backwards at t = {t_s[1:][dt <= 0][0]:.3f} s",
@@ -271,11 +271,11 @@ def load_ulog(path, allow_damaged: bool = False) -> ReplayLog:
     """
     path = Path(path)
     notes: list[str] = []
-    ulog = _read_ulog(path, allow_damaged, notes)
-    topics = _topics(ulog)
-    sc = require(topics, "sensor_combined", ["timestamp"] + _vec("gyro_rad", 3)
-                 + _vec("accelerometer_m_s2", 3), path, "the IMU")
-    va = require(topics, "vehicle_attitude", ["timestamp"] + _vec("q", 4), path,
+    ulog = read_ulog_file(path, allow_damaged, notes)
+    topics = topics_of(ulog)
+    sc = require(topics, "sensor_combined", ["timestamp"] + vec("gyro_rad", 3)
+                 + vec("accelerometer_m_s2", 3), path, "the IMU")
+    va = require(topics, "vehicle_attitude", ["timestamp"] + vec("q", 4), path,
                  "PX4's attitude estimate, the reference")
     t_us = np.asarray(sc["timestamp"], np.int64)
     t0_us = int(t_us[0])
@@ -284,13 +284,13 @@ def load_ulog(path, allow_damaged: bool = False) -> ReplayLog:
         raise LogError(f"sensor_combined holds {imu_t[-1] if len(imu_t) else 0:.2f} s of IMU data "
                        f"({len(imu_t)} samples); the replay needs {MIN_DURATION_S:.0f} s",
                        file=str(path), hint=_HINT_LOG)
-    gaps = _imu_gaps(imu_t, path, allow_damaged, notes)
+    gaps = imu_gaps(imu_t, path, allow_damaged, notes)
     mag_t, mag_T = _magnetometer(topics, sc, t0_us, path)
     if len(mag_t) < 2:
         raise LogError(f"has {len(mag_t)} magnetometer sample(s)", file=str(path), hint=_HINT_LOG)
     baro_t, baro_h = _barometer(topics, sc, t0_us, notes)
     att_t = (np.asarray(va["timestamp"], np.int64) - t0_us) * 1e-6
-    att_t, quat = _distinct(att_t, np.ones(len(att_t), bool), _columns(va, _vec("q", 4)))
+    att_t, quat = _distinct(att_t, np.ones(len(att_t), bool), columns(va, vec("q", 4)))
     if len(att_t) < 2:
         raise LogError(f"vehicle_attitude has {len(att_t)} sample(s)", file=str(path), hint=_HINT_LOG)
     params = ulog.initial_parameters
@@ -301,8 +301,8 @@ def load_ulog(path, allow_damaged: bool = False) -> ReplayLog:
                      f"{sum(d.duration for d in ulog.dropouts)} ms in all")
     info = {k: ulog.msg_info_dict.get(k) for k in ("sys_name", "ver_hw", "ver_sw")}
     info["SYS_MC_EST_GROUP"] = params.get("SYS_MC_EST_GROUP")
-    return ReplayLog(path=path, t0_us=t0_us, imu_t_s=imu_t, omega_ib_b_rps=_columns(sc, _vec("gyro_rad", 3)),
-                     f_ib_b_mps2=_columns(sc, _vec("accelerometer_m_s2", 3)), mag_t_s=mag_t, mag_b_T=mag_T,
+    return ReplayLog(path=path, t0_us=t0_us, imu_t_s=imu_t, omega_ib_b_rps=columns(sc, vec("gyro_rad", 3)),
+                     f_ib_b_mps2=columns(sc, vec("accelerometer_m_s2", 3)), mag_t_s=mag_t, mag_b_T=mag_T,
                      baro_t_s=baro_t, h_baro_m=baro_h, att_t_s=att_t,
                      quat_nb_px4=quat / np.linalg.norm(quat, axis=-1, keepdims=True), lat_rad=lat,
                      lon_rad=lon, h_ref_m=h, declination_rad=decl, declination_source=decl_src,

@@ -8,8 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from test_run import SHORT
+from ulog_writer import write_ulog
 
 import navsim
+import navsim.replay.logrun
 from navsim.cli import main
 from navsim.foundations.errors import LogError
 
@@ -164,3 +166,118 @@ def test_options_of_the_other_kind_of_log_and_a_scenario_without_gnss_are_refuse
     no_gnss.write_text(text[:text.index("  - label: KF")] + text[text.index("initial_errors:"):text.index("reference:")])
     with pytest.raises(LogError, match="no gnss sensor"):
         navsim.replay_log(navsim.read_log(log / "kf-gins.yaml"), no_gnss)
+
+
+def _ulog_of(log, path, drop: str | None = None) -> None:
+    """The emulated log as a PX4 ULog: sensor_combined (rates in float32, as PX4 logs them),
+    sensor_gps (with two fixes of no fix type, to be left out), EKF2's solution (the truth)."""
+    us = lambda t: np.round((t + 1.0) * 1e6).astype(np.int64)        # PX4's clock: 1 s at the start
+    imu, g, ref = log.imu, log.gnss, log.reference
+    dt = np.diff(imu.t_s, prepend=imu.t_s[0] - imu.dt_s)[:, None]
+    f32 = lambda a: np.asarray(a, np.float32)
+    scalar = lambda t, n: [(t, 0, n)]
+    bad = np.r_[np.zeros(len(g.t_s), bool), [True, True]]
+    t_gps = np.r_[g.t_s, g.t_s[:2] + 0.5]
+    gps = {"timestamp": us(t_gps), "latitude_deg": np.degrees(np.r_[g.lat_rad, g.lat_rad[:2]]),
+           "longitude_deg": np.degrees(np.r_[g.lon_rad, g.lon_rad[:2]]), "altitude_msl_m": np.r_[g.h_m, g.h_m[:2]],
+           "eph": f32(np.r_[g.sigma_ned_m[:, 0], [9, 9]]), "epv": f32(np.r_[g.sigma_ned_m[:, 2], [9, 9]]),
+           "s_variance_m_s": f32(np.r_[g.sigma_vel_mps[:, 0], [9, 9]]), "fix_type": np.where(bad, 0, 3).astype(np.uint8),
+           **{f"vel_{a}_m_s": f32(np.r_[g.vel_n_mps[:, j], g.vel_n_mps[:2, j]]) for j, a in enumerate("ned")}}
+    order = np.argsort(t_gps, kind="stable")
+    gps = {k: v[order] for k, v in gps.items()}
+    quat = navsim.replay.logrun.quat_from_euler(*ref.euler_rad.T)
+    topics = {
+        "sensor_combined": (scalar("uint64_t", "timestamp") + [("float", 3, "gyro_rad"), ("float", 3, "accelerometer_m_s2")],
+                            {"timestamp": us(imu.t_s), "gyro_rad": f32(imu.dtheta_b_rad / dt),
+                             "accelerometer_m_s2": f32(imu.dv_b_mps / dt)}),
+        "sensor_gps": (scalar("uint64_t", "timestamp") + [("double", 0, k) for k in ("latitude_deg", "longitude_deg",
+                                                                                      "altitude_msl_m")]
+                       + [("float", 0, k) for k in ("eph", "epv", "vel_n_m_s", "vel_e_m_s", "vel_d_m_s", "s_variance_m_s")]
+                       + [("uint8_t", 0, "fix_type")], gps),
+        "vehicle_global_position": (scalar("uint64_t", "timestamp") + [("double", 0, "lat"), ("double", 0, "lon"),
+                                                                      ("float", 0, "alt")],
+                                    {"timestamp": us(ref.t_s), "lat": np.degrees(ref.lat_rad),
+                                     "lon": np.degrees(ref.lon_rad), "alt": f32(ref.h_m)}),
+        "vehicle_local_position": (scalar("uint64_t", "timestamp") + [("float", 0, k) for k in ("vx", "vy", "vz")],
+                                   {"timestamp": us(ref.t_s), **{k: f32(ref.vel_n_mps[:, j])
+                                                                 for j, k in enumerate(("vx", "vy", "vz"))}}),
+        "vehicle_attitude": (scalar("uint64_t", "timestamp") + [("float", 4, "q")],
+                             {"timestamp": us(ref.t_s), "q": f32(quat)}),
+    }
+    write_ulog(path, {k: v for k, v in topics.items() if k != drop})
+
+
+def test_a_px4_log_with_gnss_replays_through_a_scenario_scored_against_ekf2(exported, tmp_path, capsys):
+    """A ULog written from the exported run (rates, EKF2's altitude and velocity in float32)
+    replays with ``--scenario``: position and velocity scored against EKF2's solution (here the
+    truth), starting on its first state; every estimator's RMS equals that of the same log
+    replayed from CSV with the truth as its solution within 1e-3 relative or float32's resolution
+    (EKF2's quaternion: 2e-5 deg), the fixes without a 3-D fix left out."""
+    folder, _ = exported
+    log = navsim.read_log(folder / "log" / "kf-gins.yaml")
+    ulg = tmp_path / "flight.ulg"
+    _ulog_of(log, ulg)
+    out = tmp_path / "out"
+    assert main(["replay", str(ulg), "--scenario", str(folder / "short.yaml"), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "differences from the log's own solution" in printed and "without a 3-D fix left out" in printed
+    metrics = json.loads((out / "metrics.json").read_text())
+    csv = folder / "log"
+    same = navsim.replay_log(navsim.read_log(csv / "imu.csv", csv / "gnss.csv", csv / "reference.csv", solution=True),
+                             folder / "short.yaml")
+    for label, e in same.metrics.estimators.items():
+        for what, atol in (("pos_m", 1e-3), ("vel_mps", 1e-4), ("att_deg", 2e-5)):   # atol: float32's resolution
+            np.testing.assert_allclose(_rms(metrics, label, what), np.array(getattr(e.rms, what)), rtol=1e-3,
+                                       atol=atol, err_msg=f"{label} {what}")
+    record = json.loads((out / "run.json").read_text())
+    assert record["log"]["format"] == "ulog" and record["log"]["scored_against"] == "solution"
+
+
+def test_a_px4_log_without_gnss_or_ekf2_exits_2_naming_the_topic(exported, tmp_path, capsys):
+    folder, _ = exported
+    log = navsim.read_log(folder / "log" / "kf-gins.yaml")
+    for topic, words in (("sensor_gps", ["has no GNSS", "sensor_gps or vehicle_gps_position"]),
+                         ("vehicle_local_position", ["no 'vehicle_local_position'"])):
+        ulg = tmp_path / f"no_{topic}.ulg"
+        _ulog_of(log, ulg, drop=topic)
+        out = tmp_path / f"out_{topic}"
+        assert main(["replay", str(ulg), "--scenario", str(folder / "short.yaml"), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert all(w in err for w in words) and str(ulg) in err and "Traceback" not in err, err
+        assert not out.exists() or not any(out.iterdir())
+
+
+def test_rates_in_other_units_replay_as_the_increments_do(exported, tmp_path):
+    """The IMU CSV as rates in deg/s and g (each the mean over the interval ending at its time)
+    replays to the increments' numbers within 1e-6: the rate path and the unit conversions."""
+    folder, _ = exported
+    log = folder / "log"
+    head, *rows = (log / "imu.csv").read_text().splitlines()
+    a = np.array([[float(x) for x in r.split(",")] for r in rows])
+    dt = np.diff(a[:, 0], prepend=a[0, 0] - (a[1, 0] - a[0, 0]))[:, None]
+    rates = np.c_[a[:, :1], np.degrees(a[:, 1:4] / dt), a[:, 4:7] / dt / 9.80665]
+    first = np.r_[[a[0, 0] - dt[0, 0]], np.zeros(6)]              # a sample at the start: its rate unused
+    (tmp_path / "imu.csv").write_text(
+        "time[s]," + ",".join(f"gyro_{c}[deg/s]" for c in "xyz") + "," + ",".join(f"accel_{c}[g]" for c in "xyz")
+        + "\n" + "\n".join(",".join(repr(float(x)) for x in r) for r in np.r_[[first], rates]) + "\n")
+    got = [navsim.replay_log(navsim.read_log(imu, log / "gnss.csv", log / "reference.csv", log / "start.yaml"),
+                             folder / "short.yaml") for imu in (tmp_path / "imu.csv", log / "imu.csv")]
+    for label, e in got[1].metrics.estimators.items():
+        np.testing.assert_allclose(got[0].metrics.estimators[label].rms.pos_m, e.rms.pos_m, rtol=1e-6)
+
+
+def test_fixes_without_velocity_replay_through_the_default_scenario_without_its_velocity_update(exported, tmp_path,
+                                                                                              capsys):
+    folder, _ = exported
+    log = folder / "log"
+    lines = (log / "gnss.csv").read_text().splitlines()
+    (tmp_path / "gnss.csv").write_text("\n".join(",".join(line.split(",")[:7]) for line in lines) + "\n")
+    out = tmp_path / "out"
+    assert main(["replay", str(log / "imu.csv"), "--gnss", str(tmp_path / "gnss.csv"), "--reference",
+                 str(log / "reference.csv"), "--settle", "5", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "velocity measurement of SINS/GPS 15-state left out" in printed
+    assert "SINS/GPS 15-state" in json.loads((out / "metrics.json").read_text())["estimators"]
+    assert main(["replay", str(log / "imu.csv"), "--gnss", str(tmp_path / "gnss.csv"), "--reference",
+                 str(log / "reference.csv"), "--out", str(tmp_path / "late")]) == 2
+    assert "settle_s 100 s" in capsys.readouterr().err

@@ -166,8 +166,8 @@ def test_unreplayable_logs_exit_2_naming_the_problem(log_path, tmp_path, capsys,
 
 def test_missing_topic_exits_2_without_traceback(log_path, tmp_path, monkeypatch, capsys):
     import navsim.replay.ulog as rp
-    real = rp._topics
-    monkeypatch.setattr(rp, "_topics", lambda u: {k: v for k, v in real(u).items() if k != "vehicle_attitude"})
+    real = rp.topics_of
+    monkeypatch.setattr(rp, "topics_of", lambda u: {k: v for k, v in real(u).items() if k != "vehicle_attitude"})
     assert main(["replay", str(log_path), "--estimator", "sins", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "has no 'vehicle_attitude' messages" in err and "sensor_combined" in err
