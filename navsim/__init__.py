@@ -26,7 +26,8 @@ The Python API (:mod:`navsim.api`): :func:`load_scenario`, :func:`run` (a :class
 95 % intervals, run by run where they flew the same runs) with :func:`write_comparison`, and
 :func:`budget` (each error source's share of the errors) with :func:`write_budget`, and
 :func:`read_log` with :func:`replay_log` (an INS/GNSS log, KF-GINS text or CSV, through a
-scenario's estimators, scored as one run); how the runs
+scenario's estimators, scored as one run); :func:`tune` (an estimator's noise searched against
+the truth over Monte Carlo runs, checked on runs it was not tuned on); how the runs
 are made, one :class:`RunOptions` (``options=``, or its fields as keywords).
 
 The subpackages follow the data flow; each imports only from those before it:
@@ -38,10 +39,10 @@ driver, chunks, executors, closed loop, sweep) -> :mod:`navsim.scoring` (typed m
 :mod:`navsim.replay` (PX4 logs, INS/GNSS logs) -> :mod:`navsim.report` -> :mod:`navsim.api` -> :mod:`navsim.cli`.
 """
 
-from navsim.api import (Result, RunOptions, budget, compare, load_scenario, open_result,  # noqa: E402
-                        read_log, replay_log, report_figures, run, sweep, write_budget, write_comparison,
+from navsim.api import (Result, RunOptions, TuneOptions, TuneResult, budget, compare, load_scenario, open_result,  # noqa: E402
+                        read_log, replay_log, report_figures, run, sweep, tune, write_budget, write_comparison,
                         write_report)
 from navsim.version import __version__  # noqa: E402
 
-__all__ = ["Result", "RunOptions", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "read_log", "replay_log", "report_figures", "run", "sweep", "write_report",
+__all__ = ["Result", "RunOptions", "TuneOptions", "TuneResult", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "read_log", "replay_log", "report_figures", "run", "sweep", "tune", "write_report",
            "__version__"]

@@ -18,7 +18,8 @@ written with :func:`write_report`.
 One module per verb: :mod:`~navsim.api.runs` (:func:`run`), :mod:`~navsim.api.results` (the
 :class:`Result`, :func:`open_result`, :func:`write_report`, :func:`report_figures`),
 :mod:`~navsim.api.sweeps` (:func:`sweep`), :mod:`~navsim.api.replays` (:func:`read_log`,
-:func:`replay_log`: an INS/GNSS log through a scenario's estimators, scored as one run), :mod:`~navsim.api.comparisons` (:func:`compare`,
+:func:`replay_log`: an INS/GNSS log through a scenario's estimators, scored as one run),
+:mod:`~navsim.api.tuning` (:func:`tune`: an estimator's noise searched over Monte Carlo runs), :mod:`~navsim.api.comparisons` (:func:`compare`,
 :func:`write_comparison`), :mod:`~navsim.api.budgets` (:func:`budget`, :func:`write_budget`);
 :mod:`~navsim.api.arguments` checks what they are given (:func:`load_scenario`). How the runs are
 made is one :class:`~navsim.experiment.options.RunOptions` (``options=``, or its fields as
@@ -42,6 +43,7 @@ from navsim.api.results import (
 from navsim.api.replays import read_log, replay_log
 from navsim.api.runs import run
 from navsim.api.sweeps import sweep
+from navsim.api.tuning import TuneOptions, TuneResult, tune
 from navsim.experiment.options import (
     CHUNK_RUNS,
     EXECUTORS,
@@ -58,4 +60,4 @@ from navsim.records.chunk import ChunkPart
 __all__ = ["BUDGET_PARTS", "CHUNK_RUNS", "ChunkPart", "EXECUTORS", "NPZ_KEYS", "RUNS", "Result", "RunOptions",
            "SCHEDULER_SCHEMES", "SEED", "UsageError", "WORKERS", "XARRAY_METRICS", "budget", "check_scheduler",
            "compare", "load_scenario", "npz_key", "open_result", "read_log", "replay_log", "report_figures",
-           "resolved_scenario", "run", "sweep", "write_budget", "write_comparison", "write_report"]
+           "resolved_scenario", "run", "sweep", "TuneOptions", "TuneResult", "tune", "write_budget", "write_comparison", "write_report"]

@@ -10,7 +10,7 @@ line) adds one with :func:`register_command` and takes it away with
 
 from __future__ import annotations
 
-from navsim.cli import budget, compare, fly, list_, new, replay, run, schema, sensors, sweep, validate
+from navsim.cli import budget, compare, fly, list_, new, replay, run, schema, sensors, sweep, tune, validate
 from navsim.cli.command import Command
 from navsim.foundations.registry import Registry
 
@@ -25,6 +25,7 @@ BUILT_IN: tuple[Command, ...] = (
     replay.COMMAND,
     compare.COMMAND,
     budget.COMMAND,
+    tune.COMMAND,
     schema.COMMAND,
     list_.COMMAND,
 )

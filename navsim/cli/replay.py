@@ -174,6 +174,9 @@ def _ulog(args) -> int:
     print(table(*difference_table(metrics)))
     for reset in metrics.resets:
         print(f"reset at {reset.t_s:.2f} s: {reset.cause}")
+    for key, n in (metrics.nis or {}).items():
+        print(f"NIS {key}: average {n.average:.3g} (band of the average {n.band[0]:.3g}-{n.band[1]:.3g}), "
+              f"{100 * n.fraction_inside:.0f} % of epochs inside their band")
     c = metrics.cost
     print(f"\n{log.duration_s:.1f} s of log replayed {c.real_time_factor:.0f}x faster than real time "
           f"({c.us_per_imu_cycle:.0f} us per IMU cycle); wrote {out}/ "

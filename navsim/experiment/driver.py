@@ -202,14 +202,20 @@ class Driver:
         True: an estimator that raises an ``Exception`` has its runs flagged diverged, at the
         time of the block's last sample when ``propagate`` raised, and is not called again (NaN
         records from there), the others go on; False: the exception propagates.
+    keep_nis : bool
+        Keep every epoch's NIS (:attr:`nis`), also without a truth to record against.
     """
 
-    def __init__(self, estimators: dict, dt_s: float, runs: int | None = None, isolate: bool = True):
+    def __init__(self, estimators: dict, dt_s: float, runs: int | None = None, isolate: bool = True,
+                 keep_nis: bool = False):
         self.estimators, self.dt_s, self.isolate = estimators, dt_s, isolate
         self.every = {label: max(1, int(round(est.period_s / dt_s))) for label, est in estimators.items()}
         self.rec = {label: _Recorder(label, runs) for label in estimators}
         self.i = 0          #: the IMU sample the estimators have reached
         self._sensors, self._seen = None, {}
+        #: with ``keep_nis``, label -> ``[(t_s, "measurement:sensor", nis (B,), rows)]`` of every
+        #: epoch, records against a truth or not (a log replayed without one); else None
+        self.nis = {label: [] for label in estimators} if keep_nis else None
 
     def start(self, nav0: NavState, sigma0: dict, truth=None, k: int = 0) -> None:
         """Initialise every estimator at ``nav0`` with the 1-sigma blocks ``sigma0`` and record
@@ -280,6 +286,9 @@ class Driver:
                 innov = est.epoch(t_s, block.sensors)
                 rec.epoch_s += clock() - c1
                 rec.epochs += 1
+                if self.nis is not None:
+                    self.nis[rec.label] += [(t_s, f"{i.measurement}:{i.sensor}", np.array(i.nis), i.y.shape[-1])
+                                            for i in innov or []]
                 if record:
                     rec.add(est, truth, block.k, t_s, innov)
         except Exception as exc:  # one estimator's failure must not stop the others

@@ -67,7 +67,7 @@ LOCK = ".navsim.lock"
 MANIFEST_FORMAT = 3
 #: the commands whose results an output folder holds, each its own (``navsim.write_report`` and
 #: ``navsim.run`` write a run's result, ``"run"``; a run's failed flight goes to ``flight/``, ``"fly"``)
-COMMANDS = ("run", "fly", "sensors", "sweep", "compare", "budget", "replay")
+COMMANDS = ("run", "fly", "sensors", "sweep", "compare", "budget", "replay", "tune")
 #: how the result of a folder written before format 3 is told: the first of these files its
 #: manifest lists (navsim 0.3.0 and older wrote no command into it)
 LEGACY_SIGNATURES = (("compare.json", "compare"), ("budget.json", "budget"), ("budget_part_*.npz", "budget"),

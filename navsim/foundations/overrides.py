@@ -172,6 +172,25 @@ def set_in(root: dict, o: Override) -> tuple[str, list]:
     return shown, created
 
 
+def value_at(root: dict, path: str, origin: str):
+    """The value at ``path`` (the grammar of ``--set``) in ``root``; a :class:`ScenarioError`
+    naming ``origin`` and the closest existing key where the path leads nowhere."""
+    o = make_override(path, None, origin)
+    node, shown = root, ""
+    for part in o.parts:
+        if isinstance(part, tuple):
+            node = node[_select(node, part[0], shown, o)]
+            shown += f"[{part[0]}]"
+            continue
+        if not isinstance(node, dict) or part not in node:
+            keys = [str(k) for k in node] if isinstance(node, dict) else []
+            raise _error(origin, f"{shown or 'the scenario'} has no '{part}'",
+                         hint=close_match(part, keys) or (f"its keys: {', '.join(keys)}" if keys else None))
+        node = node[part]
+        shown = f"{shown}.{part}" if shown else part
+    return node
+
+
 def _select(node, sel, shown: str, o: Override) -> int:
     """The index in the list ``node`` that ``[sel]`` names."""
     if not isinstance(node, list):

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navsim.records.metrics import Nis
 from navsim.replay.run import ReplayResult
 from navsim.records.metrics import EULER_AXES as AXES, _Record
 
@@ -151,6 +152,10 @@ class ReplayMetrics(_Record):
     cost: ReplayCost
     wall_s: float | None = None
     provenance: dict | None = None
+    #: each measurement's NIS over the epochs after ``settle_s`` (``measurement:sensor`` ->
+    #: :class:`~navsim.records.metrics.Nis`: its average against the band of an average over
+    #: that many epochs, the share of epochs inside one epoch's band); None: none recorded
+    nis: dict[str, Nis] | None = None
 
     _NULLS = ("record_s",)
 
@@ -191,4 +196,24 @@ def replay_metrics(result: ReplayResult) -> ReplayMetrics:
                             field_n_T=a.field_n_T.tolist(), gyro_max_rps=a.gyro_max_rps, still=a.still),
         settle_s=r.settle_s, samples_scored=int(keep.sum()),
         record_s=float(np.median(np.diff(r.t_s))) if len(r.t_s) > 1 else None,
-        attitude_diff_deg=diff, resets=[ResetEvent(t, cause) for t, cause in r.resets], cost=_cost(r))
+        attitude_diff_deg=diff, resets=[ResetEvent(t, cause) for t, cause in r.resets], cost=_cost(r),
+        nis=replay_nis(r.nis, r.settle_s) or None)
+
+
+def replay_nis(epochs: list, settle_s: float) -> dict:
+    """``measurement:sensor`` -> :class:`Nis` of one run's epochs ``(t_s, key, nis (1,), rows)``
+    after ``settle_s``: the average against the 95 % band of an average of that many chi-square
+    values, and the share of epochs inside one's band."""
+    from scipy.stats import chi2
+    by_key: dict = {}
+    for t, key, nis, dim in epochs:
+        if t >= settle_s and np.isfinite(nis[0]):
+            by_key.setdefault(key, (dim, []))[1].append(float(nis[0]))
+    out = {}
+    for key, (dim, v) in by_key.items():
+        v = np.asarray(v)
+        lo, hi = chi2.ppf([0.025, 0.975], dim)
+        band = (chi2.ppf([0.025, 0.975], dim * v.size) / v.size).tolist()
+        out[key] = Nis(average=float(v.mean()), band=band, dim=int(dim),
+                       fraction_inside=float(np.mean((v >= lo) & (v <= hi))))
+    return out

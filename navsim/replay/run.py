@@ -244,6 +244,8 @@ class ReplayResult:
     resets: list                   #: (t_s, cause) the estimator reported for run 0
     cost: dict                     #: CPU seconds in propagate and epoch, their counts
     sensors: dict = field(default_factory=dict)   #: name -> samples given, rate (Hz)
+    #: every epoch's innovations: ``(t_s, "measurement:sensor", nis (1,), rows)``
+    nis: list = field(default_factory=list)
 
     @property
     def diff_rad(self) -> np.ndarray:
@@ -331,7 +333,7 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, options: 
     est, kw = build_estimator(estimator, dict(params or {}), defaults, {k: d.kind for k, d in sensors.items()})
     nav0, sigma0 = initial_state(log, align)
     dt = 1.0 / rate
-    loop = Driver({estimator: est}, dt, 1, isolate=False)
+    loop = Driver({estimator: est}, dt, 1, isolate=False, keep_nis=True)
     loop.start(nav0, sigma0)
     every = loop.every[estimator]
     rec_every = max(1, int(round(min(options.record_s, every * dt) / dt)))
@@ -343,7 +345,8 @@ def replay(log: ReplayLog, estimator: str, params: dict | None = None, options: 
         period_s=every * dt, t_s=t_rec, euler_rad=euler_from_dcm(np.asarray(C_rec)),
         euler_px4_rad=px4_euler_at(log, t_rec), settle_s=options.settle_s, resets=resets,
         cost=loop.cost(estimator),
-        sensors={k: {"samples": int(s.t_s.size), "rate_hz": s.meta["rate_hz"]} for k, s in sensors.items()})
+        sensors={k: {"samples": int(s.t_s.size), "rate_hz": s.meta["rate_hz"]} for k, s in sensors.items()},
+        nis=loop.nis[estimator])
 
 
 def _drive(loop: Driver, est, imu: GridIncrements, sensors: dict, rec_every: int, progress) -> tuple[np.ndarray, list]:

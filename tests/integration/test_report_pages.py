@@ -103,7 +103,7 @@ def test_the_replay_summary_page_fits(repo_root, tmp_path, capsys):
     assert strict_json(m.to_dict()) == text
     assert list(json.loads(text)) == ["log", "estimator", "params", "imu_grid_hz", "period_s", "sensors", "alignment",
                                       "settle_s", "samples_scored", "record_s", "attitude_diff_deg", "resets", "cost",
-                                      "wall_s", "provenance"]
+                                      "wall_s", "provenance", "nis"]
     for fig in layout("navsim replay", summary_blocks(m, m.provenance)):
         fig.canvas.draw()
         assert not text_outside(fig, fig.canvas.get_renderer())

@@ -1,0 +1,120 @@
+"""What ``navsim tune`` varies: :class:`TuneParam`, read from ``--param PATH=LO:HI[:log]``
+(:func:`parse_param`) or, without one, each noise term of the estimator's entry scaled by its
+own factor (:func:`default_params`).
+
+A parameter is a path into the scenario in the grammar of ``--set``
+(:mod:`navsim.foundations.overrides`), relative to the tuned estimator's entry
+(``measurements[0].sigma_m``; ``estimators[LABEL].`` is put in front) or whole
+(``estimators[LABEL]....``). Its trial value is set there as a ``--set`` would set it: a number
+between ``LO`` and ``HI`` (on a log scale with ``:log``), or, for a scaled term
+(``PATH=xLO:HI``, and each noise term without ``--param``: 1/10 to 10, log), the entry's own
+value (a number or a list) times the factor.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from navsim.foundations.errors import ScenarioError, UsageError
+from navsim.foundations.overrides import value_at
+
+#: the factor range a noise term is scaled over without ``--param``
+SCALE_RANGE = (0.1, 10.0)
+
+
+@dataclass(frozen=True)
+class TuneParam:
+    """One tuned parameter: its name (the path in the entry), the scenario path it is set at,
+    its range, whether it is searched on a log scale, and, for a scaled term, the value scaled."""
+
+    name: str
+    path: str
+    lo: float
+    hi: float
+    log: bool = False
+    base: object = None           #: None: the value is the parameter; else the factor's base
+
+    def value(self, x: float):
+        """The value set in the scenario for the trial value ``x``."""
+        if self.base is None:
+            return float(x)
+        if isinstance(self.base, list):
+            return [float(x) * float(b) for b in self.base]
+        return float(x) * float(self.base)
+
+    @property
+    def what(self) -> str:
+        """How the report names it: the path, ``(scale)`` for a scaled term."""
+        return self.name + (" (scale)" if self.base is not None else "")
+
+
+def entry_path(label: str, path: str) -> str:
+    """``path`` as a scenario path: relative ones under the estimator ``label``'s entry."""
+    return path if path.startswith("estimators[") else f"estimators[{label}].{path}"
+
+
+def parse_param(text: str, label: str, raw: dict, check: bool = True) -> TuneParam:
+    """``PATH=LO:HI[:log]`` for the estimator ``label`` of the scenario mapping ``raw``: a
+    :class:`UsageError` for a malformed text, ``LO >= HI``, a log scale with ``LO <= 0``, a path
+    of another estimator; a :class:`ScenarioError` (the closest key) for a path the entry lacks
+    (``check``: False, not looked up: a log's estimator has no entry, its build checks it)."""
+    path, sep, span = text.partition("=")
+    scaled = span.strip().startswith("x")
+    parts = span.strip().removeprefix("x").split(":")
+    if not sep or not path.strip() or len(parts) not in (2, 3) or (len(parts) == 3 and parts[2] != "log"):
+        raise UsageError(f"--param {text!r}: expected PATH=LO:HI, PATH=LO:HI:log or PATH=xLO:HI[:log] (a factor)")
+    try:
+        lo, hi = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise UsageError(f"--param {text!r}: LO and HI must be numbers") from None
+    log = len(parts) == 3
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise UsageError(f"--param {text!r}: LO ({lo:g}) must be below HI ({hi:g})")
+    if log and lo <= 0:
+        raise UsageError(f"--param {text!r}: a log scale needs LO above 0, not {lo:g}")
+    full = entry_path(label, path.strip())
+    if not full.startswith(f"estimators[{label}]"):
+        raise UsageError(f"--param {text!r}: a parameter of another estimator than '{label}' (the one tuned)")
+    base = value_at(raw, full, f"--param {text}") if check else None
+    name = full[len(f"estimators[{label}]."):]
+    if scaled and not _numeric(base):
+        raise UsageError(f"--param {text!r}: a factor scales a number or a list of numbers, and {name} is {base!r}")
+    return TuneParam(name, full, lo, hi, log, base if scaled else None)
+
+
+def default_params(raw: dict, label: str) -> list[TuneParam]:
+    """Each measurement noise of the estimator's entry (its ``sigma*`` keys) and its
+    ``baro.sigma_m``, scaled by a factor in :data:`SCALE_RANGE` on a log scale."""
+    entry = value_at(raw, f"estimators[{label}]", "--estimator")
+    out = []
+    for i, m in enumerate(entry.get("measurements") or []):
+        for key, v in m.items():
+            if key.startswith("sigma") and _numeric(v):
+                out.append(_scaled(label, f"measurements[{i}].{key}", v))
+    baro = entry.get("baro")
+    if isinstance(baro, dict) and _numeric(baro.get("sigma_m")):
+        out.append(_scaled(label, "baro.sigma_m", baro["sigma_m"]))
+    if not out:
+        raise UsageError(f"the estimator '{label}' declares no measurement noise to scale: name the parameters "
+                         "with --param PATH=LO:HI")
+    return out
+
+
+def _numeric(v) -> bool:
+    return (isinstance(v, (int, float)) and not isinstance(v, bool)) or \
+        (isinstance(v, list) and v and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v))
+
+
+def _scaled(label: str, path: str, base) -> TuneParam:
+    return TuneParam(path, entry_path(label, path), *SCALE_RANGE, log=True, base=base)
+
+
+def check_label(raw: dict, label: str) -> None:
+    """Refuse (:class:`UsageError`) an estimator label the scenario lacks, naming the labels."""
+    try:
+        value_at(raw, f"estimators[{label}]", f"--estimator {label}")
+    except ScenarioError as exc:
+        labels = [e.get("label") for e in raw.get("estimators") or [] if isinstance(e, dict)]
+        raise UsageError(f"--estimator {label!r}: the scenario has no such estimator "
+                         f"(its labels: {', '.join(map(str, labels))})") from exc

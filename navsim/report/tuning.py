@@ -1,0 +1,140 @@
+"""The pages of ``navsim tune``'s report (``tune.pdf`` and its PNGs): the summary (the best
+values against the original, the checks' verdicts), the objective against the trial, each
+parameter against the objective, and the tuned minus the original with its 95 % interval on the
+tuning seed and on the held-out seed side by side (over-fitting shows as a gap)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from navsim.records.tuning import TuneRecord
+from navsim.report.figures import Page, fit, page_figure
+from navsim.report.render import render
+from navsim.report.tables import Heading, Paragraph, Table, layout
+from navsim.scoring.verdicts import num
+
+#: how the checks are named on the pages
+CHECK_NAMES = {"tuning": "tuning seed", "held_out": "held-out seed", "log": "log"}
+
+
+def _value(p, v) -> str:
+    return num(v) if not isinstance(v, list) else "[" + ", ".join(num(x) for x in v) + "]"
+
+
+def summary_pages(r: TuneRecord, params: list) -> list[Page]:
+    """The tuning in words and tables: the best trial's values, the checks."""
+    best = r.best_trial
+    rows = [[p.what, f"{num(p.lo)} - {num(p.hi)}{' (log)' if p.log else ''}",
+             _value(p, p.base) if p.base is not None else "-", num(best.values[p.name]),
+             _value(p, p.value(best.values[p.name]))] for p in params]
+    blocks = [Paragraph(f"Estimator '{r.estimator}' of {r.scenario}; objective {r.objective}"
+                        + (f" ({r.metric})" if r.objective in ("rms", "rms+consistent") else "")
+                        + f"; {len(r.trials)} trials of {r.runs} runs each on seed {r.seed} (every trial the same runs); "
+                        f"{r.sampler}; best trial {r.best}, objective {num(best.objective)}; {r.wall_s:.0f} s."),
+              Heading("Parameters"),
+              Table(["parameter", "range", "original", "best trial", "value set"], rows, max_column=0.5),
+              Heading("Tuned against original, paired")]
+    for name, c in r.checks.items():
+        rows = [[d["metric"] + (f" {d['component']}" if d["component"] else ""), num(d["a"]), num(d["b"]),
+                 f"{num(d['diff'])} [{num(d['ci95'][0])}, {num(d['ci95'][1])}]", d["verdict"]] for d in c.differences]
+        where = "On the log" if name == "log" else f"On the {CHECK_NAMES.get(name, name)} ({c.seed}, {c.runs} runs)"
+        blocks += [Paragraph(f"{where}: objective "
+                             f"{num(c.objective_original)} original, {num(c.objective_tuned)} tuned."),
+                   Table(["metric", "original", "tuned", "tuned - original [95 %]", "verdict"], rows),
+                   Table(["consistency", "original: average [band], inside", "tuned: average [band], inside"],
+                         consistency_rows(c.consistency))]
+    figs = layout(f"navsim tune: {r.estimator}", blocks)
+    return [Page("tune_summary" if i == 0 else f"tune_summary_{i + 1}", "Summary", f) for i, f in enumerate(figs)]
+
+
+def consistency_rows(consistency: dict) -> list:
+    """A row for the NEES and each NIS: each side's average, band and share of epochs inside."""
+    cell = lambda x: "-" if not x else (f"{num(x['average'])} [{num(x['band'][0])}, {num(x['band'][1])}], "
+                                        f"{100 * x['fraction_inside']:.0f} %")
+    o, t = consistency.get("original") or {}, consistency.get("tuned") or {}
+    rows = [["NEES", cell(o.get("nees")), cell(t.get("nees"))]]
+    for k in (o.get("nis") or {}):
+        rows.append([f"NIS {k}", cell(o["nis"][k]), cell((t.get("nis") or {}).get(k))])
+    return rows
+
+
+def objective_page(r: TuneRecord) -> Page:
+    """The objective of every trial and the best so far."""
+    fig, ax = page_figure()
+    n = np.array([t.number for t in r.trials])
+    y = np.array([np.nan if t.objective is None else t.objective for t in r.trials])
+    ax.plot(n, y, "o", ms=4, color="tab:blue", label="trial")
+    failed = np.isnan(y)
+    if failed.any():
+        ax.plot(n[failed], np.full(failed.sum(), np.nanmax(y) if (~failed).any() else 1.0), "x", color="tab:red",
+                label="no objective (diverged)")
+    best = np.fmin.accumulate(np.where(failed, np.inf, y))
+    ax.step(n, np.where(np.isinf(best), np.nan, best), where="post", color="black", lw=1.2, label="best so far")
+    if np.nanmin(y) > 0 and np.nanmax(y) / np.nanmin(y) > 20:
+        ax.set_yscale("log")
+    ax.set_xlabel("trial")
+    ax.set_ylabel(f"objective: {r.objective}")
+    ax.set_title(f"{r.estimator}: the objective, trial by trial ({r.runs} runs each)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fit(fig)
+    return Page("tune_objective", "The objective against the trial", fig)
+
+
+def parameter_page(r: TuneRecord, params: list) -> Page:
+    """Each parameter's trial values against the objective, the best marked."""
+    cols = 1 if len(params) == 1 else 2
+    rows_n = math.ceil(len(params) / cols)
+    fig, axes = page_figure(rows_n, cols, squeeze=False)
+    best = r.best_trial
+    for ax, p in zip(axes.flat, params):
+        x = np.array([t.values[p.name] for t in r.trials])
+        y = np.array([np.nan if t.objective is None else t.objective for t in r.trials])
+        ax.plot(x, y, "o", ms=3.5, color="tab:blue")
+        ax.plot([best.values[p.name]], [best.objective], "*", ms=12, color="tab:orange", label="best")
+        if p.log:
+            ax.set_xscale("log")
+        ax.set_xlabel(p.what, fontsize=8)
+        ax.set_ylabel(r.objective)
+        ax.grid(alpha=0.3)
+    for ax in list(axes.flat)[len(params):]:
+        ax.set_visible(False)
+    axes.flat[0].legend(fontsize=8)
+    fit(fig)
+    return Page("tune_parameters", "Each parameter against the objective", fig)
+
+
+def check_page(r: TuneRecord) -> Page:
+    """Tuned minus original, each metric component, with its 95 % interval, on the tuning seed
+    and on the held-out seed: a held-out difference outside the tuning one is over-fitting."""
+    fig, ax = page_figure()
+    labels = [d["metric"] + (f" {d['component']}" if d["component"] else "") for d in r.checks["tuning"].differences]
+    y = np.arange(len(labels))
+    for k, (name, colour) in enumerate((("tuning", "tab:blue"), ("held_out", "tab:orange"))):
+        c = r.checks.get(name)
+        if c is None:
+            continue
+        rel = [(d["diff"] / abs(d["a"]) * 100, d["ci95"][0] / abs(d["a"]) * 100, d["ci95"][1] / abs(d["a"]) * 100)
+               if d["a"] else (np.nan,) * 3 for d in c.differences]
+        mid, lo, hi = (np.array(v) for v in zip(*rel))
+        ax.errorbar(mid, y + (k - 0.5) * 0.3, xerr=[mid - lo, hi - mid], fmt="o", color=colour, capsize=3,
+                    label=f"{CHECK_NAMES[name]} ({c.seed}, {c.runs} runs)")
+    ax.axvline(0, color="black", lw=0.8)
+    ax.set_yticks(y, labels, fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlabel("tuned - original, % of the original (95 % interval, paired)")
+    ax.set_title("Tuned against original: lower is better for RMS; NEES nearer its dimension")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="x")
+    fit(fig)
+    return Page("tune_check", "Tuned against original on the tuning and held-out seeds", fig)
+
+
+def write_tune_report(folder, r: TuneRecord, params: list) -> list:
+    """``tune.pdf`` and a PNG per page in the output folder ``folder``; returns the files."""
+    pages = summary_pages(r, params) + [objective_page(r), parameter_page(r, params)]
+    if "tuning" in r.checks:                  # a scenario's: the tuning and held-out seeds
+        pages.append(check_page(r))
+    return render(folder, pages, ["pdf", "png"], f"navsim tune: {r.estimator}", pdf="tune.pdf")

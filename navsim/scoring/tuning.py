@@ -1,0 +1,75 @@
+"""The objectives ``navsim tune`` minimises, each a number of one estimator's scores
+(:class:`~navsim.records.metrics.EstimatorMetrics`) over a trial's runs: :func:`objective`.
+
+- ``rms``: the RMS of a metric (``metric``, default ``rms.pos_m``), its axes combined as the
+  root of the sum of their squares: accuracy against the truth;
+- ``nees``: ``|ln(NEES average / its dimension)|``: how far the filter's covariance is from
+  describing its errors, over- or under-confident alike (Chen et al. 2018);
+- ``nis``: the same for each measurement's NIS, averaged over the measurements: consistency
+  without the truth, so also on a log;
+- ``nees-band``, ``nis-band``: the share of the epochs whose average over the runs lies outside
+  its 95 % band (for the NIS, averaged over the measurements): consistent all along the flight,
+  not only on average;
+- ``rms+consistent``: the RMS, multiplied by ``exp(d)`` where the NEES average lies outside its
+  95 % band by ``d`` in log (the nearest edge): the most accurate filter whose covariance can be
+  trusted.
+
+A trial whose runs diverged, or whose objective is not a finite number, has none (None).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from navsim.records.metrics import EstimatorMetrics
+
+#: the objectives, and those that need the truth (a log without a reference offers NIS only)
+OBJECTIVES = ("rms", "nees", "nees-band", "nis", "nis-band", "rms+consistent")
+NEEDS_TRUTH = frozenset({"rms", "nees", "nees-band", "rms+consistent"})
+DEFAULT_METRIC = "rms.pos_m"
+
+
+def _log_ratio(average: float, dim: int) -> float:
+    return abs(math.log(average / dim)) if average > 0 and dim > 0 else math.inf
+
+
+def metric_value(m: EstimatorMetrics, path: str) -> float:
+    """The metric at ``path``, its components combined as the root of their sum of squares."""
+    v = m.get(path)
+    if v is None:
+        raise KeyError(path)
+    return float(np.sqrt(np.sum(np.square(np.asarray(v, float)))))
+
+
+def band_distance(average: float, band) -> float:
+    """How far ``average`` lies outside ``band`` in log (0 inside)."""
+    lo, hi = band
+    if average <= 0:
+        return math.inf
+    return max(0.0, math.log(average / hi), math.log(lo / average))
+
+
+def objective(name: str, m: EstimatorMetrics, metric: str = DEFAULT_METRIC) -> float | None:
+    """The objective ``name`` (:data:`OBJECTIVES`) of the scores ``m``; None for a trial with a
+    diverged run, no scores or a value that is not finite."""
+    if m is None or m.diverged_runs or m.runs_counted == 0:
+        return None
+    if name == "rms":
+        value = metric_value(m, metric)
+    elif name == "nees":
+        value = _log_ratio(m.nees.average, m.nees.dim) if m.nees else math.nan
+    elif name == "nees-band":
+        value = 1.0 - m.nees.fraction_inside if m.nees else math.nan
+    elif name == "nis":
+        ratios = [_log_ratio(n.average, n.dim) for n in (m.nis or {}).values()]
+        value = float(np.mean(ratios)) if ratios else math.nan
+    elif name == "nis-band":
+        outside = [1.0 - n.fraction_inside for n in (m.nis or {}).values()]
+        value = float(np.mean(outside)) if outside else math.nan
+    elif name == "rms+consistent":
+        value = metric_value(m, metric) * math.exp(band_distance(m.nees.average, m.nees.band)) if m.nees else math.nan
+    else:
+        raise ValueError(f"no objective '{name}' (the objectives: {', '.join(OBJECTIVES)})")
+    return value if math.isfinite(value) else None
