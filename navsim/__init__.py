@@ -40,9 +40,9 @@ driver, chunks, executors, closed loop, sweep) -> :mod:`navsim.scoring` (typed m
 """
 
 from navsim.api import (Result, RunOptions, TuneOptions, TuneResult, budget, compare, load_scenario, open_result,  # noqa: E402
-                        read_log, replay_log, report_figures, run, sweep, tune, write_budget, write_comparison,
+                        read_log, replay_log, report_figures, run, sweep, tune, tune_log, write_budget, write_comparison,
                         write_report)
 from navsim.version import __version__  # noqa: E402
 
-__all__ = ["Result", "RunOptions", "TuneOptions", "TuneResult", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "read_log", "replay_log", "report_figures", "run", "sweep", "tune", "write_report",
+__all__ = ["Result", "RunOptions", "TuneOptions", "TuneResult", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "read_log", "replay_log", "report_figures", "run", "sweep", "tune", "tune_log", "write_report",
            "__version__"]

@@ -43,7 +43,7 @@ from navsim.api.results import (
 from navsim.api.replays import read_log, replay_log
 from navsim.api.runs import run
 from navsim.api.sweeps import sweep
-from navsim.api.tuning import TuneOptions, TuneResult, tune
+from navsim.api.tuning import TuneOptions, TuneResult, tune, tune_log
 from navsim.experiment.options import (
     CHUNK_RUNS,
     EXECUTORS,
@@ -60,4 +60,4 @@ from navsim.records.chunk import ChunkPart
 __all__ = ["BUDGET_PARTS", "CHUNK_RUNS", "ChunkPart", "EXECUTORS", "NPZ_KEYS", "RUNS", "Result", "RunOptions",
            "SCHEDULER_SCHEMES", "SEED", "UsageError", "WORKERS", "XARRAY_METRICS", "budget", "check_scheduler",
            "compare", "load_scenario", "npz_key", "open_result", "read_log", "replay_log", "report_figures",
-           "resolved_scenario", "run", "sweep", "TuneOptions", "TuneResult", "tune", "write_budget", "write_comparison", "write_report"]
+           "resolved_scenario", "run", "sweep", "TuneOptions", "TuneResult", "tune", "tune_log", "write_budget", "write_comparison", "write_report"]

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import copy
 import csv
+import hashlib
 import io
 import logging
 import math
@@ -32,13 +33,14 @@ from navsim.api.arguments import checked_path, overrides_of
 from navsim.api.comparisons import compare
 from navsim.api.runs import run
 from navsim.experiment.runner import cached_flight
-from navsim.experiment.scenario import parse_changed, parse_scenario
-from navsim.experiment.tuning import TuneParam, check_label, default_params, parse_param
+from navsim.experiment.scenario import MAX_SEED, parse_changed, parse_scenario
+from navsim.experiment.tuning import TuneParam, default_params, entry_index, parse_param
 from navsim.foundations.config import load_yaml
-from navsim.foundations.errors import UsageError
+from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.overrides import apply_overrides, make_override, value_at
 from navsim.records.tuning import TuneCheck, TuneRecord, TuneTrial
+from navsim.records.vocabulary import check_metric_path
 from navsim.report.tuning import write_tune_report
 from navsim.replay import ReplayOptions, load_ulog, replay, replay_metrics
 from navsim.scoring.tuning import DEFAULT_METRIC, NEEDS_TRUTH, OBJECTIVES, objective
@@ -49,6 +51,8 @@ HELD_OUT_OFFSET = 1_000_003
 #: the metrics the checks compare, tuned minus original
 CHECKED = ("rms.pos_m", "rms.vel_mps", "rms.att_deg", "nees.average")
 STUDY = "navsim-tune"
+#: the trials drawn at random before the sampler models the objective (after the original)
+STARTUP_TRIALS = 10
 JOURNAL = "tune.journal"
 
 
@@ -112,11 +116,16 @@ class _Trials:
     def __init__(self, path: Path, label: str, options: TuneOptions):
         self.path, self.label = path, label
         self.base, _ = apply_overrides(load_yaml(path), overrides_of(list(options.set)))
-        parse_changed(self.base, str(path))                 # the scenario as changed is valid
-        check_label(self.base, label)
-        self.entry_index = next(i for i, e in enumerate(self.base["estimators"]) if e.get("label") == label)
+        parsed = parse_changed(self.base, str(path))        # the scenario as changed is valid
+        if parsed.closed_loop is not None:
+            raise UsageError(f"{path}: a closed-loop scenario (each run flies on an estimator's solution) is not "
+                             "tuned: tune its open-loop twin, then fly the tuned entry")
+        if options.objective in ("rms", "rms+consistent"):
+            check_metric_path(options.metric, parsed.windows, file=str(path), key="--metric")
+        self.entry_index = entry_index(self.base, label)
         self.params = ([parse_param(t, label, self.base) for t in options.params] if options.params
                        else default_params(self.base, label))
+        self.digest = hashlib.sha256(path.read_bytes()).hexdigest()
 
     def entry(self, values: dict | None) -> dict:
         """The tuned estimator's entry with ``values`` (name -> trial value) set (None: the original)."""
@@ -181,12 +190,14 @@ def _tune(trials: _Trials, o: TuneOptions, folder, resume: bool, progress) -> Tu
             trials.scenario([trials.entry({q.name: (end if q is p else q.lo) for q in trials.params})])
     if folder is not None and not resume:
         folder.clear_earlier()
-    study = _study(optuna, folder, resume)
-    start = _original_values(trials)
-    if start and not study.get_trials(deepcopy=False):        # trial 0: the original, the baseline
-        study.enqueue_trial(start)
     record = TuneRecord(str(trials.path), trials.label, o.objective, o.metric, [_param_dict(p) for p in trials.params],
                         seed, o.runs, sampler="optuna TPESampler (seeded per trial)")
+    study = _study(optuna, folder, resume, _key(str(trials.path.resolve()), record)
+                   | {"set": list(o.set), "sha256": trials.digest})
+    start = _original_values(trials)
+    waiting = [t for t in study.get_trials(deepcopy=False) if t.state == optuna.trial.TrialState.WAITING]
+    if start and not _finished(study, trials.params) and not waiting:     # trial 0: the original
+        study.enqueue_trial(start)
     record.trials = _finished(study, trials.params)
     runs = dict(runs=o.runs, seed=seed, workers=workers, chunk_runs=max(1, -(-o.runs // max(workers, 1))),
                 flight=flight, executor=o.executor, scheduler=o.scheduler)
@@ -195,7 +206,8 @@ def _tune(trials: _Trials, o: TuneOptions, folder, resume: bool, progress) -> Tu
     record.best, record.tuned_entry = best.number, trials.entry(best.values)
     check_runs = o.check_runs or o.runs
     record.checks = {name: _check(trials, best.values, s, check_runs, workers, flight, o)
-                     for name, s in (("tuning", seed), ("held_out", seed + HELD_OUT_OFFSET))}
+                     for name, s in (("tuning", seed), ("held_out", (seed + HELD_OUT_OFFSET) % (MAX_SEED + 1)))}
+    record.improved = None if start is None else best.number != 0
     record.wall_s = time.perf_counter() - t0
     result = TuneResult(record, trials.params, None if folder is None else folder.path)
     if folder is not None:
@@ -253,12 +265,12 @@ def tune_log(log, estimator: str, options: TuneOptions = TuneOptions(objective="
         raise UsageError("tuning a log needs --param PATH=LO:HI: paths into the estimator's parameters "
                          "(sigma.mag_uT=0.5:20:log)")
     _check_options(options)
+    if resume and out is None:
+        raise UsageError("resume needs the folder of the interrupted tuning (out=...)")
     params = [parse_log_param(t) for t in options.params]
     replay_log = load_ulog(checked_path("log", log, "PX4 log"))
     for end in ("lo", "hi"):                         # both ends of the ranges build and replay
         replay_checked(replay_log, estimator, _log_params(params, {p.name: getattr(p, end) for p in params}))
-    if resume and out is None:
-        raise UsageError("resume needs the folder of the interrupted tuning (out=...)")
     if out is None:
         return _tune_log(replay_log, estimator, params, options, None, resume, progress)
     with OutputFolder(checked_path("out", out, "output folder"), command="tune", force=force) as folder:
@@ -276,8 +288,7 @@ def parse_log_param(text: str) -> TuneParam:
 
 def _log_params(params: list, values: dict) -> dict:
     """The estimator's parameters (``--set`` of ``navsim replay``) with the trial's values."""
-    out, _ = apply_overrides({}, [make_override(p.path.removeprefix("estimators[log]."), p.value(values[p.name]),
-                                                f"--param {p.name}") for p in params])
+    out, _ = apply_overrides({}, [make_override(p.name, p.value(values[p.name]), f"--param {p.name}") for p in params])
     return out
 
 
@@ -304,9 +315,9 @@ def _tune_log(log, estimator: str, params: list, o: TuneOptions, folder, resume:
     t0 = time.perf_counter()
     if folder is not None and not resume:
         folder.clear_earlier()
-    study = _study(optuna, folder, resume)
     record = TuneRecord(str(log.path), estimator, o.objective, "", [_param_dict(p) for p in params],
                         o.seed or 0, 1, sampler="optuna TPESampler (seeded per trial)")
+    study = _study(optuna, folder, resume, _key(str(Path(log.path).resolve()), record))
     record.trials = _finished(study, params)
 
     def evaluate(values: dict):
@@ -343,9 +354,11 @@ def _param_dict(p: TuneParam) -> dict:
     return {"name": p.name, "path": p.path, "lo": p.lo, "hi": p.hi, "log": p.log, "base": p.base}
 
 
-def _study(optuna, folder, resume: bool):
+def _study(optuna, folder, resume: bool, key: dict):
     """The Optuna study: in the folder's journal (resumed: loaded) or in memory. A trial left
-    running by an interruption is marked failed and ``interrupted`` (not counted)."""
+    running by an interruption is marked failed (no record: not counted). ``key`` (what the
+    trials depend on: the scenario or log, the estimator, the objective, the parameters, the runs
+    and seed) is kept with the study; a resumed study of another key is refused."""
     storage = None
     if folder is not None:
         from optuna.storages import JournalStorage
@@ -353,11 +366,34 @@ def _study(optuna, folder, resume: bool):
         journal = folder.path / JOURNAL
         folder.record([journal])
         storage = JournalStorage(JournalFileBackend(str(journal)))
-    study = optuna.create_study(study_name=STUDY, storage=storage, direction="minimize", load_if_exists=resume)
+    if resume and folder is not None and not (folder.path / JOURNAL).is_file():
+        raise UsageError(f"--resume: {folder.path} holds no tuning ({JOURNAL}) to resume")
+    try:
+        study = optuna.create_study(study_name=STUDY, storage=storage, direction="minimize", load_if_exists=resume)
+    except optuna.exceptions.DuplicatedStudyError:
+        raise UsageError(f"{folder.path} holds a tuning already: --resume it, or choose another --out") from None
+    stored = study.user_attrs.get("navsim_key")
+    if stored is None:
+        study.set_user_attr("navsim_key", key)
+    elif stored != key:
+        changed = sorted(k for k in set(stored) | set(key) if stored.get(k) != key.get(k))
+        raise UsageError(f"--resume: {folder.path} holds another tuning (its {', '.join(changed)} differ); "
+                         "resume it with its own arguments, or choose another --out")
     for t in study.get_trials(deepcopy=False):
-        if t.state == optuna.trial.TrialState.RUNNING:      # interrupted: no record, not counted
+        if t.state != optuna.trial.TrialState.RUNNING:
+            continue
+        done = t.user_attrs.get("navsim")                   # scored, then stopped before it was told
+        if done is not None and done["objective"] is not None:
+            study.tell(t.number, done["objective"])
+        else:                                                # interrupted: no record, not counted
             study.tell(t.number, state=optuna.trial.TrialState.FAIL)
     return study
+
+
+def _key(source: str, record: TuneRecord) -> dict:
+    """What a tuning's trials depend on (a resumed one must match)."""
+    return {"source": source, "estimator": record.estimator, "objective": record.objective, "metric": record.metric,
+            "params": [{k: v for k, v in p.items()} for p in record.params], "runs": record.runs, "seed": record.seed}
 
 
 def _original_values(trials: _Trials) -> dict | None:
@@ -393,9 +429,10 @@ def _one_trial(study, params: list, evaluate, n: int, seed: int, trials: int) ->
     for the trial (so a resumed tuning suggests what the uninterrupted one would), scored by
     ``evaluate(values) -> (objective, rms_pos_m, nees_average)``, told its objective."""
     import optuna
-    from optuna.distributions import FloatDistribution
-    study.sampler = optuna.samplers.TPESampler(seed=(seed * 7919 + n) % 2**32, n_startup_trials=max(5, trials // 5))
-    trial = study.ask({p.name: FloatDistribution(p.lo, p.hi, log=p.log) for p in params})
+    from optuna.distributions import FloatDistribution, IntDistribution
+    study.sampler = optuna.samplers.TPESampler(seed=(seed * 7919 + n) % 2**32, n_startup_trials=STARTUP_TRIALS)
+    trial = study.ask({p.name: IntDistribution(int(p.lo), int(p.hi), log=p.log) if p.integer
+                       else FloatDistribution(p.lo, p.hi, log=p.log) for p in params})
     t0 = time.perf_counter()
     value, rms, nees = evaluate(dict(trial.params))
     record = {"objective": value, "rms_pos_m": rms, "nees_average": nees, "wall_s": time.perf_counter() - t0}
@@ -407,7 +444,16 @@ def _one_trial(study, params: list, evaluate, n: int, seed: int, trials: int) ->
 def _scenario_trial(trials: _Trials, o: TuneOptions, runs: dict):
     """A trial's evaluation: the tuned estimator alone over the runs, its objective."""
     def evaluate(values: dict):
-        result = run(trials.scenario([trials.entry(values)]), **runs)
+        try:
+            scenario = trials.scenario([trials.entry(values)])
+        except ScenarioError as exc:                  # a mix of values the file's checks refuse
+            log.warning("trial %s: %s", values, exc)
+            return None, None, None
+        result = run(scenario, **runs)
+        if result.interrupted:                        # Ctrl-C: the trial is not scored
+            raise KeyboardInterrupt
+        if result.failed:
+            return None, None, None
         m = result.metrics.estimators.get(trials.label)
         value = objective(o.objective, m, o.metric) if m is not None else None
         rms = None if m is None or m.rms is None else [float(x) for x in m.rms.pos_m]
@@ -422,6 +468,8 @@ def _check(trials: _Trials, values: dict, seed: int, runs: int, workers: int, fl
     result = run(trials.scenario([original, tuned]), runs=runs, seed=seed, workers=workers,
                  chunk_runs=max(1, -(-runs // max(workers, 1))), flight=flight, executor=o.executor,
                  scheduler=o.scheduler)
+    if result.interrupted:
+        raise KeyboardInterrupt
     (comparison,) = compare(result, None, estimators=("original", "tuned"))
     est = result.metrics.estimators
     diffs = [{"metric": d.metric, "component": d.component, "a": d.a, "b": d.b, "diff": d.diff,

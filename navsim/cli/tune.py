@@ -17,6 +17,10 @@ from navsim.scoring.tuning import DEFAULT_METRIC, OBJECTIVES
 from navsim.scoring.verdicts import num
 
 
+#: the options a log's tuning (--replay) does not take
+REPLAY_REFUSED = ("overrides", "runs", "check_runs", "workers", "seed", "metric")
+
+
 def arguments(p) -> None:
     """The scenario, the estimator, the parameters, the objective, the trials and runs, --out."""
     p.add_argument("scenario", nargs="?", help="scenario YAML file (none with --replay)")
@@ -30,13 +34,13 @@ def arguments(p) -> None:
                    "(measurements[0].sigma_m=1:20:log), or a factor on its value with x (measurements[1].sigma_mps="
                    "x0.1:10:log, a list scaled as a whole); default: each measurement sigma and the baro sigma "
                    "scaled by a factor in 0.1-10 (log)")
-    p.add_argument("--objective", choices=OBJECTIVES, default="nees",
+    p.add_argument("--objective", choices=OBJECTIVES,
                    help="what is minimised: rms (of --metric), nees (the distance of ln(NEES/dim) from 0), nees-band (the share of "
                    "epochs outside the NEES band), nis and nis-band (the same on each NIS, no truth needed), "
-                   "rms+consistent (the RMS, penalised outside the NEES band); default nees")
-    p.add_argument("--metric", default=DEFAULT_METRIC, help=f"the rms objectives' metric (default {DEFAULT_METRIC})")
-    p.add_argument("--trials", type=number(int, minimum=1), default=40, help="trials (default 40)")
-    p.add_argument("--runs", type=RUNS_TYPE, default=50, help="runs per trial, every trial the same (default 50)")
+                   "rms+consistent (the RMS, penalised outside the NEES band); default nees, with --replay nis")
+    p.add_argument("--metric", help=f"the rms objectives' metric (default {DEFAULT_METRIC})")
+    p.add_argument("--trials", type=number(int, minimum=1), help=f"trials (default {TuneOptions.trials})")
+    p.add_argument("--runs", type=RUNS_TYPE, help=f"runs per trial, every trial the same (default {TuneOptions.runs})")
     p.add_argument("--check-runs", type=RUNS_TYPE, help="runs of each check of the best (default --runs)")
     p.add_argument("--seed", type=SEED_TYPE, help="the tuning seed (default montecarlo.seed); the held-out check "
                    "flies another")
@@ -52,16 +56,22 @@ def arguments(p) -> None:
 def handle(args) -> int:
     """Tune, write tune.json, tune.csv, tuned.yaml and tune.pdf, print the best and the checks."""
     load_plugins(args)
-    options = TuneOptions(objective=args.objective, metric=args.metric, trials=args.trials, runs=args.runs,
-                          seed=args.seed, workers=args.workers, check_runs=args.check_runs, params=tuple(args.param),
-                          set=tuple(args.overrides), executor=args.executor, scheduler=args.scheduler)
+    if args.replay:
+        given = [f"--{o.replace('_', '-')}" for o in REPLAY_REFUSED if getattr(args, o) not in (None, [])]
+        if given:
+            raise UsageError(f"{', '.join(given)}: not an option of --replay (one log: no runs, seeds or scenario)")
+    objective = args.objective or ("nis" if args.replay else "nees")
+    given = {"metric": args.metric, "trials": args.trials, "runs": args.runs}
+    options = TuneOptions(objective=objective, seed=args.seed, workers=args.workers, check_runs=args.check_runs,
+                          params=tuple(args.param), set=tuple(args.overrides), executor=args.executor,
+                          scheduler=args.scheduler, **{k: v for k, v in given.items() if v is not None})
     if (args.scenario is None) == (args.replay is None):
         raise UsageError("give a scenario file, or --replay LOG, not both" if args.scenario else
                          "give the scenario file to tune on (or --replay LOG)")
     label = "".join(c if c.isalnum() else "_" for c in args.estimator)
     source = Path(args.scenario or args.replay).name.split(".")[0]
     folder = open_folder(args, Path("reports") / f"tune_{source}_{label}")
-    with Progress(args.trials, f"tuning {args.estimator} ({args.objective})", unit="trial") as bar:
+    with Progress(options.trials, f"tuning {args.estimator} ({objective})", unit="trial") as bar:
         def step(trial):
             bar.update(1)
         how = dict(out=folder.path, resume=args.resume, progress=step)
@@ -69,24 +79,24 @@ def handle(args) -> int:
                   else tune(args.scenario, args.estimator, options, **how))
     r = result.record
     best = r.best_trial
-    print(f"\n{len(r.trials)} trials of {r.runs} runs in {r.wall_s:.0f} s; best trial {r.best}: {args.objective} "
+    print(f"\n{len(r.trials)} trials of {r.runs} runs in {r.wall_s:.0f} s; best trial {r.best}: {objective} "
           f"{num(best.objective)}")
     print(table(["parameter", "best", "value set"], [[p.what, num(best.values[p.name]), num(p.value(best.values[p.name]))]
                                                    for p in result.params]))
     for name, c in r.checks.items():
         where = "the log" if name == "log" else f"{name.replace('_', '-')} seed {c.seed} ({c.runs} runs)"
-        print(f"\n{where}: {args.objective} {num(c.objective_original)} original, {num(c.objective_tuned)} tuned")
+        print(f"\n{where}: {objective} {num(c.objective_original)} original, {num(c.objective_tuned)} tuned")
         print(table(["metric", "original", "tuned", "tuned - original [95 %]", "verdict"],
                     [[d["metric"] + (f" {d['component']}" if d["component"] else ""), num(d["a"]), num(d["b"]),
                       f"{num(d['diff'])} [{num(d['ci95'][0])}, {num(d['ci95'][1])}]", d["verdict"]]
                      for d in c.differences]))
         print(table(["consistency", "original: average [band], inside", "tuned: average [band], inside"],
                     consistency_rows(c.consistency)))
-    first = r.checks.get("tuning") or r.checks.get("log")
-    if first is not None and first.objective_tuned is not None and first.objective_original is not None \
-            and first.objective_tuned > first.objective_original:
-        print(f"\nno trial beat the original ({num(first.objective_tuned)} against {num(first.objective_original)}): "
-              "keep the original, or widen the ranges and add trials")
+    if r.improved is False:
+        print("\nno trial beat the original (trial 0): keep it, or widen the ranges and add trials")
+    elif r.improved is None:
+        print("\nthe original was not a trial (its value outside a range, a list of unequal values, a log's "
+              "defaults): compare the checks above before taking the tuned values")
     print(f"\nwrote {folder.path}/: tuned.yaml (the {'entry' if not args.replay else 'parameters'} to paste), "
           "tune.json, tune.csv, tune.pdf and its PNGs")
     return 0

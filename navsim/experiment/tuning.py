@@ -5,7 +5,7 @@ own factor (:func:`default_params`).
 A parameter is a path into the scenario in the grammar of ``--set``
 (:mod:`navsim.foundations.overrides`), relative to the tuned estimator's entry
 (``measurements[0].sigma_m``; ``estimators[LABEL].`` is put in front) or whole
-(``estimators[LABEL]....``). Its trial value is set there as a ``--set`` would set it: a number
+(``estimators[LABEL]....``), the entry addressed by its index. Its trial value is set there as a ``--set`` would set it: a number
 between ``LO`` and ``HI`` (on a log scale with ``:log``), or, for a scaled term
 (``PATH=xLO:HI``, and each noise term without ``--param``: 1/10 to 10, log), the entry's own
 value (a number or a list) times the factor.
@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from navsim.foundations.errors import ScenarioError, UsageError
+from navsim.foundations.errors import UsageError
 from navsim.foundations.overrides import value_at
 
 #: the factor range a noise term is scaled over without ``--param``
@@ -34,11 +34,12 @@ class TuneParam:
     hi: float
     log: bool = False
     base: object = None           #: None: the value is the parameter; else the factor's base
+    integer: bool = False         #: LO and HI whole numbers: a whole number is searched (a window)
 
     def value(self, x: float):
         """The value set in the scenario for the trial value ``x``."""
         if self.base is None:
-            return float(x)
+            return int(round(x)) if self.integer else float(x)
         if isinstance(self.base, list):
             return [float(x) * float(b) for b in self.base]
         return float(x) * float(self.base)
@@ -49,9 +50,26 @@ class TuneParam:
         return self.name + (" (scale)" if self.base is not None else "")
 
 
-def entry_path(label: str, path: str) -> str:
-    """``path`` as a scenario path: relative ones under the estimator ``label``'s entry."""
-    return path if path.startswith("estimators[") else f"estimators[{label}].{path}"
+def entry_index(raw: dict, label: str) -> int:
+    """The index of the estimator labelled ``label`` in the scenario mapping ``raw``; a
+    :class:`UsageError` naming the labels where none is."""
+    labels = [e.get("label") if isinstance(e, dict) else None for e in raw.get("estimators") or []]
+    if label not in labels:
+        raise UsageError(f"--estimator {label!r}: the scenario has no such estimator "
+                         f"(its labels: {', '.join(map(str, labels))})")
+    return labels.index(label)
+
+
+def entry_path(label: str, path: str, index: int) -> str:
+    """``path`` (relative to the estimator's entry, or starting ``estimators[LABEL].``) as a
+    scenario path to the entry by its index (a label of digits would read as an index); a
+    :class:`UsageError` for a path into another estimator."""
+    own = f"estimators[{label}]."
+    if path.startswith(own):
+        path = path[len(own):]
+    elif path.startswith("estimators["):
+        raise UsageError(f"--param {path!r}: a parameter of another estimator than '{label}' (the one tuned)")
+    return f"estimators[{index}].{path}"
 
 
 def parse_param(text: str, label: str, raw: dict, check: bool = True) -> TuneParam:
@@ -68,33 +86,35 @@ def parse_param(text: str, label: str, raw: dict, check: bool = True) -> TunePar
         lo, hi = float(parts[0]), float(parts[1])
     except ValueError:
         raise UsageError(f"--param {text!r}: LO and HI must be numbers") from None
+    whole = all(x.strip().lstrip("+-").isdigit() for x in parts[:2])
     log = len(parts) == 3
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
         raise UsageError(f"--param {text!r}: LO ({lo:g}) must be below HI ({hi:g})")
     if log and lo <= 0:
         raise UsageError(f"--param {text!r}: a log scale needs LO above 0, not {lo:g}")
-    full = entry_path(label, path.strip())
-    if not full.startswith(f"estimators[{label}]"):
-        raise UsageError(f"--param {text!r}: a parameter of another estimator than '{label}' (the one tuned)")
+    index = entry_index(raw, label)
+    full = entry_path(label, path.strip(), index)
     base = value_at(raw, full, f"--param {text}") if check else None
-    name = full[len(f"estimators[{label}]."):]
+    name = full[len(f"estimators[{index}]."):]
     if scaled and not _numeric(base):
         raise UsageError(f"--param {text!r}: a factor scales a number or a list of numbers, and {name} is {base!r}")
-    return TuneParam(name, full, lo, hi, log, base if scaled else None)
+    integer = whole and not scaled and isinstance(base, int) and not isinstance(base, bool)   # a window: 30
+    return TuneParam(name, full, lo, hi, log, base if scaled else None, integer)
 
 
 def default_params(raw: dict, label: str) -> list[TuneParam]:
     """Each measurement noise of the estimator's entry (its ``sigma*`` keys) and its
     ``baro.sigma_m``, scaled by a factor in :data:`SCALE_RANGE` on a log scale."""
-    entry = value_at(raw, f"estimators[{label}]", "--estimator")
+    index = entry_index(raw, label)
+    entry = raw["estimators"][index]
     out = []
     for i, m in enumerate(entry.get("measurements") or []):
         for key, v in m.items():
             if key.startswith("sigma") and _numeric(v):
-                out.append(_scaled(label, f"measurements[{i}].{key}", v))
+                out.append(_scaled(index, f"measurements[{i}].{key}", v))
     baro = entry.get("baro")
     if isinstance(baro, dict) and _numeric(baro.get("sigma_m")):
-        out.append(_scaled(label, "baro.sigma_m", baro["sigma_m"]))
+        out.append(_scaled(index, "baro.sigma_m", baro["sigma_m"]))
     if not out:
         raise UsageError(f"the estimator '{label}' declares no measurement noise to scale: name the parameters "
                          "with --param PATH=LO:HI")
@@ -106,15 +126,5 @@ def _numeric(v) -> bool:
         (isinstance(v, list) and v and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v))
 
 
-def _scaled(label: str, path: str, base) -> TuneParam:
-    return TuneParam(path, entry_path(label, path), *SCALE_RANGE, log=True, base=base)
-
-
-def check_label(raw: dict, label: str) -> None:
-    """Refuse (:class:`UsageError`) an estimator label the scenario lacks, naming the labels."""
-    try:
-        value_at(raw, f"estimators[{label}]", f"--estimator {label}")
-    except ScenarioError as exc:
-        labels = [e.get("label") for e in raw.get("estimators") or [] if isinstance(e, dict)]
-        raise UsageError(f"--estimator {label!r}: the scenario has no such estimator "
-                         f"(its labels: {', '.join(map(str, labels))})") from exc
+def _scaled(index: int, path: str, base) -> TuneParam:
+    return TuneParam(path, f"estimators[{index}].{path}", *SCALE_RANGE, log=True, base=base)

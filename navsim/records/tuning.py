@@ -59,6 +59,9 @@ class TuneRecord:
     checks: dict = field(default_factory=dict)          #: ``tuning`` / ``held_out`` -> TuneCheck
     sampler: str = ""
     wall_s: float = math.nan
+    #: whether the best trial is not the original (trial 0); None: the original was not a trial
+    #: (a value outside its range, a list of unequal values, a log's estimator)
+    improved: bool | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -46,7 +46,7 @@ def metric_value(m: EstimatorMetrics, path: str) -> float:
 def band_distance(average: float, band) -> float:
     """How far ``average`` lies outside ``band`` in log (0 inside)."""
     lo, hi = band
-    if average <= 0:
+    if not average > 0:                   # zero, negative or NaN: no consistency to speak of
         return math.inf
     return max(0.0, math.log(average / hi), math.log(lo / average))
 

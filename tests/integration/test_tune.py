@@ -12,6 +12,7 @@ from test_run import SHORT
 import navsim
 from navsim.api.tuning import JOURNAL, STUDY, TuneOptions, tune
 from navsim.cli import main
+from navsim.foundations.errors import UsageError
 
 #: the short scenario, its KF's GPS sigma 0.5 m (the receiver's: 2, 2, 1 m)
 SCENARIO = SHORT.replace("{type: gnss_position, sensor: gps, sigma_m: [2, 2, 1]}",
@@ -85,6 +86,9 @@ def test_a_resumed_and_an_interrupted_tuning_reach_the_same_trials(tuned, scenar
     assert got["best"] == whole["best"]
     ds = result.to_xarray()
     assert ds.sizes["trial"] == 5 and np.isfinite(ds["objective"]).all()
+    other = {**OPTIONS, "objective": "nis"}
+    with pytest.raises(UsageError, match="holds another tuning .its objective differ"):
+        tune(scenario, "KF", TuneOptions(trials=6, **other), out=out, resume=True)
 
 
 @pytest.mark.parametrize("args, words", [
@@ -95,6 +99,7 @@ def test_a_resumed_and_an_interrupted_tuning_reach_the_same_trials(tuned, scenar
     (["--trials", "0"], ["--trials"]),
     (["--estimator", "nonesuch"], ["nonesuch", "free SINS, KF"]),
     (["--objective", "fastest"], ["--objective"]),
+    (["--objective", "rms", "--metric", "rms.speed"], ["rms.speed", "not a metric"]),
 ])
 def test_hostile_arguments_exit_2_naming_the_problem(scenario, tmp_path, capsys, args, words):
     argv = ["tune", str(scenario), "--estimator", "KF", "--trials", "2", "--runs", "2", "--out", str(tmp_path / "o")]
