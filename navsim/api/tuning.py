@@ -43,7 +43,7 @@ from navsim.records.tuning import TuneCheck, TuneRecord, TuneTrial
 from navsim.records.vocabulary import check_metric_path
 from navsim.report.tuning import write_tune_report
 from navsim.replay import ReplayOptions, load_ulog, replay, replay_metrics
-from navsim.scoring.tuning import DEFAULT_METRIC, NEEDS_TRUTH, OBJECTIVES, objective
+from navsim.scoring.tuning import DEFAULT_METRIC, NEEDS_TRUTH, OBJECTIVES, objective, shape_distance
 
 log = logging.getLogger(__name__)
 #: the seed the held-out check flies: the tuning seed plus this (runs the tuning never saw)
@@ -62,7 +62,8 @@ class TuneOptions:
     metric, the trials, the runs per trial, the seed (default the scenario's), the worker
     processes, the runs of each check (default ``runs``), the ``--param`` texts (none: each
     noise term scaled), the scenario's ``--set`` changes, and where the runs go (``executor``
-    ``local`` or ``dask``, a Dask ``scheduler``: :class:`~navsim.experiment.options.RunOptions`)."""
+    ``local`` or ``dask``, a Dask ``scheduler``: :class:`~navsim.experiment.options.RunOptions`),
+    and the weight of the chi-square shape term (:func:`~navsim.scoring.tuning.shape_distance`, 0: none)."""
 
     objective: str = "nees"
     metric: str = DEFAULT_METRIC
@@ -75,6 +76,7 @@ class TuneOptions:
     set: tuple = ()
     executor: str = "local"
     scheduler: str | None = None
+    shape: float = 0.0
 
 
 @dataclass
@@ -104,6 +106,8 @@ class TuneResult:
 def _check_options(o: TuneOptions) -> None:
     if o.objective not in OBJECTIVES:
         raise UsageError(f"--objective {o.objective!r}: one of {', '.join(OBJECTIVES)}")
+    if not (isinstance(o.shape, (int, float)) and math.isfinite(o.shape) and o.shape >= 0):
+        raise UsageError(f"--shape {o.shape!r}: a weight of at least 0")
     for name, v, low in (("trials", o.trials, 1), ("runs", o.runs, 2), ("check-runs", o.check_runs, 2)):
         if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < low):
             raise UsageError(f"--{name} {v!r}: a whole number of at least {low}")
@@ -191,9 +195,9 @@ def _tune(trials: _Trials, o: TuneOptions, folder, resume: bool, progress) -> Tu
     if folder is not None and not resume:
         folder.clear_earlier()
     record = TuneRecord(str(trials.path), trials.label, o.objective, o.metric, [_param_dict(p) for p in trials.params],
-                        seed, o.runs, sampler="optuna TPESampler (seeded per trial)")
+                        seed, o.runs, sampler="optuna TPESampler (seeded per trial)", shape=o.shape)
     study = _study(optuna, folder, resume, _key(str(trials.path.resolve()), record)
-                   | {"set": list(o.set), "sha256": trials.digest})
+                   | {"set": list(o.set), "sha256": trials.digest, "shape": o.shape})
     start = _original_values(trials)
     waiting = [t for t in study.get_trials(deepcopy=False) if t.state == optuna.trial.TrialState.WAITING]
     if start and not _finished(study, trials.params) and not waiting:     # trial 0: the original
@@ -211,7 +215,7 @@ def _tune(trials: _Trials, o: TuneOptions, folder, resume: bool, progress) -> Tu
     record.wall_s = time.perf_counter() - t0
     result = TuneResult(record, trials.params, None if folder is None else folder.path)
     if folder is not None:
-        _write(folder, result)
+        _write(folder, result, first.report.get("formats", ("pdf", "png")))
     return result
 
 
@@ -269,8 +273,8 @@ def tune_log(log, estimator: str, options: TuneOptions = TuneOptions(objective="
         raise UsageError("resume needs the folder of the interrupted tuning (out=...)")
     params = [parse_log_param(t) for t in options.params]
     replay_log = load_ulog(checked_path("log", log, "PX4 log"))
-    for end in ("lo", "hi"):                         # both ends of the ranges build and replay
-        replay_checked(replay_log, estimator, _log_params(params, {p.name: getattr(p, end) for p in params}))
+    # the parameters build the estimator and replay (before a folder is written): the low ends
+    replay_checked(replay_log, estimator, _log_params(params, {p.name: p.lo for p in params}))
     if out is None:
         return _tune_log(replay_log, estimator, params, options, None, resume, progress)
     with OutputFolder(checked_path("out", out, "output folder"), command="tune", force=force) as folder:
@@ -456,6 +460,9 @@ def _scenario_trial(trials: _Trials, o: TuneOptions, runs: dict):
             return None, None, None
         m = result.metrics.estimators.get(trials.label)
         value = objective(o.objective, m, o.metric) if m is not None else None
+        if value is not None and o.shape:
+            shape = shape_distance(result.histories[trials.label], m.settle_s, o.objective.startswith("nis"))
+            value = value + o.shape * shape if math.isfinite(shape) else None
         rms = None if m is None or m.rms is None else [float(x) for x in m.rms.pos_m]
         return value, rms, None if m is None or m.nees is None else float(m.nees.average)
     return evaluate
@@ -487,7 +494,7 @@ def _consistency(m) -> dict:
     return {"nees": pick(m.nees) if m.nees else None, "nis": {k: pick(v) for k, v in (m.nis or {}).items()}}
 
 
-def _write(folder, result: TuneResult) -> None:
+def _write(folder, result: TuneResult, formats=("pdf", "png")) -> None:
     r = result.record
     folder.json("tune.json", r.to_dict())
     buf = io.StringIO()
@@ -502,7 +509,7 @@ def _write(folder, result: TuneResult) -> None:
            else "paste it into the scenario's estimators")
     folder.text("tuned.yaml", f"# '{r.estimator}' tuned by navsim tune ({r.objective}, best trial {r.best}); {use}\n"
                 + yaml.safe_dump([r.tuned_entry], sort_keys=False))
-    folder.record(write_tune_report(folder, result.record, result.params))
+    folder.record(write_tune_report(folder, result.record, result.params, formats))
 
 
 __all__ = ["TuneOptions", "TuneParam", "TuneResult", "tune", "tune_log"]

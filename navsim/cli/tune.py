@@ -38,6 +38,9 @@ def arguments(p) -> None:
                    help="what is minimised: rms (of --metric), nees (the distance of ln(NEES/dim) from 0), nees-band (the share of "
                    "epochs outside the NEES band), nis and nis-band (the same on each NIS, no truth needed), "
                    "rms+consistent (the RMS, penalised outside the NEES band); default nees, with --replay nis")
+    p.add_argument("--shape", type=number(float, minimum=0.0), default=0.0, metavar="W",
+                   help="add W times the Kolmogorov-Smirnov distance of the NEES (NIS for nis objectives) "
+                   "samples from their chi-square (Chen et al. 2023): right in shape, not only on average")
     p.add_argument("--metric", help=f"the rms objectives' metric (default {DEFAULT_METRIC})")
     p.add_argument("--trials", type=number(int, minimum=1), help=f"trials (default {TuneOptions.trials})")
     p.add_argument("--runs", type=RUNS_TYPE, help=f"runs per trial, every trial the same (default {TuneOptions.runs})")
@@ -64,7 +67,8 @@ def handle(args) -> int:
     given = {"metric": args.metric, "trials": args.trials, "runs": args.runs}
     options = TuneOptions(objective=objective, seed=args.seed, workers=args.workers, check_runs=args.check_runs,
                           params=tuple(args.param), set=tuple(args.overrides), executor=args.executor,
-                          scheduler=args.scheduler, **{k: v for k, v in given.items() if v is not None})
+                          scheduler=args.scheduler, shape=args.shape,
+                          **{k: v for k, v in given.items() if v is not None})
     if (args.scenario is None) == (args.replay is None):
         raise UsageError("give a scenario file, or --replay LOG, not both" if args.scenario else
                          "give the scenario file to tune on (or --replay LOG)")

@@ -59,6 +59,7 @@ class TuneRecord:
     checks: dict = field(default_factory=dict)          #: ``tuning`` / ``held_out`` -> TuneCheck
     sampler: str = ""
     wall_s: float = math.nan
+    shape: float = 0.0                                  #: the weight of the chi-square shape term
     #: whether the best trial is not the original (trial 0); None: the original was not a trial
     #: (a value outside its range, a list of unequal values, a log's estimator)
     improved: bool | None = None

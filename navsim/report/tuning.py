@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullFormatter
 
 from navsim.records.tuning import TuneRecord
 from navsim.report.figures import Page, fit, page_figure
@@ -95,7 +96,10 @@ def parameter_page(r: TuneRecord, params: list) -> Page:
         ax.plot(x, y, "o", ms=3.5, color="tab:blue")
         ax.plot([best.values[p.name]], [best.objective], "*", ms=12, color="tab:orange", label="best")
         if p.log:
-            ax.set_xscale("log")
+            _log_x(ax, np.r_[x, p.lo, p.hi])
+        ax.yaxis.set_major_locator(MaxNLocator(6))
+        ax.yaxis.set_major_formatter(FormatStrFormatter("%.3g"))
+        ax.yaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel(p.what, fontsize=8)
         ax.set_ylabel(r.objective)
         ax.grid(alpha=0.3)
@@ -104,6 +108,17 @@ def parameter_page(r: TuneRecord, params: list) -> Page:
     axes.flat[0].legend(fontsize=8)
     fit(fig)
     return Page("tune_parameters", "Each parameter against the objective", fig)
+
+
+def _log_x(ax, x: np.ndarray) -> None:
+    """A log x axis over the range searched, five ticks labelled plainly (no minor labels: a
+    range narrower than a decade would print them over each other)."""
+    ax.set_xscale("log")
+    lo, hi = float(np.min(x)), float(np.max(x))
+    ax.set_xlim(lo / 1.1, hi * 1.1)
+    ax.set_xticks(np.geomspace(lo, hi, 5))
+    ax.xaxis.set_major_formatter(FormatStrFormatter("%.3g"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
 
 
 def check_page(r: TuneRecord) -> Page:
@@ -132,9 +147,10 @@ def check_page(r: TuneRecord) -> Page:
     return Page("tune_check", "Tuned against original on the tuning and held-out seeds", fig)
 
 
-def write_tune_report(folder, r: TuneRecord, params: list) -> list:
-    """``tune.pdf`` and a PNG per page in the output folder ``folder``; returns the files."""
+def write_tune_report(folder, r: TuneRecord, params: list, formats=("pdf", "png")) -> list:
+    """``tune.pdf`` and a PNG per page in the output folder ``folder`` (``formats``: the
+    scenario's ``report.formats``); returns the files."""
     pages = summary_pages(r, params) + [objective_page(r), parameter_page(r, params)]
     if "tuning" in r.checks:                  # a scenario's: the tuning and held-out seeds
         pages.append(check_page(r))
-    return render(folder, pages, ["pdf", "png"], f"navsim tune: {r.estimator}", pdf="tune.pdf")
+    return render(folder, pages, list(formats), f"navsim tune: {r.estimator}", pdf="tune.pdf")

@@ -15,6 +15,13 @@
   trusted.
 
 A trial whose runs diverged, or whose objective is not a finite number, has none (None).
+
+With a shape weight ``w`` (``--shape``; Chen et al. 2023), ``w`` times :func:`shape_distance` is
+added: the Kolmogorov-Smirnov distance of the NEES samples (every run and epoch from the settling
+time on; for ``nis`` and ``nis-band``, each measurement's NIS, averaged) from the chi-square
+distribution of their dimension. A covariance right on average can still be wrong in shape (too
+large in some phases, too small in others); the KS distance is 0 only for a chi-square
+distribution.
 """
 
 from __future__ import annotations
@@ -73,3 +80,24 @@ def objective(name: str, m: EstimatorMetrics, metric: str = DEFAULT_METRIC) -> f
     else:
         raise ValueError(f"no objective '{name}' (the objectives: {', '.join(OBJECTIVES)})")
     return value if math.isfinite(value) else None
+
+
+def shape_distance(history, settle_s: float, use_nis: bool) -> float:
+    """The Kolmogorov-Smirnov distance of ``history``'s NEES samples after ``settle_s`` (or the
+    mean over its measurements of their NIS samples', ``use_nis``) from the chi-square of their
+    dimension; NaN without samples."""
+    from scipy.stats import chi2, kstest
+    keep = np.asarray(history.t_s) >= settle_s
+    if use_nis:
+        out = []
+        for key, v in (history.nis or {}).items():
+            x = np.asarray(v)[:, keep].ravel()
+            x = x[np.isfinite(x)]
+            if x.size:
+                out.append(kstest(x, chi2(history.nis_dim[key]).cdf).statistic)
+        return float(np.mean(out)) if out else math.nan
+    if history.nees is None:
+        return math.nan
+    x = np.asarray(history.nees)[:, keep].ravel()
+    x = x[np.isfinite(x)]
+    return float(kstest(x, chi2(9).cdf).statistic) if x.size else math.nan
