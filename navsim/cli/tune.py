@@ -18,7 +18,7 @@ from navsim.scoring.verdicts import num
 
 
 #: the options a log's tuning (--replay) does not take
-REPLAY_REFUSED = ("overrides", "runs", "check_runs", "workers", "seed", "metric")
+REPLAY_REFUSED = ("overrides", "runs", "check_runs", "workers", "seed", "metric", "shape")
 
 
 def arguments(p) -> None:
@@ -38,7 +38,7 @@ def arguments(p) -> None:
                    help="what is minimised: rms (of --metric), nees (the distance of ln(NEES/dim) from 0), nees-band (the share of "
                    "epochs outside the NEES band), nis and nis-band (the same on each NIS, no truth needed), "
                    "rms+consistent (the RMS, penalised outside the NEES band); default nees, with --replay nis")
-    p.add_argument("--shape", type=number(float, minimum=0.0), default=0.0, metavar="W",
+    p.add_argument("--shape", type=number(float, minimum=0.0), metavar="W",
                    help="add W times the Kolmogorov-Smirnov distance of the NEES (NIS for nis objectives) "
                    "samples from their chi-square (Chen et al. 2023): right in shape, not only on average")
     p.add_argument("--metric", help=f"the rms objectives' metric (default {DEFAULT_METRIC})")
@@ -67,7 +67,7 @@ def handle(args) -> int:
     given = {"metric": args.metric, "trials": args.trials, "runs": args.runs}
     options = TuneOptions(objective=objective, seed=args.seed, workers=args.workers, check_runs=args.check_runs,
                           params=tuple(args.param), set=tuple(args.overrides), executor=args.executor,
-                          scheduler=args.scheduler, shape=args.shape,
+                          scheduler=args.scheduler, shape=args.shape or 0.0,
                           **{k: v for k, v in given.items() if v is not None})
     if (args.scenario is None) == (args.replay is None):
         raise UsageError("give a scenario file, or --replay LOG, not both" if args.scenario else

@@ -143,3 +143,5 @@ def test_a_px4_log_is_tuned_by_its_innovations_and_its_attitude_compared_with_px
     assert tuned[0]["sigma"]["mag_uT"] == pytest.approx(best["values"]["sigma.mag_uT"])
     assert _exit_code(argv[:-6] + ["--objective", "rms", "--out", str(tmp_path / "o2")]) == 2
     assert "needs the truth" in capsys.readouterr().err
+    assert _exit_code(argv[:-2] + ["--shape", "1", "--out", str(tmp_path / "o3")]) == 2
+    assert "--shape: not an option of --replay" in capsys.readouterr().err
