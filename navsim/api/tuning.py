@@ -26,7 +26,6 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 from navsim.api.arguments import checked_path, overrides_of
@@ -43,7 +42,8 @@ from navsim.records.tuning import TuneCheck, TuneRecord, TuneTrial
 from navsim.records.vocabulary import check_metric_path
 from navsim.report.tuning import write_tune_report
 from navsim.replay import ReplayOptions, load_ulog, replay, replay_metrics
-from navsim.scoring.tuning import DEFAULT_METRIC, NEEDS_TRUTH, OBJECTIVES, objective, shape_distance
+from navsim.scoring.tuning import DEFAULT_METRIC, NEEDS_TRUTH, OBJECTIVES, band_record, nis_objective, objective
+from navsim.scoring.tuning import shape_distance
 
 log = logging.getLogger(__name__)
 #: the seed the held-out check flies: the tuning seed plus this (runs the tuning never saw)
@@ -302,17 +302,6 @@ def replay_checked(log, estimator: str, params: dict):
     return replay_metrics(result)
 
 
-def _log_objective(o: TuneOptions, m) -> float | None:
-    nis = list((m.nis or {}).values())
-    if not nis:
-        return None
-    if o.objective == "nis":
-        v = float(np.mean([abs(math.log(n.average / n.dim)) if n.average > 0 else math.inf for n in nis]))
-    else:
-        v = float(np.mean([1.0 - n.fraction_inside for n in nis]))
-    return v if math.isfinite(v) else None
-
-
 def _tune_log(log, estimator: str, params: list, o: TuneOptions, folder, resume: bool, progress) -> TuneResult:
     import optuna
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -326,7 +315,7 @@ def _tune_log(log, estimator: str, params: list, o: TuneOptions, folder, resume:
 
     def evaluate(values: dict):
         m = replay_checked(log, estimator, _log_params(params, values))
-        return _log_objective(o, m), None, None
+        return nis_objective(o.objective, m.nis), None, None
     _search(study, record, params, evaluate, o.trials, folder, progress)
     best = _best(record)
     record.best = best.number
@@ -348,9 +337,8 @@ def _log_check(o: TuneOptions, before, after) -> TuneCheck:
         if a is not None and b is not None:
             diffs.append({"metric": "attitude - PX4, RMS deg", "component": axis, "a": a.rms, "b": b.rms,
                           "diff": b.rms - a.rms, "ci95": [math.nan, math.nan], "verdict": "one log: no interval"})
-    pick = lambda m: {"nees": None, "nis": {k: {"average": n.average, "band": list(n.band),
-                                              "fraction_inside": n.fraction_inside} for k, n in (m.nis or {}).items()}}
-    return TuneCheck(0, 1, _log_objective(o, before), _log_objective(o, after), diffs,
+    pick = lambda m: {"nees": None, "nis": {k: band_record(n) for k, n in (m.nis or {}).items()}}
+    return TuneCheck(0, 1, nis_objective(o.objective, before.nis), nis_objective(o.objective, after.nis), diffs,
                      {"original": pick(before), "tuned": pick(after)})
 
 
@@ -490,8 +478,7 @@ def _consistency(m) -> dict:
     """The NEES and each NIS of ``m`` against its band (``average``, ``band``, ``fraction_inside``)."""
     if m is None:
         return {}
-    pick = lambda x: {"average": x.average, "band": list(x.band), "fraction_inside": x.fraction_inside}
-    return {"nees": pick(m.nees) if m.nees else None, "nis": {k: pick(v) for k, v in (m.nis or {}).items()}}
+    return {"nees": band_record(m.nees) if m.nees else None, "nis": {k: band_record(v) for k, v in (m.nis or {}).items()}}
 
 
 def _write(folder, result: TuneResult, formats=("pdf", "png")) -> None:

@@ -1,5 +1,7 @@
 """Output folders: one writer at a time, files written under a temporary name and renamed, and
 a manifest of what navsim wrote, so that a rerun removes its own earlier files and nothing else.
+(Over 600 lines, kept whole: the lock, the manifest and the atomic writes share one held state
+per folder, :class:`OutputFolder`'s, and each guards the others' guarantees.)
 
 An :class:`OutputFolder` is the folder of one command's results (``reports/<name>`` by
 default). Opening one takes its lock (``.navsim.lock``: ``fcntl.flock`` on a file holding the

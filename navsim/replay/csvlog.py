@@ -22,7 +22,7 @@ import numpy as np
 
 from navsim.foundations.errors import LogError
 from navsim.replay.kfgins import config_start, read_config, start_text
-from navsim.replay.navlog import GnssLog, NavLog, Rows, Trajectory, imu_from, log_name, read_rows, start_time
+from navsim.replay.navlog import GnssLog, NavLog, Rows, Trajectory, imu_from, log_name, read_rows, rows_text, start_time
 from navsim.replay.navlog import check_gnss, check_times, trim_gnss
 from navsim.sensors.units import UNITS
 
@@ -157,8 +157,7 @@ def read_csv_log(imu, gnss, reference=None, start=None) -> NavLog:
 
 
 def _write(path: Path, header: list[str], a: np.ndarray) -> None:
-    body = "\n".join(",".join(repr(float(x)) for x in row) for row in a)
-    path.write_text(",".join(header) + "\n" + body + "\n")
+    path.write_text(",".join(header) + "\n" + rows_text(a, ","))
 
 
 def write_csv_log(folder, log: NavLog) -> dict:

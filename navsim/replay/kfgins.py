@@ -40,6 +40,7 @@ from navsim.replay.navlog import (
     imu_from,
     log_name,
     read_rows,
+    rows_text,
     start_time,
     trim_gnss,
 )
@@ -191,11 +192,6 @@ def _config_notes(cfg: dict, t0: float) -> list:
     return notes
 
 
-def _fmt(a: np.ndarray) -> str:
-    """Rows of numbers written so they read back bit for bit."""
-    return "\n".join(" ".join(repr(float(x)) for x in row) for row in a) + "\n"
-
-
 def write_kfgins(folder, log: NavLog) -> dict:
     """Write ``log`` as a KF-GINS dataset in ``folder``: ``imu.txt``, ``gnss.txt`` (13 columns
     with velocity), ``truth.nav`` (with a reference) and ``kf-gins.yaml`` (the start, the paths).
@@ -204,15 +200,15 @@ def write_kfgins(folder, log: NavLog) -> dict:
     folder.mkdir(parents=True, exist_ok=True)
     imu, g, t0 = log.imu, log.gnss, log.t0_s
     out = {role: folder / FILES[role] for role in ("imu", "gnss")}
-    out["imu"].write_text(_fmt(np.c_[imu.t_s[1:] + t0, imu.dtheta_b_rad[1:], imu.dv_b_mps[1:]]))
+    out["imu"].write_text(rows_text(np.c_[imu.t_s[1:] + t0, imu.dtheta_b_rad[1:], imu.dv_b_mps[1:]]))
     cols = [g.t_s + t0, np.degrees(g.lat_rad), np.degrees(g.lon_rad), g.h_m, g.sigma_ned_m]
     if g.vel_n_mps is not None:
         cols += [g.vel_n_mps, g.sigma_vel_mps]
-    out["gnss"].write_text(_fmt(np.column_stack(cols)))
+    out["gnss"].write_text(rows_text(np.column_stack(cols)))
     if log.reference is not None:
         r = log.reference
         out["reference"] = folder / FILES["reference"]
-        out["reference"].write_text(_fmt(np.column_stack(
+        out["reference"].write_text(rows_text(np.column_stack(
             [np.zeros_like(r.t_s), r.t_s + t0, np.degrees(r.lat_rad), np.degrees(r.lon_rad), r.h_m, r.vel_n_mps,
              np.degrees(r.euler_rad)])))
     out["config"] = folder / FILES["config"]

@@ -14,9 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navsim.records.metrics import Nis
+from navsim.records.metrics import EULER_AXES as AXES, Nis, _Record
 from navsim.replay.run import ReplayResult
-from navsim.records.metrics import EULER_AXES as AXES, _Record
 
 
 @dataclass(frozen=True)

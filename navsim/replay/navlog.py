@@ -130,6 +130,11 @@ class Rows:
         return Rows(self.path, self.values[keep], self.lines[keep])
 
 
+def rows_text(a: np.ndarray, sep: str = " ") -> str:
+    """Rows of numbers as text lines that read back bit for bit (``repr`` of each float)."""
+    return "\n".join(sep.join(repr(float(x)) for x in row) for row in a) + "\n"
+
+
 def log_name(imu_path) -> str:
     """A log's name: its IMU file's, or its folder's where the file is just ``imu``."""
     path = Path(str(imu_path))

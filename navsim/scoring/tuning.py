@@ -69,17 +69,28 @@ def objective(name: str, m: EstimatorMetrics, metric: str = DEFAULT_METRIC) -> f
         value = _log_ratio(m.nees.average, m.nees.dim) if m.nees else math.nan
     elif name == "nees-band":
         value = 1.0 - m.nees.fraction_inside if m.nees else math.nan
-    elif name == "nis":
-        ratios = [_log_ratio(n.average, n.dim) for n in (m.nis or {}).values()]
-        value = float(np.mean(ratios)) if ratios else math.nan
-    elif name == "nis-band":
-        outside = [1.0 - n.fraction_inside for n in (m.nis or {}).values()]
-        value = float(np.mean(outside)) if outside else math.nan
+    elif name in ("nis", "nis-band"):
+        return nis_objective(name, m.nis)
     elif name == "rms+consistent":
         value = metric_value(m, metric) * math.exp(band_distance(m.nees.average, m.nees.band)) if m.nees else math.nan
     else:
         raise ValueError(f"no objective '{name}' (the objectives: {', '.join(OBJECTIVES)})")
     return value if math.isfinite(value) else None
+
+
+def nis_objective(name: str, nis: dict | None) -> float | None:
+    """``nis`` or ``nis-band`` of the measurements' :class:`~navsim.records.metrics.Nis`
+    (an estimator's or a log replay's), averaged over them; None without one or not finite."""
+    values = [_log_ratio(n.average, n.dim) if name == "nis" else 1.0 - n.fraction_inside
+              for n in (nis or {}).values()]
+    value = float(np.mean(values)) if values else math.nan
+    return value if math.isfinite(value) else None
+
+
+def band_record(x) -> dict:
+    """A NEES or NIS against its band, as ``tune.json`` keeps it: ``average``, ``band``,
+    ``fraction_inside``."""
+    return {"average": x.average, "band": list(x.band), "fraction_inside": x.fraction_inside}
 
 
 def shape_distance(history, settle_s: float, use_nis: bool) -> float:

@@ -1,4 +1,7 @@
 """Strapdown IMU emulator: gyro and accelerometer triads with the errors of :class:`ImuSpec`.
+(Over 600 lines, kept whole: the error model, its block-by-block stream and the whole-record
+emulation share the triads' state and must give the same numbers bit for bit; the vibration is
+:mod:`navsim.sensors.vibration`.)
 
 Outputs (``SensorData.values``), ``(B, M, 3)``, body axes:
 

@@ -11,9 +11,9 @@ from test_run import SHORT
 from ulog_writer import write_ulog
 
 import navsim
-import navsim.replay.logrun
 from navsim.cli import main
 from navsim.foundations.errors import LogError
+from navsim.foundations.transform import quat_from_euler
 
 #: the short P3-like scenario (P3's IMU, GPS and 15-state ES-KF; a 5 s GPS outage), a PDF report
 SCENARIO = SHORT + "report: {formats: [pdf]}\n"
@@ -185,7 +185,7 @@ def _ulog_of(log, path, drop: str | None = None) -> None:
            **{f"vel_{a}_m_s": f32(np.r_[g.vel_n_mps[:, j], g.vel_n_mps[:2, j]]) for j, a in enumerate("ned")}}
     order = np.argsort(t_gps, kind="stable")
     gps = {k: v[order] for k, v in gps.items()}
-    quat = navsim.replay.logrun.quat_from_euler(*ref.euler_rad.T)
+    quat = quat_from_euler(*ref.euler_rad.T)
     topics = {
         "sensor_combined": (scalar("uint64_t", "timestamp") + [("float", 3, "gyro_rad"), ("float", 3, "accelerometer_m_s2")],
                             {"timestamp": us(imu.t_s), "gyro_rad": f32(imu.dtheta_b_rad / dt),
