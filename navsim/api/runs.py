@@ -164,7 +164,7 @@ def score_result(result: Result, wall_s: float) -> None:
         closed = closed_loop_metrics(result.loop, result.reference, sc.closed_loop, result.histories)
     result.metrics = RunMetrics(sc.name, result.record.runs, int(len(result.runs)), result.record.seed,
                                 {str(k): v for k, v in result.failed.items()}, result.interrupted, estimators,
-                                calibration or None, closed, wall_s, judge(sc.reference, estimators))
+                                calibration or None, closed, wall_s, judge(sc.reference, estimators, result.samples))
     plotted = len(result.runs) if result.history_runs is None else len(result.history_runs)
     result.record = dataclasses.replace(result.record, failed_runs=dict(result.failed), interrupted=result.interrupted,
                                         wall_s=wall_s, **provenance(), runs_plotted=plotted)

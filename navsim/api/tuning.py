@@ -42,8 +42,17 @@ from navsim.records.tuning import TuneCheck, TuneRecord, TuneTrial
 from navsim.records.vocabulary import check_metric_path
 from navsim.report.tuning import write_tune_report
 from navsim.replay import ReplayOptions, load_ulog, replay, replay_metrics
-from navsim.scoring.tuning import DEFAULT_METRIC, NEEDS_TRUTH, OBJECTIVES, band_record, nis_objective, objective
-from navsim.scoring.tuning import shape_distance
+from navsim.scoring.tuning import (
+    DEFAULT_METRIC,
+    NEEDS_TRUTH,
+    OBJECTIVES,
+    band_record,
+    nis_objective,
+    objective,
+    paper_checks_of,
+    paper_distance,
+    shape_distance,
+)
 
 log = logging.getLogger(__name__)
 #: the seed the held-out check flies: the tuning seed plus this (runs the tuning never saw)
@@ -129,20 +138,42 @@ class _Trials:
         self.entry_index = entry_index(self.base, label)
         self.params = ([parse_param(t, label, self.base) for t in options.params] if options.params
                        else default_params(self.base, label))
+        self.truth = any(p.truth for p in self.params)
+        self.paper = paper_checks_of(parsed.reference, label)
+        if options.objective == "paper" and not self.paper:
+            raise UsageError(f"--objective paper: {path} publishes no single-flight number of '{label}' to fit "
+                             "(reference values of kind single_run)")
         self.digest = hashlib.sha256(path.read_bytes()).hexdigest()
 
-    def entry(self, values: dict | None) -> dict:
-        """The tuned estimator's entry with ``values`` (name -> trial value) set (None: the original)."""
+    def changed(self, values: dict | None) -> dict:
+        """The scenario mapping with ``values`` (name -> trial value) set (None: the original)."""
         changes = [make_override(p.path, p.value(values[p.name]), f"--param {p.name}") for p in self.params
                    if values is not None]
-        changed, _ = apply_overrides(self.base, changes)
-        return changed["estimators"][self.entry_index]
+        return apply_overrides(self.base, changes)[0]
 
-    def scenario(self, entries: list[dict]):
-        """The scenario flying ``entries`` only, without its published results (of its estimators)."""
-        raw = {k: copy.deepcopy(v) for k, v in self.base.items() if k != "reference"}
+    def entry(self, values: dict | None) -> dict:
+        """The tuned estimator's entry with ``values`` set (None: the original)."""
+        return self.changed(values)["estimators"][self.entry_index]
+
+    def scenario(self, entries: list[dict], values: dict | None = None):
+        """The scenario flying ``entries`` only, its sensors with ``values`` set (the truth
+        parameters), without its published results (of its estimators)."""
+        raw = {k: copy.deepcopy(v) for k, v in self.changed(values).items() if k != "reference"}
         raw["estimators"] = entries
         return parse_scenario(raw, str(self.path))
+
+    def whole(self, values: dict | None):
+        """The whole scenario (every estimator, its published results) with ``values`` set."""
+        return parse_scenario(self.changed(values), str(self.path))
+
+    def objective(self, o: TuneOptions, result, label: str) -> float | None:
+        """The objective of the estimator ``label`` of ``result`` (``paper``: of its runs' values)."""
+        m = result.metrics.estimators.get(label)
+        if o.objective != "paper":
+            return objective(o.objective, m, o.metric)
+        if m is None or m.diverged_runs or not m.runs_counted:
+            return None
+        return paper_distance(self.paper, result.samples.get(label))
 
 
 def tune(scenario, estimator: str, options: TuneOptions = TuneOptions(), *, out=None, force: bool = False,
@@ -191,7 +222,8 @@ def _tune(trials: _Trials, o: TuneOptions, folder, resume: bool, progress) -> Tu
     flight = cached_flight(first.flight)
     for p in trials.params:                        # both ends of every range make a valid scenario
         for end in (p.lo, p.hi):
-            trials.scenario([trials.entry({q.name: (end if q is p else q.lo) for q in trials.params})])
+            ends = {q.name: (end if q is p else q.lo) for q in trials.params}
+            trials.scenario([trials.entry(ends)], ends)
     if folder is not None and not resume:
         folder.clear_earlier()
     record = TuneRecord(str(trials.path), trials.label, o.objective, o.metric, [_param_dict(p) for p in trials.params],
@@ -208,8 +240,11 @@ def _tune(trials: _Trials, o: TuneOptions, folder, resume: bool, progress) -> Tu
     _search(study, record, trials.params, _scenario_trial(trials, o, runs), o.trials, folder, progress)
     best = _best(record)
     record.best, record.tuned_entry = best.number, trials.entry(best.values)
+    if trials.truth:
+        record.tuned_sensors = trials.changed(best.values)["sensors"]
     check_runs = o.check_runs or o.runs
-    record.checks = {name: _check(trials, best.values, s, check_runs, workers, flight, o)
+    checked = _truth_check if trials.truth else _check
+    record.checks = {name: checked(trials, best.values, s, check_runs, workers, flight, o)
                      for name, s in (("tuning", seed), ("held_out", (seed + HELD_OUT_OFFSET) % (MAX_SEED + 1)))}
     record.improved = None if start is None else best.number != 0
     record.wall_s = time.perf_counter() - t0
@@ -343,7 +378,8 @@ def _log_check(o: TuneOptions, before, after) -> TuneCheck:
 
 
 def _param_dict(p: TuneParam) -> dict:
-    return {"name": p.name, "path": p.path, "lo": p.lo, "hi": p.hi, "log": p.log, "base": p.base}
+    return {"name": p.name, "path": p.path, "lo": p.lo, "hi": p.hi, "log": p.log, "base": p.base,
+            **({"unit": p.unit} if p.unit else {})}
 
 
 def _study(optuna, folder, resume: bool, key: dict):
@@ -393,6 +429,8 @@ def _original_values(trials: _Trials) -> dict | None:
     not a number inside its range (a --param on a list of unequal values, or outside the range)."""
     out = {}
     for p in trials.params:
+        if p.truth:                         # a datasheet value with its unit (often the catalog's): no trial 0
+            return None
         if p.base is not None:
             out[p.name] = 1.0
             continue
@@ -437,7 +475,7 @@ def _scenario_trial(trials: _Trials, o: TuneOptions, runs: dict):
     """A trial's evaluation: the tuned estimator alone over the runs, its objective."""
     def evaluate(values: dict):
         try:
-            scenario = trials.scenario([trials.entry(values)])
+            scenario = trials.scenario([trials.entry(values)], values)
         except ScenarioError as exc:                  # a mix of values the file's checks refuse
             log.warning("trial %s: %s", values, exc)
             return None, None, None
@@ -447,7 +485,7 @@ def _scenario_trial(trials: _Trials, o: TuneOptions, runs: dict):
         if result.failed:
             return None, None, None
         m = result.metrics.estimators.get(trials.label)
-        value = objective(o.objective, m, o.metric) if m is not None else None
+        value = trials.objective(o, result, trials.label) if m is not None else None
         if value is not None and o.shape:
             shape = shape_distance(result.histories[trials.label], m.settle_s, o.objective.startswith("nis"))
             value = value + o.shape * shape if math.isfinite(shape) else None
@@ -469,9 +507,28 @@ def _check(trials: _Trials, values: dict, seed: int, runs: int, workers: int, fl
     est = result.metrics.estimators
     diffs = [{"metric": d.metric, "component": d.component, "a": d.a, "b": d.b, "diff": d.diff,
               "ci95": list(d.ci95), "verdict": d.verdict} for d in comparison.differences if d.metric in CHECKED]
-    return TuneCheck(seed, runs, objective(o.objective, est.get("original"), o.metric),
-                     objective(o.objective, est.get("tuned"), o.metric), diffs,
+    return TuneCheck(seed, runs, trials.objective(o, result, "original"), trials.objective(o, result, "tuned"), diffs,
                      {side: _consistency(est.get(side)) for side in ("original", "tuned")})
+
+
+def _truth_check(trials: _Trials, values: dict, seed: int, runs: int, workers: int, flight,
+                 o: TuneOptions) -> TuneCheck:
+    """The whole scenario (every estimator, its published results judged) flown with the
+    original and with the fitted truth on ``runs`` runs of ``seed``: the objective of each, and
+    the paper checks of each (a calibrated truth's prediction of the other estimators' numbers)."""
+    out = {}
+    for side, v in (("original", None), ("tuned", values)):
+        result = run(trials.whole(v), runs=runs, seed=seed, workers=workers,
+                     chunk_runs=max(1, -(-runs // max(workers, 1))), flight=flight, executor=o.executor,
+                     scheduler=o.scheduler)
+        if result.interrupted:
+            raise KeyboardInterrupt
+        out[side] = result
+    est = {side: r.metrics.estimators.get(trials.label) for side, r in out.items()}
+    return TuneCheck(seed, runs, trials.objective(o, out["original"], trials.label),
+                     trials.objective(o, out["tuned"], trials.label), [],
+                     {side: _consistency(m) for side, m in est.items()},
+                     {side: [v.to_dict() for v in r.metrics.paper_checks or []] for side, r in out.items()})
 
 
 def _consistency(m) -> dict:
@@ -494,8 +551,13 @@ def _write(folder, result: TuneResult, formats=("pdf", "png")) -> None:
     folder.text("tune.csv", buf.getvalue())
     use = ("its parameters: give each to navsim replay as --set KEY=VALUE" if "log" in r.checks
            else "paste it into the scenario's estimators")
-    folder.text("tuned.yaml", f"# '{r.estimator}' tuned by navsim tune ({r.objective}, best trial {r.best}); {use}\n"
-                + yaml.safe_dump([r.tuned_entry], sort_keys=False))
+    text = (f"# '{r.estimator}' tuned by navsim tune ({r.objective}, best trial {r.best}); {use}\n"
+            + yaml.safe_dump([r.tuned_entry], sort_keys=False))
+    if r.tuned_sensors is not None:
+        text = (f"# the truth model fitted by navsim tune ({r.objective}, best trial {r.best}) on '{r.estimator}': "
+                "paste it over the scenario's sensors\n"
+                + yaml.safe_dump({"sensors": r.tuned_sensors}, sort_keys=False))
+    folder.text("tuned.yaml", text)
     folder.record(write_tune_report(folder, result.record, result.params, formats))
 
 

@@ -12,9 +12,10 @@ from navsim.cli.options import set_option, workers_option
 from navsim.cli.output import open_folder, table
 from navsim.foundations.errors import UsageError
 from navsim.foundations.progress import Progress
-from navsim.report.tuning import consistency_rows
+from navsim.report.tuning import consistency_rows, value_text
 from navsim.scoring.tuning import DEFAULT_METRIC, OBJECTIVES
-from navsim.scoring.verdicts import num
+from navsim.records.metrics import Verdict
+from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary
 
 
 #: the options a log's tuning (--replay) does not take
@@ -32,12 +33,16 @@ def arguments(p) -> None:
     p.add_argument("--param", action="append", default=[], metavar="PATH=LO:HI[:log]",
                    help="a parameter and its range, repeatable: a --set path into the estimator's entry "
                    "(measurements[0].sigma_m=1:20:log), or a factor on its value with x (measurements[1].sigma_mps="
-                   "x0.1:10:log, a list scaled as a whole); default: each measurement sigma and the baro sigma "
-                   "scaled by a factor in 0.1-10 (log)")
+                   "x0.1:10:log, a list scaled as a whole); a path starting sensors. is the truth model's, a "
+                   "datasheet value with its unit (sensors.gps.override.vertical_sigma=5:30 m): what --objective "
+                   "paper calibrates; default: each measurement sigma and the baro sigma scaled by a factor in "
+                   "0.1-10 (log)")
     p.add_argument("--objective", choices=OBJECTIVES,
                    help="what is minimised: rms (of --metric), nees (the distance of ln(NEES/dim) from 0), nees-band (the share of "
                    "epochs outside the NEES band), nis and nis-band (the same on each NIS, no truth needed), "
-                   "rms+consistent (the RMS, penalised outside the NEES band); default nees, with --replay nis")
+                   "rms+consistent (the RMS, penalised outside the NEES band), paper (the distance of the runs' "
+                   "median from the paper's single-flight numbers of the estimator, in log); default nees, "
+                   "with --replay nis")
     p.add_argument("--shape", type=number(float, minimum=0.0), metavar="W",
                    help="add W times the Kolmogorov-Smirnov distance of the NEES (NIS for nis objectives) "
                    "samples from their chi-square (Chen et al. 2023): right in shape, not only on average")
@@ -85,23 +90,29 @@ def handle(args) -> int:
     best = r.best_trial
     print(f"\n{len(r.trials)} trials of {r.runs} runs in {r.wall_s:.0f} s; best trial {r.best}: {objective} "
           f"{num(best.objective)}")
-    print(table(["parameter", "best", "value set"], [[p.what, num(best.values[p.name]), num(p.value(best.values[p.name]))]
-                                                   for p in result.params]))
+    print(table(["parameter", "best", "value set"],
+                [[p.what, num(best.values[p.name]), value_text(p.value(best.values[p.name]))] for p in result.params]))
     for name, c in r.checks.items():
         where = "the log" if name == "log" else f"{name.replace('_', '-')} seed {c.seed} ({c.runs} runs)"
         print(f"\n{where}: {objective} {num(c.objective_original)} original, {num(c.objective_tuned)} tuned")
-        print(table(["metric", "original", "tuned", "tuned - original [95 %]", "verdict"],
-                    [[d["metric"] + (f" {d['component']}" if d["component"] else ""), num(d["a"]), num(d["b"]),
-                      f"{num(d['diff'])} [{num(d['ci95'][0])}, {num(d['ci95'][1])}]", d["verdict"]]
-                     for d in c.differences]))
+        if c.differences:
+            print(table(["metric", "original", "tuned", "tuned - original [95 %]", "verdict"],
+                        [[d["metric"] + (f" {d['component']}" if d["component"] else ""), num(d["a"]), num(d["b"]),
+                          f"{num(d['diff'])} [{num(d['ci95'][0])}, {num(d['ci95'][1])}]", d["verdict"]]
+                         for d in c.differences]))
         print(table(["consistency", "original: average [band], inside", "tuned: average [band], inside"],
                     consistency_rows(c.consistency)))
+        for side, checks in (c.paper_checks or {}).items():
+            verdicts = [Verdict.from_dict(v) for v in checks]
+            print(f"\npaper checks, {'fitted' if side == 'tuned' else side} truth: {verdict_summary(verdicts)}")
+            print(table(VERDICT_HEADERS, verdict_rows(verdicts)))
     if r.improved is False:
         print("\nno trial beat the original (trial 0): keep it, or widen the ranges and add trials")
     elif r.improved is None:
         print("\nthe original was not a trial (its value outside a range, a list of unequal values, a log's "
               "defaults): compare the checks above before taking the tuned values")
-    print(f"\nwrote {folder.path}/: tuned.yaml (the {'entry' if not args.replay else 'parameters'} to paste), "
+    what = "parameters" if args.replay else "sensors" if r.tuned_sensors is not None else "entry"
+    print(f"\nwrote {folder.path}/: tuned.yaml (the {what} to paste), "
           "tune.json, tune.csv, tune.pdf and its PNGs")
     return 0
 
@@ -113,7 +124,9 @@ COMMAND = Command(
     "Optuna's TPE sampler for the lowest objective over --runs runs per trial, every trial on the same seed; "
     "then run the best and the original side by side on the tuning seed and on a seed the tuning never saw, "
     "compared paired (B - A with 95 % intervals and verdicts: a held-out gain smaller than the tuning one is "
-    "over-fitting). With --replay LOG, a PX4 log instead, by its innovations, the attitude against PX4's before "
+    "over-fitting). With truth parameters (sensors.) and --objective paper, the sensors' unpublished errors "
+    "are calibrated against the paper's numbers, and the checks fly the whole scenario with the original and the "
+    "fitted truth, its paper checks judged (the fit's prediction of the other estimators). With --replay LOG, a PX4 log instead, by its innovations, the attitude against PX4's before "
     "and after. Writes tuned.yaml, tune.json, tune.csv, tune.pdf; --resume continues an interrupted tuning "
     "from its journal.",
     arguments=arguments, handler=handle, kept="the finished trials are kept and --resume completes the tuning")

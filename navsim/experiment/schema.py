@@ -15,7 +15,7 @@ from navsim.foundations.config import MAX_DURATION_S, MAX_RUNS, MAX_WIND_MPS, PL
 from navsim.foundations.jsonschema import NUM, POS, merge_properties, obj
 from navsim.navigation.estimators import available as available_estimators, get as get_estimator
 from navsim.navigation.estimators.measurements import measurements_schema
-from navsim.records.reference import RULES
+from navsim.records.reference import KINDS, RULES
 from navsim.sensors.base import FAULT_TYPES
 from navsim.sensors.catalog import available
 
@@ -82,15 +82,15 @@ def scenario_schema(built_in: bool = False) -> dict:
 
 def _reference() -> dict:
     """``reference``: published numbers (``values``) and claims, each judged by a rule."""
-    rule = {"check": {"enum": list(RULES)}, "tolerance": POS}
+    rule = {"check": {"enum": list(RULES)}, "tolerance": POS, "kind": {"enum": list(KINDS)}}
     number = {"oneOf": [NUM, {"type": "array", "items": NUM, "minItems": 3, "maxItems": 3}]}
     value = {"oneOf": [number, obj({"paper": number, **rule}, ["paper"])]}
     threshold = {"oneOf": [number, obj({"times": POS, "of": {"type": "string"}}, ["times", "of"])]}
     claim = obj({"claim": {"type": "string"}, "estimator": {"type": "string"}, "metric": {"type": "string"},
-                 "at_most": threshold, "at_least": threshold}, ["claim", "estimator", "metric"])
-    return obj({"source": {"type": "string"}, "note": {"type": "string"}, **rule,
+                 "at_most": threshold, "at_least": threshold, "kind": rule["kind"]}, ["claim", "estimator", "metric"])
+    return obj({"source": {"type": "string"}, "note": {"type": "string"}, "kind_note": {"type": "string"}, **rule,
                 "values": {"type": "object", "additionalProperties": {"type": "object", "additionalProperties": value}},
-                "claims": {"type": "array", "items": claim}}, ["source"])
+                "claims": {"type": "array", "items": claim}}, ["source", "kind"])
 
 
 def _start() -> dict:

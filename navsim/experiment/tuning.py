@@ -9,11 +9,18 @@ A parameter is a path into the scenario in the grammar of ``--set``
 between ``LO`` and ``HI`` (on a log scale with ``:log``), or, for a scaled term
 (``PATH=xLO:HI``, and each noise term without ``--param``: 1/10 to 10, log), the entry's own
 value (a number or a list) times the factor.
+
+A path starting ``sensors.`` is a parameter of the truth model, not of the filter (the sensors'
+errors the runs draw: ``sensors.gps.override.vertical_sigma``), set in the whole scenario: what
+calibrating an unpublished sensor error against a paper's numbers varies (``--objective paper``).
+Its LO and HI carry the datasheet's unit (``=5:30 m``, ``=20:200 ug/rtHz:log``), written with
+the trial value.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 from navsim.foundations.errors import UsageError
@@ -21,6 +28,10 @@ from navsim.foundations.overrides import value_at
 
 #: the factor range a noise term is scaled over without ``--param``
 SCALE_RANGE = (0.1, 10.0)
+#: the start of a truth-model parameter's path (the scenario's sensors)
+TRUTH_PREFIX = "sensors."
+#: a range end: a number, and a datasheet unit after it
+_END = re.compile(r"^\s*([-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?)\s*([A-Za-z%/^0-9]*)\s*$")
 
 
 @dataclass(frozen=True)
@@ -35,9 +46,17 @@ class TuneParam:
     log: bool = False
     base: object = None           #: None: the value is the parameter; else the factor's base
     integer: bool = False         #: LO and HI whole numbers: a whole number is searched (a window)
+    unit: str = ""                #: a truth parameter's datasheet unit, written after the value
+
+    @property
+    def truth(self) -> bool:
+        """A parameter of the truth model (the sensors' errors), not of the filter."""
+        return self.path.startswith(TRUTH_PREFIX)
 
     def value(self, x: float):
         """The value set in the scenario for the trial value ``x``."""
+        if self.unit:
+            return f"{float(x):.6g} {self.unit}"
         if self.base is None:
             return int(round(x)) if self.integer else float(x)
         if isinstance(self.base, list):
@@ -82,16 +101,22 @@ def parse_param(text: str, label: str, raw: dict, check: bool = True) -> TunePar
     parts = span.strip().removeprefix("x").split(":")
     if not sep or not path.strip() or len(parts) not in (2, 3) or (len(parts) == 3 and parts[2] != "log"):
         raise UsageError(f"--param {text!r}: expected PATH=LO:HI, PATH=LO:HI:log or PATH=xLO:HI[:log] (a factor)")
-    try:
-        lo, hi = float(parts[0]), float(parts[1])
-    except ValueError:
-        raise UsageError(f"--param {text!r}: LO and HI must be numbers") from None
-    whole = all(x.strip().lstrip("+-").isdigit() for x in parts[:2])
+    ends = [_END.match(x) for x in parts[:2]]
+    if not all(ends):
+        raise UsageError(f"--param {text!r}: LO and HI must be numbers (a truth parameter's with its unit)")
+    lo, hi = float(ends[0][1]), float(ends[1][1])
+    units = {m[2] for m in ends}
+    whole = all(m[1].lstrip("+-").isdigit() for m in ends)
     log = len(parts) == 3
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
         raise UsageError(f"--param {text!r}: LO ({lo:g}) must be below HI ({hi:g})")
     if log and lo <= 0:
         raise UsageError(f"--param {text!r}: a log scale needs LO above 0, not {lo:g}")
+    if path.strip().startswith(TRUTH_PREFIX):
+        return _truth_param(text, path.strip(), lo, hi, log, scaled, units)
+    if units != {""}:
+        raise UsageError(f"--param {text!r}: a filter's parameter is in SI, without a unit (a unit is for a "
+                         f"sensor's datasheet value, {TRUTH_PREFIX}...)")
     index = entry_index(raw, label)
     full = entry_path(label, path.strip(), index)
     base = value_at(raw, full, f"--param {text}") if check else None
@@ -100,6 +125,18 @@ def parse_param(text: str, label: str, raw: dict, check: bool = True) -> TunePar
         raise UsageError(f"--param {text!r}: a factor scales a number or a list of numbers, and {name} is {base!r}")
     integer = whole and not scaled and isinstance(base, int) and not isinstance(base, bool)   # a window: 30
     return TuneParam(name, full, lo, hi, log, base if scaled else None, integer)
+
+
+def _truth_param(text: str, path: str, lo: float, hi: float, log: bool, scaled: bool, units: set) -> TuneParam:
+    """A truth-model parameter: a datasheet value with its unit, set in the scenario's sensors."""
+    if scaled:
+        raise UsageError(f"--param {text!r}: a sensor's datasheet value carries its unit: give LO:HI with it "
+                         "(=5:30 m), not a factor")
+    units = units - {""}                          # the unit given once (after HI) or on both ends alike
+    if len(units) != 1:
+        raise UsageError(f"--param {text!r}: LO and HI of a sensor's value need one datasheet unit "
+                         "(=5:30 m, =20:200 ug/rtHz:log)")
+    return TuneParam(path, path, lo, hi, log, unit=units.pop())
 
 
 def default_params(raw: dict, label: str) -> list[TuneParam]:

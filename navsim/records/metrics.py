@@ -507,6 +507,14 @@ class Verdict(_Record):
     #: True where the interval straddles the bound: no verdict at these runs (``passed`` None)
     undecided: bool | None = None
     runs_needed: int | None = None       #: undecided: the runs at which it would be decided
+    #: what the paper's number is (:data:`navsim.records.reference.KINDS`); for ``single_run``
+    #: the fields below: judged against the spread of our single runs, not on ``ours_ci95``
+    kind: str = "population"
+    run_range: list | None = None        #: the 95 % range of one run, ``[lo, hi]`` per component (None: open)
+    percentile: list | None = None       #: the paper's number's percentile among our runs, per component
+    share: float | None = None           #: a bound: the share of our runs meeting it (every component)
+    share_ci95: list | None = None       #: its Clopper-Pearson 95 % interval
+    coverage_ci95: list | None = None    #: the 95 % interval of the share of single runs the range holds
 
     _NULLS = ("bound", "ours", "passed")
 

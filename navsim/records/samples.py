@@ -7,14 +7,20 @@ the nine states); its value over any set of runs is ``sum(s) / sum(n)``, under a
 for an RMS (``root``). Kept: ``rms.*``, ``final.*``, ``attitude.rms_deg``, ``nees.average``
 (the pooled mean over runs and scored epochs: ``metrics.json``'s average of the per-epoch
 means where every run has every epoch), ``nees.per_state``, the windows' ``rms`` and the
-landmarks' ``rms_after_m``. Percentiles, maxima, shares and times are not ratios of per-run
-sums and are not kept.
+landmarks' ``rms_after_m``.
+
+Percentiles, maxima, window extremes and standard deviations, convergence times and reset
+counts are not ratios of per-run sums: each run's own value of the same statistic (its p99, its
+largest error, its std about its own mean, ...) is kept apart, ``(B, k)`` per metric path
+(:attr:`EstimatorSamples.per_run`): what a paper's single flight is judged against
+(:mod:`navsim.scoring.single_run`). :meth:`EstimatorSamples.run_values` reads either kind.
 
 The file holds plain arrays only (read with ``allow_pickle=False``): ``format``, ``labels``,
 and per estimator ``i`` ``e{i}.runs``, ``e{i}.paths``, ``e{i}.roots`` and ``e{i}.{path}.s`` /
-``.n``. :func:`load_samples` checks each array's type and shape against the others: a damaged,
-truncated or foreign file is a :class:`~navsim.foundations.errors.UsageError` naming the file
-and the array.
+``.n``; the per-run values, where kept, ``e{i}.values`` (their paths) and ``e{i}.v.{path}``
+(a file written before them has none: read as none). :func:`load_samples` checks each array's
+type and shape against the others: a damaged, truncated or foreign file is a
+:class:`~navsim.foundations.errors.UsageError` naming the file and the array.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from __future__ import annotations
 import zipfile
 import zlib
 from dataclasses import dataclass, field
+from fnmatch import fnmatchcase
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +37,22 @@ from navsim.foundations.errors import UsageError
 
 #: the file's name in a result folder and the version of its layout
 SAMPLES_FILE, SAMPLES_FORMAT = "samples.npz", "samples-1"
+
+#: the metric paths (``fnmatch`` patterns) that each run has a value of: the ratio metrics
+#: (:class:`MetricSamples`) and those kept apart (:attr:`EstimatorSamples.per_run`; what a
+#: ``single_run`` paper check can be judged on, :mod:`navsim.scoring.single_run`)
+RUN_VALUE_PATTERNS = (
+    "rms.*", "final.*", "p99.*", "max_abs.*", "convergence_s", "resets.mean_per_run",
+    "attitude.rms_deg", "attitude.p95_deg", "attitude.p95_about_run_mean_deg", "attitude.max_abs_deg",
+    "nees.average", "nees.per_state", "wind.rms_mps", "wind.final_mps", "landmarks.rms_after_m",
+    "windows.*.horizontal_m.*", "windows.*.max_pos", "windows.*.max_neg", "windows.*.std",
+    "windows.*.p95_abs", "windows.*.rms",
+)
+
+
+def has_run_values(path: str) -> bool:
+    """Whether each run has its own value of the metric ``path`` (:data:`RUN_VALUE_PATTERNS`)."""
+    return any(fnmatchcase(path, p) for p in RUN_VALUE_PATTERNS)
 
 
 @dataclass(frozen=True)
@@ -59,6 +82,16 @@ class EstimatorSamples:
 
     runs: np.ndarray                       #: (B,) run numbers
     metrics: dict[str, MetricSamples] = field(default_factory=dict)
+    #: metric path -> each run's own value of the statistic, ``(B, k)`` (not ratios of sums)
+    per_run: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def run_values(self, path: str) -> np.ndarray | None:
+        """Each run's own value of the metric ``path``, ``(B, k)``: kept apart, or a ratio
+        metric's per-run value; None where the runs' values are not kept."""
+        if path in self.per_run:
+            return self.per_run[path]
+        m = self.metrics.get(path)
+        return None if m is None else m.per_run()
 
 
 def save_samples(path: Path, samples: dict[str, EstimatorSamples], extra: dict | None = None) -> None:
@@ -71,6 +104,9 @@ def save_samples(path: Path, samples: dict[str, EstimatorSamples], extra: dict |
                        f"e{i}.roots": np.array([es.metrics[p].root for p in paths], bool)})
         for p in paths:
             arrays[f"e{i}.{p}.s"], arrays[f"e{i}.{p}.n"] = es.metrics[p].s, es.metrics[p].n
+        if es.per_run:
+            arrays[f"e{i}.values"] = np.array(list(es.per_run), dtype=str)
+            arrays.update({f"e{i}.v.{p}": np.asarray(v, float) for p, v in es.per_run.items()})
     with open(path, "wb") as f:
         np.savez(f, **arrays, **(extra or {}))
 
@@ -112,7 +148,13 @@ def _estimator(z, i: int) -> EstimatorSamples:
             raise _Damaged(f"its arrays e{i}.{p}.s {s.shape} and .n {n.shape} are not (runs, components) "
                            f"for the {len(runs)} runs of e{i}.runs")
         metrics[p] = MetricSamples(s, n, bool(r))
-    return EstimatorSamples(runs, metrics)
+    per_run = {}
+    for p in (_array(z, f"e{i}.values", "U", 1).tolist() if f"e{i}.values" in z.files else []):
+        v = _array(z, f"e{i}.v.{p}", "f", 2)
+        if v.shape[0] != len(runs):
+            raise _Damaged(f"its array e{i}.v.{p} {v.shape} is not (runs, components) for the {len(runs)} runs")
+        per_run[p] = v
+    return EstimatorSamples(runs, metrics, per_run)
 
 
 def load_samples(path: Path) -> dict[str, EstimatorSamples]:

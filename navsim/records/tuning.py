@@ -38,6 +38,9 @@ class TuneCheck:
     #: ``original`` / ``tuned`` -> ``{"nees": {...}, "nis": {measurement: {...}}}``, each
     #: ``{average, band, fraction_inside}``: the consistency of each against its chi-square band
     consistency: dict = field(default_factory=dict)
+    #: a truth model's fit: ``original`` / ``tuned`` -> the scenario's paper checks judged with
+    #: each truth (:class:`~navsim.records.metrics.Verdict` mappings): the fit's prediction
+    paper_checks: dict | None = None
 
 
 @dataclass
@@ -56,6 +59,7 @@ class TuneRecord:
     trials: list = field(default_factory=list)          #: TuneTrial
     best: int | None = None                             #: the best trial's number
     tuned_entry: dict | None = None
+    tuned_sensors: dict | None = None                   #: a truth model's fit: the scenario's sensors
     checks: dict = field(default_factory=dict)          #: ``tuning`` / ``held_out`` -> TuneCheck
     sampler: str = ""
     wall_s: float = math.nan

@@ -19,7 +19,14 @@ from navsim.report.tables import FAIL, PASS, WARN, Heading, Paragraph, Table, la
 from navsim.records.metrics import RunMetrics
 from navsim.scoring.intervals import runs_for_precision
 from navsim.scoring.scorer import NORM_QUANTITIES
-from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary, with_interval
+from navsim.scoring.verdicts import (
+    VERDICT_COLUMN,
+    VERDICT_HEADERS,
+    num,
+    verdict_rows,
+    verdict_summary,
+    with_interval,
+)
 
 #: below this share of epochs inside its 95 % band a NEES or NIS is called out
 CONSISTENT_FRACTION = 0.5
@@ -136,10 +143,24 @@ def paper_checks(metrics: RunMetrics, reference) -> Section | None:
     if reference is None or metrics.paper_checks is None:
         return None
     rows = verdict_rows(metrics.paper_checks)
-    colours = [[None] * 5 + [_COLOURS.get(r[5])] for r in rows]
+    colours = [[None] * VERDICT_COLUMN + [_COLOURS.get(r[VERDICT_COLUMN].split()[0])] for r in rows]
     text = f"Published in {reference.source}. " + (reference.note.strip() if reference.note else "")
+    single = [v for v in metrics.paper_checks if v.kind == "single_run"]
+    if single:
+        text += " " + single_run_note(single, reference.kind_note)
     return Section(f"Paper against ours: {verdict_summary(metrics.paper_checks)}", text.strip(),
                    VERDICT_HEADERS, rows, colours)
+
+
+def single_run_note(single: list, why: str = "") -> str:
+    """How a single run's checks read: what the range is, its own uncertainty at these runs."""
+    runs = single[0].runs
+    cov = next((v.coverage_ci95 for v in single if v.coverage_ci95), None)
+    held = (f" (at {runs} runs the range holds {100 * cov[0]:.0f}-{100 * cov[1]:.0f} % of single runs, 95 % "
+            f"confidence)") if cov else ""
+    return ((why.strip().rstrip(".") + ": " if why else "") + "a single-run number is one flight, judged against "
+            "the range holding 95 % of our single runs' values of the same statistic" + held + "; the verdict "
+            "gives the paper's percentile among our runs, or the share of them meeting its bound.")
 
 
 def consistency(metrics: RunMetrics) -> Section | None:

@@ -10,17 +10,21 @@ import math
 import numpy as np
 from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullFormatter
 
+from navsim.records.metrics import Verdict
 from navsim.records.tuning import TuneRecord
 from navsim.report.figures import Page, fit, page_figure
 from navsim.report.render import render
 from navsim.report.tables import Heading, Paragraph, Table, layout
-from navsim.scoring.verdicts import num
+from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary
 
 #: how the checks are named on the pages
 CHECK_NAMES = {"tuning": "tuning seed", "held_out": "held-out seed", "log": "log"}
 
 
-def _value(p, v) -> str:
+def value_text(v) -> str:
+    """A parameter's value as set: a number, a list of numbers, a datasheet value with its unit."""
+    if isinstance(v, str):
+        return v
     return num(v) if not isinstance(v, list) else "[" + ", ".join(num(x) for x in v) + "]"
 
 
@@ -28,24 +32,31 @@ def summary_pages(r: TuneRecord, params: list) -> list[Page]:
     """The tuning in words and tables: the best trial's values, the checks."""
     best = r.best_trial
     rows = [[p.what, f"{num(p.lo)} - {num(p.hi)}{' (log)' if p.log else ''}",
-             _value(p, p.base) if p.base is not None else "-", num(best.values[p.name]),
-             _value(p, p.value(best.values[p.name]))] for p in params]
+             value_text(p.base) if p.base is not None else "-", num(best.values[p.name]),
+             value_text(p.value(best.values[p.name]))] for p in params]
     blocks = [Paragraph(f"Estimator '{r.estimator}' of {r.scenario}; objective {r.objective}"
                         + (f" ({r.metric})" if r.objective in ("rms", "rms+consistent") else "")
                         + f"; {len(r.trials)} trials of {r.runs} runs each on seed {r.seed} (every trial the same runs); "
                         f"{r.sampler}; best trial {r.best}, objective {num(best.objective)}; {r.wall_s:.0f} s."),
               Heading("Parameters"),
               Table(["parameter", "range", "original", "best trial", "value set"], rows, max_column=0.5),
-              Heading("Tuned against original, paired")]
+              Heading("Fitted truth against the original: the paper checks" if r.tuned_sensors is not None
+                      else "Tuned against original, paired")]
     for name, c in r.checks.items():
         rows = [[d["metric"] + (f" {d['component']}" if d["component"] else ""), num(d["a"]), num(d["b"]),
                  f"{num(d['diff'])} [{num(d['ci95'][0])}, {num(d['ci95'][1])}]", d["verdict"]] for d in c.differences]
         where = "On the log" if name == "log" else f"On the {CHECK_NAMES.get(name, name)} ({c.seed}, {c.runs} runs)"
-        blocks += [Paragraph(f"{where}: objective "
-                             f"{num(c.objective_original)} original, {num(c.objective_tuned)} tuned."),
-                   Table(["metric", "original", "tuned", "tuned - original [95 %]", "verdict"], rows),
-                   Table(["consistency", "original: average [band], inside", "tuned: average [band], inside"],
-                         consistency_rows(c.consistency))]
+        blocks.append(Paragraph(f"{where}: objective {num(c.objective_original)} original, {num(c.objective_tuned)} "
+                                + ("fitted truth." if c.paper_checks else "tuned.")))
+        if rows:
+            blocks.append(Table(["metric", "original", "tuned", "tuned - original [95 %]", "verdict"], rows))
+        blocks.append(Table(["consistency", "original: average [band], inside", "tuned: average [band], inside"],
+                            consistency_rows(c.consistency)))
+        for side, checks in (c.paper_checks or {}).items():
+            verdicts = [Verdict.from_dict(v) for v in checks]
+            blocks += [Paragraph(f"Paper checks, {'fitted' if side == 'tuned' else 'original'} truth: "
+                                 f"{verdict_summary(verdicts)}."),
+                       Table(VERDICT_HEADERS, verdict_rows(verdicts), max_column=0.3)]
     figs = layout(f"navsim tune: {r.estimator}", blocks)
     return [Page("tune_summary" if i == 0 else f"tune_summary_{i + 1}", "Summary", f) for i, f in enumerate(figs)]
 
@@ -147,10 +158,47 @@ def check_page(r: TuneRecord) -> Page:
     return Page("tune_check", "Tuned against original on the tuning and held-out seeds", fig)
 
 
+def prediction_page(r: TuneRecord) -> Page:
+    """Each single-flight paper number against the 95 % range of one of our runs, with the
+    original and with the fitted truth (held-out seed), as a multiple of the paper's number: the
+    fit's numbers should sit inside; the other estimators' are its prediction."""
+    c = r.checks.get("held_out") or r.checks["tuning"]
+    sides = {side: [Verdict.from_dict(v) for v in checks] for side, checks in c.paper_checks.items()}
+    rows = [(k, v) for k, v in enumerate(sides["tuned"]) if v.kind == "single_run" and v.of is None and v.run_range]
+    fig, ax = page_figure()
+    labels = []
+    for y, (k, v) in enumerate(rows):
+        paper = np.atleast_1d(np.asarray(v.bound, float))
+        role = "fitted" if v.estimator == r.estimator else "predicted"
+        metric = v.metric.split(".", 1)[-1] if v.metric.startswith("windows.") else v.metric
+        labels.append(f"{v.estimator} ({role}):\n{metric}")
+        for side, colour, dy in (("original", "tab:gray", -0.15), ("tuned", "tab:blue", 0.15)):
+            w = sides[side][k]
+            if not w.run_range:
+                continue
+            for j, (lo, hi) in enumerate(w.run_range):
+                ends = sorted(e / paper[j] for e in (-np.inf if lo is None else lo, np.inf if hi is None else hi))
+                ax.plot(ends, [y + dy] * 2, color=colour, lw=3, solid_capstyle="butt",
+                        label=f"{'original' if side == 'original' else 'fitted'} truth" if y == j == 0 else None)
+        ax.plot([1.0], [y], "D", color="tab:red", ms=6, label="the paper's flight" if y == 0 else None)
+    ax.axvline(1.0, color="tab:red", lw=0.6, alpha=0.5)
+    ax.set_yticks(range(len(labels)), labels, fontsize=7)
+    ax.invert_yaxis()
+    ax.set_xlabel("ours / the paper's number: the 95 % range of one run")
+    where = CHECK_NAMES["held_out" if "held_out" in r.checks else "tuning"]
+    ax.set_title(f"The paper's single flight against one of our runs ({where}, {c.runs} runs)", fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="x")
+    fit(fig)
+    return Page("tune_prediction", "The paper's numbers against one run, original and fitted truth", fig)
+
+
 def write_tune_report(folder, r: TuneRecord, params: list, formats=("pdf", "png")) -> list:
     """``tune.pdf`` and a PNG per page in the output folder ``folder`` (``formats``: the
     scenario's ``report.formats``); returns the files."""
     pages = summary_pages(r, params) + [objective_page(r), parameter_page(r, params)]
-    if "tuning" in r.checks:                  # a scenario's: the tuning and held-out seeds
+    if r.tuned_sensors is not None:           # a truth model's fit: the paper's numbers, predicted
+        pages.append(prediction_page(r))
+    elif "tuning" in r.checks:                # a scenario's: the tuning and held-out seeds
         pages.append(check_page(r))
     return render(folder, pages, list(formats), f"navsim tune: {r.estimator}", pdf="tune.pdf")

@@ -31,7 +31,14 @@ from navsim.scoring.intervals import (
     rms_intervals,
     std_interval,
 )
-from navsim.scoring.stats import RunSums, chi2_band, convergence_time, last_finite
+from navsim.scoring.stats import (
+    RunSums,
+    chi2_band,
+    convergence_time,
+    convergence_times,
+    last_finite,
+    row_percentiles,
+)
 
 #: the errors scored per axis (as :data:`navsim.scoring.scorer.ERRORS`)
 ERRORS = ("pos_m", "vel_mps", "att_deg")
@@ -55,6 +62,7 @@ class RunSamples:
         self.boot: dict = {}
         self.final: list = []
         self.runs: list = []
+        self.values: dict = {}                 # metric path -> each chunk's per-run values (R, k)
 
     def _s(self, key, keep: int = 0) -> RunSums:
         if key not in self.sums:
@@ -86,6 +94,7 @@ class RunSamples:
                 with warnings.catch_warnings():       # a run without a finite epoch there: NaN, left out
                     warnings.simplefilter("ignore", RuntimeWarning)
                     self._s(("whor_max", name)).add(np.nanmax(hor2, axis=1, keepdims=True))
+        self._run_values(c, masks)
         w = bootstrap_weights(runs)
         self._b("conv").add(w, np.sum(h.pos_err_m[good] ** 2, axis=-1))
         if h.nees is not None:
@@ -93,6 +102,34 @@ class RunSamples:
             self._b("nees").add(w, h.nees[good])
             for key, nis in h.nis.items():
                 self._b(("nis", key)).add(w, nis[good][:, c.after])
+
+    def _keep(self, path: str, v) -> None:
+        v = np.asarray(v, float)
+        self.values.setdefault(path, []).append(v.reshape(len(v), int(np.prod(v.shape[1:]))))
+
+    def _run_values(self, c, masks: dict) -> None:
+        """Each run's own value of the statistics that are not ratios of per-run sums (the
+        same formulas as the pooled metrics, over one run's epochs: a paper's single flight)."""
+        h, good = c.h, c.good
+        with warnings.catch_warnings():               # a run without a finite value there: NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            for name, x in c.errors.items():
+                self._keep(f"p99.{name}", row_percentiles(x, 99))
+                self._keep(f"max_abs.{name}", _row_max(np.abs(x)))
+            if c.euler is not None:
+                self._keep("attitude.p95_deg", row_percentiles(c.euler, 95))
+                self._keep("attitude.p95_about_run_mean_deg", row_percentiles(c.about, 95))
+                self._keep("attitude.max_abs_deg", _row_max(np.abs(c.euler)))
+            for name, m in masks.items():
+                for key, v in c.quantities.items():
+                    x, path = v[:, m], f"windows.{name}.{key}"
+                    self._keep(f"{path}.max_pos", _row_max(x))
+                    self._keep(f"{path}.max_neg", -_row_max(-x))
+                    self._keep(f"{path}.std", np.nanstd(x, axis=1) if x.shape[1] else np.full(len(x), np.nan))
+                    self._keep(f"{path}.p95_abs", row_percentiles(x, 95))
+        self._keep("convergence_s", convergence_times(h.t_s, np.linalg.norm(h.pos_err_m[good], axis=-1)))
+        if h.resets is not None:
+            self._keep("resets.mean_per_run", [len(r) for r, g in zip(h.resets, good) if g])
 
     def add_wind(self, err) -> None:
         """Feed the wind estimate's errors ``(B, epochs, 3)`` from the settling time on (NaN on
@@ -147,7 +184,8 @@ class RunSamples:
             sq = np.concatenate([f[i] for f in self.final]) if self.final else np.zeros((0, 3))
             out[f"final.{n}"] = MetricSamples(np.nan_to_num(sq), np.isfinite(sq).astype(float), True)
         runs = np.concatenate(self.runs) if self.runs else np.zeros(0, np.int64)
-        return EstimatorSamples(runs, out)
+        per_run = {path: np.concatenate(v) for path, v in self.values.items()}
+        return EstimatorSamples(runs, out, {p: v for p, v in per_run.items() if len(v) == len(runs)})
 
     def intervals(self, t_s, settle_s: float, good: int, bands: dict) -> dict:
         """The intervals, in the metrics' shape (sections that were not scored left out).
@@ -227,6 +265,12 @@ def _columns(acc: RunSums) -> tuple[np.ndarray, np.ndarray]:
     s, n = acc.arrays()
     k = int(np.prod(s.shape[1:]))                 # 1 for one number per run; also with no run
     return s.reshape(len(s), k).astype(float), n.reshape(len(n), k).astype(float)
+
+
+def _row_max(x) -> np.ndarray:
+    """Each run's ``nanmax`` over its epochs (axis 1); NaN for a run without a finite value."""
+    x = np.asarray(x, float)
+    return np.nanmax(x, axis=1) if x.shape[1] else np.full((len(x), *x.shape[2:]), np.nan)
 
 
 def _nanmean(a) -> np.ndarray:

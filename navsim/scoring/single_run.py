@@ -8,7 +8,9 @@ distribution-free 95 % prediction interval of N runs, between the order statisti
 ``floor(0.025 (N + 1))`` and ``ceil(0.975 (N + 1))`` (a new independent draw falls between them
 with probability ``(m - k) / (N + 1) >= 0.95`` whatever the distribution). The paper's
 percentile among our runs is reported with it; a bound the paper states for its flight ("within
-1 m") gets the share of our runs that meet it, with its Clopper-Pearson 95 % interval.
+1 m") passes when a flight meeting it can be one of ours: when at least as many of our runs
+meet it as the range's end rank (:func:`bound_reached`), and gets the share of our runs that
+meet it, with its Clopper-Pearson 95 % interval.
 """
 
 from __future__ import annotations
@@ -17,6 +19,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import beta
+
+from navsim.scoring.intervals import binomial_interval
 
 #: the prediction range's coverage of a new single run
 COVERAGE = 0.95
@@ -34,15 +39,43 @@ class SingleRunVerdict:
     runs: int
 
 
+def _ranks(n: int, coverage: float) -> tuple[int, int]:
+    """The 1-based ranks ``k``, ``m`` of the prediction range's ends among ``n`` runs."""
+    a = (1.0 - coverage) / 2.0
+    return math.floor(a * (n + 1)), math.ceil((1.0 - a) * (n + 1))
+
+
+def min_runs(coverage: float = COVERAGE) -> int:
+    """The fewest runs whose prediction range has both ends (39 at 95 %)."""
+    return math.ceil(2.0 / (1.0 - coverage)) - 1
+
+
+def coverage_interval(n: int, coverage: float = COVERAGE, confidence: float = 0.95) -> tuple[float, float]:
+    """The ``confidence`` interval of the share of single runs that the range of ``n`` runs
+    holds: that share is ``Beta(m - k, n + 1 - (m - k))`` distributed (its mean ``(m - k) /
+    (n + 1)``): the range's own uncertainty at ``n`` runs."""
+    k, m = _ranks(n, coverage)
+    if k < 1 or m > n:
+        return math.nan, math.nan
+    a = (1.0 - confidence) / 2.0
+    lo, hi = beta.ppf([a, 1.0 - a], m - k, n + 1 - (m - k))
+    return float(lo), float(hi)
+
+
+def _values(per_run) -> np.ndarray:
+    """The runs' values, NaN (no value in that run) left out; an infinite one ("never") kept."""
+    x = np.asarray(per_run, float).ravel()
+    return x[~np.isnan(x)]
+
+
 def prediction_range(per_run: np.ndarray, coverage: float = COVERAGE) -> tuple[float, float]:
-    """The distribution-free prediction interval of a new run from ``per_run`` (finite values):
+    """The distribution-free prediction interval of a new run from ``per_run`` (NaN left out):
     the order statistics of ranks ``floor(a (N + 1))`` and ``ceil((1 - a) (N + 1))``,
     ``a = (1 - coverage) / 2``; an end beyond the sample is infinite (too few runs to bound it:
-    39 runs bound both ends at 95 %)."""
-    x = np.sort(np.asarray(per_run, float)[np.isfinite(per_run)])
+    39 runs bound both ends at 95 %, :func:`min_runs`)."""
+    x = np.sort(_values(per_run))
     n = x.size
-    a = (1.0 - coverage) / 2.0
-    k, m = math.floor(a * (n + 1)), math.ceil((1.0 - a) * (n + 1))
+    k, m = _ranks(n, coverage)
     low = x[k - 1] if k >= 1 else -math.inf
     high = x[m - 1] if m <= n else math.inf
     return float(low), float(high)
@@ -52,28 +85,31 @@ def judge_single_run(paper: float, per_run: np.ndarray, coverage: float = COVERA
     """The paper's single-flight ``paper`` against our runs' values ``per_run``: passed when it
     lies inside the prediction range of one run, with its percentile among ours (ties counted
     half)."""
-    x = np.asarray(per_run, float)
-    x = x[np.isfinite(x)]
+    x = _values(per_run)
     low, high = prediction_range(x, coverage)
     pct = 100.0 * (np.sum(x < paper) + 0.5 * np.sum(x == paper)) / x.size if x.size else math.nan
     return SingleRunVerdict(low, high, float(pct), bool(low <= paper <= high), int(x.size))
 
 
-def clopper_pearson(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
-    """The exact (Clopper-Pearson) interval of a binomial share ``k / n``."""
-    from scipy.stats import beta
-    a = (1.0 - confidence) / 2.0
-    lo = 0.0 if k == 0 else float(beta.ppf(a, k, n - k + 1))
-    hi = 1.0 if k == n else float(beta.ppf(1.0 - a, k + 1, n - k))
-    return lo, hi
+def bound_reached(per_run: np.ndarray, bound, rule: str, coverage: float = COVERAGE) -> bool:
+    """Whether a flight meeting ``bound`` (``at_most``/``at_least``; every component of a run
+    of ``k``, ``(B, k)``) lies within the prediction range of one run: at least
+    ``floor(a (N + 1))`` of the N runs meet it (for one component: the range's end reaches the
+    bound), ``a = (1 - coverage) / 2``."""
+    share, _, n = share_meeting(per_run, bound, rule)
+    k, _ = _ranks(n, coverage)
+    return bool(n and k >= 1 and round(share * n) >= k)
 
 
-def share_meeting(per_run: np.ndarray, bound: float, rule: str) -> tuple[float, tuple[float, float], int]:
-    """The share of runs whose value meets ``bound`` (``at_most`` or ``at_least``), its
-    Clopper-Pearson 95 % interval and the runs counted."""
-    x = np.asarray(per_run, float)
-    x = x[np.isfinite(x)]
+def share_meeting(per_run: np.ndarray, bound, rule: str) -> tuple[float, tuple[float, float], int]:
+    """The share of runs whose value meets ``bound`` (``at_most`` or ``at_least``; a run of
+    ``k`` components, ``(B, k)``, meets it when every component does), its Clopper-Pearson 95 %
+    interval and the runs counted (a run with a NaN component left out)."""
     if rule not in ("at_most", "at_least"):
         raise ValueError(f"rule {rule!r}: a share is of a bound, at_most or at_least")
-    k = int(np.sum(x <= bound) if rule == "at_most" else np.sum(x >= bound))
-    return (k / x.size if x.size else math.nan), clopper_pearson(k, x.size), int(x.size)
+    x = np.asarray(per_run, float)
+    x = x.reshape(len(x), -1) if x.ndim else x.reshape(1, 1)
+    x = x[~np.isnan(x).any(axis=1)]
+    meets = np.all(x <= bound, axis=1) if rule == "at_most" else np.all(x >= bound, axis=1)
+    k, n = int(meets.sum()), int(len(x))
+    return (k / n if n else math.nan), tuple(binomial_interval(k, n)), n

@@ -12,6 +12,8 @@ the bins that hold the wanted ranks and picks them (numpy's linear interpolation
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from scipy.stats import chi2
 
@@ -239,7 +241,11 @@ def chi2_band(dim: int, runs: int, p: float = 0.95) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
-def convergence_time(t_s, err, factor: float = 2.0, hold_s: float = 60.0):
+#: :func:`convergence_time`'s defaults: the factor over the steady error, and how long it holds
+CONVERGENCE_FACTOR, CONVERGENCE_HOLD_S = 2.0, 60.0
+
+
+def convergence_time(t_s, err, factor: float = CONVERGENCE_FACTOR, hold_s: float = CONVERGENCE_HOLD_S):
     """First time from which ``err`` (the Monte Carlo RMS of the position error norm) stays
     below ``factor`` times its steady value (the median over the second half of the run) for
     ``hold_s`` (or to the end of the run), so that a later fault window does not count as
@@ -259,6 +265,47 @@ def convergence_time(t_s, err, factor: float = 2.0, hold_s: float = 60.0):
         if later_bad.size == 0 or later_bad[0] - t_s[i] >= hold_s:
             return float(t_s[i])
     return None
+
+
+def row_percentiles(x, q: float) -> np.ndarray:
+    """Each run's ``np.nanpercentile(np.abs(x[b]), q, axis=0)`` of ``x`` ``(B, E, ...)``, over
+    its epochs (axis 1): ``(B, ...)``; NaN for a run without a finite value there. One sort of
+    the whole array (NaN sorts last), each row's ranks read at its own count of values."""
+    a = np.sort(np.abs(np.asarray(x, float)), axis=1)
+    n = np.sum(~np.isnan(a), axis=1)                       # (B, ...)
+    pos = q / 100.0 * np.maximum(n - 1, 0)
+    lo = np.floor(pos).astype(np.int64)
+    hi = np.minimum(lo + 1, np.maximum(n - 1, 0))
+    t = pos - lo
+    take = lambda i: np.take_along_axis(a, i[:, None], axis=1)[:, 0] if a.shape[1] else np.full(i.shape, np.nan)
+    va, vb = take(lo), take(hi)
+    diff = vb - va
+    out = np.where(t >= 0.5, vb - diff * (1 - t), va + diff * t)     # numpy's linear interpolation
+    return np.where(n > 0, out, np.nan)
+
+
+def convergence_times(t_s, err) -> np.ndarray:
+    """:func:`convergence_time` of each row of ``err`` ``(B, E)`` (one run's position error
+    norm), vectorised over the runs: ``(B,)``, ``inf`` where a run never converges."""
+    t_s, err = np.asarray(t_s, float), np.asarray(err, float)
+    out = np.full(err.shape[0], np.inf)
+    if err.shape[1] == 0:
+        return out
+    late = err[:, err.shape[1] // 2:]
+    has = np.isfinite(late).any(axis=1)
+    with warnings.catch_warnings():                       # a row without a finite late value: left inf
+        warnings.simplefilter("ignore", RuntimeWarning)
+        steady = np.nanmedian(late, axis=1)
+    ok = err <= CONVERGENCE_FACTOR * steady[:, None]
+    bad_t = np.where(ok, np.inf, t_s[None, :])
+    # each epoch's next bad time after it: the running minimum from the end, shifted by one
+    nxt = np.concatenate([np.minimum.accumulate(bad_t[:, ::-1], axis=1)[:, ::-1][:, 1:],
+                          np.full((err.shape[0], 1), np.inf)], axis=1)
+    good = ok & (nxt - t_s[None, :] >= CONVERGENCE_HOLD_S)
+    first = np.argmax(good, axis=1)
+    found = good.any(axis=1) & has & (steady < err[:, 0])
+    out[found] = t_s[first[found]]
+    return out
 
 
 def chi2_bands(dim: int, counts, p: float = 0.95) -> tuple[np.ndarray, np.ndarray]:

@@ -14,6 +14,13 @@
   95 % band by ``d`` in log (the nearest edge): the most accurate filter whose covariance can be
   trusted.
 
+- ``paper``: how far the estimator's runs sit from the single-flight numbers a paper
+  published for it (the scenario's ``single_run`` reference values,
+  :mod:`navsim.records.reference`): the RMS over those numbers of ``ln(median / paper)``, the
+  median over the runs of each run's own statistic (:func:`paper_distance`). The paper's flight
+  is one draw; the truth model whose runs' median equals it is the one that most plausibly flew
+  it. What calibrating a paper's unpublished sensor errors minimises (truth parameters).
+
 A trial whose runs diverged, or whose objective is not a finite number, has none (None).
 
 With a shape weight ``w`` (``--shape``; Chen et al. 2023), ``w`` times :func:`shape_distance` is
@@ -33,8 +40,8 @@ import numpy as np
 from navsim.records.metrics import EstimatorMetrics
 
 #: the objectives, and those that need the truth (a log without a reference offers NIS only)
-OBJECTIVES = ("rms", "nees", "nees-band", "nis", "nis-band", "rms+consistent")
-NEEDS_TRUTH = frozenset({"rms", "nees", "nees-band", "rms+consistent"})
+OBJECTIVES = ("rms", "nees", "nees-band", "nis", "nis-band", "rms+consistent", "paper")
+NEEDS_TRUTH = frozenset({"rms", "nees", "nees-band", "rms+consistent", "paper"})
 DEFAULT_METRIC = "rms.pos_m"
 
 
@@ -71,10 +78,37 @@ def objective(name: str, m: EstimatorMetrics, metric: str = DEFAULT_METRIC) -> f
         value = 1.0 - m.nees.fraction_inside if m.nees else math.nan
     elif name in ("nis", "nis-band"):
         return nis_objective(name, m.nis)
+    elif name == "paper":
+        raise ValueError("the paper objective is of the runs' own values: paper_distance(checks, samples)")
     elif name == "rms+consistent":
         value = metric_value(m, metric) * math.exp(band_distance(m.nees.average, m.nees.band)) if m.nees else math.nan
     else:
         raise ValueError(f"no objective '{name}' (the objectives: {', '.join(OBJECTIVES)})")
+    return value if math.isfinite(value) else None
+
+
+def paper_checks_of(reference, label: str) -> list:
+    """The checks of ``reference`` that ``paper`` fits for the estimator ``label``: its published
+    single-flight numbers (``single_run``, not a claim relative to another estimator)."""
+    return [c for c in (reference.checks if reference else ()) if c.estimator == label and c.kind == "single_run"
+            and c.of is None and c.claim is None]
+
+
+def paper_distance(checks: list, samples) -> float | None:
+    """The ``paper`` objective: the RMS over the checks' components of ``ln(median / paper)``,
+    the median over the runs (``samples``: :class:`~navsim.records.samples.EstimatorSamples`) of
+    each run's own value; a median of the other sign than the paper's, or zero, is infinitely
+    far (None)."""
+    terms = []
+    for c in checks:
+        x = None if samples is None else samples.run_values(c.metric)
+        paper = np.atleast_1d(np.asarray(c.bound, float))
+        if x is None or x.shape[1] != paper.size or not len(x):
+            return None
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = np.nanmedian(x, axis=0) / paper
+            terms += np.log(ratio).tolist()
+    value = float(np.sqrt(np.mean(np.square(terms)))) if terms else math.nan
     return value if math.isfinite(value) else None
 
 

@@ -8,6 +8,17 @@ the bound shrinks as ``1 / sqrt(runs)``; :func:`navsim.scoring.intervals.runs_ne
 passes when every component does and fails when one does. A metric without an interval (a
 maximum, a single run) is judged on its value, as is the bound of a claim relative to another
 estimator (``of``: its metric times the factor, taken as exact).
+
+A ``single_run`` check (the paper's number is one flight: :data:`~navsim.records.reference.KINDS`)
+is judged instead against each run's own value of the statistic
+(:meth:`~navsim.records.samples.EstimatorSamples.run_values`; of a claim relative to another
+estimator, each run's ratio of the two): a number (``close``, ``none``) passes when it lies
+inside the 95 % range of one run and fails outside it, with its percentile among our runs; a
+bound (``at_most``, ``at_least``) passes when the range reaches it (a flight meeting it can be
+one of ours: at least as many runs meet it, every component at once, as the range's end rank),
+with the share of our runs meeting it and its Clopper-Pearson interval
+(:mod:`navsim.scoring.single_run`). Below :func:`~navsim.scoring.single_run.min_runs` runs the
+range is open and the check undecided.
 """
 
 from __future__ import annotations
@@ -17,8 +28,10 @@ import math
 import numpy as np
 
 from navsim.records.metrics import EstimatorMetrics, Verdict
-from navsim.records.reference import Reference
+from navsim.records.reference import PaperCheck, Reference
+from navsim.records.samples import EstimatorSamples
 from navsim.scoring.intervals import runs_needed
+from navsim.scoring.single_run import bound_reached, coverage_interval, judge_single_run, min_runs, share_meeting
 
 #: the mark of each verdict, in the terminal and on the report's first page: a check with a rule
 #: whose metric we do not have (or is not a number of the bound's shape) is "no value", never
@@ -30,7 +43,11 @@ ABSENT_IS_INFINITE = ("convergence_s",)
 #: how each rule reads in a table (the bound after it)
 RULE_SIGNS = {"at_most": "<=", "at_least": ">=", "close": "~", "none": ""}
 #: the columns of :func:`verdict_rows`
-VERDICT_HEADERS = ["estimator", "paper's result", "our metric", "paper", "ours", "verdict"]
+VERDICT_HEADERS = ["estimator", "paper's result", "our metric", "kind", "paper", "ours", "verdict"]
+#: the verdict's column in :data:`VERDICT_HEADERS`
+VERDICT_COLUMN = VERDICT_HEADERS.index("verdict")
+#: how each kind reads in the tables: ours is the mean's 95 % interval, or one run's 95 % range
+KIND_TEXT = {"population": "population", "single_run": "single run"}
 
 
 def _passes(rule: str, ours: np.ndarray, bound: np.ndarray, tolerance: float) -> bool | None:
@@ -92,14 +109,18 @@ def _interval(estimators: dict, label: str, path: str, shape) -> np.ndarray | No
     return np.where(np.isnan(a), np.array([-np.inf, np.inf]), a)
 
 
-def judge(reference: Reference | None, estimators: dict[str, EstimatorMetrics]) -> list[Verdict] | None:
+def judge(reference: Reference | None, estimators: dict[str, EstimatorMetrics],
+          samples: dict[str, EstimatorSamples] | None = None) -> list[Verdict] | None:
     """Each of ``reference``'s checks against the estimators' metrics (None without a
-    reference). A metric of ours that is missing or not a number, or has another length than
-    the bound, gets no verdict."""
+    reference); a ``single_run`` check against the runs' ``samples``. A metric of ours that is
+    missing or not a number, or has another length than the bound, gets no verdict."""
     if reference is None:
         return None
     out = []
     for c in reference.checks:
+        if c.kind == "single_run":
+            out.append(_judge_single(c, estimators, samples or {}))
+            continue
         ours, bound = _metric(estimators, c.estimator, c.metric), c.bound
         if ours is None and c.metric in ABSENT_IS_INFINITE and c.estimator in estimators:
             ours = math.inf
@@ -120,6 +141,55 @@ def judge(reference: Reference | None, estimators: dict[str, EstimatorMetrics]) 
                            None if interval is None else _open_ends(interval), runs,
                            True if interval is not None and passed is None else None, needed))
     return out
+
+
+def _run_values(c: PaperCheck, samples: dict) -> np.ndarray | None:
+    """Each run's value of the check's metric ``(B, k)``; of a claim relative to another
+    estimator, each run's ratio to that estimator's on the same run; None where not kept."""
+    mine = samples.get(c.estimator)
+    x = None if mine is None else mine.run_values(c.metric)
+    if x is None or c.of is None:
+        return x
+    other = samples.get(c.of)
+    y = None if other is None else other.run_values(c.metric)
+    if y is None or y.shape[1] != x.shape[1]:
+        return None
+    _, ia, ib = np.intersect1d(mine.runs, other.runs, return_indices=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return x[ia] / y[ib]
+
+
+def _judge_single(c: PaperCheck, estimators: dict, samples: dict) -> Verdict:
+    """A check on one flight against our single runs (the module's text)."""
+    ours = _metric(estimators, c.estimator, c.metric)
+    if c.of is not None:
+        base = _numbers(_metric(estimators, c.of, c.metric))
+        bound = None if base is None else (base * c.bound).tolist()
+    else:
+        bound = c.bound
+    x, paper = _run_values(c, samples), np.atleast_1d(np.asarray(c.bound, float))
+    if c.of is not None and x is not None:            # the factor, for every component of the ratio
+        paper = np.full(x.shape[1], float(c.bound))
+    plain = dict(estimator=c.estimator, metric=c.metric, rule=c.rule, bound=bound, ours=ours, passed=None,
+                 claim=c.claim, of=c.of, times=c.bound if c.of is not None else None, kind=c.kind)
+    if x is None or x.shape[1] != paper.size or not len(x):
+        return Verdict(**plain)
+    judged = [judge_single_run(p, x[:, j]) for j, p in enumerate(paper)]
+    runs = min(j.runs for j in judged)
+    plain.update(run_range=_open_ends([[j.low, j.high] for j in judged]),
+                 percentile=[round(j.percentile, 1) for j in judged], runs=runs)
+    if runs >= min_runs():
+        plain["coverage_ci95"] = [round(v, 4) for v in coverage_interval(runs)]
+    if c.rule in ("at_most", "at_least"):
+        share, ci, _ = share_meeting(x, paper, c.rule)
+        plain.update(share=share, share_ci95=list(ci))
+    if c.rule == "none":
+        return Verdict(**plain)
+    if runs < min_runs():
+        return Verdict(**plain, undecided=True, runs_needed=min_runs())
+    if c.rule in ("at_most", "at_least"):             # every component at once, as the paper's flight met it
+        return Verdict(**{**plain, "passed": bound_reached(x, paper, c.rule)})
+    return Verdict(**{**plain, "passed": all(j.passed for j in judged)})
 
 
 def _metric(estimators: dict, label: str, path: str):
@@ -161,21 +231,41 @@ def _fmt(v) -> str:
 
 
 def verdict_rows(verdicts: list[Verdict]) -> list[list[str]]:
-    """``[estimator, result, metric, paper, ours, verdict]`` per verdict: ``result`` the claim
-    (``as published`` for a number); ``paper`` the published number (with ``±`` its tolerance)
-    or the claim's threshold (``<= 0.4 x other (1.14)`` for one relative to another estimator)."""
+    """``[estimator, result, metric, kind, paper, ours, verdict]`` per verdict: ``result`` the
+    claim (``as published`` for a number); ``paper`` the published number (with ``±`` its
+    tolerance) or the claim's threshold (``<= 0.4 x other (1.14)`` for one relative to another
+    estimator); ``ours`` the metric with its 95 % interval, or for a single run the 95 % range of
+    one run (of the ratio, for a claim relative to another estimator), the verdict then with the
+    paper's percentile among our runs or the share of them meeting the bound."""
     rows = []
     for v in verdicts:
+        single = v.kind == "single_run"
         paper = f"{RULE_SIGNS[v.rule]} {_fmt(v.bound)}".strip()
         if v.of is not None:
-            paper = f"{RULE_SIGNS[v.rule]} {v.times:g} x {v.of} ({_fmt(v.bound)})"
-        elif v.rule == "close":
+            paper = f"{RULE_SIGNS[v.rule]} {v.times:g} x {v.of}" + ("" if single else f" ({_fmt(v.bound)})")
+        elif v.rule == "close" and not single:
             paper = f"{_fmt(v.bound)} ±{100 * v.tolerance:.0f}%"
         mark = NO_VALUE if v.passed is None and v.rule != "none" else MARKS[v.passed]
         if v.undecided:
             mark = undecided_text(v)
-        rows.append([v.estimator, v.claim or "as published", v.metric, paper, with_interval(v.ours, v.ours_ci95), mark])
+        elif single and v.run_range is not None:
+            mark = f"{mark} ({single_run_text(v)})" if mark != "-" else single_run_text(v)
+        ours = with_interval(v.ours, v.ours_ci95)
+        if single:
+            ours = "-" if v.run_range is None else "  ".join(
+                f"[{num(lo) if lo is not None else '-'}, {_fmt(hi) if hi is not None else '-'}]" for lo, hi in v.run_range)
+            ours = (f"ratio {ours}" if v.of is not None and v.run_range is not None else ours)
+        rows.append([v.estimator, v.claim or "as published", v.metric, KIND_TEXT.get(v.kind, v.kind), paper, ours, mark])
     return rows
+
+
+def single_run_text(v: Verdict) -> str:
+    """A single-run verdict's detail: ``"p34"`` (the paper's percentile among our runs, per
+    component) for a number; ``"96 % [87, 99] of runs meet it"`` for a bound."""
+    if v.share is not None:
+        lo, hi = v.share_ci95
+        return f"{100 * v.share:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] of runs meet it"
+    return " ".join(f"p{p:.1f}" if 0 < p < 1 or 99 < p < 100 else f"p{p:.0f}" for p in v.percentile)
 
 
 #: beyond this many runs a check is called too close to its bound to decide
@@ -185,6 +275,8 @@ DECIDABLE_RUNS = 100_000
 def undecided_text(v: Verdict) -> str:
     """``"undecided at 20 runs (~80 decide)"``; ``"... (at the bound)"`` when the value sits so
     close to the bound that more than :data:`DECIDABLE_RUNS` runs would be needed."""
+    if v.kind == "single_run":
+        return f"undecided at {v.runs} runs ({v.runs_needed} bound one run's 95 % range)"
     if v.runs_needed and v.runs_needed > DECIDABLE_RUNS:
         return f"undecided at {v.runs} runs (at the bound: >{DECIDABLE_RUNS} runs to decide)"
     return f"undecided at {v.runs} runs" + (f" (~{v.runs_needed} decide)" if v.runs_needed else "")

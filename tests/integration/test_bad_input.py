@@ -151,11 +151,11 @@ CASES = [
     ("sensor-rate-inf", {S: scenario(**{"sensors.bd.override": {"rate_hz": float("inf")}})}, VALIDATE, 2,
      ["sensors.bd.override.rate_hz"]),
     # 8. reference values
-    ("reference-strings", {S: scenario(reference={"source": "P0", "values": {"eskf": {"rms.pos_m": ["a", "b", "c"]}}})},
+    ("reference-strings", {S: scenario(reference={"source": "P0", "kind": "population", "values": {"eskf": {"rms.pos_m": ["a", "b", "c"]}}})},
      VALIDATE, 2, ["reference.values.eskf.rms.pos_m", "finite"]),
-    ("reference-nan", {S: scenario(reference={"source": "P0", "values": {"eskf": {"rms.pos_m": float("nan")}}})},
+    ("reference-nan", {S: scenario(reference={"source": "P0", "kind": "population", "values": {"eskf": {"rms.pos_m": float("nan")}}})},
      VALIDATE, 2, ["reference.values.eskf.rms.pos_m"]),
-    ("reference-unknown-metric", {S: scenario(reference={"source": "P0", "values": {"eskf": {"rmse.pos_m": 1}}})},
+    ("reference-unknown-metric", {S: scenario(reference={"source": "P0", "kind": "population", "values": {"eskf": {"rmse.pos_m": 1}}})},
      VALIDATE, 2, ["reference.values.eskf.rmse.pos_m", "not a metric"]),
     ("reference-alias-bomb", {S: scenario() + "reference:\n  source: P0\n  note: &a [x, x, x, x, x, x, x, x, x, x]\n"
                               + "".join(f"  n{i}: &{c} [{', '.join([f'*{p}'] * 10)}]\n"

@@ -238,29 +238,53 @@ def values_with_intervals(checks: list[dict]) -> list[tuple]:
     return out
 
 
-#: the rows whose command runs in under ~10 s (the others are slow)
-CHEAP_CHECKS = {"p0_bd_sins_ads"}
+#: the columns of the table: their runs (None: the scenario's own)
+CHECK_COLUMNS = {"at 20 runs": 20, "at its runs": None, "at 100 runs": 100}
+#: the rows and columns whose command runs in under ~10 s (the others are slow)
+CHEAP_CHECKS = {("p0_bd_sins_ads", "at its runs")}
 PAPER_CHECK_SCENARIOS = [re.match(r"\| `(\w+)`", row).group(1) for row in paper_check_rows()]
+#: what a single run's verdict quotes: one run's range, the paper's percentile, a share of runs
+ONE_RUN = rf"one run \[({NUMBER}), ({NUMBER})\]"
+PERCENTILE, SHARE = r"\(p(\d+(?:\.\d)?)\)", r"(\d+) % \[(\d+), (\d+)\] of runs meet it"
 
 
-@pytest.mark.parametrize("name", [pytest.param(name, marks=() if name in CHEAP_CHECKS else pytest.mark.slow)
-                                  for name in PAPER_CHECK_SCENARIOS])
-def test_the_paper_checks_table(name, results):
-    """Each row's verdicts and every ``value [lo, hi]`` it quotes: one of the checks' values with
-    its interval (``navsim run scenarios/<name>.yaml``, its own runs and seed)."""
+@pytest.mark.parametrize("name, column", [
+    pytest.param(name, column, marks=() if (name, column) in CHEAP_CHECKS else pytest.mark.slow)
+    for name in PAPER_CHECK_SCENARIOS for column in CHECK_COLUMNS])
+def test_the_paper_checks_table(name, column, results):
+    """A row's kinds, its verdicts at 20 runs, at the scenario's own runs and at 100 (``navsim
+    run scenarios/<name>.yaml [--runs N]``, its seed); in the last column every ``value [lo,
+    hi]`` quoted is one of the population checks' values with its interval, every ``one run
+    [lo, hi]`` one of the single-run ranges, every ``(pN)`` a paper percentile and every share of
+    runs meeting a bound one of the checks' (at 100 runs)."""
     [row] = [r for r in paper_check_rows() if r.startswith(f"| `{name}` (")]
     cells = [c.strip() for c in row.strip("|").split("|")]
-    result = results(f"navsim run scenarios/{name}.yaml")
-    assert int(figures(cells[0], r"\((\d+)\)")[0]) == result.record.runs
+    runs = CHECK_COLUMNS[column]
+    result = results(f"navsim run scenarios/{name}.yaml" + (f" --runs {runs}" if runs else ""))
+    if runs is None:
+        assert int(figures(cells[0], r"\((\d+)\)")[0]) == result.record.runs
     checks = result.to_dict()["paper_checks"]
-    assert quoted_counts(cells[1]) == verdict_counts(checks), f"{name}: the verdicts"
+    assert ("single run" in cells[1]) == any(c["kind"] == "single_run" for c in checks)
+    assert ("population" in cells[1]) == any(c["kind"] == "population" for c in checks)
+    assert quoted_counts(cells[2 + list(CHECK_COLUMNS).index(column)]) == verdict_counts(checks), \
+        f"{name}: the verdicts {column}"
+    if runs != 100:
+        return
     ours = values_with_intervals(checks)
-    for quoted in re.findall(WITH_INTERVAL, cells[2]):
+    for quoted in re.findall(WITH_INTERVAL, cells[5]):
         assert any(all(agrees(t, v) for t, v in zip(quoted, triple)) for triple in ours), \
             f"{name}: {quoted[0]} [{quoted[1]}, {quoted[2]}] is none of the checks' " \
             f"{[tuple(round(x, 4) for x in t) for t in ours]}"
-    for runs in re.findall(r"~(\d+)(?:–\d+)? runs decide", cells[2]):
-        assert int(runs) in {c.get("runs_needed") for c in checks}, f"{name}: ~{runs} runs decide"
+    ranges = [r for c in checks for r in c.get("run_range") or [] if None not in r]
+    for quoted in re.findall(ONE_RUN, cells[5]):
+        assert any(all(agrees(t, v) for t, v in zip(quoted, r)) for r in ranges), f"{name}: one run {quoted}"
+    percentiles = {round(p) for c in checks for p in c.get("percentile") or []}
+    for quoted in re.findall(PERCENTILE, cells[5]):
+        assert round(float(quoted)) in percentiles, f"{name}: (p{quoted}) is none of {sorted(percentiles)}"
+    shares = {(round(100 * c["share"]), *(round(100 * x) for x in c["share_ci95"])) for c in checks
+              if c.get("share") is not None}
+    for quoted in re.findall(SHARE, cells[5]):
+        assert tuple(map(int, quoted)) in shares, f"{name}: {quoted} is none of the shares {shares}"
 
 
 # --- docs/papers.md: P0's two-step table -------------------------------------------------------

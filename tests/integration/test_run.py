@@ -38,6 +38,7 @@ metrics:
   windows: [{name: turn, start_s: 20, end_s: 30}]
 reference:
   source: a test
+  kind: population
   values:
     KF: {rms.pos_m: [1, 1, 1], windows.turn.height_m.std: 0.5}
 """
@@ -180,7 +181,7 @@ def test_shipped_scenarios_run_with_few_runs(name, repo_root, tmp_path, monkeypa
     assert m["runs_done"] == 2 and m["estimators"] and all(e["diverged_runs"] == 0 for e in m["estimators"].values())
 
 
-BASE = SHORT.replace("reference:\n  source: a test\n  values:\n    KF: {rms.pos_m: [1, 1, 1], windows.turn.height_m.std: 0.5}\n", "")
+BASE = SHORT.replace("reference:\n  source: a test\n  kind: population\n  values:\n    KF: {rms.pos_m: [1, 1, 1], windows.turn.height_m.std: 0.5}\n", "")
 
 # (text transformation, key path the message must name, words it must contain)
 CORPUS = [
@@ -211,8 +212,8 @@ CORPUS = [
     (lambda s: s.replace("montecarlo: {runs: 6, seed: 4}", "montecarlo: {runs: 6, sed: 4}"), "montecarlo.sed", "did you mean 'seed'"),
     (lambda s: s.replace("end_s: 30}]", "end_s: 3000}]"), "metrics.windows[0].end_s", "after the end of the flight"),
     (lambda s: s.replace("settle_s: 10", "settle_s: -1"), "metrics.settle_s", ">= 0.0"),
-    (lambda s: s + "reference:\n  source: x\n  values:\n    KFF: {rms.pos_m: 1}\n", "reference.values.KFF", "did you mean 'KF'"),
-    (lambda s: s + "reference:\n  source: x\n  values:\n    KF: {rmse.pos_m: 1}\n", "reference.values.KF.rmse.pos_m", "not a metric"),
+    (lambda s: s + "reference:\n  source: x\n  kind: population\n  values:\n    KFF: {rms.pos_m: 1}\n", "reference.values.KFF", "did you mean 'KF'"),
+    (lambda s: s + "reference:\n  source: x\n  kind: population\n  values:\n    KF: {rmse.pos_m: 1}\n", "reference.values.KF.rmse.pos_m", "not a metric"),
     (lambda s: s.replace("initial_errors: {pos_m: [5, 5, 3]", "initial_errors: {pos_m: [5, 5, -3]"), "initial_errors.pos_m", "non-negative"),
     (lambda s: s.replace("sensors:\n  imu: {model: p3_imu}\n", "sensors:\n"), "sensors", "exactly one sensor of kind imu"),
     (lambda s: s.replace("environment", "x") + "environment: {wind: {force: 13}}\n", "environment.wind.force", "one of 0"),

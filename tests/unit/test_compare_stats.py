@@ -94,13 +94,21 @@ def test_a_better_filter_is_called_better_and_identical_sides_are_no_difference(
 
 def test_the_samples_file_round_trips(tmp_path):
     ea, _ = _runs(np.random.default_rng(3), 5)
-    s = {"ES-KF, 16": _side(ea), "free SINS": EstimatorSamples(np.array([0, 2]), {})}
+    per_run = {"p99.pos_m": np.array([[1.0, 2.0, np.inf], [4.0, np.nan, 6.0]]), "convergence_s": np.array([[3.0], [4.0]])}
+    s = {"ES-KF, 16": _side(ea), "free SINS": EstimatorSamples(np.array([0, 2]), {}, per_run)}
     save_samples(tmp_path / "samples.npz", s)
     back = load_samples(tmp_path / "samples.npz")
     assert list(back) == list(s)
     m, n = back["ES-KF, 16"].metrics["rms.pos_m"], s["ES-KF, 16"].metrics["rms.pos_m"]
     assert np.array_equal(m.s, n.s) and np.array_equal(m.n, n.n) and m.root
-    assert np.array_equal(back["free SINS"].runs, [0, 2])
+    assert np.array_equal(back["free SINS"].runs, [0, 2]) and back["ES-KF, 16"].per_run == {}
+    assert all(np.array_equal(back["free SINS"].run_values(p), v, equal_nan=True) for p, v in per_run.items())
+    assert np.array_equal(back["ES-KF, 16"].run_values("rms.pos_m"), n.per_run())   # a ratio metric's own
+    # a per-run array of another number of runs than the estimator's is damage, named
+    bad = {"free SINS": EstimatorSamples(np.array([0, 2]), {}, {"p99.pos_m": np.zeros((3, 3))})}
+    save_samples(tmp_path / "bad.npz", bad)
+    with pytest.raises(UsageError, match=r"bad.npz: damaged: its array e0.v.p99.pos_m"):
+        load_samples(tmp_path / "bad.npz")
 
 
 def _fixed(p_values):

@@ -1,6 +1,8 @@
 """The one scorer (navsim.scoring.scorer): chunk by chunk equal to numpy's statistics of the
 merged runs, and independent of the chunking."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -11,7 +13,8 @@ from navsim.records.truth import CalibrationHistory
 from navsim.scoring.calibration import calibration_score
 from navsim.scoring.landmarks import sighting_metrics
 from navsim.scoring.scorer import score, score_parts, score_run
-from navsim.scoring.stats import AbsPercentiles
+from navsim.records.samples import has_run_values
+from navsim.scoring.stats import AbsPercentiles, convergence_time
 
 
 @pytest.mark.filterwarnings("ignore:invalid value encountered")   # q=100 with an inf: inf - inf, as numpy
@@ -177,3 +180,51 @@ def test_landmark_and_calibration_scores_from_chunks_equal_the_merged_ones(close
     k = int(np.flatnonzero(turns >= 2.0)[0])
     hard = 100 * merged.calibration["mag"].hard_iron_err[:, k]
     assert whole.after_turns.hard_iron_pct.p95 == pytest.approx(np.percentile(hard, 95), rel=1e-12)
+
+
+def _one_run(h: EstimatorHistory, r: int) -> EstimatorHistory:
+    """Run ``r`` of ``h`` alone (every field with a run axis cut to it), counted."""
+    B, out = len(h.diverged), {}
+    for f in dataclasses.fields(h):
+        v = getattr(h, f.name)
+        if isinstance(v, np.ndarray) and v.ndim and v.shape[0] == B:
+            out[f.name] = v[r:r + 1]
+        elif isinstance(v, list) and len(v) == B:
+            out[f.name] = v[r:r + 1]
+        elif isinstance(v, dict) and v and all(isinstance(x, np.ndarray) for x in v.values()):
+            out[f.name] = {k: x[r:r + 1] for k, x in v.items()}
+    return dataclasses.replace(h, **{**out, "diverged": np.zeros(1, bool)})
+
+
+@pytest.mark.filterwarnings("ignore:Mean of empty slice", "ignore:All-NaN slice", "ignore:Degrees of freedom")
+def test_each_runs_own_statistics_equal_numpy_over_that_run_alone(close_metrics):
+    """The per-run values kept for single-flight checks (p99, maxima, the windows' extremes,
+    std about the run's own mean and p95, the attitude percentiles, the convergence time, the
+    resets), streamed in chunks, equal the pooled formulas applied to each run alone; every kept
+    path is one a ``single_run`` check accepts (has_run_values)."""
+    rng = np.random.default_rng(12)
+    sizes = [4, 1, 6]
+    starts = np.cumsum([0] + sizes[:-1])
+    parts = [ChunkPart([int(a) + i for i in range(n)], {"KF": history(rng, n)}) for a, n in zip(starts, sizes)]
+    windows = [("turn", 20.0, 60.0), ("late", 80.0, 119.0)]
+    es = score_run(lambda: iter(parts), 30.0, windows).samples["KF"]
+    h = merge_parts(parts).histories["KF"]
+    counted = np.flatnonzero(~h.diverged)
+    assert es.runs.tolist() == counted.tolist()
+    assert {"p99.pos_m", "attitude.p95_about_run_mean_deg", "windows.turn.height_m.std", "windows.late.yaw_deg.max_neg",
+            "convergence_s", "resets.mean_per_run"} <= set(es.per_run)
+    assert all(has_run_values(p) for p in [*es.per_run, *es.metrics])
+    for i, r in enumerate(counted):
+        one = _one_run(h, r)
+        want = numpy_scores(one, 30.0, windows)
+        for path, v in es.per_run.items():
+            if path == "convergence_s":
+                t = convergence_time(h.t_s, np.linalg.norm(h.pos_err_m[r], axis=-1))
+                assert v[i, 0] == (np.inf if t is None else t)
+            elif path == "resets.mean_per_run":
+                assert v[i, 0] == len(h.resets[r])
+            else:
+                node = want
+                for key in path.split("."):
+                    node = node[key]
+                close_metrics({"v": np.atleast_1d(node).tolist()}, {"v": v[i].tolist()})

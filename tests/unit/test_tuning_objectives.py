@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from navsim.records.metrics import Nees
-from navsim.scoring.tuning import band_distance, objective, shape_distance
+from navsim.records.reference import PaperCheck
+from navsim.records.samples import EstimatorSamples
+from navsim.scoring.tuning import band_distance, objective, paper_checks_of, paper_distance, shape_distance
 
 
 def _metrics(average, band=(7.9, 10.2), inside=0.5):
@@ -46,3 +48,24 @@ def test_the_shape_distance_is_small_for_chi_square_samples_only():
     assert shape_distance(SimpleNamespace(t_s=t, nees=bad), 0.0, False) > 5 * bound
     nis = SimpleNamespace(t_s=t, nis={"gnss": rng.chisquare(3, (20, 500))}, nis_dim={"gnss": 3})
     assert shape_distance(nis, 0.0, True) < bound
+
+
+def test_the_paper_objective_is_the_log_distance_of_the_runs_median_from_the_papers_numbers():
+    """Runs whose per-run values have the medians 2 m (a std) and -3 m (a largest negative
+    error): 0 against the paper's 2 and -3; ln 2 / sqrt(2) when one is twice the paper's; the
+    claims and the population numbers are not fitted; a median of the other sign is no fit."""
+    runs = np.arange(5)
+    samples = EstimatorSamples(runs, {}, {"windows.w.height_m.std": np.c_[[1.0, 2.0, 2.0, 3.0, 9.0]],
+                                          "windows.w.height_m.max_neg": np.c_[[-1.0, -3.0, -3.0, -4.0, -9.0]]})
+    check = lambda path, paper, **kw: PaperCheck("KF", path, "close", paper, kind=kw.pop("kind", "single_run"), **kw)
+    ref = SimpleNamespace(checks=[check("windows.w.height_m.std", 2.0), check("windows.w.height_m.max_neg", -3.0),
+                                  check("windows.w.height_m.std", 1.0, kind="population"),
+                                  check("windows.w.height_m.std", 0.1, claim="c", of="other"),
+                                  PaperCheck("other", "windows.w.height_m.std", "close", 5.0, kind="single_run")])
+    fitted = paper_checks_of(ref, "KF")
+    assert [c.bound for c in fitted] == [2.0, -3.0]
+    assert paper_distance(fitted, samples) == 0.0
+    twice = [check("windows.w.height_m.std", 1.0), fitted[1]]
+    assert paper_distance(twice, samples) == pytest.approx(math.log(2) / math.sqrt(2))
+    assert paper_distance([check("windows.w.height_m.max_neg", 3.0)], samples) is None
+    assert paper_distance([check("p99.pos_m", [1.0, 1.0, 1.0])], samples) is None        # not kept: no fit

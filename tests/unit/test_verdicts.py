@@ -2,6 +2,7 @@
 against metrics (:mod:`navsim.experiment.reference`, :mod:`navsim.records.reference`,
 :mod:`navsim.scoring.verdicts`)."""
 
+import numpy as np
 import pytest
 
 from navsim.experiment.reference import parse_reference
@@ -9,6 +10,7 @@ from navsim.foundations.config import Node
 from navsim.foundations.errors import ScenarioError
 from navsim.records.vocabulary import check_metric_path
 from navsim.records.metrics import EstimatorMetrics, RunMetrics
+from navsim.records.samples import EstimatorSamples
 from navsim.scoring.verdicts import judge, verdict_rows, verdict_summary
 
 LABELS = ["SINS", "KF"]
@@ -26,7 +28,9 @@ ESTIMATORS = {
 }
 
 
-def reference(data):
+def reference(data, kind="population"):
+    """``data`` read as a reference section, of ``kind`` where it does not say (None: as it is)."""
+    data = data if kind is None or "kind" in data else {"kind": kind, **data}
     return parse_reference(Node(data, "reference", "s.yaml"), LABELS,
                            lambda path, key: check_metric_path(path, [("w", 0, 1)], file="s.yaml", key=key))
 
@@ -47,8 +51,8 @@ def test_values_take_the_reference_rule_or_their_own_and_claims_their_threshold(
     assert v[2].bound == [20.0, 20.0, 10.0] and v[2].times == 10.0 and v[2].of == "KF"
     assert verdict_summary(v) == "3 of 4 paper checks pass, 1 fail"
     rows = verdict_rows(v)
-    assert rows[1][1:] == ["as published", "convergence_s", "5 ±10%", "4", "FAIL"]
-    assert rows[2][1:4] == ["SINS diverges", "final.pos_m", ">= 10 x KF (20 20 10)"]
+    assert rows[1][1:] == ["as published", "convergence_s", "population", "5 ±10%", "4", "FAIL"]
+    assert rows[2][1:5] == ["SINS diverges", "final.pos_m", "population", ">= 10 x KF (20 20 10)"]
 
 
 @pytest.mark.parametrize("rule, bound, passed", [
@@ -76,7 +80,7 @@ def test_no_verdict_without_a_number_of_ours():
     assert [x.passed for x in v] == [None, False, None, None]
     assert verdict_summary(v) == "0 of 4 paper checks pass, 1 fail, 3 without a value"
     assert [r[-1] for r in verdict_rows(v)] == ["no value", "FAIL", "no value", "no value"]
-    assert verdict_rows(v)[1][4] == "never"
+    assert verdict_rows(v)[1][5] == "never"
     assert judge(None, ESTIMATORS) is None
 
 
@@ -117,6 +121,15 @@ def test_verdicts_round_trip_through_metrics_json():
     ({"source": "p", "claims": [{"claim": "c", "estimator": "KF", "metric": "rms.pos_m", "at_most": 1,
                                  "because": "x"}]}, "reference.claims[0].because", "not a known key"),
     ({"source": "p"}, "reference.values", "no values and no claims"),
+    ({"source": "p", "kind": "one flight", "values": {"KF": {"rms.pos_m": 1}}}, "reference.kind", "single_run"),
+    ({"source": "p", "kind": "single_run", "claims": [{"claim": "c", "estimator": "KF", "metric": "diverged_runs",
+                                                       "at_most": 0}]}, "reference.claims[0]", "kind: population"),
+    ({"source": "p", "kind": "single_run", "values": {"KF": {"nees.fraction_inside": 1}}},
+     "reference.values.KF.nees.fraction_inside",
+     "no value per run"),
+    ({"source": "p", "kind": "single_run", "values": {"KF": {"rms.pos_m": {"paper": 1, "check": "close",
+                                                                            "tolerance": 0.5}}}},
+     "reference.values.KF.rms.pos_m.tolerance", "spread of our runs"),
 ])
 def test_bad_references_name_their_key(data, key, words):
     with pytest.raises(ScenarioError) as exc:
@@ -168,7 +181,7 @@ def test_a_check_with_an_interval_passes_fails_or_is_undecided_with_the_runs_tha
         assert v.runs_needed == needed
         row = verdict_rows([v])[0]
         assert row[-1] == f"undecided at 20 runs (~{v.runs_needed} decide)"
-        assert row[4].startswith("0.95 [0.75, 1.15]")
+        assert row[5].startswith("0.95 [0.75, 1.15]")
         assert verdict_summary([v]) == "0 of 1 paper checks pass, 1 undecided at 20 runs"
 
 
@@ -187,3 +200,67 @@ def test_a_value_on_its_bound_is_undecided_at_the_bound():
     v = judge(ref, est)[0]
     assert v.undecided and v.runs_needed > 10 ** 6
     assert verdict_rows([v])[0][-1] == "undecided at 20 runs (at the bound: >100000 runs to decide)"
+
+
+def test_a_reference_without_its_kind_is_refused_with_the_two_kinds_named():
+    with pytest.raises(ScenarioError) as exc:
+        reference({"source": "p", "values": {"KF": {"rms.pos_m": 1}}}, kind=None)
+    text = str(exc.value)
+    assert "reference.kind" in text and "population" in text and "single_run" in text
+
+
+def _samples(per_run: dict, runs):
+    """Estimator label -> EstimatorSamples holding the metric values ``per_run`` ``(B, k)``."""
+    return {label: EstimatorSamples(np.asarray(runs), {}, {p: np.asarray(v, float).reshape(len(runs), -1)
+                                                          for p, v in values.items()})
+            for label, values in per_run.items()}
+
+
+def test_a_single_flight_is_judged_on_the_range_of_one_run_not_on_the_interval_of_the_mean():
+    """100 runs whose per-run p99 is 1..100 (KF) and 2..200 (SINS), and whose RMS's mean
+    interval is tight: a paper value of 90 (inside [2, 99], the 95 % range of one run) passes as
+    a single run and would fail as a population number; 100.5 fails; a bound of 1.5 passes as
+    the range reaches it (the 2nd run of 100 is 2: "at_most 1.5" fails) with the share of runs
+    meeting it; a claim relative to another estimator is judged on each run's ratio."""
+    runs = np.arange(100)
+    samples = _samples({"KF": {"p99.pos_m": np.c_[runs + 1.0, runs + 1.0, runs + 1.0]},
+                        "SINS": {"p99.pos_m": np.c_[2 * runs + 2.0, 2 * runs + 2.0, 2 * runs + 2.0]}}, runs)
+    est = {"KF": EstimatorMetrics.from_dict({"runs_counted": 100, "diverged_runs": 0, "settle_s": 0,
+                                             "p99": stats([99.0] * 3)}),
+           "SINS": EstimatorMetrics.from_dict({"runs_counted": 100, "diverged_runs": 0, "settle_s": 0,
+                                               "p99": stats([198.0] * 3)})}
+    ref = reference({"source": "p", "values": {"KF": {
+        "p99.pos_m": {"paper": [90, 50, 3], "check": "close"}}}, "claims": [
+        {"claim": "in", "estimator": "KF", "metric": "p99.pos_m", "at_most": [3, 3, 3]},
+        {"claim": "out", "estimator": "KF", "metric": "p99.pos_m", "at_most": [1.5, 50, 50]},
+        {"claim": "half", "estimator": "KF", "metric": "p99.pos_m", "at_most": {"times": 0.5, "of": "SINS"}},
+        {"claim": "above", "estimator": "KF", "metric": "p99.pos_m", "at_least": [100.5, 1, 1]}]}, kind="single_run")
+    close, inside, outside, ratio, above = judge(ref, est, samples)
+    assert close.passed is True and close.kind == "single_run" and close.runs == 100
+    assert close.run_range == [[2.0, 99.0]] * 3 and close.percentile == [89.5, 49.5, 2.5]
+    assert close.coverage_ci95[0] < 0.97 < close.coverage_ci95[1]          # Beta(97, 4)
+    assert inside.passed is True and inside.share == 0.03 and inside.share_ci95[0] < 0.03 < inside.share_ci95[1]
+    assert outside.passed is False and outside.share == 0.01
+    assert ratio.passed is True and ratio.run_range == [[0.5, 0.5]] * 3 and ratio.share == 1.0
+    assert above.passed is False                     # the range's top, 99, is below 100.5
+    rows = verdict_rows([close, inside, outside])
+    assert rows[0][3] == "single run" and rows[0][5] == "  ".join(["[2, 99]"] * 3)
+    assert rows[0][6] == "pass (p90 p50 p2)" or rows[0][6] == "pass (p90 p50 p3)", rows[0][6]
+    assert rows[1][6] == "pass (3 % [1, 9] of runs meet it)" and rows[2][6].startswith("FAIL (1 %")
+    back = RunMetrics.from_dict({"scenario": "s", "runs": 100, "runs_done": 100, "seed": 1, "failed_runs": {},
+                                 "interrupted": False, "estimators": {}, "paper_checks": [close.to_dict()]})
+    assert back.paper_checks == [close]
+
+
+def test_a_single_run_check_below_39_runs_is_undecided_and_says_why():
+    runs = np.arange(20)
+    samples = _samples({"KF": {"rms.pos_m": np.ones((20, 3))}}, runs)
+    ref = reference({"source": "p", "check": "close", "values": {"KF": {"rms.pos_m": 1000}}}, kind="single_run")
+    est = {"KF": EstimatorMetrics.from_dict({"runs_counted": 20, "diverged_runs": 0, "settle_s": 0,
+                                             "rms": stats([1.0] * 3)})}
+    ref = reference({"source": "p", "check": "close", "values": {"KF": {"rms.pos_m": [1000, 1, 1]}}},
+                    kind="single_run")
+    (v,) = judge(ref, est, samples)
+    assert v.passed is None and v.undecided and v.runs_needed == 39
+    assert verdict_rows([v])[0][6] == "undecided at 20 runs (39 bound one run's 95 % range)"
+    assert "1 undecided at 20 runs" in verdict_summary([v])
