@@ -25,6 +25,7 @@ from navsim.api.arguments import checked_path
 from navsim.experiment import runner
 from navsim.experiment.chunkstore import ChunkStore
 from navsim.experiment.options import check_flags, shown
+from navsim.experiment.reference import stored_kind
 from navsim.experiment.results import check_not_being_written, read_files
 from navsim.experiment.runner import cached_flight
 from navsim.experiment.scenario import Scenario, parse_scenario
@@ -411,7 +412,7 @@ def open_result(folder) -> Result:
     except UsageError as exc:
         raise UsageError(f"not a finished navsim run: {exc}") from None
     try:
-        scenario = parse_scenario(raw, record.scenario)
+        scenario = parse_scenario(stored_kind(raw), record.scenario)
     except ScenarioError as exc:
         raise UsageError(f"{folder}: its scenario.resolved.yaml does not parse any more ({exc})") from None
     scenario.overrides = tuple(record.overrides or ())      # already in the resolved mapping

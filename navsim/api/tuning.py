@@ -33,7 +33,7 @@ from navsim.api.comparisons import compare
 from navsim.api.runs import run
 from navsim.experiment.runner import cached_flight
 from navsim.experiment.scenario import MAX_SEED, parse_changed, parse_scenario
-from navsim.experiment.tuning import TuneParam, default_params, entry_index, parse_param
+from navsim.experiment.tuning import TRUTH_PREFIX, TuneParam, default_params, entry_index, parse_param
 from navsim.foundations.config import load_yaml
 from navsim.foundations.errors import ScenarioError, UsageError
 from navsim.foundations.outputs import OutputFolder
@@ -139,6 +139,11 @@ class _Trials:
         self.params = ([parse_param(t, label, self.base) for t in options.params] if options.params
                        else default_params(self.base, label))
         self.truth = any(p.truth for p in self.params)
+        if self.truth and options.objective != "paper":
+            name = next(p.name for p in self.params if p.truth)
+            raise UsageError(f"--param {name}: a truth parameter (the sensors' errors) is calibrated against a "
+                             f"paper's numbers, --objective paper; {options.objective} would only make the sensors "
+                             "as good as the range allows")
         self.paper = paper_checks_of(parsed.reference, label)
         if options.objective == "paper" and not self.paper:
             raise UsageError(f"--objective paper: {path} publishes no single-flight number of '{label}' to fit "
@@ -235,7 +240,7 @@ def _tune(trials: _Trials, o: TuneOptions, folder, resume: bool, progress) -> Tu
     if start and not _finished(study, trials.params) and not waiting:     # trial 0: the original
         study.enqueue_trial(start)
     record.trials = _finished(study, trials.params)
-    runs = dict(runs=o.runs, seed=seed, workers=workers, chunk_runs=max(1, -(-o.runs // max(workers, 1))),
+    runs = dict(runs=o.runs, seed=seed, workers=workers, chunk_runs=_chunk_runs(o.runs, workers),
                 flight=flight, executor=o.executor, scheduler=o.scheduler)
     _search(study, record, trials.params, _scenario_trial(trials, o, runs), o.trials, folder, progress)
     best = _best(record)
@@ -319,6 +324,8 @@ def tune_log(log, estimator: str, options: TuneOptions = TuneOptions(objective="
 def parse_log_param(text: str) -> TuneParam:
     """``PATH=LO:HI[:log]`` of a log's estimator: a path into its parameters (no entry to check,
     so no factor: its values are the estimator's own defaults)."""
+    if text.strip().startswith(TRUTH_PREFIX):
+        raise UsageError(f"--param {text!r}: a log's sensors are what they were: no truth parameter to set")
     if text.partition("=")[2].strip().startswith("x"):
         raise UsageError(f"--param {text!r}: a factor needs the entry's value, and a log's estimator has no entry: "
                          "give LO:HI")
@@ -375,6 +382,11 @@ def _log_check(o: TuneOptions, before, after) -> TuneCheck:
     pick = lambda m: {"nees": None, "nis": {k: band_record(n) for k, n in (m.nis or {}).items()}}
     return TuneCheck(0, 1, nis_objective(o.objective, before.nis), nis_objective(o.objective, after.nis), diffs,
                      {"original": pick(before), "tuned": pick(after)})
+
+
+def _chunk_runs(runs: int, workers: int) -> int:
+    """The runs of a chunk: the runs shared out over the workers (one chunk each)."""
+    return max(1, -(-runs // max(workers, 1)))
 
 
 def _param_dict(p: TuneParam) -> dict:
@@ -499,7 +511,7 @@ def _check(trials: _Trials, values: dict, seed: int, runs: int, workers: int, fl
     original = {**trials.entry(None), "label": "original"}
     tuned = {**trials.entry(values), "label": "tuned"}
     result = run(trials.scenario([original, tuned]), runs=runs, seed=seed, workers=workers,
-                 chunk_runs=max(1, -(-runs // max(workers, 1))), flight=flight, executor=o.executor,
+                 chunk_runs=_chunk_runs(runs, workers), flight=flight, executor=o.executor,
                  scheduler=o.scheduler)
     if result.interrupted:
         raise KeyboardInterrupt
@@ -519,7 +531,7 @@ def _truth_check(trials: _Trials, values: dict, seed: int, runs: int, workers: i
     out = {}
     for side, v in (("original", None), ("tuned", values)):
         result = run(trials.whole(v), runs=runs, seed=seed, workers=workers,
-                     chunk_runs=max(1, -(-runs // max(workers, 1))), flight=flight, executor=o.executor,
+                     chunk_runs=_chunk_runs(runs, workers), flight=flight, executor=o.executor,
                      scheduler=o.scheduler)
         if result.interrupted:
             raise KeyboardInterrupt
@@ -554,9 +566,10 @@ def _write(folder, result: TuneResult, formats=("pdf", "png")) -> None:
     text = (f"# '{r.estimator}' tuned by navsim tune ({r.objective}, best trial {r.best}); {use}\n"
             + yaml.safe_dump([r.tuned_entry], sort_keys=False))
     if r.tuned_sensors is not None:
-        text = (f"# the truth model fitted by navsim tune ({r.objective}, best trial {r.best}) on '{r.estimator}': "
-                "paste it over the scenario's sensors\n"
-                + yaml.safe_dump({"sensors": r.tuned_sensors}, sort_keys=False))
+        truth = (f"# the truth model fitted by navsim tune ({r.objective}, best trial {r.best}) on '{r.estimator}': "
+                 "paste it over the scenario's sensors\n"
+                 + yaml.safe_dump({"sensors": r.tuned_sensors}, sort_keys=False))
+        text = truth + (text if any(not p.truth for p in result.params) else "")
     folder.text("tuned.yaml", text)
     folder.record(write_tune_report(folder, result.record, result.params, formats))
 

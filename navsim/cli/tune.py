@@ -12,10 +12,9 @@ from navsim.cli.options import set_option, workers_option
 from navsim.cli.output import open_folder, table
 from navsim.foundations.errors import UsageError
 from navsim.foundations.progress import Progress
-from navsim.report.tuning import consistency_rows, value_text
+from navsim.report.tuning import consistency_rows, paper_check_tables, value_text
 from navsim.scoring.tuning import DEFAULT_METRIC, OBJECTIVES
-from navsim.records.metrics import Verdict
-from navsim.scoring.verdicts import VERDICT_HEADERS, num, verdict_rows, verdict_summary
+from navsim.scoring.verdicts import VERDICT_HEADERS, num
 
 
 #: the options a log's tuning (--replay) does not take
@@ -102,15 +101,14 @@ def handle(args) -> int:
                          for d in c.differences]))
         print(table(["consistency", "original: average [band], inside", "tuned: average [band], inside"],
                     consistency_rows(c.consistency)))
-        for side, checks in (c.paper_checks or {}).items():
-            verdicts = [Verdict.from_dict(v) for v in checks]
-            print(f"\npaper checks, {'fitted' if side == 'tuned' else side} truth: {verdict_summary(verdicts)}")
-            print(table(VERDICT_HEADERS, verdict_rows(verdicts)))
+        for title, rows in paper_check_tables(c):
+            print(f"\n{title}")
+            print(table(VERDICT_HEADERS, rows))
     if r.improved is False:
         print("\nno trial beat the original (trial 0): keep it, or widen the ranges and add trials")
     elif r.improved is None:
         print("\nthe original was not a trial (its value outside a range, a list of unequal values, a log's "
-              "defaults): compare the checks above before taking the tuned values")
+              "defaults, a sensor's datasheet value): compare the checks above before taking the tuned values")
     what = "parameters" if args.replay else "sensors" if r.tuned_sensors is not None else "entry"
     print(f"\nwrote {folder.path}/: tuned.yaml (the {what} to paste), "
           "tune.json, tune.csv, tune.pdf and its PNGs")

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from navsim.foundations.config import Node, check_number, check_numbers, close_match
 from navsim.records.reference import DEFAULT_TOLERANCE, KINDS, RULES, PaperCheck, Reference
-from navsim.records.samples import has_run_values
+from navsim.records.samples import RUN_VALUE_PATTERNS, has_run_values
 
 #: what ``kind`` expects, as the error says it
 _KIND_HELP = "population (an average over the paper's many trials) or single_run (one flight or simulation)"
@@ -67,8 +67,7 @@ def _kind(node: Node, default: str, path: str) -> str:
     kind = node.get("kind", str, default, choices=list(KINDS))
     if kind == "single_run" and not has_run_values(path):
         raise node.error(f"'{path}' has no value per run, so a single flight cannot be judged on it", None,
-                         expected="a statistic each run has (rms, p99, max_abs, final, a window's max_pos, "
-                                  "max_neg, std, p95_abs, convergence_s, resets.mean_per_run, ...)",
+                         expected="a statistic each run has: " + ", ".join(RUN_VALUE_PATTERNS),
                          hint="kind: population, if the paper's number is an average over many trials")
     if kind == "single_run" and "tolerance" in node.data:
         raise node.error("a single_run check has no tolerance: the spread of our runs is its tolerance",
@@ -84,6 +83,16 @@ def _label(node: Node, key: str, labels: list) -> str:
         raise node.error(f"'{label}' is not an estimator label", key if named else str(label),
                          expected="one of " + ", ".join(labels), hint=close_match(str(label), labels))
     return label
+
+
+def stored_kind(raw: dict) -> dict:
+    """A stored resolved scenario (``scenario.resolved.yaml``) written before references said
+    their kind: its reference read as ``population``, what its verdicts were judged as (a copy;
+    ``raw`` as it is otherwise)."""
+    ref = raw.get("reference") if isinstance(raw, dict) else None
+    if not isinstance(ref, dict) or "kind" in ref:
+        return raw
+    return {**raw, "reference": {**ref, "kind": "population"}}
 
 
 def parse_reference(node: Node | None, labels: list, check_path) -> Reference | None:
@@ -120,6 +129,10 @@ def parse_reference(node: Node | None, labels: list, check_path) -> Reference | 
         checks.append(_claim(Node(raw, node.key(f"claims[{j}]"), node.file), labels, check_path, kind))
     if not checks:
         raise node.error("has no values and no claims", "values", expected="at least one published number or claim")
+    if kind == "single_run" and "tolerance" in node.data and not any(
+            c.kind == "population" and c.rule == "close" for c in checks):
+        raise node.error("a single_run reference has no tolerance: the spread of our runs is its tolerance",
+                         "tolerance", expected="no tolerance, or a value of kind: population to use it")
     node.done()
     return Reference(source, note, tuple(checks), kind, kind_note)
 

@@ -13,7 +13,7 @@ value (a number or a list) times the factor.
 A path starting ``sensors.`` is a parameter of the truth model, not of the filter (the sensors'
 errors the runs draw: ``sensors.gps.override.vertical_sigma``), set in the whole scenario: what
 calibrating an unpublished sensor error against a paper's numbers varies (``--objective paper``).
-Its LO and HI carry the datasheet's unit (``=5:30 m``, ``=20:200 ug/rtHz:log``), written with
+Its LO and HI carry the datasheet's unit (``=5:30 m``, ``=20:300 ug/rtHz:log``), written with
 the trial value.
 """
 
@@ -102,9 +102,10 @@ def parse_param(text: str, label: str, raw: dict, check: bool = True) -> TunePar
     if not sep or not path.strip() or len(parts) not in (2, 3) or (len(parts) == 3 and parts[2] != "log"):
         raise UsageError(f"--param {text!r}: expected PATH=LO:HI, PATH=LO:HI:log or PATH=xLO:HI[:log] (a factor)")
     ends = [_END.match(x) for x in parts[:2]]
-    if not all(ends):
-        raise UsageError(f"--param {text!r}: LO and HI must be numbers (a truth parameter's with its unit)")
-    lo, hi = float(ends[0][1]), float(ends[1][1])
+    try:
+        lo, hi = float(ends[0][1]), float(ends[1][1])
+    except (TypeError, ValueError):                  # no match, or digits and dots that are no number
+        raise UsageError(f"--param {text!r}: LO and HI must be numbers (a truth parameter's with its unit)") from None
     units = {m[2] for m in ends}
     whole = all(m[1].lstrip("+-").isdigit() for m in ends)
     log = len(parts) == 3
@@ -135,7 +136,7 @@ def _truth_param(text: str, path: str, lo: float, hi: float, log: bool, scaled: 
     units = units - {""}                          # the unit given once (after HI) or on both ends alike
     if len(units) != 1:
         raise UsageError(f"--param {text!r}: LO and HI of a sensor's value need one datasheet unit "
-                         "(=5:30 m, =20:200 ug/rtHz:log)")
+                         "(=5:30 m, =20:300 ug/rtHz:log)")
     return TuneParam(path, path, lo, hi, log, unit=units.pop())
 
 

@@ -154,10 +154,9 @@ def paper_checks(metrics: RunMetrics, reference) -> Section | None:
 
 def single_run_note(single: list, why: str = "") -> str:
     """How a single run's checks read: what the range is, its own uncertainty at these runs."""
-    runs = single[0].runs
-    cov = next((v.coverage_ci95 for v in single if v.coverage_ci95), None)
-    held = (f" (at {runs} runs the range holds {100 * cov[0]:.0f}-{100 * cov[1]:.0f} % of single runs, 95 % "
-            f"confidence)") if cov else ""
+    ranged = next((v for v in single if v.coverage_ci95), None)
+    held = "" if ranged is None else (f" (at {ranged.runs} runs the range holds {100 * ranged.coverage_ci95[0]:.0f}-"
+                                      f"{100 * ranged.coverage_ci95[1]:.0f} % of single runs, 95 % confidence)")
     return ((why.strip().rstrip(".") + ": " if why else "") + "a single-run number is one flight, judged against "
             "the range holding 95 % of our single runs' values of the same statistic" + held + "; the verdict "
             "gives the paper's percentile among our runs, or the share of them meeting its bound.")

@@ -31,7 +31,7 @@ def value_text(v) -> str:
 def summary_pages(r: TuneRecord, params: list) -> list[Page]:
     """The tuning in words and tables: the best trial's values, the checks."""
     best = r.best_trial
-    rows = [[p.what, f"{num(p.lo)} - {num(p.hi)}{' (log)' if p.log else ''}",
+    rows = [[p.what, f"{num(p.lo)} - {num(p.hi)}{' ' + p.unit if p.unit else ''}{' (log)' if p.log else ''}",
              value_text(p.base) if p.base is not None else "-", num(best.values[p.name]),
              value_text(p.value(best.values[p.name]))] for p in params]
     blocks = [Paragraph(f"Estimator '{r.estimator}' of {r.scenario}; objective {r.objective}"
@@ -52,13 +52,22 @@ def summary_pages(r: TuneRecord, params: list) -> list[Page]:
             blocks.append(Table(["metric", "original", "tuned", "tuned - original [95 %]", "verdict"], rows))
         blocks.append(Table(["consistency", "original: average [band], inside", "tuned: average [band], inside"],
                             consistency_rows(c.consistency)))
-        for side, checks in (c.paper_checks or {}).items():
-            verdicts = [Verdict.from_dict(v) for v in checks]
-            blocks += [Paragraph(f"Paper checks, {'fitted' if side == 'tuned' else 'original'} truth: "
-                                 f"{verdict_summary(verdicts)}."),
-                       Table(VERDICT_HEADERS, verdict_rows(verdicts), max_column=0.3)]
+        for title, rows in paper_check_tables(c):
+            blocks += [Paragraph(title + "."), Table(VERDICT_HEADERS, rows, max_column=0.3)]
     figs = layout(f"navsim tune: {r.estimator}", blocks)
     return [Page("tune_summary" if i == 0 else f"tune_summary_{i + 1}", "Summary", f) for i, f in enumerate(figs)]
+
+
+def paper_check_tables(c) -> list[tuple[str, list]]:
+    """A truth fit's check (:class:`~navsim.records.tuning.TuneCheck`): per truth, original and
+    fitted, its title with the verdicts' summary and the paper checks' rows
+    (:data:`~navsim.scoring.verdicts.VERDICT_HEADERS`)."""
+    out = []
+    for side, checks in (c.paper_checks or {}).items():
+        verdicts = [Verdict.from_dict(v) for v in checks]
+        out.append((f"Paper checks, {'fitted' if side == 'tuned' else 'original'} truth: {verdict_summary(verdicts)}",
+                    verdict_rows(verdicts)))
+    return out
 
 
 def consistency_rows(consistency: dict) -> list:

@@ -34,7 +34,6 @@ from navsim.scoring.intervals import (
 from navsim.scoring.stats import (
     RunSums,
     chi2_band,
-    convergence_time,
     convergence_times,
     last_finite,
     row_percentiles,
@@ -127,7 +126,7 @@ class RunSamples:
                     self._keep(f"{path}.max_neg", -_row_max(-x))
                     self._keep(f"{path}.std", np.nanstd(x, axis=1) if x.shape[1] else np.full(len(x), np.nan))
                     self._keep(f"{path}.p95_abs", row_percentiles(x, 95))
-        self._keep("convergence_s", convergence_times(h.t_s, np.linalg.norm(h.pos_err_m[good], axis=-1)))
+        self._keep("convergence_s", convergence_times(h.t_s, np.linalg.norm(h.pos_err_m[good], axis=-1), own_end=True))
         if h.resets is not None:
             self._keep("resets.mean_per_run", [len(r) for r, g in zip(h.resets, good) if g])
 
@@ -197,7 +196,7 @@ class RunSamples:
         fin = [np.concatenate([f[i] for f in self.final]) for i in range(3)]
         out["final"] = {n: [_sqrt(mean_square_interval(np.nan_to_num(f[:, j]), np.isfinite(f[:, j])))
                             for j in range(3)] for n, f in zip(ERRORS, fin)}   # f: squares
-        conv = lambda mean: [_or_inf(convergence_time(t_s, np.sqrt(r))) for r in mean]   # never: inf (open)
+        conv = lambda mean: convergence_times(t_s, np.sqrt(mean))        # never: inf (an open end)
         out["convergence_s"] = self._boot("conv", conv)
         if "e_sq" in self.sums:
             out["attitude"] = {"rms_deg": _rms(self.sums["e_sq"])}
@@ -280,10 +279,6 @@ def _nanmean(a) -> np.ndarray:
 
 def _sqrt(interval) -> list[float]:
     return [math.sqrt(v) if math.isfinite(v) and v >= 0 else math.nan for v in interval]
-
-
-def _or_inf(v) -> float:
-    return math.inf if v is None else float(v)
 
 
 

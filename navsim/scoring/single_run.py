@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import beta
 
-from navsim.scoring.intervals import binomial_interval
+from navsim.scoring.intervals import CONFIDENCE, binomial_interval
 
 #: the prediction range's coverage of a new single run
 COVERAGE = 0.95
@@ -50,7 +50,7 @@ def min_runs(coverage: float = COVERAGE) -> int:
     return math.ceil(2.0 / (1.0 - coverage)) - 1
 
 
-def coverage_interval(n: int, coverage: float = COVERAGE, confidence: float = 0.95) -> tuple[float, float]:
+def coverage_interval(n: int, coverage: float = COVERAGE, confidence: float = CONFIDENCE) -> tuple[float, float]:
     """The ``confidence`` interval of the share of single runs that the range of ``n`` runs
     holds: that share is ``Beta(m - k, n + 1 - (m - k))`` distributed (its mean ``(m - k) /
     (n + 1)``): the range's own uncertainty at ``n`` runs."""
@@ -91,25 +91,31 @@ def judge_single_run(paper: float, per_run: np.ndarray, coverage: float = COVERA
     return SingleRunVerdict(low, high, float(pct), bool(low <= paper <= high), int(x.size))
 
 
+def _meets(per_run, bound, rule: str) -> np.ndarray:
+    """Which runs meet ``bound`` (``at_most``/``at_least``), every component at once: a bool per
+    run of ``per_run`` ``(B, k)`` (a run with a NaN component left out)."""
+    if rule not in ("at_most", "at_least"):
+        raise ValueError(f"rule {rule!r}: a share is of a bound, at_most or at_least")
+    x = np.asarray(per_run, float)
+    x = x.reshape(len(x), int(np.prod(x.shape[1:]))) if x.ndim else x.reshape(1, 1)
+    x = x[~np.isnan(x).any(axis=1)]
+    return np.all(x <= bound, axis=1) if rule == "at_most" else np.all(x >= bound, axis=1)
+
+
 def bound_reached(per_run: np.ndarray, bound, rule: str, coverage: float = COVERAGE) -> bool:
     """Whether a flight meeting ``bound`` (``at_most``/``at_least``; every component of a run
     of ``k``, ``(B, k)``) lies within the prediction range of one run: at least
     ``floor(a (N + 1))`` of the N runs meet it (for one component: the range's end reaches the
     bound), ``a = (1 - coverage) / 2``."""
-    share, _, n = share_meeting(per_run, bound, rule)
-    k, _ = _ranks(n, coverage)
-    return bool(n and k >= 1 and round(share * n) >= k)
+    meets = _meets(per_run, bound, rule)
+    k, _ = _ranks(meets.size, coverage)
+    return bool(k >= 1 and meets.sum() >= k)
 
 
 def share_meeting(per_run: np.ndarray, bound, rule: str) -> tuple[float, tuple[float, float], int]:
     """The share of runs whose value meets ``bound`` (``at_most`` or ``at_least``; a run of
     ``k`` components, ``(B, k)``, meets it when every component does), its Clopper-Pearson 95 %
     interval and the runs counted (a run with a NaN component left out)."""
-    if rule not in ("at_most", "at_least"):
-        raise ValueError(f"rule {rule!r}: a share is of a bound, at_most or at_least")
-    x = np.asarray(per_run, float)
-    x = x.reshape(len(x), -1) if x.ndim else x.reshape(1, 1)
-    x = x[~np.isnan(x).any(axis=1)]
-    meets = np.all(x <= bound, axis=1) if rule == "at_most" else np.all(x >= bound, axis=1)
-    k, n = int(meets.sum()), int(len(x))
+    meets = _meets(per_run, bound, rule)
+    k, n = int(meets.sum()), int(meets.size)
     return (k / n if n else math.nan), tuple(binomial_interval(k, n)), n

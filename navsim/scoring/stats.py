@@ -251,20 +251,38 @@ def convergence_time(t_s, err, factor: float = CONVERGENCE_FACTOR, hold_s: float
     ``hold_s`` (or to the end of the run), so that a later fault window does not count as
     a failure to converge; None if it never does, or if the steady error is not below the
     initial one (an error that grows, as free inertial navigation's, has not converged)."""
+    t = convergence_times(t_s, np.asarray(err, float)[None, :], factor, hold_s)[0]
+    return None if np.isinf(t) else float(t)
+
+
+def convergence_times(t_s, err, factor: float = CONVERGENCE_FACTOR, hold_s: float = CONVERGENCE_HOLD_S,
+                      own_end: bool = False) -> np.ndarray:
+    """:func:`convergence_time` of each row of ``err`` ``(B, E)``, vectorised: ``(B,)``, ``inf``
+    where a row never converges. ``own_end``: each row is one run whose records end at its last
+    finite epoch (a closed-loop run's landing): its steady value is over the second half of its
+    own epochs, and the hold may reach its end; otherwise a NaN epoch is a bad one."""
     t_s, err = np.asarray(t_s, float), np.asarray(err, float)
-    late = err[len(err) // 2:]
-    if not np.isfinite(late).any():        # no steady value (a bootstrap replicate that drew no run)
-        return None
-    steady = np.nanmedian(late)
-    if not steady < err[0]:
-        return None
-    ok = err <= factor * steady
-    bad_t = t_s[~ok]
-    for i in np.flatnonzero(ok):
-        later_bad = bad_t[bad_t > t_s[i]]
-        if later_bad.size == 0 or later_bad[0] - t_s[i] >= hold_s:
-            return float(t_s[i])
-    return None
+    B, E = err.shape
+    out = np.full(B, np.inf)
+    if E == 0:
+        return out
+    cols = np.arange(E)[None, :]
+    end = (last_finite(np.isfinite(err)) + 1)[:, None] if own_end else np.full((B, 1), E)
+    late = np.where((cols >= end // 2) & (cols < end), err, np.nan)
+    has = np.isfinite(late).any(axis=1)
+    with warnings.catch_warnings():                       # a row without a finite late value: left inf
+        warnings.simplefilter("ignore", RuntimeWarning)
+        steady = np.nanmedian(late, axis=1)
+    ok = (err <= factor * steady[:, None]) | (cols >= end)
+    bad_t = np.where(ok, np.inf, t_s[None, :])
+    # each epoch's next bad time after it: the running minimum from the end, shifted by one
+    nxt = np.concatenate([np.minimum.accumulate(bad_t[:, ::-1], axis=1)[:, ::-1][:, 1:], np.full((B, 1), np.inf)],
+                         axis=1)
+    good = ok & (cols < end) & (nxt - t_s[None, :] >= hold_s)
+    first = np.argmax(good, axis=1)
+    found = good.any(axis=1) & has & (steady < err[:, 0])
+    out[found] = t_s[first[found]]
+    return out
 
 
 def row_percentiles(x, q: float) -> np.ndarray:
@@ -282,30 +300,6 @@ def row_percentiles(x, q: float) -> np.ndarray:
     diff = vb - va
     out = np.where(t >= 0.5, vb - diff * (1 - t), va + diff * t)     # numpy's linear interpolation
     return np.where(n > 0, out, np.nan)
-
-
-def convergence_times(t_s, err) -> np.ndarray:
-    """:func:`convergence_time` of each row of ``err`` ``(B, E)`` (one run's position error
-    norm), vectorised over the runs: ``(B,)``, ``inf`` where a run never converges."""
-    t_s, err = np.asarray(t_s, float), np.asarray(err, float)
-    out = np.full(err.shape[0], np.inf)
-    if err.shape[1] == 0:
-        return out
-    late = err[:, err.shape[1] // 2:]
-    has = np.isfinite(late).any(axis=1)
-    with warnings.catch_warnings():                       # a row without a finite late value: left inf
-        warnings.simplefilter("ignore", RuntimeWarning)
-        steady = np.nanmedian(late, axis=1)
-    ok = err <= CONVERGENCE_FACTOR * steady[:, None]
-    bad_t = np.where(ok, np.inf, t_s[None, :])
-    # each epoch's next bad time after it: the running minimum from the end, shifted by one
-    nxt = np.concatenate([np.minimum.accumulate(bad_t[:, ::-1], axis=1)[:, ::-1][:, 1:],
-                          np.full((err.shape[0], 1), np.inf)], axis=1)
-    good = ok & (nxt - t_s[None, :] >= CONVERGENCE_HOLD_S)
-    first = np.argmax(good, axis=1)
-    found = good.any(axis=1) & has & (steady < err[:, 0])
-    out[found] = t_s[first[found]]
-    return out
 
 
 def chi2_bands(dim: int, counts, p: float = 0.95) -> tuple[np.ndarray, np.ndarray]:

@@ -15,7 +15,7 @@
   trusted.
 
 - ``paper``: how far the estimator's runs sit from the single-flight numbers a paper
-  published for it (the scenario's ``single_run`` reference values,
+  published for it (the scenario's ``single_run`` reference values of rule ``close`` or ``none``,
   :mod:`navsim.records.reference`): the RMS over those numbers of ``ln(median / paper)``, the
   median over the runs of each run's own statistic (:func:`paper_distance`). The paper's flight
   is one draw; the truth model whose runs' median equals it is the one that most plausibly flew
@@ -88,10 +88,11 @@ def objective(name: str, m: EstimatorMetrics, metric: str = DEFAULT_METRIC) -> f
 
 
 def paper_checks_of(reference, label: str) -> list:
-    """The checks of ``reference`` that ``paper`` fits for the estimator ``label``: its published
-    single-flight numbers (``single_run``, not a claim relative to another estimator)."""
+    """The checks of ``reference`` that ``paper`` fits for the estimator ``label``: the numbers
+    its single flight gave (``single_run`` values of rule ``close`` or ``none``; a bound, "within
+    1 m", is no number to centre the runs on, nor a claim)."""
     return [c for c in (reference.checks if reference else ()) if c.estimator == label and c.kind == "single_run"
-            and c.of is None and c.claim is None]
+            and c.of is None and c.claim is None and c.rule in ("close", "none")]
 
 
 def paper_distance(checks: list, samples) -> float | None:

@@ -12,8 +12,9 @@ estimator (``of``: its metric times the factor, taken as exact).
 A ``single_run`` check (the paper's number is one flight: :data:`~navsim.records.reference.KINDS`)
 is judged instead against each run's own value of the statistic
 (:meth:`~navsim.records.samples.EstimatorSamples.run_values`; of a claim relative to another
-estimator, each run's ratio of the two): a number (``close``, ``none``) passes when it lies
-inside the 95 % range of one run and fails outside it, with its percentile among our runs; a
+estimator, each run's ratio of the two): a number (``close``) passes when it lies inside the
+95 % range of one run and fails outside it, with its percentile among our runs (``none``: the
+range and the percentile shown, no verdict); a
 bound (``at_most``, ``at_least``) passes when the range reaches it (a flight meeting it can be
 one of ours: at least as many runs meet it, every component at once, as the range's end rank),
 with the share of our runs meeting it and its Clopper-Pearson interval
@@ -160,7 +161,8 @@ def _run_values(c: PaperCheck, samples: dict) -> np.ndarray | None:
 
 
 def _judge_single(c: PaperCheck, estimators: dict, samples: dict) -> Verdict:
-    """A check on one flight against our single runs (the module's text)."""
+    """A check on one flight against our single runs (the module's text): the runs counted are
+    those with every component of the statistic."""
     ours = _metric(estimators, c.estimator, c.metric)
     if c.of is not None:
         base = _numbers(_metric(estimators, c.of, c.metric))
@@ -168,21 +170,23 @@ def _judge_single(c: PaperCheck, estimators: dict, samples: dict) -> Verdict:
     else:
         bound = c.bound
     x, paper = _run_values(c, samples), np.atleast_1d(np.asarray(c.bound, float))
-    if c.of is not None and x is not None:            # the factor, for every component of the ratio
-        paper = np.full(x.shape[1], float(c.bound))
+    if x is not None:
+        x = x[~np.isnan(x).any(axis=1)]
+        if c.of is not None:                          # the factor, for every component of the ratio
+            paper = np.full(x.shape[1], float(c.bound))
     plain = dict(estimator=c.estimator, metric=c.metric, rule=c.rule, bound=bound, ours=ours, passed=None,
                  claim=c.claim, of=c.of, times=c.bound if c.of is not None else None, kind=c.kind)
     if x is None or x.shape[1] != paper.size or not len(x):
         return Verdict(**plain)
     judged = [judge_single_run(p, x[:, j]) for j, p in enumerate(paper)]
-    runs = min(j.runs for j in judged)
-    plain.update(run_range=_open_ends([[j.low, j.high] for j in judged]),
-                 percentile=[round(j.percentile, 1) for j in judged], runs=runs)
+    runs = len(x)
+    plain.update(percentile=[round(j.percentile, 1) for j in judged], runs=runs)
     if runs >= min_runs():
-        plain["coverage_ci95"] = [round(v, 4) for v in coverage_interval(runs)]
+        plain.update(run_range=_open_ends([[j.low, j.high] for j in judged]),
+                     coverage_ci95=[round(v, 4) for v in coverage_interval(runs)])
     if c.rule in ("at_most", "at_least"):
         share, ci, _ = share_meeting(x, paper, c.rule)
-        plain.update(share=share, share_ci95=list(ci))
+        plain.update(share=share, share_ci95=list(ci) if all(map(math.isfinite, ci)) else None)
     if c.rule == "none":
         return Verdict(**plain)
     if runs < min_runs():
@@ -250,22 +254,32 @@ def verdict_rows(verdicts: list[Verdict]) -> list[list[str]]:
             mark = undecided_text(v)
         elif single and v.run_range is not None:
             mark = f"{mark} ({single_run_text(v)})" if mark != "-" else single_run_text(v)
+        elif single and v.percentile is not None and mark == "-":       # shown: too few runs for a range
+            mark = single_run_text(v)
         ours = with_interval(v.ours, v.ours_ci95)
         if single:
-            ours = "-" if v.run_range is None else "  ".join(
-                f"[{num(lo) if lo is not None else '-'}, {_fmt(hi) if hi is not None else '-'}]" for lo, hi in v.run_range)
+            ours = "-" if v.run_range is None else "  ".join(f"[{_end(v, lo)}, {_end(v, hi)}]" for lo, hi in v.run_range)
             ours = (f"ratio {ours}" if v.of is not None and v.run_range is not None else ours)
         rows.append([v.estimator, v.claim or "as published", v.metric, KIND_TEXT.get(v.kind, v.kind), paper, ours, mark])
     return rows
+
+
+def _end(v: Verdict, x) -> str:
+    """An end of the range of one run: a number, or beyond every finite value (None: a run that
+    never converged, an infinite ratio)."""
+    if x is not None:
+        return num(x)
+    return "never" if v.metric in ABSENT_IS_INFINITE else "inf"
 
 
 def single_run_text(v: Verdict) -> str:
     """A single-run verdict's detail: ``"p34"`` (the paper's percentile among our runs, per
     component) for a number; ``"96 % [87, 99] of runs meet it"`` for a bound."""
     if v.share is not None:
-        lo, hi = v.share_ci95
-        return f"{100 * v.share:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] of runs meet it"
-    return " ".join(f"p{p:.1f}" if 0 < p < 1 or 99 < p < 100 else f"p{p:.0f}" for p in v.percentile)
+        ci = f" [{100 * v.share_ci95[0]:.0f}, {100 * v.share_ci95[1]:.0f}]" if v.share_ci95 else ""
+        return f"{100 * v.share:.0f} %{ci} of runs meet it"
+    return " ".join("p-" if p is None else f"p{p:.1f}" if 0 < p < 1 or 99 < p < 100 else f"p{p:.0f}"
+                    for p in v.percentile or [])
 
 
 #: beyond this many runs a check is called too close to its bound to decide

@@ -179,24 +179,29 @@ def test_a_truth_parameter_is_calibrated_to_a_papers_single_flight(tmp_path, mon
     tuning = record["checks"]["tuning"]
     assert tuning["objective_tuned"] < tuning["objective_original"]
     assert {v["kind"] for v in tuning["paper_checks"]["tuned"]} == {"single_run"}
-    assert "paper checks, fitted truth" in printed and "sensors to paste" in printed
+    assert "Paper checks, fitted truth" in printed and "sensors to paste" in printed
     fitted = yaml.safe_load((out / "tuned.yaml").read_text())["sensors"]["gps"]["override"]["horizontal_sigma"]
     assert fitted.endswith(" m") and (out / "tune.pdf").is_file()
 
 
-@pytest.mark.parametrize("param, words", [
-    ("sensors.gps.override.horizontal_sigma=0.3:3", ["one datasheet unit"]),
-    ("sensors.gps.override.horizontal_sigma=x0.3:3", ["carries its unit", "not a factor"]),
-    ("sensors.gps.override.horizontal_sigma=0.3 m:3 ft", ["one datasheet unit"]),
-    ("sensors.gps.override.horizontal_sigma=0.3:3 s", ["horizontal_sigma", "m"]),
-    ("measurements[0].sigma_m=0.2:8 m", ["SI, without a unit"]),
+@pytest.mark.parametrize("param, objective, words", [
+    ("sensors.gps.override.horizontal_sigma=0.3:3", "paper", ["one datasheet unit"]),
+    ("sensors.gps.override.horizontal_sigma=x0.3:3", "paper", ["carries its unit", "not a factor"]),
+    ("sensors.gps.override.horizontal_sigma=0.3 m:3 ft", "paper", ["one datasheet unit"]),
+    ("sensors.gps.override.horizontal_sigma=0.3:3 s", "paper", ["horizontal_sigma", "one of: m"]),
+    ("sensors.gps.override.horizontal_sigm=0.3:3 m", "paper", ["horizontal_sigm", "horizontal_sigma"]),
+    ("measurements[0].sigma_m=0.2:8 m", "paper", ["SI, without a unit"]),
+    ("sensors.gps.override.horizontal_sigma=0.3:3 m", "nees", ["--objective paper"]),
 ])
-def test_a_truth_parameter_needs_its_datasheet_unit(scenario, tmp_path, capsys, param, words):
-    argv = ["tune", str(scenario), "--estimator", "KF", "--param", param, "--trials", "2", "--runs", "2",
-            "--out", str(tmp_path / "o")]
+def test_a_truth_parameter_needs_its_datasheet_unit_and_the_paper_objective(tmp_path, monkeypatch, capsys, param,
+                                                                             objective, words):
+    monkeypatch.setenv("NAVSIM_CACHE", str(tmp_path / "cache"))
+    argv = ["tune", str(_single_run_scenario(tmp_path, 1.0)), "--estimator", "KF", "--param", param, "--objective",
+            objective, "--trials", "2", "--runs", "2", "--out", str(tmp_path / "o")]
     assert _exit_code(argv) == 2
     err = capsys.readouterr().err
     assert "Traceback" not in err and all(w in err for w in words), err
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
 
 
 def test_the_paper_objective_needs_a_single_flight_number_of_the_estimator(scenario, tmp_path, capsys):

@@ -70,6 +70,17 @@ def test_shipped_scenarios_validate(shipped_scenarios):
         assert s.flight.track.segments
 
 
+def test_every_shipped_reference_says_what_kind_of_number_the_paper_published_and_why(shipped_scenarios):
+    """Each paper here reports one flight or simulation: its checks are single runs, with the
+    reason in the scenario (kind_note); a population check is a count over the runs."""
+    refs = {path.stem: load_scenario(path).reference for path in shipped_scenarios}
+    refs = {name: r for name, r in refs.items() if r is not None}
+    assert len(refs) >= 10
+    for name, ref in refs.items():
+        assert ref.kind == "single_run" and len(ref.kind_note.split()) >= 6, name
+        assert all(c.kind == "single_run" or c.metric == "diverged_runs" for c in ref.checks), name
+
+
 def test_scenario_errors():
     with pytest.raises(ScenarioError, match=r"(?s)aircraft: 'survey1' .*did you mean 'survey10'"):
         parse_scenario({"aircraft": "survey1", "track": "p0"}, "s.yaml")

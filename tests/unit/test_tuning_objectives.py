@@ -53,7 +53,8 @@ def test_the_shape_distance_is_small_for_chi_square_samples_only():
 def test_the_paper_objective_is_the_log_distance_of_the_runs_median_from_the_papers_numbers():
     """Runs whose per-run values have the medians 2 m (a std) and -3 m (a largest negative
     error): 0 against the paper's 2 and -3; ln 2 / sqrt(2) when one is twice the paper's; the
-    claims and the population numbers are not fitted; a median of the other sign is no fit."""
+    claims, the bounds and the population numbers are not fitted; a median of the other sign is
+    no fit."""
     runs = np.arange(5)
     samples = EstimatorSamples(runs, {}, {"windows.w.height_m.std": np.c_[[1.0, 2.0, 2.0, 3.0, 9.0]],
                                           "windows.w.height_m.max_neg": np.c_[[-1.0, -3.0, -3.0, -4.0, -9.0]]})
@@ -61,7 +62,8 @@ def test_the_paper_objective_is_the_log_distance_of_the_runs_median_from_the_pap
     ref = SimpleNamespace(checks=[check("windows.w.height_m.std", 2.0), check("windows.w.height_m.max_neg", -3.0),
                                   check("windows.w.height_m.std", 1.0, kind="population"),
                                   check("windows.w.height_m.std", 0.1, claim="c", of="other"),
-                                  PaperCheck("other", "windows.w.height_m.std", "close", 5.0, kind="single_run")])
+                                  PaperCheck("other", "windows.w.height_m.std", "close", 5.0, kind="single_run"),
+                                  PaperCheck("KF", "windows.w.height_m.std", "at_most", 5.0, kind="single_run")])
     fitted = paper_checks_of(ref, "KF")
     assert [c.bound for c in fitted] == [2.0, -3.0]
     assert paper_distance(fitted, samples) == 0.0

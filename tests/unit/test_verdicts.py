@@ -5,7 +5,7 @@ against metrics (:mod:`navsim.experiment.reference`, :mod:`navsim.records.refere
 import numpy as np
 import pytest
 
-from navsim.experiment.reference import parse_reference
+from navsim.experiment.reference import parse_reference, stored_kind
 from navsim.foundations.config import Node
 from navsim.foundations.errors import ScenarioError
 from navsim.records.vocabulary import check_metric_path
@@ -130,6 +130,8 @@ def test_verdicts_round_trip_through_metrics_json():
     ({"source": "p", "kind": "single_run", "values": {"KF": {"rms.pos_m": {"paper": 1, "check": "close",
                                                                             "tolerance": 0.5}}}},
      "reference.values.KF.rms.pos_m.tolerance", "spread of our runs"),
+    ({"source": "p", "kind": "single_run", "check": "close", "tolerance": 0.5, "values": {"KF": {"rms.pos_m": 1}}},
+     "reference.tolerance", "spread of our runs"),
 ])
 def test_bad_references_name_their_key(data, key, words):
     with pytest.raises(ScenarioError) as exc:
@@ -264,3 +266,12 @@ def test_a_single_run_check_below_39_runs_is_undecided_and_says_why():
     assert v.passed is None and v.undecided and v.runs_needed == 39
     assert verdict_rows([v])[0][6] == "undecided at 20 runs (39 bound one run's 95 % range)"
     assert "1 undecided at 20 runs" in verdict_summary([v])
+
+
+def test_a_stored_scenario_from_before_the_kinds_reads_its_reference_as_population():
+    """A result folder written before references said their kind (its scenario.resolved.yaml)
+    still opens: its checks were judged on the interval of the mean, population."""
+    raw = {"track": "p0", "reference": {"source": "p", "values": {"KF": {"rms.pos_m": 1}}}}
+    assert stored_kind(raw)["reference"]["kind"] == "population" and "kind" not in raw["reference"]
+    given = {"track": "p0", "reference": {"source": "p", "kind": "single_run"}}
+    assert stored_kind(given) is given and stored_kind({"track": "p0"}) == {"track": "p0"}
