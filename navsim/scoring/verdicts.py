@@ -276,10 +276,15 @@ def single_run_text(v: Verdict) -> str:
     """A single-run verdict's detail: ``"p34"`` (the paper's percentile among our runs, per
     component) for a number; ``"96 % [87, 99] of runs meet it"`` for a bound."""
     if v.share is not None:
-        ci = f" [{100 * v.share_ci95[0]:.0f}, {100 * v.share_ci95[1]:.0f}]" if v.share_ci95 else ""
-        return f"{100 * v.share:.0f} %{ci} of runs meet it"
-    return " ".join("p-" if p is None else f"p{p:.1f}" if 0 < p < 1 or 99 < p < 100 else f"p{p:.0f}"
-                    for p in v.percentile or [])
+        ci = f" [{_percent(v.share_ci95[0])}, {_percent(v.share_ci95[1])}]" if v.share_ci95 else ""
+        return f"{_percent(v.share)} %{ci} of runs meet it"
+    return " ".join("p-" if p is None else f"p{_percent(p / 100)}" for p in v.percentile or [])
+
+
+def _percent(share: float) -> str:
+    """A share as a percent: whole, but with a decimal within 1 % of 0 or 100 (99.6, not 100)."""
+    p = 100 * share
+    return f"{p:.1f}" if 0 < p < 1 or 99 < p < 100 else f"{p:.0f}"
 
 
 #: beyond this many runs a check is called too close to its bound to decide

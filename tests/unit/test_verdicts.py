@@ -248,7 +248,7 @@ def test_a_single_flight_is_judged_on_the_range_of_one_run_not_on_the_interval_o
     rows = verdict_rows([close, inside, outside])
     assert rows[0][3] == "single run" and rows[0][5] == "  ".join(["[2, 99]"] * 3)
     assert rows[0][6] == "pass (p90 p50 p2)" or rows[0][6] == "pass (p90 p50 p3)", rows[0][6]
-    assert rows[1][6] == "pass (3 % [1, 9] of runs meet it)" and rows[2][6].startswith("FAIL (1 %")
+    assert rows[1][6] == "pass (3 % [0.6, 9] of runs meet it)" and rows[2][6].startswith("FAIL (1 %")
     back = RunMetrics.from_dict({"scenario": "s", "runs": 100, "runs_done": 100, "seed": 1, "failed_runs": {},
                                  "interrupted": False, "estimators": {}, "paper_checks": [close.to_dict()]})
     assert back.paper_checks == [close]
