@@ -39,10 +39,13 @@ driver, chunks, executors, closed loop, sweep) -> :mod:`navsim.scoring` (typed m
 :mod:`navsim.replay` (PX4 logs, INS/GNSS logs) -> :mod:`navsim.report` -> :mod:`navsim.api` -> :mod:`navsim.cli`.
 """
 
-from navsim.api import (Result, RunOptions, TuneOptions, TuneResult, budget, compare, load_scenario, open_result,  # noqa: E402
-                        read_log, replay_log, report_figures, run, sweep, tune, tune_log, write_budget, write_comparison,
-                        write_report)
-from navsim.version import __version__  # noqa: E402
+import lazy_loader
 
-__all__ = ["Result", "RunOptions", "TuneOptions", "TuneResult", "budget", "write_budget", "compare", "write_comparison", "load_scenario", "open_result", "read_log", "replay_log", "report_figures", "run", "sweep", "tune", "tune_log", "write_report",
-           "__version__"]
+#: the API's names, loaded on first use (``lazy_loader``, scientific Python's SPEC 1): a process
+#: that imports only the modules it needs (a Monte Carlo worker: the driver, the sensors, the
+#: filters) does not load the report's matplotlib, the scoring's scipy.stats nor optuna
+API = ["Result", "RunOptions", "TuneOptions", "TuneResult", "budget", "write_budget", "compare", "write_comparison",
+       "load_scenario", "open_result", "read_log", "replay_log", "report_figures", "run", "sweep", "tune", "tune_log",
+       "write_report"]
+
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={"api": API, "version": ["__version__"]})

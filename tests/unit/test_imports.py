@@ -4,6 +4,8 @@ too (so that no import is put in a function to dodge one); no function is longer
 parameters, and a module over :data:`LONGEST_MODULE` lines says why at its top."""
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import navsim
@@ -45,15 +47,29 @@ def absolute(mod: str, path: Path, node: ast.ImportFrom) -> str:
     return ".".join(base + ([node.module] if node.module else []))
 
 
+def lazy_targets(mod: str, node: ast.Call) -> list:
+    """The submodules a package's ``lazy_loader.attach(__name__, submodules=[...],
+    submod_attrs={...})`` loads on first use: imports like any other."""
+    names = []
+    for kw in node.keywords:
+        if kw.arg == "submodules" and isinstance(kw.value, (ast.List, ast.Tuple)):
+            names += [e.value for e in kw.value.elts if isinstance(e, ast.Constant)]
+        elif kw.arg == "submod_attrs" and isinstance(kw.value, ast.Dict):
+            names += [k.value for k in kw.value.keys if isinstance(k, ast.Constant)]
+    return [f"{mod}.{n}" for n in names]
+
+
 def import_graph() -> dict:
     """Module -> the navsim modules it imports anywhere in its file. ``from package import
     name`` counts as an import of the submodule ``package.name`` when there is one (else of the
-    package)."""
+    package); a submodule attached by ``lazy_loader.attach`` counts as imported."""
     mods = module_names()
     graph = {m: set() for m in mods}
     for mod, path in mods.items():
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.Import):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "attach":
+                targets = lazy_targets(mod, node)
+            elif isinstance(node, ast.Import):
                 targets = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom) and (node.module or node.level):
                 module = absolute(mod, path, node)
@@ -193,3 +209,17 @@ def test_a_module_over_600_lines_says_why_at_its_top():
     long = {str(p.relative_to(PACKAGE)): ast.get_docstring(ast.parse(p.read_text())) or ""
             for p in sorted(PACKAGE.rglob("*.py")) if len(p.read_text().splitlines()) > LONGEST_MODULE}
     assert {k for k, doc in long.items() if "over 600 lines" not in doc} == set(), long.keys()
+
+
+def test_a_monte_carlo_worker_loads_neither_the_report_nor_the_scoring_and_the_api_loads_on_use():
+    """``import navsim`` attaches the API lazily (lazy_loader): a fresh interpreter that imports
+    the worker's module (the chunk work of navsim.experiment.runner) holds no matplotlib,
+    scipy.stats, optuna, navsim.api, navsim.scoring or navsim.report; the package's names then
+    resolve on first use, every one of ``__all__``."""
+    code = ("import sys, navsim.experiment.runner\n"
+            "heavy = ['matplotlib', 'scipy.stats', 'optuna', 'navsim.api', 'navsim.scoring', 'navsim.report']\n"
+            "print([m for m in heavy if m in sys.modules])\n"
+            "import navsim\n"
+            "print(all(getattr(navsim, n) is not None for n in navsim.__all__), 'navsim.api' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split("\n")
+    assert out[0] == "[]" and out[1] == "True True", out
