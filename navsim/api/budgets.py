@@ -19,6 +19,7 @@ import numpy as np
 
 from navsim.api.arguments import load_scenario
 from navsim.api.runs import run
+from navsim.experiment.executors import lend_pool
 from navsim.experiment.budget import GROUPS as BUDGET_GROUPS, SCALE_RANGE, alone, budget_sources, find_source
 from navsim.experiment.budget import check_method, covariance_contributions, left_out_reasons, linear_sources
 from navsim.experiment.budget import scale_ok, scaled
@@ -78,7 +79,8 @@ def budget(scenario, runs: int | None = None, seed: int | None = None, workers: 
         a covariance analysis of a closed loop or of sources none of which has a linear form.
     """
     t0 = time.perf_counter()
-    return _run_budget(_budgeting(scenario, (runs, seed, workers), group, method, options), t0)
+    with lend_pool():                 # one pool of workers for the K + 1 Monte Carlos
+        return _run_budget(_budgeting(scenario, (runs, seed, workers), group, method, options), t0)
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,7 @@ import dataclasses
 
 from navsim.api.arguments import checked_path, overrides_of
 from navsim.api.runs import run
+from navsim.experiment.executors import lend_pool
 from navsim.experiment.options import RunOptions, check_flags
 from navsim.experiment.sweep import SweepResult, plan_sweep, point_values
 from navsim.foundations.errors import UsageError
@@ -51,22 +52,23 @@ def sweep(path, workers: int | None = None, *, on_point=None, set=None, **option
     overrides = overrides_of(set)
     plan = plan_sweep(checked_path("path", path, "sweep file"), overrides)
     result = SweepResult([], plan.metric, overrides=tuple(o.as_text() for o in overrides))
-    for i, (point, sc) in enumerate(zip(plan.points, plan.scenarios)):
-        res = None
-        if i in plan.unflown:
-            _unflown(result, i, point, sc, plan.unflown[i])
-        else:
-            res = run(sc, options=dataclasses.replace(how, runs=how.runs or plan.runs or sc.runs, progress=None,
-                                                      seed=sc.seed if how.seed is None else how.seed,
-                                                      workers=how.workers or sc.workers))
-            if res.interrupted:
-                result.interrupted = True
-                break
-            _scored(result, i, point, res, plan)
-        if on_point:
-            on_point(i, point, result.rows[-1][1], res)
-        if how.progress:
-            how.progress(1)
+    with lend_pool():                  # one pool of workers for every point
+        for i, (point, sc) in enumerate(zip(plan.points, plan.scenarios)):
+            res = None
+            if i in plan.unflown:
+                _unflown(result, i, point, sc, plan.unflown[i])
+            else:
+                res = run(sc, options=dataclasses.replace(how, runs=how.runs or plan.runs or sc.runs, progress=None,
+                                                          seed=sc.seed if how.seed is None else how.seed,
+                                                          workers=how.workers or sc.workers))
+                if res.interrupted:
+                    result.interrupted = True
+                    break
+                _scored(result, i, point, res, plan)
+            if on_point:
+                on_point(i, point, result.rows[-1][1], res)
+            if how.progress:
+                how.progress(1)
     return result
 
 

@@ -31,6 +31,7 @@ import yaml
 from navsim.api.arguments import checked_path, overrides_of
 from navsim.api.comparisons import compare
 from navsim.api.runs import run
+from navsim.experiment.executors import lend_pool
 from navsim.experiment.runner import cached_flight
 from navsim.experiment.scenario import MAX_SEED, parse_changed, parse_scenario
 from navsim.experiment.tuning import TRUTH_PREFIX, TuneParam, default_params, entry_index, parse_param
@@ -212,8 +213,9 @@ def tune(scenario, estimator: str, options: TuneOptions = TuneOptions(), *, out=
     if resume and out is None:
         raise UsageError("resume needs the folder of the interrupted tuning (out=...)")
     if out is None:
-        return _tune(trials, options, None, resume, progress)
-    with OutputFolder(checked_path("out", out, "output folder"), command="tune", force=force) as folder:
+        with lend_pool():              # one pool of workers for every trial and check
+            return _tune(trials, options, None, resume, progress)
+    with OutputFolder(checked_path("out", out, "output folder"), command="tune", force=force) as folder, lend_pool():
         return _tune(trials, options, folder, resume, progress)
 
 

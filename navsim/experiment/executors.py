@@ -28,6 +28,7 @@ import signal
 import threading
 import time
 import uuid
+from concurrent.futures import ProcessPoolExecutor
 
 from navsim.experiment.options import RunOptions
 from navsim.foundations.errors import UsageError
@@ -249,6 +250,51 @@ def _close(client, cluster) -> None:
 
 #: (workers, scheduler) -> (client, cluster) opened by :func:`lend_client`
 _LENT: dict = {}
+#: workers -> the local pool lent by :func:`lend_pool` (None: no pool lent)
+_POOLS: dict | None = None
+
+
+@contextlib.contextmanager
+def lend_pool():
+    """While inside, the local executor keeps one pool of worker processes per worker count and
+    hands it to every Monte Carlo (:func:`local_pool`), instead of starting one for each and
+    shutting it down after: a verb that runs many (a budget's, a sweep's, a tuning's) pays the
+    workers' start, their imports and their loading of the compiled kernels once. Nested: the
+    outermost lends."""
+    global _POOLS
+    if _POOLS is not None:
+        yield
+        return
+    _POOLS = {}
+    try:
+        yield
+    finally:
+        pools, _POOLS = _POOLS, None
+        for pool in pools.values():
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def local_pool(workers: int):
+    """A ``ProcessPoolExecutor`` of ``workers`` (:data:`POOL_CONTEXT`): the lent one where
+    :func:`lend_pool` is open (a broken one replaced), else one of its own, shut down on leaving.
+    Ctrl-C cancels what is queued and gives the pool up."""
+    lent = _POOLS is not None
+    pool = _POOLS.get(workers) if lent else None
+    if pool is None or getattr(pool, "_broken", False):
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=POOL_CONTEXT)
+        if lent:
+            _POOLS[workers] = pool
+    try:
+        yield pool
+    except KeyboardInterrupt:
+        pool.shutdown(wait=False, cancel_futures=True)
+        if lent:
+            _POOLS.pop(workers, None)
+        raise
+    finally:
+        if not lent:
+            pool.shutdown(wait=True)
 
 
 @contextlib.contextmanager

@@ -17,7 +17,7 @@ import logging
 import os
 import uuid
 import zipfile
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -27,7 +27,7 @@ import numpy as np
 from navsim.experiment.chunkstore import chunk_name, job_chunks
 from navsim.experiment.closed_loop import end_records, fly_batch
 from navsim.experiment.driver import Batch, run_batch
-from navsim.experiment.executors import POOL_CONTEXT, run_chunks_dask
+from navsim.experiment.executors import local_pool, run_chunks_dask
 from navsim.experiment.options import RunOptions
 from navsim.experiment.scenario import values_read
 from navsim.flight.airframe import model_digest
@@ -303,24 +303,20 @@ def run_chunks(fn, chunks, make_args, workers: int, progress=None, on_part=None)
                 if progress:
                     progress(len(ch))
         else:
-            with ProcessPoolExecutor(max_workers=workers, mp_context=POOL_CONTEXT) as pool:
+            with local_pool(workers) as pool:
                 futures = {pool.submit(fn, make_args(ch, True)): ch for ch in chunks}
-                try:
-                    for fut in as_completed(futures):
-                        ch = futures.pop(fut)          # a finished future keeps its part: drop it
-                        part = None
-                        try:
-                            part = fut.result()
-                        except Exception as exc:
-                            failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
-                        else:
-                            keep(part)
-                        del fut, part
-                        if progress:
-                            progress(len(ch))
-                except KeyboardInterrupt:
-                    pool.shutdown(wait=False, cancel_futures=True)
-                    raise
+                for fut in as_completed(futures):
+                    ch = futures.pop(fut)          # a finished future keeps its part: drop it
+                    part = None
+                    try:
+                        part = fut.result()
+                    except Exception as exc:
+                        failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
+                    else:
+                        keep(part)
+                    del fut, part
+                    if progress:
+                        progress(len(ch))
     except KeyboardInterrupt:
         interrupted = True
     return parts, failed, interrupted

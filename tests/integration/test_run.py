@@ -307,3 +307,29 @@ metric: rms.pos_m
     bad.write_text(f"scenario: {short.name}\ngrid:\n  estimators[5].type: [sins]\n")
     assert main(["sweep", str(bad), "--out", str(tmp_path / "bad_out")]) == 2
     assert "estimators[5]" in capsys.readouterr().err
+
+
+def test_a_lent_pool_serves_many_monte_carlos_with_the_same_numbers(short):
+    """Inside lend_pool (what budget, sweep and tune open) one pool of workers runs every Monte
+    Carlo: the same worker processes, and results bit for bit those of a pool started for each;
+    a pool broken by a dead worker is replaced; leaving shuts the workers down."""
+    import os
+    import signal
+
+    from navsim.experiment import executors
+    alone = navsim.run(short, runs=4, seed=3, workers=2).to_dict()
+    with executors.lend_pool():
+        first = navsim.run(short, runs=4, seed=3, workers=2)
+        pool = executors._POOLS[2]
+        pids = set(pool._processes)
+        second = navsim.run(short, runs=4, seed=3, workers=2)
+        assert executors._POOLS[2] is pool and set(pool._processes) == pids
+        os.kill(next(iter(pids)), signal.SIGKILL)                 # a worker dies: the pool is broken
+        navsim.run(short, runs=4, seed=3, workers=2)              # (its chunks may fail; it must not hang)
+        third = navsim.run(short, runs=4, seed=3, workers=2)
+        assert executors._POOLS[2] is not pool
+    assert executors._POOLS is None and not any(p.is_alive() for p in pool._processes.values())
+    timeless = lambda d: {label: {k: v for k, v in m.items() if k != "cost"} for label, m in d["estimators"].items()}
+    for r in (first, second, third):
+        got = r.to_dict()
+        assert timeless(got) == timeless(alone) and got["paper_checks"] == alone["paper_checks"]
