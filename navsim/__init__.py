@@ -48,4 +48,10 @@ API = ["Result", "RunOptions", "TuneOptions", "TuneResult", "budget", "write_bud
        "load_scenario", "open_result", "read_log", "replay_log", "report_figures", "run", "sweep", "tune", "tune_log",
        "write_report"]
 
-__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={"api": API, "version": ["__version__"]})
+#: the subpackages, also reached as attributes on first use (``navsim.experiment.runner``)
+SUBPACKAGES = ["foundations", "flight", "sensors", "navigation", "records", "experiment", "scoring", "replay",
+               "report", "cli"]
+
+__getattr__, __dir__, _ = lazy_loader.attach(__name__, submodules=SUBPACKAGES,
+                                             submod_attrs={"api": API, "version": ["__version__"]})
+__all__ = [*API, "__version__"]

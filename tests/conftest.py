@@ -78,8 +78,8 @@ _SAVED_PROBLEMS: list = []
 def _pages_checked_when_saved():
     """Every figure saved in this process (``Figure.savefig``; ``PdfPages.savefig`` calls it)
     is checked for text outside its page and overprinted tick labels (``tests/pages.py``) and
-    its problems kept for :func:`pages_read_well`. Not in a forked child (the report's PNG
-    writer: the parent draws every page into the PDF) nor in a subprocess (a CLI run as one)."""
+    its problems kept for :func:`pages_read_well` (the PNGs are rasterised from the PDF, whose
+    pages are these figures). Not in a forked child nor in a subprocess (a CLI run as one)."""
     parent, original = os.getpid(), Figure.savefig
 
     def savefig(fig, fname, *args, **kwargs):

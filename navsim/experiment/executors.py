@@ -1,4 +1,6 @@
-"""Chunks of Monte Carlo runs as Dask distributed tasks (``navsim run --executor dask``).
+"""Where the chunks of Monte Carlo runs go: the local pool of forked workers (:func:`local_pool`,
+one a Monte Carlo or, inside :func:`lend_pool`, one kept for the many Monte Carlos of a budget, a
+sweep or a tuning) or Dask distributed tasks (``navsim run --executor dask``).
 
 Needs the optional extra (``pip install navsim[dask]``); nothing else in navsim imports Dask.
 Without a scheduler address a ``LocalCluster`` of one single-threaded process per worker is
@@ -250,51 +252,68 @@ def _close(client, cluster) -> None:
 
 #: (workers, scheduler) -> (client, cluster) opened by :func:`lend_client`
 _LENT: dict = {}
-#: workers -> the local pool lent by :func:`lend_pool` (None: no pool lent)
-_POOLS: dict | None = None
+#: the pool lent by :func:`lend_pool`, per thread (a notebook's threads do not share one):
+#: ``lent`` is None outside, else ``[workers, pool]`` (the pool None until the first Monte Carlo)
+_THREAD = threading.local()
 
 
 @contextlib.contextmanager
 def lend_pool():
-    """While inside, the local executor keeps one pool of worker processes per worker count and
-    hands it to every Monte Carlo (:func:`local_pool`), instead of starting one for each and
-    shutting it down after: a verb that runs many (a budget's, a sweep's, a tuning's) pays the
-    workers' start, their imports and their loading of the compiled kernels once. Nested: the
-    outermost lends."""
-    global _POOLS
-    if _POOLS is not None:
+    """While inside, the local executor keeps one pool of worker processes and hands it to every
+    Monte Carlo of this thread (:func:`local_pool`), instead of starting one for each and shutting
+    it down after: a verb that runs many (a budget's, a sweep's, a tuning's) pays the workers'
+    start, their imports and their loading of the compiled kernels once. Nested: the outermost
+    lends. A Monte Carlo of another worker count replaces the pool (one pool's idle workers at a
+    time)."""
+    if getattr(_THREAD, "lent", None) is not None:
         yield
         return
-    _POOLS = {}
+    _THREAD.lent = [0, None]
     try:
         yield
     finally:
-        pools, _POOLS = _POOLS, None
-        for pool in pools.values():
+        _, pool = _THREAD.lent
+        _THREAD.lent = None
+        if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _new_pool(workers: int) -> ProcessPoolExecutor:
+    """A pool of ``workers`` forked processes, each ending with this one (:func:`die_with_parent`
+    as its initializer, whoever forks it)."""
+    return ProcessPoolExecutor(max_workers=workers, mp_context=POOL_CONTEXT, initializer=die_with_parent)
+
+
+def _give_up(pool: ProcessPoolExecutor) -> None:
+    """Stop ``pool`` as a Ctrl-C stops a Monte Carlo: what is queued cancelled, the running chunks
+    waited for (a lent pool is then dropped, never left computing behind the caller's back)."""
+    pool.shutdown(wait=False, cancel_futures=True)
+    pool.shutdown(wait=True)
 
 
 @contextlib.contextmanager
 def local_pool(workers: int):
     """A ``ProcessPoolExecutor`` of ``workers`` (:data:`POOL_CONTEXT`): the lent one where
-    :func:`lend_pool` is open (a broken one replaced), else one of its own, shut down on leaving.
-    Ctrl-C cancels what is queued and gives the pool up."""
-    lent = _POOLS is not None
-    pool = _POOLS.get(workers) if lent else None
-    if pool is None or getattr(pool, "_broken", False):
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=POOL_CONTEXT)
-        if lent:
-            _POOLS[workers] = pool
+    :func:`lend_pool` is open in this thread (a broken one, or one of another size, replaced),
+    else one of its own, shut down on leaving. Ctrl-C gives the pool up (:func:`_give_up`)."""
+    lent = getattr(_THREAD, "lent", None)
+    pool = lent[1] if lent is not None and lent[0] == workers else None
+    if pool is None or getattr(pool, "_broken", False):      # set by concurrent.futures when a worker died
+        if lent is not None and lent[1] is not None:
+            lent[1].shutdown(wait=False, cancel_futures=True)
+        pool = _new_pool(workers)
+        if lent is not None:
+            lent[:] = [workers, pool]
     try:
         yield pool
     except KeyboardInterrupt:
-        pool.shutdown(wait=False, cancel_futures=True)
-        if lent:
-            _POOLS.pop(workers, None)
+        _give_up(pool)
+        if lent is not None and lent[1] is pool:
+            lent[:] = [0, None]
         raise
     finally:
-        if not lent:
-            pool.shutdown(wait=True)
+        if lent is None:
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 @contextlib.contextmanager

@@ -18,6 +18,7 @@ import os
 import uuid
 import zipfile
 from concurrent.futures import as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -304,19 +305,30 @@ def run_chunks(fn, chunks, make_args, workers: int, progress=None, on_part=None)
                     progress(len(ch))
         else:
             with local_pool(workers) as pool:
-                futures = {pool.submit(fn, make_args(ch, True)): ch for ch in chunks}
-                for fut in as_completed(futures):
-                    ch = futures.pop(fut)          # a finished future keeps its part: drop it
-                    part = None
-                    try:
-                        part = fut.result()
-                    except Exception as exc:
-                        failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
-                    else:
-                        keep(part)
-                    del fut, part
-                    if progress:
-                        progress(len(ch))
+                futures = {}
+                try:
+                    for ch in chunks:
+                        futures[pool.submit(fn, make_args(ch, True))] = ch
+                except BrokenProcessPool as exc:       # a lent pool whose worker died while idle
+                    failed.update({r: f"{type(exc).__name__}: {exc}" for ch in chunks for r in ch
+                                   if ch not in futures.values()})
+                try:
+                    for fut in as_completed(futures):
+                        ch = futures.pop(fut)          # a finished future keeps its part: drop it
+                        part = None
+                        try:
+                            part = fut.result()
+                        except Exception as exc:
+                            failed.update({r: f"{type(exc).__name__}: {exc}" for r in ch})
+                        else:
+                            keep(part)
+                        del fut, part
+                        if progress:
+                            progress(len(ch))
+                except Exception:                      # an error: nothing left queued behind it
+                    for fut in futures:
+                        fut.cancel()
+                    raise
     except KeyboardInterrupt:
         interrupted = True
     return parts, failed, interrupted

@@ -4,6 +4,7 @@ its page of that PDF rasterised (PDFium, through ``pypdfium2``), not drawn a sec
 from __future__ import annotations
 
 import io
+import threading
 from pathlib import Path
 
 from navsim.foundations.outputs import OutputFolder, write_atomic
@@ -15,6 +16,9 @@ from navsim.report.tables import PNG_DPI
 COMPRESS_LEVEL = 1
 #: a PDF point is 1/72 inch
 POINTS_PER_INCH = 72.0
+#: PDFium must not be called from two threads at once, even on two documents (pypdfium2's
+#: documentation): one report is rasterised at a time
+_PDFIUM = threading.Lock()
 
 
 def render(folder: OutputFolder, pages: list[Page], fmts, title: str, pdf: str = "report.pdf") -> list[Path]:
@@ -51,10 +55,12 @@ def _write_pngs(source, pngs: list[Path]) -> None:
     """Page ``i`` of the PDF ``source`` (a path or a binary file) to ``pngs[i]``."""
     import pypdfium2
     data = source.getvalue() if isinstance(source, io.BytesIO) else Path(source).read_bytes()
-    doc = pypdfium2.PdfDocument(data)
-    try:
-        for i, path in enumerate(pngs):
-            image = doc[i].render(scale=PNG_DPI / POINTS_PER_INCH).to_pil()
-            write_atomic(path, lambda p, image=image: image.save(p, format="PNG", compress_level=COMPRESS_LEVEL))
-    finally:
-        doc.close()
+    with _PDFIUM:
+        doc = pypdfium2.PdfDocument(data)
+        try:
+            images = [doc[i].render(scale=PNG_DPI / POINTS_PER_INCH).to_pil() for i in range(len(pngs))]
+        finally:
+            doc.close()
+    for path, image in zip(pngs, images):
+        write_atomic(path, lambda p, image=image: image.save(p, format="PNG", compress_level=COMPRESS_LEVEL,
+                                                             dpi=(PNG_DPI, PNG_DPI)))

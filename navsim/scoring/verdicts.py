@@ -284,7 +284,9 @@ def single_run_text(v: Verdict) -> str:
 def _percent(share: float) -> str:
     """A share as a percent: whole, but with a decimal within 1 % of 0 or 100 (99.6, not 100)."""
     p = 100 * share
-    return f"{p:.1f}" if 0 < p < 1 or 99 < p < 100 else f"{p:.0f}"
+    if 0 < p < 1 or 99 < p < 100:                     # never printed as 0.0 or 100.0
+        return f"{min(max(p, 0.1), 99.9):.1f}"
+    return f"{p:.0f}"
 
 
 #: beyond this many runs a check is called too close to its bound to decide

@@ -311,8 +311,8 @@ metric: rms.pos_m
 
 def test_a_lent_pool_serves_many_monte_carlos_with_the_same_numbers(short):
     """Inside lend_pool (what budget, sweep and tune open) one pool of workers runs every Monte
-    Carlo: the same worker processes, and results bit for bit those of a pool started for each;
-    a pool broken by a dead worker is replaced; leaving shuts the workers down."""
+    Carlo of the thread: the same worker processes, and results bit for bit those of a pool
+    started for each; a pool broken by a dead worker is replaced; leaving shuts the workers down."""
     import os
     import signal
 
@@ -320,16 +320,43 @@ def test_a_lent_pool_serves_many_monte_carlos_with_the_same_numbers(short):
     alone = navsim.run(short, runs=4, seed=3, workers=2).to_dict()
     with executors.lend_pool():
         first = navsim.run(short, runs=4, seed=3, workers=2)
-        pool = executors._POOLS[2]
+        pool = executors._THREAD.lent[1]
         pids = set(pool._processes)
         second = navsim.run(short, runs=4, seed=3, workers=2)
-        assert executors._POOLS[2] is pool and set(pool._processes) == pids
+        assert executors._THREAD.lent[1] is pool and set(pool._processes) == pids
         os.kill(next(iter(pids)), signal.SIGKILL)                 # a worker dies: the pool is broken
         navsim.run(short, runs=4, seed=3, workers=2)              # (its chunks may fail; it must not hang)
         third = navsim.run(short, runs=4, seed=3, workers=2)
-        assert executors._POOLS[2] is not pool
-    assert executors._POOLS is None and not any(p.is_alive() for p in pool._processes.values())
+        replacement = executors._THREAD.lent[1]
+        assert replacement is not pool
+        workers = list(replacement._processes.values())
+    assert executors._THREAD.lent is None and workers and not any(p.is_alive() for p in workers)
     timeless = lambda d: {label: {k: v for k, v in m.items() if k != "cost"} for label, m in d["estimators"].items()}
     for r in (first, second, third):
         got = r.to_dict()
         assert timeless(got) == timeless(alone) and got["paper_checks"] == alone["paper_checks"]
+
+
+def test_ctrl_c_inside_a_lent_pool_stops_its_workers_and_the_next_monte_carlo_gets_a_new_one(short, monkeypatch):
+    """A Ctrl-C while a lent pool runs chunks: the Monte Carlo keeps what finished (interrupted),
+    the pool is shut down (its running chunks waited for, its workers gone, none left computing
+    behind the caller), and the next Monte Carlo inside the same lend gets a fresh pool."""
+    from navsim.experiment import executors, runner
+    real = runner.as_completed
+
+    def interrupted(futures):
+        yield from []
+        raise KeyboardInterrupt
+    with executors.lend_pool():
+        navsim.run(short, runs=4, seed=3, workers=2)
+        pool = executors._THREAD.lent[1]
+        workers = list(pool._processes.values())
+        monkeypatch.setattr(runner, "as_completed", interrupted)
+        r = navsim.run(short, runs=4, seed=3, workers=2)
+        assert r.interrupted and executors._THREAD.lent[1] is None
+        for w in workers:
+            w.join(timeout=10)
+        assert not any(w.is_alive() for w in workers)
+        monkeypatch.setattr(runner, "as_completed", real)
+        again = navsim.run(short, runs=4, seed=3, workers=2)
+        assert not again.interrupted and executors._THREAD.lent[1] not in (None, pool)
