@@ -286,9 +286,10 @@ def _new_pool(workers: int) -> ProcessPoolExecutor:
 
 def _give_up(pool: ProcessPoolExecutor) -> None:
     """Stop ``pool`` as a Ctrl-C stops a Monte Carlo: what is queued cancelled, the running chunks
-    waited for (a lent pool is then dropped, never left computing behind the caller's back)."""
-    pool.shutdown(wait=False, cancel_futures=True)
-    pool.shutdown(wait=True)
+    waited for and the workers ended (in one call: a first ``shutdown(wait=False)`` would drop
+    the executor's thread, and a second could no longer wait), so a lent pool is never left
+    computing behind the caller's back."""
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 @contextlib.contextmanager
