@@ -33,9 +33,9 @@ def _bins(v):
 
 
 def _lerp(a, b, t):
-    """numpy's linear interpolation between neighbouring order statistics."""
+    """numpy's linear interpolation between neighbouring order statistics (elementwise)."""
     diff = b - a
-    return b - diff * (1 - t) if t >= 0.5 else a + diff * t
+    return np.where(t >= 0.5, b - diff * (1 - t), a + diff * t)
 
 
 class AbsPercentiles:
@@ -296,10 +296,7 @@ def row_percentiles(x, q: float) -> np.ndarray:
     hi = np.minimum(lo + 1, np.maximum(n - 1, 0))
     t = pos - lo
     take = lambda i: np.take_along_axis(a, i[:, None], axis=1)[:, 0] if a.shape[1] else np.full(i.shape, np.nan)
-    va, vb = take(lo), take(hi)
-    diff = vb - va
-    out = np.where(t >= 0.5, vb - diff * (1 - t), va + diff * t)     # numpy's linear interpolation
-    return np.where(n > 0, out, np.nan)
+    return np.where(n > 0, _lerp(take(lo), take(hi), t), np.nan)
 
 
 def chi2_bands(dim: int, counts, p: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
