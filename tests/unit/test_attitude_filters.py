@@ -1,5 +1,5 @@
-"""P4's attitude filters: quaternion kinematics, Jacobians against finite differences, the
-quaternion normalisation, the divergence monitor and its angle wrapping, batch = single runs."""
+"""P4's attitude filters: quaternion kinematics (the Jacobians against finite differences:
+test_cpf_ekf_kernels.py), the quaternion normalisation, the divergence monitor and its angle wrapping, batch = single runs."""
 
 import numpy as np
 import pytest
@@ -13,10 +13,9 @@ from navsim.foundations.transform import (
     quat_from_rotvec,
     quat_multiply,
 )
-from navsim.navigation.estimators.attitude import dcm_homogeneous, euler_distance2, rk4_step
+from navsim.navigation.estimators.attitude import euler_distance2, rk4_step
 from navsim.navigation.estimators.cpf import ComplementaryFilter
-from navsim.navigation.estimators.cpf_ekf import (AZ, MB, ME, N_STATES, WB, CpfEkf, CpfEkfConfig, Q,
-                                                  dcm_times_vec_jacobian)
+from navsim.navigation.estimators.cpf_ekf import ME, CpfEkf, CpfEkfConfig, Q
 from navsim.navigation.strapdown import NavState
 from navsim.sensors.catalog import load_spec
 from navsim.sensors.gnss import emulate_gnss
@@ -52,20 +51,6 @@ def test_rk4_closed_form_equals_the_four_stages():
     assert np.abs(rk4_step(q, w, dt) - stages).max() < 1e-15
 
 
-@pytest.mark.parametrize("transpose", [False, True])
-def test_rotation_jacobian_against_finite_differences(transpose):
-    rng = np.random.default_rng(2)
-    q, f = _unit(rng, 4), rng.normal(size=(4, 3)) * 10
-
-    def g(qq):        # C(q) f, C in the homogeneous form the filter uses (= dcm_from_quat on |q| = 1)
-        return np.einsum("bji,bj->bi" if transpose else "bij,bj->bi", dcm_homogeneous(qq), f)
-
-    assert np.abs(dcm_homogeneous(q) - dcm_from_quat(q)).max() < 1e-15
-
-    num = np.stack([(g(q + e) - g(q - e)) / 2e-6 for e in np.eye(4) * 1e-6], -1)
-    assert np.abs(dcm_times_vec_jacobian(q, f, transpose) - num).max() < 1e-7
-
-
 def _ekf(B=2, **kw):
     est = CpfEkf(CpfEkfConfig(mag="mag", gnss=None, field_n_T=[21e-6, -3e-6, 45e-6], **kw))
     nav = NavState(np.full(B, 0.7), np.full(B, 2.1), np.full(B, 200.0), np.zeros((B, 3)),
@@ -75,25 +60,6 @@ def _ekf(B=2, **kw):
     est.x[:, ME] = est.field_ref
     est.field_ready = True
     return est
-
-
-def test_magnetometer_model_jacobian_against_finite_differences():
-    est = _ekf()
-    rng = np.random.default_rng(3)
-    est.x[:, MB] = rng.normal(size=(2, 3))
-    est.x[:, Q] = _unit(rng, 2)
-    h0, H = est._mag_model()
-    num = np.zeros_like(H)
-    x0 = est.x.copy()
-    for k in range(N_STATES):
-        e = np.zeros(N_STATES)
-        e[k] = 1e-6
-        est.x = x0 + e
-        hp, _ = est._mag_model()
-        est.x = x0 - e
-        hm, _ = est._mag_model()
-        num[:, :, k] = (hp - hm) / 2e-6
-    assert np.abs(H - num).max() < 1e-6
 
 
 def test_a_correction_keeps_the_quaternion_unit_and_its_covariance_tangent():

@@ -1,5 +1,6 @@
 """P4's per-sample propagation, compiled: the CPF-EKF's state prediction and the complementary
-filter's step over a block of ``K`` IMU intervals, one loop per run (numba, cached).
+filter's step over a block of ``K`` IMU intervals, one loop per run (numba, cached); and the
+complementary filter's heading error from a magnetometer sample (:func:`cpf_heading_error`).
 
 The formulas are P4's (eq. 5-7 and the CPF's Mahony step), written per run in the order of
 operations of :mod:`.attitude`'s numpy forms (``rk4_step``, ``rotate_b_to_n``,
@@ -18,9 +19,10 @@ from navsim.foundations.compiled import njit
 
 _OPTIONS = dict(cache=True, error_model="numpy")     # a diverged run gives NaN, as numpy does
 
-#: the CPF-EKF's state layout the kernel reads (:mod:`.cpf_ekf` builds its slices from these):
-#: the quaternion (4), velocity (3), position (3), the z-accelerometer bias, the gyro bias (3)
-Q0, V0, S0, AZ, WB0 = 0, 4, 7, 10, 14
+#: the CPF-EKF's state layout the kernels read (:mod:`.cpf_ekf` builds its slices from these):
+#: the quaternion (4), velocity (3), position (3), the z-accelerometer bias, the magnetometer
+#: bias (3), the gyro bias (3), the Earth field (3); 20 states
+Q0, V0, S0, AZ, MB0, WB0, ME0, N_STATES = 0, 4, 7, 10, 11, 14, 17, 20
 #: the complementary filter's gains in the order :func:`cpf_block` reads them
 GAIN_NAMES = ("kp_acc", "kp_mag", "ki", "accel_tau_s", "acc_gate")
 
@@ -140,4 +142,40 @@ def cpf_block(q, bias, f_lp, started, a_n, e_mag, g_n, w_ie_n, gains, dth, dv, d
                 q[b, i] = q_new[i]
 
 
-__all__ = ["AZ", "GAIN_NAMES", "Q0", "S0", "V0", "WB0", "cpf_block", "cpf_ekf_block"]
+@njit(**_OPTIONS)
+def _dip(v0, v1, v2):
+    return math.atan2(v2, math.hypot(v0, v1))
+
+
+@njit(**_OPTIONS)
+def cpf_heading_error(q, m_b, valid, ref, gates, on_course, t, e_mag, heading_t, rejected):
+    """The complementary filter's heading error from a magnetometer sample (as
+    :meth:`.cpf.ComplementaryCore.aid` states it), every run in place: the measured field
+    ``m_b`` ``(B, 3)`` (uT) turned into NED by ``q`` ``(B, 4)``, its heading against the
+    reference field's ``ref`` ``(B, 3)``, wrapped; a sample is accepted where ``valid`` and its
+    magnitude (relative) and dip angle are within ``gates`` = (``mag_gate``, dip gate in rad)
+    of the reference's. An accepted sample sets ``heading_t`` to ``t``; a rejected valid one
+    counts in ``rejected``; ``e_mag`` ``(B, 3)`` becomes the body-frame error about the NED
+    down axis (zero where rejected), except where ``on_course`` (the GNSS course steers)."""
+    for b in range(q.shape[0]):
+        w, x, y, z = q[b, 0], q[b, 1], q[b, 2], q[b, 3]
+        m0, m1, m2 = m_b[b, 0], m_b[b, 1], m_b[b, 2]
+        n0 = (1 - 2 * (y * y + z * z)) * m0 + 2 * (x * y - w * z) * m1 + 2 * (x * z + w * y) * m2
+        n1 = 2 * (x * y + w * z) * m0 + (1 - 2 * (x * x + z * z)) * m1 + 2 * (y * z - w * x) * m2
+        n2 = 2 * (x * z - w * y) * m0 + 2 * (y * z + w * x) * m1 + (1 - 2 * (x * x + y * y)) * m2
+        r0, r1, r2 = ref[b, 0], ref[b, 1], ref[b, 2]
+        dpsi = math.atan2(n1, n0) - math.atan2(r1, r0)
+        dpsi = (dpsi + math.pi) % (2 * math.pi) - math.pi
+        ratio = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2) / math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+        ok = (valid[b] and abs(ratio - 1.0) <= gates[0]
+              and abs(_dip(n0, n1, n2) - _dip(r0, r1, r2)) <= gates[1])
+        if valid[b] and not ok:
+            rejected[b] += 1
+        if ok:
+            heading_t[b] = t
+        if not on_course[b]:
+            e = -dpsi if ok else 0.0
+            e_mag[b, 0], e_mag[b, 1], e_mag[b, 2] = _rotate(w, -x, -y, -z, 0.0, 0.0, e)
+
+
+__all__ = ["AZ", "GAIN_NAMES", "MB0", "ME0", "N_STATES", "Q0", "S0", "V0", "WB0", "cpf_block", "cpf_ekf_block", "cpf_heading_error"]

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.foundations.config import Node
-from navsim.foundations.transform import dcm_from_quat, euler_from_quat
+from navsim.foundations.transform import euler_from_quat
 from navsim.navigation.estimators.attitude import (
     UT,
     LocalFrame,
@@ -39,7 +39,7 @@ from navsim.navigation.estimators.attitude import (
     rotate_n_to_b,
 )
 from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema
-from navsim.navigation.estimators.attitude_kernels import GAIN_NAMES, cpf_block
+from navsim.navigation.estimators.attitude_kernels import GAIN_NAMES, cpf_block, cpf_heading_error
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.strapdown import NavState
 
@@ -70,6 +70,7 @@ class ComplementaryCore:
         self.accel_tau_s, self.acc_gate, self.mag_gate = g.accel_tau_s, g.acc_gate, g.mag_gate
         self.accel_ref_tau_s = g.accel_ref_tau_s
         self.dip_gate = np.radians(g.dip_gate_deg)
+        self._gates = np.array([self.mag_gate, self.dip_gate])     #: as cpf_heading_error reads them
         self.course_min_speed_mps = g.course_min_speed_mps
 
     def start(self, q0: np.ndarray, frame: LocalFrame) -> None:
@@ -118,19 +119,9 @@ class ComplementaryCore:
             return
         if self.field_uT is None:
             self.field_uT = reference_field_uT(self.frame, data, field_n_T)
-        m_b = data.values["mag_b_T"][:, j] / UT
-        ref = self.field_uT
-        m_n = np.einsum("bij,bj->bi", dcm_from_quat(self.q), m_b)
-        dpsi = np.arctan2(m_n[:, 1], m_n[:, 0]) - np.arctan2(ref[:, 1], ref[:, 0])
-        dpsi = (dpsi + np.pi) % (2 * np.pi) - np.pi
-        dip = lambda v: np.arctan2(v[:, 2], np.hypot(v[:, 0], v[:, 1]))
-        ok = (data.valid[:, j] & (np.abs(np.linalg.norm(m_b, axis=-1) / np.linalg.norm(ref, axis=-1) - 1.0)
-                                  <= self.mag_gate) & (np.abs(dip(m_n) - dip(ref)) <= self.dip_gate))
-        self.mag_rejected += data.valid[:, j] & ~ok
-        self.heading_t = np.where(ok, t, self.heading_t)
-        e_n = np.zeros_like(m_b)
-        e_n[:, 2] = -np.where(ok, dpsi, 0.0)
-        self.e_mag = np.where(self.on_course[:, None], self.e_mag, rotate_n_to_b(self.q, e_n))
+        cpf_heading_error(self.q, np.ascontiguousarray(data.values["mag_b_T"][:, j]) / UT,
+                          np.ascontiguousarray(data.valid[:, j]), self.field_uT, self._gates, self.on_course, float(t),
+                          self.e_mag, self.heading_t, self.mag_rejected)
 
     def _course_yaw(self, vel_n: np.ndarray, ok: np.ndarray) -> None:
         """Heading error from the GNSS course where the ground speed is high enough."""

@@ -56,6 +56,10 @@ Divergence monitor (``monitor``):
 * ``none``: P4's EKF alone.
 
 Each reset is an event ``(t_s, cause)`` in ``solution().extra["resets"]`` (one list per run).
+
+The per-sample prediction is compiled in :mod:`.attitude_kernels`, the epoch's covariance
+prediction, corrections and renormalisation in :mod:`.cpf_ekf_kernels`; the monitor, the resets
+and the sensors' samples stay here.
 """
 
 from __future__ import annotations
@@ -65,29 +69,25 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.foundations.config import Node
-from navsim.foundations.transform import cross, dcm_from_quat, euler_from_quat, skew
-from navsim.navigation.estimators import kalman
+from navsim.foundations.transform import euler_from_quat
+from navsim.navigation.estimators import cpf_ekf_kernels as kernels
 from navsim.navigation.estimators.attitude import (
     UT,
     LocalFrame,
-    dcm_homogeneous,
     euler_distance2,
     normalize,
-    omega_matrix,
     psi,
     quat_of_dcm,
     reference_field_uT,
-    xi,
 )
 from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema, cpf_ekf_options
-from navsim.navigation.estimators.attitude_kernels import AZ, Q0, S0, V0, WB0, cpf_ekf_block
+from navsim.navigation.estimators.attitude_kernels import AZ, MB0, ME0, N_STATES, Q0, S0, V0, WB0, cpf_ekf_block
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.estimators.cpf import ComplementaryCore, CpfGains
 from navsim.navigation.strapdown import NavState
 
-N_STATES = 20
-Q, V, S, MB, WB, ME = (slice(Q0, Q0 + 4), slice(V0, V0 + 3), slice(S0, S0 + 3), slice(11, 14), slice(WB0, WB0 + 3),
-                       slice(17, 20))
+Q, V, S, MB, WB, ME = (slice(Q0, Q0 + 4), slice(V0, V0 + 3), slice(S0, S0 + 3), slice(MB0, MB0 + 3),
+                       slice(WB0, WB0 + 3), slice(ME0, ME0 + 3))
 MONITORS = ("cpf", "innovation", "none")
 INITIAL_DEFAULTS = {"gyro_bias_rad_s": np.radians(1.0), "accel_z_bias_mps2": 0.2, "mag_bias_uT": 5.0,
                     "field_uT": 0.05}
@@ -108,19 +108,6 @@ def _merge_known(what: str, defaults: dict, given: dict | None) -> dict:
     if unknown:
         raise ValueError(f"{what}: unknown key(s) {', '.join(unknown)} (known: {', '.join(defaults)})")
     return {**defaults, **{k: float(v) for k, v in given.items()}}
-
-
-def dcm_times_vec_jacobian(q: np.ndarray, f: np.ndarray, transpose: bool = False) -> np.ndarray:
-    """``d (C(q) f) / dq`` ``(B, 3, 4)`` for ``C(q) = (w^2 - v.v) I + 2 v v^T + 2 w [v x]``
-    (``C_nb``), or of ``C(q)^T f`` (``C_bn``) with ``transpose``."""
-    w, v = q[:, 0], q[:, 1:]
-    s = -1.0 if transpose else 1.0
-    vf = np.einsum("bi,bi->b", v, f)
-    d_w = 2.0 * w[:, None] * f + s * 2.0 * cross(v, f)
-    eye = np.eye(3)
-    d_v = (-2.0 * np.einsum("bi,bj->bij", f, v) + 2.0 * vf[:, None, None] * eye
-           + 2.0 * np.einsum("bi,bj->bij", v, f) - s * 2.0 * w[:, None, None] * skew(f))
-    return np.concatenate([d_w[:, :, None], d_v], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -196,6 +183,7 @@ class CpfEkf:
                                             "gyro_bias_walk": 1e-5, "accel_bias_walk": 1e-4,
                                             "mag_bias_walk_uT": 0.01, "field_walk_uT": 0.001,
                                             "quat_stab": 1e-5}, c.noise)
+        self._noise = np.array([self.noise[k] for k in kernels.NOISE_NAMES])
         self.initial = _merge_known("initial", dict(INITIAL_DEFAULTS), c.initial)
         self.mag_sigma_uT, self.baro_sigma_m = c.mag_sigma_uT, c.baro_sigma_m
         self.gnss_pos_sigma_m, self.gnss_vel_sigma_mps = c.gnss_pos_sigma_m, c.gnss_vel_sigma_mps
@@ -288,93 +276,41 @@ class CpfEkf:
 
     def solution(self) -> Solution:
         x = self.x
-        q = x[:, Q]
-        T = np.zeros((self.B, 9, N_STATES))
-        T[:, 0:3, Q] = -2.0 * np.swapaxes(psi(q), -1, -2)
-        T[:, 3:6, V] = np.eye(3)
-        T[:, 6:9, S] = self.frame.pos_to_filter_units()[:, :, None] * np.eye(3)
-        P_nav = T @ self.P @ np.swapaxes(T, -1, -2)
+        P_nav = np.empty((self.B, 9, 9))
+        kernels.navigation_covariance(x, self.P, self.frame.pos_to_filter_units(), P_nav)
         accel_bias, accel_sigma = np.zeros((self.B, 3)), np.full((self.B, 3), np.nan)
         accel_bias[:, 2], accel_sigma[:, 2] = x[:, AZ], np.sqrt(self.P[:, AZ, AZ])    # the z axis only
         gyro_sigma = np.sqrt(np.diagonal(self.P[:, WB][:, :, WB], axis1=1, axis2=2))
-        return Solution(nav=self.frame.nav_state(normalize(q), x[:, V], x[:, S]), P_nav=P_nav,
+        return Solution(nav=self.frame.nav_state(normalize(x[:, Q]), x[:, V], x[:, S]), P_nav=P_nav,
                         gyro_bias=x[:, WB].copy(), accel_bias=accel_bias,
                         gyro_bias_sigma=gyro_sigma, accel_bias_sigma=accel_sigma,
                         extra={"diverged": self.diverged, "resets": self.resets, "P": self.P,
                                "mag_bias_T": x[:, MB] * UT, "field_n_T": x[:, ME] * UT,
                                "cpf_euler_rad": self.cpf.euler(), "distance2_rad2": self.distance2})
 
-    # --- filter steps -------------------------------------------------------------------------
+    # --- filter steps (compiled: :mod:`.cpf_ekf_kernels`) -----------------------------------------
     def _predict(self) -> None:
-        T = self._elapsed
-        if T <= 0.0:
+        """The covariance over the IMU samples since the last epoch, at their mean corrected
+        rate and specific force (:func:`~.cpf_ekf_kernels.predict_covariance`)."""
+        if self._elapsed <= 0.0:
             return
-        x, B, nz = self.x, self.B, self.noise
-        q = x[:, Q]
-        w = self._sum_w / T
-        f = self._sum_f / T
-        F = np.zeros((B, N_STATES, N_STATES))
-        Xi = xi(q)
-        F[:, Q, Q] = 0.5 * omega_matrix(w)
-        F[:, Q, WB] = -0.5 * Xi
-        F[:, V, Q] = dcm_times_vec_jacobian(q, f)
-        F[:, V, AZ] = -dcm_from_quat(q)[:, :, 2]
-        F[:, V, V] = -2.0 * skew(self.frame.w_ie_n)
-        F[:, S, V] = np.eye(3)
-        Qc = np.zeros((B, N_STATES, N_STATES))
-        Qc[:, Q, Q] = (0.25 * nz["gyro_rad_s_rthz"] ** 2) * Xi @ np.swapaxes(Xi, -1, -2) \
-            + nz["quat_stab"] ** 2 * np.eye(4)
-        Qc[:, V, V] = nz["accel_mps2_rthz"] ** 2 * np.eye(3)
-        Qc[:, AZ, AZ] = nz["accel_bias_walk"] ** 2
-        Qc[:, MB, MB] = nz["mag_bias_walk_uT"] ** 2 * np.eye(3)
-        Qc[:, WB, WB] = nz["gyro_bias_walk"] ** 2 * np.eye(3)
-        Qc[:, ME, ME] = nz["field_walk_uT"] ** 2 * np.eye(3)
-        Phi, Qd = kalman.discretize_series(F, Qc, T, order=2)
-        self.P = kalman.symmetrize(Phi @ self.P @ np.swapaxes(Phi, -1, -2) + Qd)
-        self._sum_w[:] = 0.0
-        self._sum_f[:] = 0.0
+        kernels.predict_covariance(self.x, self.P, self._sum_w, self._sum_f, self._elapsed, self.frame.w_ie_n,
+                                   self._noise)
         self._elapsed = 0.0
 
-    def _renormalize(self) -> None:
-        q = self.x[:, Q]
-        n = np.linalg.norm(q, axis=-1)
-        u = q / n[:, None]
-        J = np.broadcast_to(np.eye(N_STATES), (self.B, N_STATES, N_STATES)).copy()
-        J[:, Q, Q] = (np.eye(4) - np.einsum("bi,bj->bij", u, u)) / n[:, None, None]
-        self.x[:, Q] = u
-        self.P = kalman.symmetrize(J @ self.P @ np.swapaxes(J, -1, -2))
-
-    def _mag_model(self):
-        """``h = C_bn M + m_bias`` (uT) and its Jacobian ``(B, 3, 20)``."""
-        x = self.x
-        q, M = x[:, Q], x[:, ME]
-        C_bn = np.swapaxes(dcm_homogeneous(q), -1, -2)
-        h = np.einsum("bij,bj->bi", C_bn, M) + x[:, MB]
-        H = np.zeros((self.B, 3, N_STATES))
-        H[:, :, Q] = dcm_times_vec_jacobian(q, M, transpose=True)
-        H[:, :, MB] = np.eye(3)
-        H[:, :, ME] = C_bn
-        return h, H
-
     def _correct_mag(self, t: float, data, j: int) -> Innovation:
-        z = data.values["mag_b_T"][:, j] / UT
-        valid = data.valid[:, j]
+        """The three sequential magnetometer updates (:func:`~.cpf_ekf_kernels.correct_magnetometer`),
+        with ``monitor: innovation`` after P4's classical test on their prior innovations
+        (:func:`~.cpf_ekf_kernels.innovation_test`), whose reset the updates start from."""
+        z = np.ascontiguousarray(data.values["mag_b_T"][:, j]) / UT
+        valid = np.ascontiguousarray(data.valid[:, j])
         r = self.mag_sigma_uT ** 2
-        h, H = self._mag_model()
-        nu_all = z - h
-        S_all = H @ self.P @ np.swapaxes(H, -1, -2) + r * np.eye(3)
-        if self.monitor == "innovation":
-            test = np.einsum("bi,bi->b", nu_all, nu_all) > self.innovation_ratio * np.trace(S_all, axis1=1, axis2=2)
-            self._count(test & valid, t, "innovation")
-        y, s = np.zeros((self.B, 3)), np.zeros((self.B, 3))
-        for axis in range(3):
-            h, H = self._mag_model()
-            Hi = H[:, axis:axis + 1]
-            self.x, self.P, yi, Si, _ = kalman.update(self.x, self.P, z[:, axis:axis + 1] - h[:, axis:axis + 1]
-                                                      + (Hi @ self.x[..., None])[..., 0], Hi,
-                                                      np.full((self.B, 1, 1), r), valid)
-            y[:, axis], s[:, axis] = yi[:, 0], Si[:, 0, 0]
-        self._renormalize()
+        if self.monitor == "innovation":          # on the prior: a reset comes before the updates
+            nu2, trace_S = np.empty(self.B), np.empty(self.B)
+            kernels.innovation_test(self.x, self.P, z, r, nu2, trace_S)
+            self._count((nu2 > self.innovation_ratio * trace_S) & valid, t, "innovation")
+        y, s = np.empty((self.B, 3)), np.empty((self.B, 3))
+        kernels.correct_magnetometer(self.x, self.P, z, valid, r, y, s)
         nis = np.where(valid, np.sum(y * y / s, -1), np.nan)
         return Innovation("mag", self.mag, t, y, s[:, :, None] * np.eye(3), nis)
 
@@ -385,27 +321,27 @@ class CpfEkf:
         B = self.B
         if data is not None:
             pos = self.frame.ned(data.values["lat_rad"][:, j], data.values["lon_rad"][:, j], data.values["h_m"][:, j])
-            rows, zs, rs = [7, 8], [pos[:, :2]], [self.gnss_pos_sigma_m ** 2] * 2
+            rows, zs, rs = [S0, S0 + 1], [pos[:, :2]], [self.gnss_pos_sigma_m ** 2] * 2
             if "vel_n_mps" in data.values:
-                rows, zs, rs = [4, 5, 6] + rows, [data.values["vel_n_mps"][:, j]] + zs, [self.gnss_vel_sigma_mps ** 2] * 3 + rs
+                rows, zs, rs = [V0, V0 + 1, V0 + 2] + rows, [data.values["vel_n_mps"][:, j]] + zs, [self.gnss_vel_sigma_mps ** 2] * 3 + rs
             out.append(self._linear("gnss", self.gnss, t, rows, np.concatenate(zs, -1), rs, data.valid[:, j]))
         elif self.gnss is None and mag_epoch and self.no_gnss_sigma_mps:
             # no GNSS at all (a replayed log): a zero horizontal velocity keeps the tilt observable
-            out.append(self._linear("zero_velocity", "-", t, [4, 5], np.zeros((B, 2)),
+            out.append(self._linear("zero_velocity", "-", t, [V0, V0 + 1], np.zeros((B, 2)),
                                     [self.no_gnss_sigma_mps ** 2] * 2, np.ones(B, bool)))
         data, j = sample(sensors, self.baro, t, t_prev)
         if data is not None:
             z = (self.frame.h0 - data.values["h_baro_m"][:, j])[:, None]
-            out.append(self._linear("height", self.baro, t, [9], z, [self.baro_sigma_m ** 2], data.valid[:, j]))
+            out.append(self._linear("height", self.baro, t, [S0 + 2], z, [self.baro_sigma_m ** 2], data.valid[:, j]))
         return out
 
     def _linear(self, name, sensor, t, rows, z, r, valid) -> Innovation:
+        """The linear update of the states ``rows`` with ``z``, variances ``r``
+        (:func:`~.cpf_ekf_kernels.correct_linear`)."""
         B, m = self.B, len(rows)
-        H = np.zeros((B, m, N_STATES))
-        H[:, np.arange(m), rows] = 1.0
-        R = np.broadcast_to(np.diag(r), (B, m, m))
-        self.x, self.P, y, S_, nis = kalman.update(self.x, self.P, z, H, R, valid)
-        self._renormalize()
+        y, S_, nis = np.empty((B, m)), np.empty((B, m, m)), np.empty(B)
+        kernels.correct_linear(self.x, self.P, np.ascontiguousarray(z, float), np.asarray(rows, np.int64),
+                               np.asarray(r, float), np.ascontiguousarray(valid, bool), y, S_, nis)
         return Innovation(name, sensor, t, y, S_, nis)
 
     def _count(self, test: np.ndarray, t: float, cause: str) -> None:

@@ -41,11 +41,7 @@ def joseph_update(x, P, z, H, R, valid, ends, y, S, nis, bad):
         zg, yg = np.empty(m), np.empty(m)
         Hg = np.empty((m, n))
         Rg, Sg = np.empty((m, m)), np.empty((m, m))
-        HP = np.empty((m, n + 1))      # H P = (P H^T)^T | y
-        Kt = np.empty((m, n + 1))      # K^T = S^-1 H P | S^-1 y
-        work = np.empty(n + n * m + m)
-        index = np.empty(n * m + m + 1, np.int64)
-        W = np.empty((m, m))
+        HP, Kt, W, work, index = joseph_scratch(n, m)
         acc = np.empty(n)
         for b in range(B):
             for i in range(m):
@@ -54,7 +50,7 @@ def joseph_update(x, P, z, H, R, valid, ends, y, S, nis, bad):
                     Hg[i, j] = H[b, r0 + i, j]
                 for j in range(m):
                     Rg[i, j] = R[b, r0 + i, r0 + j]
-            nis[b, g] = _joseph_run(x[b], P[b], zg, Hg, Rg, valid[b, g], yg, Sg, HP, Kt, W, work, index)
+            nis[b, g] = joseph_run(x[b], P[b], zg, Hg, Rg, valid[b, g], yg, Sg, HP, Kt, W, work, index)
             for i in range(m):
                 y[b, r0 + i] = yg[i]
                 for j in range(m):
@@ -105,8 +101,10 @@ def _innovation(x, P, z, H, R, y, S, HP):
 
 
 @njit(cache=True)
-def _joseph_run(x, P, z, H, R, valid, y, S, HP, Kt, W, work, index):
-    """One run's Joseph update of :func:`joseph_update`; returns the NIS. Scratch: ``HP``,
+def joseph_run(x, P, z, H, R, valid, y, S, HP, Kt, W, work, index):
+    """One run's Joseph update of :func:`joseph_update` (``x`` ``(n,)``, ``P`` ``(n, n)``, ``z``
+    ``(m,)``, ``H`` ``(m, n)``, ``R`` ``(m, m)``; out: ``y`` ``(m,)``, ``S`` ``(m, m)``); returns
+    the NIS. Scratch (:func:`joseph_scratch`): ``HP``,
     ``Kt`` ``(m, n + 1)`` (``H P`` and ``S^-1 H P``, the innovation and ``S^-1 y`` in the last
     column: one elimination for both), ``W`` ``(m, m)``, ``work`` ``(n + n m + m)`` floats,
     ``index`` ``(n m + m + 1)`` ints."""
@@ -156,6 +154,14 @@ def _joseph_run(x, P, z, H, R, valid, y, S, HP, Kt, W, work, index):
                 P[i, j] += c * Kt[k, j]
     _symmetrize(P)
     return nis
+
+
+@njit(cache=True)
+def joseph_scratch(n, m):
+    """The scratch arrays of :func:`joseph_run` for ``n`` states and ``m`` rows, in its order
+    ``(HP, Kt, W, work, index)``."""
+    return (np.empty((m, n + 1)), np.empty((m, n + 1)), np.empty((m, m)), np.empty(n + n * m + m),
+            np.empty(n * m + m + 1, np.int64))
 
 
 @njit(cache=True)
