@@ -25,24 +25,34 @@ MAX_UNWRAPPED_DEG = 720.0
 
 
 def drawn(y: np.ndarray, points: int = PLOT_POINTS) -> np.ndarray:
-    """The indices of a record's samples to draw, in order: all of them up to ``points``; else
-    the first and the last sample and the smallest and largest of ``y`` in each of
-    ``points / 2`` equal runs of samples (a spike stays drawn)."""
+    """The indices of a series' samples to draw, in order: all of them up to ``points``; else
+    the first and the last sample and, in each of about ``points / 2`` equal runs of samples
+    (the last one shorter), the smallest and the largest of ``y`` and its first NaN (min/max
+    decimation: a line through them covers the pixels the whole series would at a page's
+    width, a spike stays drawn and a gap stays a gap)."""
     n = len(y)
     if n <= points:
         return np.arange(n)
     k = -(-n // (points // 2))
-    bins = n // k
-    body = np.asarray(y[:bins * k]).reshape(bins, k)
-    start = np.arange(bins) * k
-    idx = np.concatenate([[0], start + np.argmin(body, axis=1), start + np.argmax(body, axis=1), [n - 1]])
-    return np.unique(idx)
+    rows = np.minimum(np.arange(-(-n // k) * k), n - 1).reshape(-1, k)      # the last run padded
+    body = np.asarray(y, float)[rows]
+    nan = np.isnan(body)
+    low, high = np.argmin(np.where(nan, np.inf, body), axis=1), np.argmax(np.where(nan, -np.inf, body), axis=1)
+    cols = [low, high, np.where(nan.any(axis=1), np.argmax(nan, axis=1), low)]
+    picked = np.take_along_axis(rows, np.stack(cols, axis=1), axis=1)
+    return np.unique(np.concatenate([[0], picked.ravel(), [n - 1]]))
 
 
-def _plot(ax, t: np.ndarray, y: np.ndarray, *args, **kw):
+def plot_drawn(ax, t: np.ndarray, y: np.ndarray, *args, **kw):
     """``ax.plot(t, y, ...)`` of the samples :func:`drawn` picks."""
     k = drawn(y)
-    return ax.plot(t[k], y[k], *args, **kw)
+    return ax.plot(np.asarray(t)[k], np.asarray(y)[k], *args, **kw)
+
+
+def fill_drawn(ax, t: np.ndarray, lo: np.ndarray, hi: np.ndarray, **kw):
+    """``ax.fill_between(t, lo, hi, ...)`` of the samples :func:`drawn` picks of either edge."""
+    k = np.unique(np.r_[drawn(lo), drawn(hi)])
+    return ax.fill_between(np.asarray(t)[k], np.asarray(lo)[k], np.asarray(hi)[k], **kw)
 
 
 def _fixed_layout(fig, top_in: float, footer_in: float) -> None:
@@ -176,8 +186,8 @@ def _wind_axis(ax, truth: Truth) -> None:
     scenario's wind, dashed)."""
     t = truth.t_s
     for j, (name, colour) in enumerate((("north", "tab:blue"), ("east", "tab:orange"))):
-        _plot(ax, t, truth.wind_n_mps[:, j], color=colour, lw=0.4, alpha=0.6, label=f"wind {name} (with gusts)")
-        _plot(ax, t, truth.wind_steady_n_mps[:, j], color=colour, lw=1.3, ls="--", label=f"steady wind {name}")
+        plot_drawn(ax, t, truth.wind_n_mps[:, j], color=colour, lw=0.4, alpha=0.6, label=f"wind {name} (with gusts)")
+        plot_drawn(ax, t, truth.wind_steady_n_mps[:, j], color=colour, lw=1.3, ls="--", label=f"steady wind {name}")
     ax.set_ylabel("wind, m/s")
     ax.legend(fontsize=7, loc="best", ncol=2)
 
@@ -187,7 +197,7 @@ def _heading_axis(ax, truth: Truth) -> None:
     (a vehicle circling for long) wrapped to [0, 360) deg and drawn as dots, evenly thinned."""
     t, yaw = truth.t_s, np.degrees(np.unwrap(truth.euler_rad[:, 2]))
     if np.ptp(yaw) <= MAX_UNWRAPPED_DEG:
-        _plot(ax, t, yaw, label="heading")
+        plot_drawn(ax, t, yaw, label="heading")
     else:
         k = np.arange(0, len(t), -(-len(t) // PLOT_POINTS))
         ax.plot(t[k], yaw[k] % 360.0, ".", ms=1.5, label="heading")
@@ -200,10 +210,8 @@ def _rotor_axis(ax, truth: Truth) -> None:
     """A multirotor's rotor speeds: their mean and the band from the slowest to the fastest."""
     t, rpm = truth.t_s, truth.rotor_rpm
     lo, hi = rpm.min(axis=1), rpm.max(axis=1)
-    k = np.unique(np.r_[drawn(lo), drawn(hi)])
-    ax.fill_between(t[k], lo[k], hi[k], color="tab:purple", alpha=0.3, lw=0,
-                    label=f"slowest to fastest of {rpm.shape[1]} rotors")
-    _plot(ax, t, rpm.mean(axis=1), color="tab:purple", lw=1.0, label="mean")
+    fill_drawn(ax, t, lo, hi, color="tab:purple", alpha=0.3, lw=0, label=f"slowest to fastest of {rpm.shape[1]} rotors")
+    plot_drawn(ax, t, rpm.mean(axis=1), color="tab:purple", lw=1.0, label="mean")
     ax.set_ylabel("rotor speed, r/min")
     ax.legend(fontsize=7, loc="best")
 
@@ -216,18 +224,18 @@ def _time_figure(truth: Truth, names: list[str], figsize, footer_in: float):
     rotors = truth.rotor_rpm.shape[1] > 1
     fig, axs = plt.subplots(4 + windy + rotors, 1, figsize=figsize or (10, 10), sharex=True)
     t = truth.t_s
-    _plot(axs[0], t, truth.h_m, label="height (ellipsoid)")
+    plot_drawn(axs[0], t, truth.h_m, label="height (ellipsoid)")
     if not np.isnan(truth.h_agl_m).all():
-        _plot(axs[0], t, truth.h_agl_m, "--", lw=0.8, label="above surface")
+        plot_drawn(axs[0], t, truth.h_agl_m, "--", lw=0.8, label="above surface")
     axs[0].set_ylabel("height, m")
     axs[0].legend(fontsize=7, loc="best")
     if not np.isnan(truth.tas_mps).all():
-        _plot(axs[1], t, truth.tas_mps, label="true airspeed")
-    _plot(axs[1], t, np.hypot(truth.vel_n_mps[:, 0], truth.vel_n_mps[:, 1]), lw=0.8, label="ground speed")
+        plot_drawn(axs[1], t, truth.tas_mps, label="true airspeed")
+    plot_drawn(axs[1], t, np.hypot(truth.vel_n_mps[:, 0], truth.vel_n_mps[:, 1]), lw=0.8, label="ground speed")
     axs[1].set_ylabel("speed, m/s")
     axs[1].legend(fontsize=7, loc="best")
-    _plot(axs[2], t, np.degrees(truth.euler_rad[:, 0]), label="roll (bank)")
-    _plot(axs[2], t, np.degrees(truth.euler_rad[:, 1]), label="pitch")
+    plot_drawn(axs[2], t, np.degrees(truth.euler_rad[:, 0]), label="roll (bank)")
+    plot_drawn(axs[2], t, np.degrees(truth.euler_rad[:, 1]), label="pitch")
     axs[2].set_ylabel("angle, deg")
     axs[2].legend(fontsize=7, loc="best")
     _heading_axis(axs[3], truth)

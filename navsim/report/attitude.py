@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.flight.plots import plot_drawn
 from navsim.report.figures import Page, ReportInput, page_figure, shade, slug, titled
 from navsim.records.metrics import EULER_AXES
+from navsim.scoring.stats import row_percentiles
 
 
 def paper_attitude_bounds(reference) -> dict:
@@ -43,10 +45,10 @@ def pages(inp: ReportInput) -> list[Page]:
         fig, axes = page_figure(3, 1, sharex=True)
         for j, ax in enumerate(axes):
             for r in range(min(runs_plotted, e.shape[0])):
-                ax.plot(h.t_s, e[r, :, j], lw=0.5, alpha=0.7)
-            p95 = np.nanpercentile(np.abs(e[:, :, j]), 95, axis=0)
-            ax.plot(h.t_s, p95, "k", lw=1.0, label="95th pct of |error| over the runs")
-            ax.plot(h.t_s, -p95, "k", lw=1.0)
+                plot_drawn(ax, h.t_s, e[r, :, j], lw=0.5, alpha=0.7)
+            p95 = row_percentiles(e[:, :, j].T, 95)          # over the runs, at each epoch
+            plot_drawn(ax, h.t_s, p95, "k", lw=1.0, label="95th pct of |error| over the runs")
+            plot_drawn(ax, h.t_s, -p95, "k", lw=1.0)
             after = h.t_s >= settle_s
             lim = max(3 * float(np.nanpercentile(np.abs(e[:, after, j]), 99)), 0.05) if after.any() else None
             if lim and np.isfinite(lim):

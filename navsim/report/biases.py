@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navsim.flight.plots import fill_drawn, plot_drawn
 from navsim.records.truth import TruthBias
 from navsim.report.figures import Page, ReportInput, head, page_figure, pyplot, slug
 
@@ -58,13 +59,13 @@ def _bias_axis(ax, h, key: str, j: int, truth: BiasTruth, runs: int, colours) ->
     differs = _seen_differs(truth_bias)
     for r in range(min(runs, est.shape[0])):
         c = colours[r]
-        ax.plot(h.t_s, est[r, :, j] * scale, color=c, lw=1.0)
+        plot_drawn(ax, h.t_s, est[r, :, j] * scale, color=c, lw=1.0)
         if sig is not None and np.isfinite(sig[r, :, j]).any():
-            ax.fill_between(h.t_s, (est[r, :, j] - sig[r, :, j]) * scale, (est[r, :, j] + sig[r, :, j]) * scale,
-                            color=c, alpha=0.15, lw=0)
-        ax.plot(truth_t, truth[r, :, j] * scale, color=c, lw=1.0, ls="--")
+            fill_drawn(ax, h.t_s, (est[r, :, j] - sig[r, :, j]) * scale, (est[r, :, j] + sig[r, :, j]) * scale,
+                       color=c, alpha=0.15, lw=0)
+        plot_drawn(ax, truth_t, truth[r, :, j] * scale, color=c, lw=1.0, ls="--")
         if differs:
-            ax.plot(truth_t, additive[r, :, j] * scale, color=c, lw=0.8, ls=":")
+            plot_drawn(ax, truth_t, additive[r, :, j] * scale, color=c, lw=0.8, ls=":")
     ax.set_ylabel(f"{name} {'xyz'[j]}, {unit}", fontsize=8)
     ax.grid(alpha=0.3)
     if sig is not None and np.isnan(sig[:, :, j]).all():

@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 
+from navsim.flight.plots import plot_drawn
 from navsim.report.figures import Page, ReportInput, nanmean, page_figure, pyplot, shade, titled
 
 #: the runs drawn thin on a calibration page
@@ -29,18 +30,18 @@ def pages(inp: ReportInput) -> list[Page]:
                                (axs[1], cal.soft_iron_err, "soft-iron error, % (Frobenius)")):
             e = 100.0 * err
             for r in range(min(runs_plotted, e.shape[0])):
-                ax.plot(t, e[r], color="0.6", lw=0.5)
+                plot_drawn(ax, t, e[r], color="0.6", lw=0.5)
             with warnings.catch_warnings():          # epochs where no run has an ellipsoid yet
                 warnings.simplefilter("ignore", RuntimeWarning)
-                ax.plot(t, np.nanmean(e, 0), color="tab:blue", lw=1.6, label="mean over runs")
-                ax.plot(t, np.nanpercentile(e, 95, axis=0), color="tab:red", lw=1.2, label="95th percentile")
+                plot_drawn(ax, t, np.nanmean(e, 0), color="tab:blue", lw=1.6, label="mean over runs")
+                plot_drawn(ax, t, np.nanpercentile(e, 95, axis=0), color="tab:red", lw=1.2, label="95th percentile")
             ax.axhline(2.0, color="k", ls="--", lw=0.8, label="2 % (acceptance)")
             ax.set_yscale("log")
             ax.set_ylim(0.05, 200)
             ax.set_ylabel(title, fontsize=8)
             ax.grid(alpha=0.3, which="both")
             ax2 = ax.twinx()
-            ax2.plot(t, cal.turns, color="tab:green", lw=0.8)
+            plot_drawn(ax2, t, cal.turns, color="tab:green", lw=0.8)
             ax2.set_ylabel("full turns (true heading)", fontsize=7, color="tab:green")
         score = (metrics.calibration or {}).get(name)
         if score and score.after_turns:
@@ -52,7 +53,7 @@ def pages(inp: ReportInput) -> list[Page]:
             good = ~np.asarray(hist.diverged, bool)
             if good.any():
                 rms = np.sqrt(nanmean(np.degrees(hist.att_err_rad[good][..., 2]) ** 2))
-                axs[2].plot(hist.t_s, rms, color=colors[c % 10], lw=1.4, label=f"{label}: MC RMS")
+                plot_drawn(axs[2], hist.t_s, rms, color=colors[c % 10], lw=1.4, label=f"{label}: MC RMS")
         axs[2].set_ylabel("heading error, deg (RMS over runs)", fontsize=8)
         axs[2].set_yscale("log")
         axs[2].grid(alpha=0.3, which="both")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.lines import Line2D
 
+from navsim.flight.plots import plot_drawn
 from navsim.records.states import POS
 from navsim.report.consistency import NOTE_PT, log_scale_if_wide, make_room, panel_note
 from navsim.report.figures import Page, ReportInput, estimator_colours, head, legend_columns, page_figure
@@ -88,10 +89,10 @@ def _panel(ax, inp: ReportInput, window: tuple, what: str, colours):
         t = h.t_s[m] - a
         err, sig = _curves(h, m, what)
         errors[label] = err
-        ax.plot(t, err, color=colours[label], lw=ERROR_LW)
+        plot_drawn(ax, t, err, color=colours[label], lw=ERROR_LW)
         drawn.append(err)
         if sig is not None:
-            ax.plot(t, sig, color=colours[label], lw=SIGMA_LW, ls=":")
+            plot_drawn(ax, t, sig, color=colours[label], lw=SIGMA_LW, ls=":")
             drawn.append(sig)
     if not log_scale_if_wide(ax, drawn):
         ax.set_ylim(bottom=0.0)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.flight.plots import plot_drawn
 from navsim.records.states import BLOCKS
 from navsim.report.figures import (Page, ReportInput, estimator_colours, head, legend_columns, nanmean, page_figure,
                                    shade)
@@ -57,12 +58,12 @@ def _draw_envelope(ax, t, e, j: int, colour, runs_plotted: int) -> None:
     (dashed)."""
     rms, sig, err, _ = e
     for r in range(min(runs_plotted, err.shape[0])):
-        ax.plot(t, err[r, :, j], color=colour, lw=0.4, alpha=0.35)
-    ax.plot(t, rms[:, j], color=colour, lw=1.6)
-    ax.plot(t, -rms[:, j], color=colour, lw=1.6)
+        plot_drawn(ax, t, err[r, :, j], color=colour, lw=0.4, alpha=0.35)
+    plot_drawn(ax, t, rms[:, j], color=colour, lw=1.6)
+    plot_drawn(ax, t, -rms[:, j], color=colour, lw=1.6)
     if sig is not None:
-        ax.plot(t, 3 * sig[:, j], "--", color=colour, lw=1.0)
-        ax.plot(t, -3 * sig[:, j], "--", color=colour, lw=1.0)
+        plot_drawn(ax, t, 3 * sig[:, j], "--", color=colour, lw=1.0)
+        plot_drawn(ax, t, -3 * sig[:, j], "--", color=colour, lw=1.0)
 
 
 def _ylim(ax, envs, j: int, span) -> None:

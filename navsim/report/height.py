@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navsim.flight.plots import plot_drawn
 from navsim.report.errors import envelopes, inside, split_free
 from navsim.report.figures import Page, ReportInput, estimator_colours, head, nanmean, page_figure, shade
 
@@ -35,13 +36,13 @@ def _height_panel(ax, page: HeightPage, labels: list, spans, after, shown=(-np.i
         good = ~np.asarray(h.diverged, bool)
         dh = -h.pos_err_m[good][..., 2]
         for r in range(min(inp.runs_plotted, dh.shape[0])):
-            ax.plot(h.t_s, dh[r], color=colours[k], lw=0.5, alpha=0.5)
-        ax.plot(h.t_s, np.sqrt(nanmean(dh ** 2)), color=colours[k], lw=1.6)
+            plot_drawn(ax, h.t_s, dh[r], color=colours[k], lw=0.5, alpha=0.5)
+        plot_drawn(ax, h.t_s, np.sqrt(nanmean(dh ** 2)), color=colours[k], lw=1.6)
         m = inside(h.t_s, after)
         if h.sigma is not None:
             sig = envelopes(h, "pos")[1][:, 2]
-            ax.plot(h.t_s, 3 * sig, "--", color=colours[k], lw=1.0)
-            ax.plot(h.t_s, -3 * sig, "--", color=colours[k], lw=1.0)
+            plot_drawn(ax, h.t_s, 3 * sig, "--", color=colours[k], lw=1.0)
+            plot_drawn(ax, h.t_s, -3 * sig, "--", color=colours[k], lw=1.0)
             if m.any():
                 peak = max(peak, 3 * float(np.nanmax(sig[m])))
         if m.any():

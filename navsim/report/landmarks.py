@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from navsim.flight.plots import plot_drawn
 from navsim.report.figures import Page, ReportInput, nanmean, page_figure, shade, titled
 
 #: the runs drawn thin on the landmark page
@@ -25,8 +26,8 @@ def pages(inp: ReportInput) -> list[Page]:
         for j, (ax, name) in enumerate(zip(axes, ("north", "east"))):
             e = h.pos_err_m[good][..., j]
             for r in range(min(runs_plotted, e.shape[0])):
-                ax.plot(h.t_s, e[r], lw=0.5, alpha=0.6)
-            ax.plot(h.t_s, np.sqrt(nanmean(e ** 2)), "k", lw=1.2, label=f"{label}: MC RMS")
+                plot_drawn(ax, h.t_s, e[r], lw=0.5, alpha=0.6)
+            plot_drawn(ax, h.t_s, np.sqrt(nanmean(e ** 2)), "k", lw=1.2, label=f"{label}: MC RMS")
         ratio = [s.max_ratio for s in metrics.estimators[label].landmarks.sightings]
         axes[2].plot([s[2] for s in sightings], ratio, "o", ms=3, label=f"{label}: worst run")
     for ax in axes:

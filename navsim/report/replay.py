@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from navsim.flight.plots import plot_drawn
 from navsim.foundations.outputs import write_atomic
 from navsim.replay.metrics import AXES, ReplayMetrics
 from navsim.replay.run import ReplayResult
@@ -22,9 +23,9 @@ def attitude_figure(result: ReplayResult):
     fig, axes = plt.subplots(3, 2, figsize=(11.69, 8.27), sharex=True)
     for j, name in enumerate(AXES):
         left, right = axes[j]
-        left.plot(r.t_s, px4[:, j], color="0.3", lw=1.2, label="PX4 vehicle_attitude")
-        left.plot(r.t_s, est[:, j], color="C0", lw=1.0, label=r.estimator)
-        right.plot(r.t_s, diff[:, j], color="C3", lw=1.0)
+        plot_drawn(left, r.t_s, px4[:, j], color="0.3", lw=1.2, label="PX4 vehicle_attitude")
+        plot_drawn(left, r.t_s, est[:, j], color="C0", lw=1.0, label=r.estimator)
+        plot_drawn(right, r.t_s, diff[:, j], color="C3", lw=1.0)
         right.axhline(0.0, color="0.5", lw=0.6)
         left.set_ylabel(f"{name} (deg)")
         right.set_ylabel(f"{name} difference (deg)")

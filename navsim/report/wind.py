@@ -6,6 +6,7 @@ import numpy as np
 from matplotlib.lines import Line2D
 
 from navsim.flight.environment import steady_wind_n_mps
+from navsim.flight.plots import fill_drawn, plot_drawn
 from navsim.report.figures import Page, ReportInput, head, nanmean, page_figure, pyplot, shade, slug
 
 #: the runs drawn beside the mean on a wind page, each in a colour of its own
@@ -25,13 +26,13 @@ def _axis(ax, h, j: int, steady, gusty, spans, colours) -> None:
     est, sig = h.wind_n_mps[..., j], h.wind_sigma_mps[..., j]
     shade(ax, spans, label=j == 0)
     if gusty is not None:
-        ax.plot(gusty[0], gusty[1][:, j], color="0.6", lw=0.5)
+        plot_drawn(ax, gusty[0], gusty[1][:, j], color="0.6", lw=0.5)
     mean, s = nanmean(est), nanmean(sig)
-    ax.fill_between(h.t_s, mean - s, mean + s, color="tab:blue", alpha=0.2, lw=0)
+    fill_drawn(ax, h.t_s, mean - s, mean + s, color="tab:blue", alpha=0.2, lw=0)
     for r in range(min(WIND_RUNS, est.shape[0])):
-        ax.plot(h.t_s, est[r], color=colours[r], lw=RUN_LW)
-    ax.plot(h.t_s, mean, color="tab:blue", lw=1.4)
-    ax.plot(h.t_s, steady, color="k", lw=1.0, ls="--")
+        plot_drawn(ax, h.t_s, est[r], color=colours[r], lw=RUN_LW)
+    plot_drawn(ax, h.t_s, mean, color="tab:blue", lw=1.4)
+    plot_drawn(ax, h.t_s, steady, color="k", lw=1.0, ls="--")
     ax.set_ylabel(f"wind {_AXES[j]}, m/s", fontsize=8)
     ax.grid(alpha=0.3)
     lo, hi = np.nanpercentile(np.r_[mean - s, mean + s, steady], [1, 99])
