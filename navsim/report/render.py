@@ -1,12 +1,24 @@
 """A report's pages to files: all of them, in order, to ``report.pdf``, drawn once; each PNG is
-its page of that PDF rasterised (PDFium, through ``pypdfium2``), not drawn a second time."""
+its page of that PDF rasterised (PDFium, through ``pypdfium2``), not drawn a second time.
+
+A report of :data:`SPLIT_PAGES` pages or more is drawn by two processes where the system can
+fork and has two cores: a forked child writes every other page to a PDF of its own and
+rasterises their PNGs while this process does the others; the two are joined into one document
+by PDFium, the pages in their order (each page as it was drawn, the PNGs equal to the joined
+PDF's pages). A child that fails, or gives no answer within :data:`CHILD_TIMEOUT_S`, is ended
+and its pages drawn here, so a failure is reported as the sequential path reports it.
+"""
 
 from __future__ import annotations
 
 import io
+import multiprocessing
+import os
 import threading
+import time
 from pathlib import Path
 
+from navsim.experiment.executors import die_with_parent
 from navsim.foundations.outputs import OutputFolder, write_atomic
 from navsim.report.figures import Page
 from navsim.report.tables import PNG_DPI
@@ -17,8 +29,15 @@ COMPRESS_LEVEL = 1
 #: a PDF point is 1/72 inch
 POINTS_PER_INCH = 72.0
 #: PDFium must not be called from two threads at once, even on two documents (pypdfium2's
-#: documentation): one report is rasterised at a time
+#: documentation): one report is rasterised at a time in a process
 _PDFIUM = threading.Lock()
+#: the fewest pages drawn by two processes (below, a fork costs more than it saves)
+SPLIT_PAGES = 6
+#: how long the child drawing the second half may take beyond this process's half, s, before
+#: it is ended and its half drawn here (a child blocked on a lock another thread held at fork)
+CHILD_TIMEOUT_S = 60.0
+#: how long a child that sent its pages may take to end, s
+CHILD_EXIT_S = 10.0
 
 
 def render(folder: OutputFolder, pages: list[Page], fmts, title: str, pdf: str = "report.pdf") -> list[Path]:
@@ -29,16 +48,100 @@ def render(folder: OutputFolder, pages: list[Page], fmts, title: str, pdf: str =
     pngs = [out / f"{page.name}.png" for page in pages] if "png" in fmts else []
     pdf_path = out / pdf if "pdf" in fmts else None
     folder.record(pngs + ([pdf_path] if pdf_path else []))
+    if pdf_path is None and not pngs:
+        return []
+    if _can_split(len(pages)):
+        data = _render_split(pages, pngs, title)
+    else:
+        data = _pdf_bytes(pages, title)
+        _write_pngs(data, pngs)
     if pdf_path is not None:
-        write_atomic(pdf_path, lambda p: _write_pdf(p, pages, title))
-    if pngs:
-        if pdf_path is not None:
-            source = pdf_path
-        else:
-            source = io.BytesIO()
-            _write_pdf(source, pages, title)
-        _write_pngs(source, pngs)
+        write_atomic(pdf_path, lambda p: _save_pdf(p, data))
     return pngs + ([pdf_path] if pdf_path else [])
+
+
+def _can_split(n_pages: int) -> bool:
+    """Whether two processes draw the report: enough pages, ``fork``, two cores, and this
+    process allowed children (a daemonic one is not)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return (n_pages >= SPLIT_PAGES and cores > 1 and "fork" in multiprocessing.get_all_start_methods()
+            and not multiprocessing.current_process().daemon)
+
+
+def _pdf_bytes(pages: list[Page], title: str) -> bytes:
+    buf = io.BytesIO()
+    _write_pdf(buf, pages, title)
+    return buf.getvalue()
+
+
+def _save_pdf(path, data: bytes) -> None:
+    """The PDF's bytes to ``path`` (a file of its own, written whole)."""
+    with open(path, "wb") as f:
+        f.write(data)
+
+
+def _render_split(pages: list[Page], pngs: list[Path], title: str) -> bytes:
+    """The PDF of all ``pages`` (returned) and their PNGs (where ``pngs``), every other page
+    (the odd ones: the heavy pages of a report stand together) drawn by a forked child
+    (:func:`_child`), the even ones here; the child's pages drawn here where it fails or hangs."""
+    mine, theirs = slice(0, None, 2), slice(1, None, 2)
+    ctx = multiprocessing.get_context("fork")
+    receive, send = ctx.Pipe(duplex=False)
+    child = ctx.Process(target=_child, args=(send, pages[theirs], pngs[theirs], title), daemon=True)
+    child.start()
+    send.close()
+    second = None
+    try:
+        start = time.monotonic()
+        first = _pdf_bytes(pages[mine], title)
+        _write_pngs(first, pngs[mine])
+        try:
+            if receive.poll(CHILD_TIMEOUT_S + (time.monotonic() - start)):
+                second = receive.recv_bytes()
+        except (EOFError, OSError):             # the child ended without its pages
+            second = None
+    finally:
+        receive.close()
+        child.join(timeout=CHILD_EXIT_S if second is not None else 0)     # its pages sent: it is ending
+        if child.is_alive():
+            child.terminate()
+            child.join()
+    if second is None:
+        second = _pdf_bytes(pages[theirs], title)
+        _write_pngs(second, pngs[theirs])
+    return _interleaved(first, second)
+
+
+def _child(send, pages: list[Page], pngs: list[Path], title: str) -> None:
+    """In the forked child: the pages to a PDF, their PNGs, the PDF's bytes to the parent; on
+    any failure it ends quietly (the parent draws this half again and reports the failure)."""
+    global _PDFIUM
+    try:
+        die_with_parent()
+        _PDFIUM = threading.Lock()              # the parent's may have been held by another thread
+        data = _pdf_bytes(pages, title)
+        _write_pngs(data, pngs)
+        send.send_bytes(data)
+        send.close()
+    except BaseException:
+        os._exit(1)
+
+
+def _interleaved(first: bytes, second: bytes) -> bytes:
+    """Two PDFs as one, their pages taken in turn (the first's, the second's, ...; PDFium), with
+    the metadata of ``first``."""
+    import pypdfium2
+    with _PDFIUM:
+        doc, other = pypdfium2.PdfDocument(first), pypdfium2.PdfDocument(second)
+        try:
+            for j in range(len(other)):
+                doc.import_pages(other, pages=[j], index=2 * j + 1)
+            buf = io.BytesIO()
+            doc.save(buf)
+        finally:
+            other.close()
+            doc.close()
+    return buf.getvalue()
 
 
 def _write_pdf(target, pages: list[Page], title: str) -> None:
@@ -51,10 +154,11 @@ def _write_pdf(target, pages: list[Page], title: str) -> None:
         pdf.infodict()["Title"] = title
 
 
-def _write_pngs(source, pngs: list[Path]) -> None:
-    """Page ``i`` of the PDF ``source`` (a path or a binary file) to ``pngs[i]``."""
+def _write_pngs(data: bytes, pngs: list[Path]) -> None:
+    """Page ``i`` of the PDF ``data`` to ``pngs[i]``."""
+    if not pngs:
+        return
     import pypdfium2
-    data = source.getvalue() if isinstance(source, io.BytesIO) else Path(source).read_bytes()
     with _PDFIUM:
         doc = pypdfium2.PdfDocument(data)
         try:

@@ -409,11 +409,11 @@ def test_sigkill_ends_the_workers_and_resume_completes(tiny, tmp_path):
 
 def test_a_full_disk_in_report_pdf_is_exit_4(tiny, tmp_path, monkeypatch, capsys):
     from navsim.report import render
-    write_pdf = render._write_pdf
+    save_pdf = render._save_pdf
 
-    def onto_a_full_disk(path, pages_, title):   # PdfPages opens a file whose writes meet ENOSPC
-        write_pdf("/dev/full", pages_, title)
-    monkeypatch.setattr(render, "_write_pdf", onto_a_full_disk)
+    def onto_a_full_disk(path, data):            # a file whose writes meet ENOSPC
+        save_pdf("/dev/full", data)
+    monkeypatch.setattr(render, "_save_pdf", onto_a_full_disk)
     code = main(["run", str(tiny[0]), "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert code == 4 and "report.pdf" in err and "No space left on device" in err, err

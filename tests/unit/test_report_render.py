@@ -4,6 +4,7 @@ pixel what PDFium draws of it, with or without the PDF asked for; a PNG that can
 is reported as the OutputError it is."""
 
 import errno
+import os
 
 import matplotlib
 import matplotlib.figure
@@ -60,14 +61,19 @@ def test_pngs_alone_are_rasterised_from_a_pdf_drawn_in_memory(tmp_path):
                               np.asarray(Image.open(tmp_path / "both" / f"{name}.png")))
 
 
-def test_a_png_that_cannot_be_written_is_reported_with_its_path_and_hint(tmp_path, monkeypatch):
+def full_disk_for(monkeypatch, name: str) -> None:
+    """Writing the PNG ``name`` meets a full disk (its temporary file, as write_atomic names it)."""
     real = Image.Image.save
 
     def full(self, fp, *args, **kwargs):
-        if str(fp).endswith(".b.tmp.png"):
+        if str(fp).endswith(f".{name}.tmp.png"):
             raise OSError(errno.ENOSPC, "No space left on device", str(fp))
         return real(self, fp, *args, **kwargs)
     monkeypatch.setattr(Image.Image, "save", full)
+
+
+def test_a_png_that_cannot_be_written_is_reported_with_its_path_and_hint(tmp_path, monkeypatch):
+    full_disk_for(monkeypatch, "b")
     folder = OutputFolder(tmp_path / "out", command="run")
     with pytest.raises(OutputError) as err:
         report.render(folder, pages(), ["pdf", "png"], "t")
@@ -75,3 +81,52 @@ def test_a_png_that_cannot_be_written_is_reported_with_its_path_and_hint(tmp_pat
     assert "free some space" in str(err.value) and err.value.errno == errno.ENOSPC
     assert (tmp_path / "out" / "a.png").exists() and not (tmp_path / "out" / "b.png").exists()
     assert not [p for p in (tmp_path / "out").iterdir() if ".tmp" in p.name]
+
+
+def many_pages(n=8):
+    out = []
+    for i in range(n):
+        fig = matplotlib.figure.Figure(figsize=SIZE_IN, layout="constrained")
+        fig.add_subplot().plot([0, 1], [0, i + 1])
+        fig.text(0.5, 0.02, f"page {i}")
+        out.append(Page(f"p{i}", f"p{i}", fig))
+    return out
+
+
+def _check_split_report(out, n):
+    """The joined PDF: ``n`` pages in order, the title kept; each PNG its page pixel for pixel."""
+    doc = pypdfium2.PdfDocument((out / "report.pdf").read_bytes())
+    assert len(doc) == n and doc.get_metadata_dict()["Title"] == "t"
+    for i in range(n):
+        assert doc[i].get_textpage().get_text_range().strip().endswith(f"page {i}")
+        png = np.asarray(Image.open(out / f"p{i}.png"))
+        assert np.array_equal(png, np.asarray(doc[i].render(scale=PNG_DPI / 72).to_pil())), i
+
+
+def test_a_long_report_is_drawn_in_two_halves_joined_in_order(tmp_path, monkeypatch):
+    """Eight pages: every other one drawn by a forked child (the PNG writer called once here),
+    the PDFs joined in the pages' order, every PNG the joined PDF's page."""
+    assert report._can_split(8)
+    writers, write = [], report._write_pngs
+    monkeypatch.setattr(report, "_write_pngs", lambda data, pngs: (writers.append(os.getpid()), write(data, pngs)))
+    folder = OutputFolder(tmp_path / "out", command="run")
+    files = report.render(folder, many_pages(), ["pdf", "png"], "t")
+    assert len(files) == 9
+    _check_split_report(tmp_path / "out", 8)
+    # the child's call is not seen here (its own memory): this process drew its pages only
+    assert writers == [os.getpid()]
+
+
+def test_a_child_that_fails_leaves_its_half_to_this_process(tmp_path, monkeypatch):
+    monkeypatch.setattr(report, "_child", lambda *args: os._exit(3))
+    report.render(OutputFolder(tmp_path / "out", command="run"), many_pages(), ["pdf", "png"], "t")
+    _check_split_report(tmp_path / "out", 8)
+
+
+def test_a_png_of_the_child_s_pages_that_cannot_be_written_is_reported(tmp_path, monkeypatch):
+    """The child fails quietly on p5.png; this process draws its pages again and reports it."""
+    full_disk_for(monkeypatch, "p5")
+    with pytest.raises(OutputError) as err:
+        report.render(OutputFolder(tmp_path / "out", command="run"), many_pages(), ["pdf", "png"], "t")
+    assert err.value.path.endswith("p5.png") and err.value.errno == errno.ENOSPC
+    assert not (tmp_path / "out" / "report.pdf").exists()
