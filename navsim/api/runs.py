@@ -124,7 +124,8 @@ def _open_loop(scenario, how: RunOptions, folder, flight) -> Result:
         if folder is not None:
             store = _open_store(folder.path, scenario, how)
             folder.clear_earlier()               # the earlier run's metrics, report, runs.npz
-        size = store.key["chunk_runs"] if store is not None else (how.chunk_runs or runner.CHUNK_RUNS)
+        size = store.key["chunk_runs"] if store is not None else (how.chunk_runs
+                                                                   or runner.default_chunk_runs(how.runs, how.workers))
         rr = run_monte_carlo(scenario, truth, truth_path, dataclasses.replace(how, chunk_runs=size), store=store,
                              keep_runs=runner.REPORT_RUNS if store is not None else None)
     record = RunRecord(flight_cached=cached, flight_key=flight_key(scenario.flight), executor=how.executor,
@@ -141,7 +142,8 @@ def _open_store(out: Path, scenario, how: RunOptions) -> ChunkStore:
     chunk_runs = how.chunk_runs
     if chunk_runs is None:
         index = ChunkStore.read_index(folder) if how.resume else None
-        chunk_runs = (index or {}).get("chunk_runs") or runner.CHUNK_RUNS    # typed by read_index
+        chunk_runs = ((index or {}).get("chunk_runs")                        # typed by read_index
+                      or runner.default_chunk_runs(how.runs, how.workers))
     chunk_ranges(how.runs, chunk_runs)              # a bad chunk size stops before anything is cleared
     key = {"scenario_hash": scenario_hash(scenario), "seed": how.seed, "runs": how.runs, "chunk_runs": chunk_runs}
     return ChunkStore(folder, key, mode="resume" if how.resume else "new")

@@ -32,7 +32,7 @@ from navsim.api.arguments import checked_path, overrides_of
 from navsim.api.comparisons import compare
 from navsim.api.runs import run
 from navsim.experiment.executors import lend_pool
-from navsim.experiment.runner import cached_flight
+from navsim.experiment.runner import cached_flight, default_chunk_runs
 from navsim.experiment.scenario import MAX_SEED, parse_changed, parse_scenario
 from navsim.experiment.tuning import TRUTH_PREFIX, TuneParam, default_params, entry_index, parse_param
 from navsim.foundations.config import load_yaml
@@ -242,7 +242,7 @@ def _tune(trials: _Trials, o: TuneOptions, folder, resume: bool, progress) -> Tu
     if start and not _finished(study, trials.params) and not waiting:     # trial 0: the original
         study.enqueue_trial(start)
     record.trials = _finished(study, trials.params)
-    runs = dict(runs=o.runs, seed=seed, workers=workers, chunk_runs=_chunk_runs(o.runs, workers),
+    runs = dict(runs=o.runs, seed=seed, workers=workers, chunk_runs=default_chunk_runs(o.runs, workers),
                 flight=flight, executor=o.executor, scheduler=o.scheduler)
     _search(study, record, trials.params, _scenario_trial(trials, o, runs), o.trials, folder, progress)
     best = _best(record)
@@ -386,11 +386,6 @@ def _log_check(o: TuneOptions, before, after) -> TuneCheck:
                      {"original": pick(before), "tuned": pick(after)})
 
 
-def _chunk_runs(runs: int, workers: int) -> int:
-    """The runs of a chunk: the runs shared out over the workers (one chunk each)."""
-    return max(1, -(-runs // max(workers, 1)))
-
-
 def _param_dict(p: TuneParam) -> dict:
     return {"name": p.name, "path": p.path, "lo": p.lo, "hi": p.hi, "log": p.log, "base": p.base,
             **({"unit": p.unit} if p.unit else {})}
@@ -513,7 +508,7 @@ def _check(trials: _Trials, values: dict, seed: int, runs: int, workers: int, fl
     original = {**trials.entry(None), "label": "original"}
     tuned = {**trials.entry(values), "label": "tuned"}
     result = run(trials.scenario([original, tuned]), runs=runs, seed=seed, workers=workers,
-                 chunk_runs=_chunk_runs(runs, workers), flight=flight, executor=o.executor,
+                 chunk_runs=default_chunk_runs(runs, workers), flight=flight, executor=o.executor,
                  scheduler=o.scheduler)
     if result.interrupted:
         raise KeyboardInterrupt
@@ -533,7 +528,7 @@ def _truth_check(trials: _Trials, values: dict, seed: int, runs: int, workers: i
     out = {}
     for side, v in (("original", None), ("tuned", values)):
         result = run(trials.whole(v), runs=runs, seed=seed, workers=workers,
-                     chunk_runs=_chunk_runs(runs, workers), flight=flight, executor=o.executor,
+                     chunk_runs=default_chunk_runs(runs, workers), flight=flight, executor=o.executor,
                      scheduler=o.scheduler)
         if result.interrupted:
             raise KeyboardInterrupt

@@ -25,8 +25,8 @@ def arguments(p) -> None:
     out_option(p, "reports/<name>")
     executor_options(p)
     p.add_argument("--chunk-runs", type=CHUNK_RUNS_TYPE, metavar="N",
-                   help="runs per chunk, the unit of work streamed to <out>/chunks (default 250; "
-                   "the numbers do not depend on it)")
+                   help="runs per chunk, the unit of work streamed to <out>/chunks (default 250, or "
+                   "runs/workers where that is fewer; the numbers do not depend on it)")
     p.add_argument("--resume", action="store_true",
                    help="complete an interrupted run in --out: run only the chunks missing from "
                    "<out>/chunks (same scenario, seed and runs, else exit 2)")

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from navsim.experiment.runner import CHUNK_RUNS, CLOSED_CHUNK_RUNS
+from navsim.experiment.runner import CLOSED_CHUNK_RUNS, default_chunk_runs
 from navsim.flight import properties as P
 from navsim.flight.truth import ARRAY_FIELDS as TRUTH_ARRAYS, Truth
 from navsim.foundations.config import MAX_RUNS
@@ -92,9 +92,10 @@ def _recorded_per_epoch() -> int:
     return n
 
 
-def _chunk_size(scenario, chunk_runs: int | None) -> int:
-    """The runs of one chunk: ``chunk_runs``, or the default of open or closed loop."""
-    return chunk_runs or (CLOSED_CHUNK_RUNS if scenario.closed_loop is not None else CHUNK_RUNS)
+def _chunk_size(scenario, chunk_runs: int | None, runs: int, workers: int) -> int:
+    """The runs of one chunk: ``chunk_runs``, or the default of open
+    (:func:`~navsim.experiment.runner.default_chunk_runs`) or closed loop."""
+    return chunk_runs or (CLOSED_CHUNK_RUNS if scenario.closed_loop is not None else default_chunk_runs(runs, workers))
 
 
 def _duration_s(scenario) -> float:
@@ -112,7 +113,7 @@ def needs(scenario, runs: int, chunk_runs: int | None = None, workers: int = 1) 
         period = est.params.get("period_s") or 1.0 / scenario.flight.rate_hz
         nis = len(est.params.get("measurements", ()))
         per_run += (duration / period + 1) * (_recorded_per_epoch() + nis) * 8
-    chunk = min(runs, _chunk_size(scenario, chunk_runs))
+    chunk = min(runs, _chunk_size(scenario, chunk_runs, runs, workers))
     busy = min(max(workers, 1), math.ceil(runs / chunk)) if workers > 1 else 0
     flight = flight_bytes(scenario, duration)
     return Needs(flight * (1 + busy), int(chunk * per_run) * max(busy, 1), int(runs * per_run))
@@ -147,8 +148,9 @@ def store_bytes_per_run(scenario) -> int:
     return int(total + _epochs(scenario, scenario.estimators[0], duration) * bias)
 
 
-def store_bytes(scenario, runs: int, chunk_runs: int | None = None) -> int:
-    """The bytes of the chunk store of ``runs`` runs in chunks of ``chunk_runs``: the runs'
+def store_bytes(scenario, runs: int, chunk_runs: int | None = None, workers: int = 1) -> int:
+    """The bytes of the chunk store of ``runs`` runs in chunks of ``chunk_runs`` (by default
+    those of ``workers``): the runs'
     (:func:`store_bytes_per_run`) and each chunk file's own (:data:`CHUNK_FILE_BYTES`: its
     entries, its JSON description, the estimators' epoch times)."""
     duration = _duration_s(scenario)
@@ -158,7 +160,7 @@ def store_bytes(scenario, runs: int, chunk_runs: int | None = None) -> int:
         names, nis = _recorded(est)
         entries += 2 + len(names) + nis                          # t_s, diverged, the arrays, the NIS
         own += CHUNK_FILE_BYTES["estimator"] + 8 * _epochs(scenario, est, duration)
-    chunks = math.ceil(runs / _chunk_size(scenario, chunk_runs))
+    chunks = math.ceil(runs / _chunk_size(scenario, chunk_runs, runs, workers))
     return runs * store_bytes_per_run(scenario) + chunks * int(own + entries * CHUNK_FILE_BYTES["entry"])
 
 
@@ -200,7 +202,7 @@ def estimate_line(scenario, runs: int, out=None, workers: int | None = None, chu
     disk = ""
     if out is not None:
         free = _free_disk(out)
-        disk = (f", about {_bytes(store_bytes(scenario, runs, chunk_runs))} of chunks under {out} "
+        disk = (f", about {_bytes(store_bytes(scenario, runs, chunk_runs, workers))} of chunks under {out} "
                 f"({'free space unknown' if free is None else _bytes(free) + ' free'})")
     return (f"estimate: {runs} runs{disk}, the runs about {_clock(run_seconds(scenario, runs, workers))} "
             f"on {workers} worker{'s' if workers != 1 else ''}")
@@ -263,12 +265,12 @@ def check_run(scenario, runs: int, chunk_runs: int | None = None, out=None, work
     if out is None:                        # every run held in memory
         check_held(scenario, runs, chunk_runs, workers)
     if n.flight + n.chunk > MEMORY_SHARE * have:
-        raise UsageError(f"the chunks in work ({min(runs, _chunk_size(scenario, chunk_runs))} runs each, on {workers} "
+        raise UsageError(f"the chunks in work ({min(runs, _chunk_size(scenario, chunk_runs, runs, workers))} runs each, on {workers} "
                          f"worker(s)) need about {_gib(n.chunk)} of memory beside the flights' {_gib(n.flight)}, "
                          f"more than {MEMORY_SHARE:.0%} of the {_gib(have)} available; use a smaller --chunk-runs "
                          "or fewer --workers")
     free = _free_disk(out) if out is not None else None
-    disk = store_bytes(scenario, runs, chunk_runs)
+    disk = store_bytes(scenario, runs, chunk_runs, workers)
     if free is not None and disk > free:
         raise UsageError(f"the {runs} runs' chunks need about {_gib(disk)} on disk, more than the "
                          f"{_gib(free)} free under {out}; use fewer --runs or write elsewhere with --out")

@@ -53,6 +53,15 @@ log = logging.getLogger(__name__)
 #: runs per chunk, by measurement (benchmarks/chunk_size.py, P0, 1000 runs, 2 workers): 125 runs
 #: 21.0 s, 250 runs 19.0 s, 500 runs 18.8 s with a worker's peak memory 505 -> 813 MB
 CHUNK_RUNS = 250
+
+
+def default_chunk_runs(runs: int, workers: int) -> int:
+    """The runs of a chunk where none is asked for: :data:`CHUNK_RUNS`, or fewer where the runs
+    would not keep every worker busy (``runs / workers``, rounded up: 40 runs on 2 workers are 2
+    chunks of 20, not one of 40 on one worker). The numbers do not depend on it."""
+    return max(1, min(CHUNK_RUNS, -(-runs // max(workers, 1))))
+
+
 #: streamed to a chunk store, the first chunks holding this many runs are loaded for the report's
 #: plots; the metrics are computed from every stored chunk (navsim.scoring.scorer)
 REPORT_RUNS = 1000
@@ -349,7 +358,7 @@ def _chunk_failures(chunks, failed: dict) -> dict:
 def run_monte_carlo(scenario, truth: Truth, truth_path: Path | None, options: RunOptions, *, store=None,
                     keep_runs: int | None = None) -> RunResult:
     """All runs of ``scenario`` on ``truth``, in chunks of ``options.chunk_runs`` (default
-    :data:`CHUNK_RUNS`).
+    :func:`default_chunk_runs`).
 
     Parameters
     ----------
@@ -374,7 +383,7 @@ def run_monte_carlo(scenario, truth: Truth, truth_path: Path | None, options: Ru
     -------
     RunResult
     """
-    chunks = chunk_ranges(options.runs, options.chunk_runs or CHUNK_RUNS)
+    chunks = chunk_ranges(options.runs, options.chunk_runs or default_chunk_runs(options.runs, options.workers))
     pending = store.missing(chunks) if store is not None else chunks
     on_part = store.add if store is not None else None
     seed = options.seed

@@ -7,7 +7,9 @@ import pytest
 
 from navsim.foundations.transform import cross
 from navsim.navigation.estimators.attitude import LocalFrame, normalize, rk4_step, rotate_b_to_n, rotate_n_to_b
-from navsim.navigation.estimators.attitude_kernels import GAIN_NAMES, cpf_block, cpf_ekf_block
+from navsim.foundations.transform import euler_from_quat
+from navsim.navigation.estimators.attitude import euler_distance2 as numpy_distance2
+from navsim.navigation.estimators.attitude_kernels import GAIN_NAMES, cpf_block, cpf_ekf_block, euler_distance2
 
 GAINS = dict(kp_acc=0.5, kp_mag=0.4, ki=0.05, accel_tau_s=0.2, acc_gate=0.1)
 
@@ -124,3 +126,18 @@ def test_the_ekf_prediction_of_a_batch_equals_its_single_runs_bit_for_bit():
         cpf_ekf_block(*one, frame.g_n[b:b + 1], frame.w_ie_n[b:b + 1], dth[b:b + 1], dv[b:b + 1], dt)
         for got, whole in zip(one, batch):
             assert np.array_equal(got[0], whole[b])
+
+
+def test_the_divergence_distance_equals_the_numpy_form_wrapped_and_nan():
+    """P4's eq. 21 between two attitudes, compiled, against the Euler angles' numpy form: yaws
+    across +-180 deg, a pitch at the pole (its sine clipped) and a NaN quaternion."""
+    rng = np.random.default_rng(9)
+    q1, q2 = normalize(rng.normal(size=(7, 4))), normalize(rng.normal(size=(7, 4)))
+    q1[0], q2[0] = [np.cos(1.56), 0, 0, np.sin(1.56)], [np.cos(-1.56), 0, 0, np.sin(-1.56)]     # 178.8, -178.8 deg
+    q1[1] = [np.sqrt(0.5), 0, np.sqrt(0.5) * (1 + 1e-16), 0]                                   # pitch 90 deg
+    q2[2] = np.nan
+    got = np.empty(7)
+    euler_distance2(q1, q2, got)
+    ref = numpy_distance2(euler_from_quat(q1), euler_from_quat(q2))
+    assert np.allclose(got, ref, rtol=1e-14, atol=0, equal_nan=True) and np.isnan(got[2])
+    assert got[0] == pytest.approx(np.radians(2 * (180 - np.degrees(1.56) * 2)) ** 2, rel=1e-9)

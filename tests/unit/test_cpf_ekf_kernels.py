@@ -229,8 +229,12 @@ def test_the_compiled_magnetometer_updates_and_test_equal_the_numpy_form(seed):
     z = h + rng.normal(size=(B, 3)) * 2.0
     ref = np_correct_mag(x.copy(), P.copy(), z, valid, 0.25)
     got_x, got_P = x.copy(), P.copy()
-    out = [np.empty((B, 3)), np.empty((B, 3))]
+    out = [np.empty((B, 3)), np.empty((B, 3, 3)), np.empty(B)]
     kernels.correct_magnetometer(got_x, got_P, z, valid, 0.25, *out)
+    y, S_, nis = out
+    assert np.array_equal(S_, np.diagonal(S_, axis1=1, axis2=2)[:, :, None] * np.eye(3))
+    assert np.array_equal(np.isnan(nis), ~valid) and _close(nis[valid], np.sum(y * y / np.diagonal(S_, axis1=1, axis2=2), -1)[valid], 1e-15)
+    out = [y, np.diagonal(S_, axis1=1, axis2=2)]
     assert _close(got_x, ref[0], 1e-14), np.abs(got_x - ref[0]).max()
     ok, err = _close_cov(got_P, ref[1], 1e-12)
     assert ok, err

@@ -1,6 +1,7 @@
 """P4's per-sample propagation, compiled: the CPF-EKF's state prediction and the complementary
 filter's step over a block of ``K`` IMU intervals, one loop per run (numba, cached); and the
-complementary filter's heading error from a magnetometer sample (:func:`cpf_heading_error`).
+complementary filter's heading error from a magnetometer sample (:func:`cpf_heading_error`) and
+P4's divergence test's distance between two attitudes (:func:`euler_distance2`).
 
 The formulas are P4's (eq. 5-7 and the CPF's Mahony step), written per run in the order of
 operations of :mod:`.attitude`'s numpy forms (``rk4_step``, ``rotate_b_to_n``,
@@ -178,4 +179,32 @@ def cpf_heading_error(q, m_b, valid, ref, gates, on_course, t, e_mag, heading_t,
             e_mag[b, 0], e_mag[b, 1], e_mag[b, 2] = _rotate(w, -x, -y, -z, 0.0, 0.0, e)
 
 
-__all__ = ["AZ", "GAIN_NAMES", "MB0", "ME0", "N_STATES", "Q0", "S0", "V0", "WB0", "cpf_block", "cpf_ekf_block", "cpf_heading_error"]
+@njit(inline="always", **_OPTIONS)
+def _euler(w, x, y, z):
+    """Roll, pitch, yaw of ``q_nb`` (as :func:`navsim.foundations.transform.euler_from_quat`)."""
+    s = 2.0 * (w * y - z * x)
+    if s > 1.0:
+        s = 1.0
+    elif s < -1.0:
+        s = -1.0
+    return (math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y)), math.asin(s),
+            math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+
+
+@njit(**_OPTIONS)
+def euler_distance2(q1, q2, out):
+    """P4's eq. 21 between the attitudes ``q1`` and ``q2`` ``(B, 4)`` of every run, into ``out``
+    ``(B,)``: ``(roll1-roll2)^2 + (pitch1-pitch2)^2 + (yaw1-yaw2)^2`` (rad^2), each difference
+    wrapped to [-pi, pi) (as :func:`.attitude.euler_distance2` of their Euler angles)."""
+    for b in range(q1.shape[0]):
+        a = _euler(q1[b, 0], q1[b, 1], q1[b, 2], q1[b, 3])
+        c = _euler(q2[b, 0], q2[b, 1], q2[b, 2], q2[b, 3])
+        s = 0.0
+        for i in range(3):
+            d = (a[i] - c[i] + math.pi) % (2.0 * math.pi) - math.pi
+            s += d * d
+        out[b] = s
+
+
+__all__ = ["AZ", "GAIN_NAMES", "MB0", "ME0", "N_STATES", "Q0", "S0", "V0", "WB0", "cpf_block", "cpf_ekf_block", "cpf_heading_error",
+           "euler_distance2"]

@@ -115,7 +115,7 @@ def sample(sensors: dict, name: str | None, t: float, t_prev: float | None = Non
     data = sensors.get(name) if name else None
     if data is None:
         return None, None
-    j = int(np.searchsorted(data.t_s, t + tol, side="right")) - 1
+    j = int(data.t_s.searchsorted(t + tol, side="right")) - 1
     lo = t - tol if t_prev is None else t_prev + tol
     if j >= 0 and data.t_s[j] >= lo:
         return data, j

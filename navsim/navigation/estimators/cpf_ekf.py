@@ -69,19 +69,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.foundations.config import Node
-from navsim.foundations.transform import euler_from_quat
 from navsim.navigation.estimators import cpf_ekf_kernels as kernels
 from navsim.navigation.estimators.attitude import (
     UT,
     LocalFrame,
-    euler_distance2,
     normalize,
     psi,
     quat_of_dcm,
     reference_field_uT,
 )
 from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema, cpf_ekf_options
-from navsim.navigation.estimators.attitude_kernels import AZ, MB0, ME0, N_STATES, Q0, S0, V0, WB0, cpf_ekf_block
+from navsim.navigation.estimators.attitude_kernels import (AZ, MB0, ME0, N_STATES, Q0, S0, V0, WB0, cpf_ekf_block,
+                                                           euler_distance2)
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.estimators.cpf import ComplementaryCore, CpfGains
 from navsim.navigation.strapdown import NavState
@@ -266,12 +265,10 @@ class CpfEkf:
         out += self._correct_linear(t, sensors, t_prev, mag_data is not None)
         self.cpf.aid(t, sensors, self.mag, self.gnss, self.field_n_T, t_prev)
         if self.monitor == "cpf":
-            self.distance2 = euler_distance2(euler_from_quat(self.x[:, Q]), self.cpf.euler())
+            euler_distance2(self.x[:, Q], self.cpf.q, self.distance2)
             trusted = t - self.cpf.heading_t <= self.cpf_trust_s
             self._count((self.distance2 > self.threshold_rad2) & trusted, t, "cpf")
-        self.diverged |= ~(np.all(np.isfinite(self.x), -1) & np.all(np.isfinite(self.P), (-1, -2))
-                           & np.all(np.isfinite(self.cpf.q), -1)
-                           & np.all(np.diagonal(self.P, axis1=1, axis2=2) >= -1e-12, -1))
+        kernels.flag_diverged(self.x, self.P, self.cpf.q, self.diverged)
         return out
 
     def solution(self) -> Solution:
@@ -286,7 +283,7 @@ class CpfEkf:
                         gyro_bias_sigma=gyro_sigma, accel_bias_sigma=accel_sigma,
                         extra={"diverged": self.diverged, "resets": self.resets, "P": self.P,
                                "mag_bias_T": x[:, MB] * UT, "field_n_T": x[:, ME] * UT,
-                               "cpf_euler_rad": self.cpf.euler(), "distance2_rad2": self.distance2})
+                               "cpf_euler_rad": self.cpf.euler(), "distance2_rad2": self.distance2.copy()})
 
     # --- filter steps (compiled: :mod:`.cpf_ekf_kernels`) -----------------------------------------
     def _predict(self) -> None:
@@ -309,10 +306,9 @@ class CpfEkf:
             nu2, trace_S = np.empty(self.B), np.empty(self.B)
             kernels.innovation_test(self.x, self.P, z, r, nu2, trace_S)
             self._count((nu2 > self.innovation_ratio * trace_S) & valid, t, "innovation")
-        y, s = np.empty((self.B, 3)), np.empty((self.B, 3))
-        kernels.correct_magnetometer(self.x, self.P, z, valid, r, y, s)
-        nis = np.where(valid, np.sum(y * y / s, -1), np.nan)
-        return Innovation("mag", self.mag, t, y, s[:, :, None] * np.eye(3), nis)
+        y, S_, nis = np.empty((self.B, 3)), np.empty((self.B, 3, 3)), np.empty(self.B)
+        kernels.correct_magnetometer(self.x, self.P, z, valid, r, y, S_, nis)
+        return Innovation("mag", self.mag, t, y, S_, nis)
 
     def _correct_linear(self, t: float, sensors: dict, t_prev: float, mag_epoch: bool) -> list[Innovation]:
         """GNSS velocity + horizontal position, baro height: the linear KF (P4 eq. 17-19)."""

@@ -23,7 +23,7 @@ import numpy as np
 
 from navsim.foundations.compiled import njit
 from navsim.navigation.estimators.attitude_kernels import AZ, MB0, ME0, N_STATES, Q0, S0, V0, WB0
-from navsim.navigation.kernels.covariance import discretize_series, predict_run_covariance
+from navsim.navigation.kernels.covariance import _nonzeros, _sparse_left, discretize_series
 from navsim.navigation.kernels.update import joseph_run, joseph_scratch
 
 _OPTIONS = dict(cache=True, error_model="numpy")     # a diverged run gives NaN, as numpy does
@@ -139,9 +139,31 @@ def predict_covariance(x, P, sum_w, sum_f, T, w_ie_n, noise):
             sum_f[b, i] = 0.0
         _system(x[b], w, f, w_ie_n[b], noise, F[b], Qc[b], X)
     discretize_series(F, Qc, T, ORDER, Phi, Qd)
-    Ft, A, C = np.empty((n, n)), np.empty((n, n)), np.empty((n, n))
+    A, At, Ct = np.empty((n, n)), np.empty((n, n)), np.empty((n, n))
+    rows, cols, vals = np.empty(n * n, np.int64), np.empty(n * n, np.int64), np.empty(n * n)
     for b in range(B):
-        predict_run_covariance(Phi[b], P[b], Qd[b], Ft, A, C)
+        _sandwich(Phi[b], P[b], Qd[b], (rows, cols, vals), A, At, Ct)
+
+
+@njit(**_OPTIONS)
+def _sandwich(Phi, P, Qd, sparse, A, At, Ct):
+    """One run's ``P <- Phi P Phi^T + Qd``, symmetrised, in place, both products over the
+    nonzero entries of ``Phi`` (about a third of them: ``F``'s blocks and their squares):
+    ``A = Phi P``, then ``(A Phi^T)^T = Phi A^T``. ``sparse``: scratch for ``Phi``'s nonzero
+    entries; ``A``, ``At``, ``Ct`` ``(n, n)`` scratch."""
+    rows, cols, vals = sparse
+    n = P.shape[0]
+    nz = _nonzeros(Phi, rows, cols, vals)
+    _sparse_left(rows, cols, vals, nz, P, A)
+    for i in range(n):
+        for j in range(n):
+            At[i, j] = A[j, i]
+    _sparse_left(rows, cols, vals, nz, At, Ct)
+    for i in range(n):
+        for j in range(i, n):
+            v = 0.5 * ((Ct[j, i] + Qd[i, j]) + (Ct[i, j] + Qd[j, i]))
+            P[i, j] = v
+            P[j, i] = v
 
 
 @njit(**_OPTIONS)
@@ -226,7 +248,7 @@ def innovation_test(x, P, z, r, nu2, trace_S):
 
 
 @njit(**_OPTIONS)
-def correct_magnetometer(x, P, z, valid, r, y, s):
+def correct_magnetometer(x, P, z, valid, r, y, S, nis):
     """The magnetometer's three sequential scalar EKF updates of every run (P4 eq. 11-16), each
     axis relinearised at the estimate the previous one left, then :func:`renormalize_run`.
 
@@ -239,26 +261,75 @@ def correct_magnetometer(x, P, z, valid, r, y, s):
     valid : (B,) bool
     r : float
         The variance of each axis, uT^2.
-    y, s : (B, 3) arrays
-        Out: each axis's innovation and its variance.
+    y : (B, 3) array
+        Out: each axis's innovation.
+    S : (B, 3, 3) array
+        Out: the innovations' variances on the diagonal (each axis's at its own prior), zeros
+        off it.
+    nis : (B,) array
+        Out: ``sum(y^2 / S_ii)`` where ``valid``, NaN elsewhere.
     """
     n = N_STATES
     h, H = np.empty(3), np.empty((3, n))
-    Hi, zi, R, yi, Si = np.empty((1, n)), np.empty(1), np.full((1, 1), r), np.empty(1), np.empty((1, 1))
-    HP, Kt, W, work, index = joseph_scratch(n, 1)
+    cols, hp, k, row = np.empty(n, np.int64), np.empty(n), np.empty(n), np.empty(n)
     Jq, A = np.empty((4, 4)), np.empty((4, n))
     for b in range(x.shape[0]):
         xb, Pb = x[b], P[b]
+        nis[b] = 0.0
         for axis in range(3):
             magnetometer_model(xb, h, H)
-            hx = 0.0
-            for j in range(n):
-                Hi[0, j] = H[axis, j]
-                hx += H[axis, j] * xb[j]
-            zi[0] = z[b, axis] - h[axis] + hx
-            joseph_run(xb, Pb, zi, Hi, R, valid[b], yi, Si, HP, Kt, W, work, index)
-            y[b, axis], s[b, axis] = yi[0], Si[0, 0]
+            y[b, axis] = z[b, axis] - h[axis]
+            for j in range(3):
+                S[b, axis, j] = 0.0
+            S[b, axis, axis] = scalar_joseph(xb, Pb, y[b, axis], H[axis], r, valid[b], cols, hp, k, row)
+            nis[b] += y[b, axis] * y[b, axis] / S[b, axis, axis]
+        if not valid[b]:
+            nis[b] = np.nan
         renormalize_run(xb, Pb, Jq, A)
+
+
+@njit(**_OPTIONS)
+def scalar_joseph(x, P, y, H, r, valid, cols, hp, k, row):
+    """One run's Joseph update with a single measurement row, in place: innovation ``y``,
+    ``H`` ``(n,)``, variance ``r``; ``S = H P H^T + r``, ``K = P H^T / S``, ``x <- x + K y``,
+    ``P <- (I - K H) P (I - K H)^T + K r K^T`` evaluated as ``joseph_update`` does (``A = P -
+    K (H P)``, ``A - (A H^T) K^T + K r K^T`` row by row, ``H``'s zeros skipped), symmetrised.
+    Returns ``S``; an invalid run keeps its state. Scratch: ``cols`` (ints), ``hp``, ``k``,
+    ``row`` ``(n,)``."""
+    n = P.shape[0]
+    nh = 0
+    for j in range(n):
+        hp[j] = 0.0
+        if H[j] != 0.0:
+            cols[nh] = j
+            nh += 1
+    for z in range(nh):                     # H P (a row: P is symmetric)
+        c = cols[z]
+        for j in range(n):
+            hp[j] += H[c] * P[c, j]
+    S = 0.0
+    for z in range(nh):
+        S += hp[cols[z]] * H[cols[z]]
+    S += r
+    if not valid:
+        return S
+    for j in range(n):                      # K = (H P)^T / S
+        k[j] = hp[j] / S
+        x[j] += k[j] * y
+    for i in range(n):                      # row i of A = P - K H P, then of A - (A H^T) K^T + K r K^T
+        for j in range(n):
+            row[j] = P[i, j] - k[i] * hp[j]
+        d = k[i] * r
+        for z in range(nh):
+            d -= row[cols[z]] * H[cols[z]]
+        for j in range(n):
+            P[i, j] = row[j] + d * k[j]
+    for i in range(n):
+        for j in range(i + 1, n):
+            v = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = v
+            P[j, i] = v
+    return S
 
 
 @njit(**_OPTIONS)
@@ -278,6 +349,23 @@ def correct_linear(x, P, z, rows, r, valid, y, S, nis):
             zb[i] = z[b, i]
         nis[b] = joseph_run(x[b], P[b], zb, H, R, valid[b], y[b], S[b], HP, Kt, W, work, index)
         renormalize_run(x[b], P[b], Jq, A)
+
+
+@njit(**_OPTIONS)
+def flag_diverged(x, P, q_cpf, diverged):
+    """``diverged[b] |= ...`` where run ``b``'s state, covariance or CPF attitude has a
+    non-finite entry or a variance below ``-1e-12``."""
+    n = P.shape[1]
+    for b in range(x.shape[0]):
+        ok = True
+        for i in range(n):
+            ok = ok and math.isfinite(x[b, i]) and P[b, i, i] >= -1e-12
+            for j in range(n):
+                ok = ok and math.isfinite(P[b, i, j])
+        for i in range(q_cpf.shape[1]):
+            ok = ok and math.isfinite(q_cpf[b, i])
+        if not ok:
+            diverged[b] = True
 
 
 @njit(**_OPTIONS)
@@ -311,5 +399,5 @@ def navigation_covariance(x, P, pos_scale, P_nav):
                 P_nav[b, i, j] = c
 
 
-__all__ = ["NOISE_NAMES", "ORDER", "correct_linear", "correct_magnetometer", "innovation_test", "magnetometer_model",
-           "navigation_covariance", "predict_covariance", "renormalize_run", "rotation_jacobian"]
+__all__ = ["NOISE_NAMES", "ORDER", "correct_linear", "correct_magnetometer", "flag_diverged", "innovation_test", "magnetometer_model",
+           "navigation_covariance", "predict_covariance", "renormalize_run", "rotation_jacobian", "scalar_joseph"]
