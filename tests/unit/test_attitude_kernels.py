@@ -7,9 +7,10 @@ import pytest
 
 from navsim.foundations.transform import cross
 from navsim.navigation.estimators.attitude import LocalFrame, normalize, rk4_step, rotate_b_to_n, rotate_n_to_b
-from navsim.foundations.transform import euler_from_quat
+from navsim.foundations.transform import dcm_from_quat, euler_from_quat
 from navsim.navigation.estimators.attitude import euler_distance2 as numpy_distance2
-from navsim.navigation.estimators.attitude_kernels import GAIN_NAMES, cpf_block, cpf_ekf_block, euler_distance2
+from navsim.navigation.estimators.attitude_kernels import (GAIN_NAMES, cpf_block, cpf_ekf_block, dcm_of, euler_angles,
+                                                           euler_distance2)
 
 GAINS = dict(kp_acc=0.5, kp_mag=0.4, ki=0.05, accel_tau_s=0.2, acc_gate=0.1)
 
@@ -141,3 +142,15 @@ def test_the_divergence_distance_equals_the_numpy_form_wrapped_and_nan():
     ref = numpy_distance2(euler_from_quat(q1), euler_from_quat(q2))
     assert np.allclose(got, ref, rtol=1e-14, atol=0, equal_nan=True) and np.isnan(got[2])
     assert got[0] == pytest.approx(np.radians(2 * (180 - np.degrees(1.56) * 2)) ** 2, rel=1e-9)
+
+
+def test_the_compiled_euler_angles_and_dcm_equal_the_numpy_forms_bit_for_bit():
+    rng = np.random.default_rng(10)
+    q = rng.normal(size=(9, 4))                  # not unit: the same formulas all the same
+    q[0] = [np.sqrt(0.5), 0, np.sqrt(0.5) * (1 + 1e-16), 0]                  # pitch past 90 deg: clipped
+    q[1] = np.nan
+    e, C = np.empty((9, 3)), np.empty((9, 3, 3))
+    euler_angles(q, e)
+    dcm_of(q, C)
+    assert np.array_equal(e, euler_from_quat(q), equal_nan=True)
+    assert np.array_equal(C, dcm_from_quat(q), equal_nan=True)

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from navsim.foundations import earth
-from navsim.foundations.transform import cross, dcm_from_quat, quat_multiply
+from navsim.foundations.transform import cross, quat_multiply
+from navsim.navigation.estimators.attitude_kernels import dcm_of
 from navsim.navigation.strapdown import NavState
 from navsim.sensors.magnetometer import WMM_DATE, wmm_field_n_T
 
@@ -116,8 +117,10 @@ class LocalFrame:
         return np.stack([(lat - self.lat0) * self.k_n, (lon - self.lon0) * self.k_e, self.h0 - h], -1)
 
     def nav_state(self, q: np.ndarray, vel_n: np.ndarray, pos_n: np.ndarray) -> NavState:
+        C_nb = np.empty((q.shape[0], 3, 3))
+        dcm_of(np.ascontiguousarray(q, float), C_nb)           # dcm_from_quat, compiled
         return NavState(self.lat0 + pos_n[:, 0] / self.k_n, self.lon0 + pos_n[:, 1] / self.k_e,
-                        self.h0 - pos_n[:, 2], vel_n.copy(), dcm_from_quat(q))
+                        self.h0 - pos_n[:, 2], vel_n.copy(), C_nb)
 
     def pos_to_filter_units(self) -> np.ndarray:
         """``(B, 3)`` factors from NED metres to the runner's (dlat, dlon, dh)."""

@@ -192,6 +192,25 @@ def _euler(w, x, y, z):
 
 
 @njit(**_OPTIONS)
+def euler_angles(q, out):
+    """Roll, pitch, yaw ``(B, 3)`` of the attitudes ``q`` ``(B, 4)`` into ``out`` (as
+    :func:`navsim.foundations.transform.euler_from_quat`, the same operations)."""
+    for b in range(q.shape[0]):
+        out[b, 0], out[b, 1], out[b, 2] = _euler(q[b, 0], q[b, 1], q[b, 2], q[b, 3])
+
+
+@njit(**_OPTIONS)
+def dcm_of(q, out):
+    """``C_nb`` ``(B, 3, 3)`` of the attitudes ``q`` ``(B, 4)`` into ``out`` (as
+    :func:`navsim.foundations.transform.dcm_from_quat`, the same operations)."""
+    for b in range(q.shape[0]):
+        w, x, y, z = q[b, 0], q[b, 1], q[b, 2], q[b, 3]
+        out[b, 0, 0], out[b, 0, 1], out[b, 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
+        out[b, 1, 0], out[b, 1, 1], out[b, 1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
+        out[b, 2, 0], out[b, 2, 1], out[b, 2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+
+
+@njit(**_OPTIONS)
 def euler_distance2(q1, q2, out):
     """P4's eq. 21 between the attitudes ``q1`` and ``q2`` ``(B, 4)`` of every run, into ``out``
     ``(B,)``: ``(roll1-roll2)^2 + (pitch1-pitch2)^2 + (yaw1-yaw2)^2`` (rad^2), each difference
@@ -207,4 +226,4 @@ def euler_distance2(q1, q2, out):
 
 
 __all__ = ["AZ", "GAIN_NAMES", "MB0", "ME0", "N_STATES", "Q0", "S0", "V0", "WB0", "cpf_block", "cpf_ekf_block", "cpf_heading_error",
-           "euler_distance2"]
+           "dcm_of", "euler_angles", "euler_distance2"]

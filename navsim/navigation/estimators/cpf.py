@@ -39,7 +39,7 @@ from navsim.navigation.estimators.attitude import (
     rotate_n_to_b,
 )
 from navsim.navigation.estimators.attitude_config import attitude_params, attitude_schema
-from navsim.navigation.estimators.attitude_kernels import GAIN_NAMES, cpf_block, cpf_heading_error
+from navsim.navigation.estimators.attitude_kernels import GAIN_NAMES, cpf_block, cpf_heading_error, euler_angles
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
 from navsim.navigation.strapdown import NavState
 
@@ -133,7 +133,10 @@ class ComplementaryCore:
         self.e_mag = np.where(self.on_course[:, None], rotate_n_to_b(self.q, e_n), self.e_mag)
 
     def euler(self) -> np.ndarray:
-        return euler_from_quat(self.q)
+        """Roll, pitch, yaw ``(B, 3)`` of the CPF's attitude (compiled: :func:`~.attitude_kernels.euler_angles`)."""
+        out = np.empty((self.q.shape[0], 3))
+        euler_angles(self.q, out)
+        return out
 
 
 @register("cpf")

@@ -371,9 +371,12 @@ def flag_diverged(x, P, q_cpf, diverged):
 @njit(**_OPTIONS)
 def navigation_covariance(x, P, pos_scale, P_nav):
     """``P_nav = T P T^T`` ``(B, 9, 9)`` of every run: the attitude error ``phi = -2 Psi(q)^T dq``
-    (NED), velocity, and position scaled to the runner's units by ``pos_scale`` ``(B, 3)``."""
-    T = np.zeros((9, N_STATES))
-    TP = np.empty((9, N_STATES))
+    (NED), velocity, and position scaled to the runner's units by ``pos_scale`` ``(B, 3)``.
+    ``T`` reads the first 10 states only (quaternion, velocity, position): the products run over
+    those columns."""
+    m = S0 + 3                               # the states T reads
+    T = np.zeros((9, m))
+    TP = np.empty((9, m))
     for b in range(x.shape[0]):
         w, qx, qy, qz = x[b, Q0], x[b, Q0 + 1], x[b, Q0 + 2], x[b, Q0 + 3]
         # Psi(q) = [[-x,-y,-z],[w,z,-y],[-z,w,x],[y,-x,w]]; T[0:3, Q] = -2 Psi^T
@@ -384,16 +387,16 @@ def navigation_covariance(x, P, pos_scale, P_nav):
             T[3 + i, V0 + i] = 1.0
             T[6 + i, S0 + i] = pos_scale[b, i]
         for i in range(9):
-            for j in range(N_STATES):
+            for j in range(m):
                 c = 0.0
-                for k in range(N_STATES):
+                for k in range(m):
                     if T[i, k] != 0.0:
                         c += T[i, k] * P[b, k, j]
                 TP[i, j] = c
         for i in range(9):
             for j in range(9):
                 c = 0.0
-                for k in range(N_STATES):
+                for k in range(m):
                     if T[j, k] != 0.0:
                         c += TP[i, k] * T[j, k]
                 P_nav[b, i, j] = c
