@@ -2,9 +2,9 @@
 
 The flight is flown once per distinct flight configuration and cached on disk
 (``$NAVSIM_CACHE``, default ``~/.cache/navsim``), keyed by a hash of everything that determines
-it (track, environment, aircraft model files, rate, navsim version). Runs are cut into chunks of
-a fixed size (so the numbers do not depend on the number of workers); chunks go to a process
-pool. A chunk that fails marks its runs as failed and the others complete; Ctrl-C keeps the
+it (track, environment, aircraft model files, rate, navsim version). Runs are cut into chunks
+(:func:`default_chunk_runs`; the numbers do not depend on their size nor on the number of
+workers); chunks go to a process pool. A chunk that fails marks its runs as failed and the others complete; Ctrl-C keeps the
 chunks that finished.
 """
 
@@ -54,17 +54,19 @@ log = logging.getLogger(__name__)
 #: 21.0 s, 250 runs 19.0 s, 500 runs 18.8 s with a worker's peak memory 505 -> 813 MB
 CHUNK_RUNS = 250
 
-
-def default_chunk_runs(runs: int, workers: int) -> int:
-    """The runs of a chunk where none is asked for: :data:`CHUNK_RUNS`, or fewer where the runs
-    would not keep every worker busy (``runs / workers``, rounded up: 40 runs on 2 workers are 2
-    chunks of 20, not one of 40 on one worker). The numbers do not depend on it."""
-    return max(1, min(CHUNK_RUNS, -(-runs // max(workers, 1))))
-
-
 #: streamed to a chunk store, the first chunks holding this many runs are loaded for the report's
 #: plots; the metrics are computed from every stored chunk (navsim.scoring.scorer)
 REPORT_RUNS = 1000
+
+
+def default_chunk_runs(runs: int, workers: int) -> int:
+    """The runs of a chunk where none is asked for: :data:`CHUNK_RUNS`, or, for a Monte Carlo of
+    at most :data:`REPORT_RUNS` runs (the report draws them all, however chunked) that would not
+    keep every worker busy, ``runs / workers`` rounded up (40 runs on 2 workers are 2 chunks of
+    20, not one of 40 on one worker). The numbers do not depend on it."""
+    if runs > REPORT_RUNS:
+        return CHUNK_RUNS
+    return max(1, min(CHUNK_RUNS, -(-runs // max(workers, 1))))
 
 
 def plain(x):

@@ -11,15 +11,15 @@ and its pages drawn here, so a failure is reported as the sequential path report
 
 from __future__ import annotations
 
+import ctypes
 import io
 import multiprocessing
 import os
 import threading
-import time
 from pathlib import Path
 
 from navsim.experiment.executors import die_with_parent
-from navsim.foundations.outputs import OutputFolder, write_atomic
+from navsim.foundations.outputs import OutputFolder, temporary_name, write_atomic
 from navsim.report.figures import Page
 from navsim.report.tables import PNG_DPI
 
@@ -33,30 +33,32 @@ POINTS_PER_INCH = 72.0
 _PDFIUM = threading.Lock()
 #: the fewest pages drawn by two processes (below, a fork costs more than it saves)
 SPLIT_PAGES = 6
-#: how long the child drawing the second half may take beyond this process's half, s, before
-#: it is ended and its half drawn here (a child blocked on a lock another thread held at fork)
+#: how long this process waits for each of the child's two messages (its PDF, then its PNGs
+#: done) once it has done the same work itself, s, before the child is ended and its work done
+#: here (a child blocked on a lock another thread held at fork)
 CHILD_TIMEOUT_S = 60.0
 #: how long a child that sent its pages may take to end, s
 CHILD_EXIT_S = 10.0
 
 
 def render(folder: OutputFolder, pages: list[Page], fmts, title: str, pdf: str = "report.pdf") -> list[Path]:
-    """All pages, in order, to ``pdf`` (``title`` in its metadata) and each page to
+    """All pages, in order, to ``pdf`` (``title`` in its metadata), then each page to
     ``<name>.png``, rasterised from that PDF at :data:`~navsim.report.tables.PNG_DPI` (the PDF
-    drawn in memory where only PNGs are asked for); returns the files written."""
+    kept in memory where only PNGs are asked for); returns the files written."""
     out = folder.path
     pngs = [out / f"{page.name}.png" for page in pages] if "png" in fmts else []
     pdf_path = out / pdf if "pdf" in fmts else None
     folder.record(pngs + ([pdf_path] if pdf_path else []))
     if pdf_path is None and not pngs:
         return []
+    save = (lambda data: write_atomic(pdf_path, lambda p: _save_pdf(p, data))) if pdf_path is not None else None
     if _can_split(len(pages)):
-        data = _render_split(pages, pngs, title)
+        _render_split(pages, pngs, title, save)
     else:
         data = _pdf_bytes(pages, title)
+        if save is not None:
+            save(data)
         _write_pngs(data, pngs)
-    if pdf_path is not None:
-        write_atomic(pdf_path, lambda p: _save_pdf(p, data))
     return pngs + ([pdf_path] if pdf_path else [])
 
 
@@ -80,62 +82,103 @@ def _save_pdf(path, data: bytes) -> None:
         f.write(data)
 
 
-def _render_split(pages: list[Page], pngs: list[Path], title: str) -> bytes:
-    """The PDF of all ``pages`` (returned) and their PNGs (where ``pngs``), every other page
-    (the odd ones: the heavy pages of a report stand together) drawn by a forked child
-    (:func:`_child`), the even ones here; the child's pages drawn here where it fails or hangs."""
-    mine, theirs = slice(0, None, 2), slice(1, None, 2)
-    ctx = multiprocessing.get_context("fork")
-    receive, send = ctx.Pipe(duplex=False)
-    child = ctx.Process(target=_child, args=(send, pages[theirs], pngs[theirs], title), daemon=True)
-    child.start()
-    send.close()
-    second = None
-    try:
-        start = time.monotonic()
-        first = _pdf_bytes(pages[mine], title)
-        _write_pngs(first, pngs[mine])
+class _Child:
+    """The forked process drawing every other page (:func:`_child`): its PDF first, then a
+    word when its PNGs are written; ended, its unfinished files removed, where it fails or
+    hangs."""
+
+    def __init__(self, pages: list[Page], pngs: list[Path], title: str):
+        ctx = multiprocessing.get_context("fork")
+        self.receive, send = ctx.Pipe(duplex=False)
+        self.pngs = pngs
+        self.process = ctx.Process(target=_child, args=(send, pages, pngs, title), daemon=True)
+        self.ended = False
+        self.process.start()
+        send.close()
+
+    def message(self, timeout_s: float) -> bytes | None:
+        """The child's next message, or None where it ended without one or gave none in time."""
         try:
-            if receive.poll(CHILD_TIMEOUT_S + (time.monotonic() - start)):
-                second = receive.recv_bytes()
-        except (EOFError, OSError):             # the child ended without its pages
-            second = None
+            if self.receive.poll(timeout_s):
+                return self.receive.recv_bytes()
+        except (EOFError, OSError):
+            pass
+        return None
+
+    def end(self, finished: bool) -> None:
+        """Wait for a child that has ``finished`` to exit; end one that has not, and remove the
+        temporary files it may have left half written. Once only (later calls do nothing)."""
+        if self.ended:
+            return
+        self.ended = True
+        self.receive.close()
+        self.process.join(timeout=CHILD_EXIT_S if finished else 0)
+        if self.process.is_alive():
+            self.process.terminate()
+            self.process.join()
+        if not finished:
+            for path in self.pngs:
+                temporary_name(path).unlink(missing_ok=True)
+
+
+def _render_split(pages: list[Page], pngs: list[Path], title: str, save) -> None:
+    """The report drawn by two processes: every other page (the odd ones: a report's heavy pages
+    stand together) by a forked child, the even ones here; the two PDFs joined in order and
+    saved (``save(data)``, None: not asked for) before the PNGs are rasterised, each process its
+    own. What the child fails to do, or does not do in time, is done here."""
+    mine, theirs = slice(0, None, 2), slice(1, None, 2)
+    child, finished = _Child(pages[theirs], pngs[theirs], title), False
+    try:
+        first = _pdf_bytes(pages[mine], title)
+        second = child.message(CHILD_TIMEOUT_S)
+        if second is None:
+            child.end(False)
+            second = _pdf_bytes(pages[theirs], title)
+        if save is not None:
+            save(_interleaved(first, second))
+        _write_pngs(first, pngs[mine])
+        finished = not child.ended and child.message(CHILD_TIMEOUT_S) == _DONE
     finally:
-        receive.close()
-        child.join(timeout=CHILD_EXIT_S if second is not None else 0)     # its pages sent: it is ending
-        if child.is_alive():
-            child.terminate()
-            child.join()
-    if second is None:
-        second = _pdf_bytes(pages[theirs], title)
+        child.end(finished)
+    if not finished:
         _write_pngs(second, pngs[theirs])
-    return _interleaved(first, second)
+
+
+#: the child's last message: its PNGs are written
+_DONE = b"done"
 
 
 def _child(send, pages: list[Page], pngs: list[Path], title: str) -> None:
-    """In the forked child: the pages to a PDF, their PNGs, the PDF's bytes to the parent; on
-    any failure it ends quietly (the parent draws this half again and reports the failure)."""
+    """In the forked child: the pages to a PDF whose bytes go to the parent, then their PNGs,
+    then :data:`_DONE`; on any failure it ends quietly (the parent does its work again and
+    reports the failure)."""
     global _PDFIUM
     try:
         die_with_parent()
         _PDFIUM = threading.Lock()              # the parent's may have been held by another thread
         data = _pdf_bytes(pages, title)
-        _write_pngs(data, pngs)
         send.send_bytes(data)
+        _write_pngs(data, pngs)
+        send.send_bytes(_DONE)
         send.close()
     except BaseException:
         os._exit(1)
 
 
 def _interleaved(first: bytes, second: bytes) -> bytes:
-    """Two PDFs as one, their pages taken in turn (the first's, the second's, ...; PDFium), with
-    the metadata of ``first``."""
+    """Two PDFs as one, their pages taken in turn (the first's, the second's, ...), with the
+    metadata of ``first`` (PDFium: the second's pages imported in one call, so their shared fonts
+    once, then each moved to its place)."""
     import pypdfium2
+    import pypdfium2.raw as pdfium_c
     with _PDFIUM:
         doc, other = pypdfium2.PdfDocument(first), pypdfium2.PdfDocument(second)
         try:
-            for j in range(len(other)):
-                doc.import_pages(other, pages=[j], index=2 * j + 1)
+            k, m = len(doc), len(other)
+            doc.import_pages(other)
+            for j in range(m):
+                if not pdfium_c.FPDF_MovePages(doc.raw, (ctypes.c_int * 1)(k + j), 1, 2 * j + 1):
+                    raise RuntimeError(f"PDFium could not move page {k + j} to {2 * j + 1}")
             buf = io.BytesIO()
             doc.save(buf)
         finally:

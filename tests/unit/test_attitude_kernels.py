@@ -5,12 +5,11 @@ sample at a time over the batch, as P4's equations read), bit for bit, and a bat
 import numpy as np
 import pytest
 
-from navsim.foundations.transform import cross
+from navsim.foundations.transform import cross, dcm_from_quat, euler_from_quat
 from navsim.navigation.estimators.attitude import LocalFrame, normalize, rk4_step, rotate_b_to_n, rotate_n_to_b
-from navsim.foundations.transform import dcm_from_quat, euler_from_quat
 from navsim.navigation.estimators.attitude import euler_distance2 as numpy_distance2
-from navsim.navigation.estimators.attitude_kernels import (GAIN_NAMES, cpf_block, cpf_ekf_block, dcm_of, euler_angles,
-                                                           euler_distance2)
+from navsim.navigation.estimators.attitude_kernels import (GAIN_NAMES, cpf_block, cpf_ekf_block, cpf_heading_error,
+                                                           dcm_of, euler_angles, euler_distance2)
 
 GAINS = dict(kp_acc=0.5, kp_mag=0.4, ki=0.05, accel_tau_s=0.2, acc_gate=0.1)
 
@@ -154,3 +153,45 @@ def test_the_compiled_euler_angles_and_dcm_equal_the_numpy_forms_bit_for_bit():
     dcm_of(q, C)
     assert np.array_equal(e, euler_from_quat(q), equal_nan=True)
     assert np.array_equal(C, dcm_from_quat(q), equal_nan=True)
+
+
+def _numpy_heading_error(q, m_b, valid, ref, mag_gate, dip_gate, on_course, t, e_mag, heading_t, rejected):
+    """The CPF's heading error from a magnetometer sample, numpy (as ComplementaryCore.aid was
+    written before it was compiled); returns the new ``e_mag, heading_t, rejected``."""
+    m_n = np.einsum("bij,bj->bi", dcm_from_quat(q), m_b)
+    dpsi = np.arctan2(m_n[:, 1], m_n[:, 0]) - np.arctan2(ref[:, 1], ref[:, 0])
+    dpsi = (dpsi + np.pi) % (2 * np.pi) - np.pi
+    dip = lambda v: np.arctan2(v[:, 2], np.hypot(v[:, 0], v[:, 1]))
+    ok = (valid & (np.abs(np.linalg.norm(m_b, axis=-1) / np.linalg.norm(ref, axis=-1) - 1.0) <= mag_gate)
+          & (np.abs(dip(m_n) - dip(ref)) <= dip_gate))
+    e_n = np.zeros_like(m_b)
+    e_n[:, 2] = -np.where(ok, dpsi, 0.0)
+    return (np.where(on_course[:, None], e_mag, rotate_n_to_b(q, e_n)), np.where(ok, t, heading_t),
+            rejected + (valid & ~ok))
+
+
+def test_the_cpf_heading_error_equals_the_numpy_form_with_its_gates():
+    """Accepted, rejected by magnitude, by dip, invalid, steered by the course, and a heading
+    across +-180 deg: the error, the time of the last reference and the rejection count."""
+    rng = np.random.default_rng(11)
+    B = 8
+    q = normalize(rng.normal(size=(B, 4)))
+    ref = np.tile([20.0, -3.0, 45.0], (B, 1))
+    m_b = np.einsum("bji,bj->bi", dcm_from_quat(q), ref)           # the reference field, seen in the body
+    m_b[0] = np.einsum("ji,j->i", dcm_from_quat(q[:1])[0], [20.0 * np.cos(0.1) + 3.0 * np.sin(0.1),
+                                                              20.0 * np.sin(0.1) - 3.0 * np.cos(0.1), 45.0])
+    m_b[1] *= 1.2                                                   # magnitude gate
+    m_b[2] += np.einsum("ji,j->i", dcm_from_quat(q[2:3])[0], [0.0, 0.0, 8.0])      # dip gate
+    valid = np.ones(B, bool)
+    valid[3] = False
+    on_course = np.zeros(B, bool)
+    on_course[4] = True
+    ref[5] = [-20.0, 0.5, 45.0]                                     # the reference near 180 deg
+    m_b[5] = np.einsum("ji,j->i", dcm_from_quat(q[5:6])[0], [-20.0, -0.5, 45.0])
+    e_mag, heading_t, rejected = rng.normal(size=(B, 3)) * 0.01, np.zeros(B), np.zeros(B, int)
+    want = _numpy_heading_error(q, m_b, valid, ref, 0.05, np.radians(3.0), on_course, 2.5, e_mag, heading_t, rejected)
+    cpf_heading_error(q, m_b, valid, ref, np.array([0.05, np.radians(3.0)]), on_course, 2.5, e_mag, heading_t, rejected)
+    np.testing.assert_allclose(e_mag, want[0], rtol=1e-13, atol=1e-16)
+    assert np.array_equal(heading_t, want[1]) and np.array_equal(rejected, want[2])
+    assert rejected.tolist() == [0, 1, 1, 0, 0, 0, 0, 0] and heading_t.tolist() == [2.5, 0, 0, 0] + [2.5] * 4
+    assert abs(e_mag[0]).max() > 0.05 and np.array_equal(e_mag[1], np.zeros(3))

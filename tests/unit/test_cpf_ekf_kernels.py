@@ -187,7 +187,8 @@ def test_the_rotation_jacobian_against_finite_differences_and_the_numpy_form(tra
 def test_the_magnetometer_model_against_finite_differences_and_the_numpy_form():
     _, x, _ = _case(3, B=2)
     h, H = np.empty((2, 3)), np.empty((2, 3, N_STATES))
-    model = lambda xx, b: (kernels.magnetometer_model(xx, h[b], H[b]), h[b].copy())[1]
+    C = np.empty((3, 3))
+    model = lambda xx, b: (kernels.magnetometer_model(xx, h[b], H[b], C), h[b].copy())[1]
     for b in range(2):
         model(x[b], b)
     H0 = H.copy()
@@ -310,3 +311,29 @@ def test_a_flight_of_the_compiled_filter_follows_the_numpy_filter(monitor):
     assert ok, err
     for g, r in zip(got_nis, ref_nis):
         np.testing.assert_allclose(np.concatenate(g), np.concatenate(r), rtol=1e-9, atol=0)
+
+
+def test_a_batch_of_three_flies_as_three_single_runs_bit_for_bit():
+    """With the magnetometer and GNSS, run 1 knocked and reset by the CPF monitor."""
+    batch, _ = _flight(CpfEkf, range(3), "cpf", seconds=5.0)
+    assert [len(r) for r in batch.resets] == [0, 1, 0]
+    for i in range(3):
+        one, _ = _flight(CpfEkf, [i], "cpf", seconds=5.0)
+        assert np.array_equal(one.x[0], batch.x[i]) and np.array_equal(one.P[0], batch.P[i])
+        assert one.resets[0] == batch.resets[i] and np.array_equal(one.cpf.q[0], batch.cpf.q[i])
+
+
+def test_the_divergence_flags_equal_the_numpy_form():
+    rng, x, P = _case(7, B=6)
+    q = rng.normal(size=(6, 4))
+    x[1, 5], P[2, 3, 7], q[3, 0] = np.nan, np.inf, np.nan
+    P[4, 9, 9] = -1e-11                                        # a variance below -1e-12
+    P[5, 9, 9] = -1e-13                                        # rounding: not a divergence
+    got = np.zeros(6, bool)
+    kernels.flag_diverged(x, P, q, got)
+    ref = ~(np.all(np.isfinite(x), -1) & np.all(np.isfinite(P), (-1, -2)) & np.all(np.isfinite(q), -1)
+            & np.all(np.diagonal(P, axis1=1, axis2=2) >= -1e-12, -1))
+    assert np.array_equal(got, ref) and got.tolist() == [False, True, True, True, True, False]
+    got[:] = True
+    kernels.flag_diverged(x[:1], P[:1], q[:1], got[:1])
+    assert got[0]                                              # a flag is never cleared

@@ -281,7 +281,7 @@ class CpfEkf:
         return Solution(nav=self.frame.nav_state(normalize(x[:, Q]), x[:, V], x[:, S]), P_nav=P_nav,
                         gyro_bias=x[:, WB].copy(), accel_bias=accel_bias,
                         gyro_bias_sigma=gyro_sigma, accel_bias_sigma=accel_sigma,
-                        extra={"diverged": self.diverged, "resets": self.resets, "P": self.P,
+                        extra={"diverged": self.diverged, "resets": self.resets, "P": self.P.copy(),
                                "mag_bias_T": x[:, MB] * UT, "field_n_T": x[:, ME] * UT,
                                "cpf_euler_rad": self.cpf.euler(), "distance2_rad2": self.distance2.copy()})
 

@@ -11,8 +11,9 @@ The formulas are :mod:`.cpf_ekf`'s (its module docstring): the Jacobians of ``C(
 out entry by entry, the series discretisation and the Joseph update the ES-KF's kernels
 (:mod:`navsim.navigation.kernels`). ``tests/unit/test_cpf_ekf_kernels.py`` holds each to the
 same formula written with numpy (dense batched products) to 1e-13 of the largest entry, a whole
-flight of the filter to the numpy filter, and a batch of 3 to 3 single runs bit for bit. A
-run's arithmetic never depends on the other runs.
+flight of the filter to the numpy filter, and a batch of 3 to 3 single runs bit for bit (with
+the magnetometer; ``tests/unit/test_attitude_filters.py`` on GNSS alone). A run's arithmetic
+never depends on the other runs.
 """
 
 from __future__ import annotations
@@ -171,38 +172,37 @@ def renormalize_run(x, P, Jq, A):
     """``q <- q / |q|`` and ``P <- J P J^T`` (symmetrised) with ``J = blockdiag((I - u u^T) / |q|,
     I)`` of one run, in place; ``Jq`` ``(4, 4)``, ``A`` ``(4, 20)`` scratch."""
     n = P.shape[0]
-    norm = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
+    norm = math.sqrt(x[Q0] * x[Q0] + x[Q0 + 1] * x[Q0 + 1] + x[Q0 + 2] * x[Q0 + 2] + x[Q0 + 3] * x[Q0 + 3])
     for i in range(4):
         x[Q0 + i] = x[Q0 + i] / norm
     for i in range(4):
         for j in range(4):
             Jq[i, j] = ((1.0 if i == j else 0.0) - x[Q0 + i] * x[Q0 + j]) / norm
-    for i in range(4):                     # rows of J P
+    for i in range(4):                     # the quaternion's rows of J P
         for j in range(n):
             A[i, j] = Jq[i, 0] * P[Q0, j] + Jq[i, 1] * P[Q0 + 1, j] + Jq[i, 2] * P[Q0 + 2, j] + Jq[i, 3] * P[Q0 + 3, j]
-    for i in range(4):                     # (J P J^T): its quaternion rows, then the columns mirrored
+    for i in range(4):                     # J P J^T: the quaternion's rows
         for j in range(n):
-            if j < 4:
-                P[Q0 + i, Q0 + j] = (A[i, 0] * Jq[j, 0] + A[i, 1] * Jq[j, 1] + A[i, 2] * Jq[j, 2]
-                                     + A[i, 3] * Jq[j, 3])
-            else:
-                P[Q0 + i, j] = A[i, j]
-    for i in range(4):
+            P[Q0 + i, j] = A[i, j]
+        for j in range(4):
+            P[Q0 + i, Q0 + j] = A[i, Q0] * Jq[j, 0] + A[i, Q0 + 1] * Jq[j, 1] + A[i, Q0 + 2] * Jq[j, 2] + A[i, Q0 + 3] * Jq[j, 3]
+    for i in range(4):                     # symmetrised: the quaternion block, its columns mirrored
         for j in range(i + 1, 4):
-            v = 0.5 * (P[i, j] + P[j, i])
-            P[i, j] = v
-            P[j, i] = v
-        for j in range(4, n):
-            P[j, i] = P[i, j]
+            v = 0.5 * (P[Q0 + i, Q0 + j] + P[Q0 + j, Q0 + i])
+            P[Q0 + i, Q0 + j] = v
+            P[Q0 + j, Q0 + i] = v
+        for j in range(n):
+            if j < Q0 or j >= Q0 + 4:
+                P[j, Q0 + i] = P[Q0 + i, j]
 
 
 @njit(**_OPTIONS)
-def magnetometer_model(x, h, H):
+def magnetometer_model(x, h, H, C):
     """``h = C_bn M + m_bias`` (uT, ``(3,)``) and its Jacobian ``H`` ``(3, 20)`` of one run, in
-    place (``C_bn`` the homogeneous form's transpose, whose derivative ``H`` is)."""
+    place (``C_bn`` the homogeneous form's transpose, whose derivative ``H`` is; ``C`` ``(3, 3)``
+    scratch, left holding ``C_nb``)."""
     w, v0, v1, v2 = x[Q0], x[Q0 + 1], x[Q0 + 2], x[Q0 + 3]
     d = w * w - (v0 * v0 + v1 * v1 + v2 * v2)
-    C = np.empty((3, 3))                   # C_nb
     v = (v0, v1, v2)
     for i in range(3):
         for j in range(3):
@@ -229,9 +229,9 @@ def innovation_test(x, P, z, r, nu2, trace_S):
     of the three magnetometer innovations and ``tr(H P H^T + r I)``, into ``nu2``, ``trace_S``
     ``(B,)``; ``z`` ``(B, 3)`` uT, ``r`` the variance of each axis, uT^2."""
     n = N_STATES
-    h, H = np.empty(3), np.empty((3, n))
+    h, H, C = np.empty(3), np.empty((3, n)), np.empty((3, 3))
     for b in range(x.shape[0]):
-        magnetometer_model(x[b], h, H)
+        magnetometer_model(x[b], h, H, C)
         nu2[b] = 0.0
         trace_S[b] = 0.0
         for i in range(3):
@@ -270,14 +270,14 @@ def correct_magnetometer(x, P, z, valid, r, y, S, nis):
         Out: ``sum(y^2 / S_ii)`` where ``valid``, NaN elsewhere.
     """
     n = N_STATES
-    h, H = np.empty(3), np.empty((3, n))
+    h, H, C = np.empty(3), np.empty((3, n)), np.empty((3, 3))
     cols, hp, k, row = np.empty(n, np.int64), np.empty(n), np.empty(n), np.empty(n)
     Jq, A = np.empty((4, 4)), np.empty((4, n))
     for b in range(x.shape[0]):
         xb, Pb = x[b], P[b]
         nis[b] = 0.0
         for axis in range(3):
-            magnetometer_model(xb, h, H)
+            magnetometer_model(xb, h, H, C)
             y[b, axis] = z[b, axis] - h[axis]
             for j in range(3):
                 S[b, axis, j] = 0.0
@@ -372,17 +372,17 @@ def flag_diverged(x, P, q_cpf, diverged):
 def navigation_covariance(x, P, pos_scale, P_nav):
     """``P_nav = T P T^T`` ``(B, 9, 9)`` of every run: the attitude error ``phi = -2 Psi(q)^T dq``
     (NED), velocity, and position scaled to the runner's units by ``pos_scale`` ``(B, 3)``.
-    ``T`` reads the first 10 states only (quaternion, velocity, position): the products run over
-    those columns."""
-    m = S0 + 3                               # the states T reads
+    ``T`` reads the quaternion, velocity and position only (the first 10 states): the products
+    run over those columns."""
+    m = max(Q0 + 4, V0 + 3, S0 + 3)         # the states T reads: those below m
     T = np.zeros((9, m))
     TP = np.empty((9, m))
     for b in range(x.shape[0]):
         w, qx, qy, qz = x[b, Q0], x[b, Q0 + 1], x[b, Q0 + 2], x[b, Q0 + 3]
         # Psi(q) = [[-x,-y,-z],[w,z,-y],[-z,w,x],[y,-x,w]]; T[0:3, Q] = -2 Psi^T
-        T[0, 0], T[0, 1], T[0, 2], T[0, 3] = -2.0 * -qx, -2.0 * w, -2.0 * -qz, -2.0 * qy
-        T[1, 0], T[1, 1], T[1, 2], T[1, 3] = -2.0 * -qy, -2.0 * qz, -2.0 * w, -2.0 * -qx
-        T[2, 0], T[2, 1], T[2, 2], T[2, 3] = -2.0 * -qz, -2.0 * -qy, -2.0 * qx, -2.0 * w
+        T[0, Q0], T[0, Q0 + 1], T[0, Q0 + 2], T[0, Q0 + 3] = -2.0 * -qx, -2.0 * w, -2.0 * -qz, -2.0 * qy
+        T[1, Q0], T[1, Q0 + 1], T[1, Q0 + 2], T[1, Q0 + 3] = -2.0 * -qy, -2.0 * qz, -2.0 * w, -2.0 * -qx
+        T[2, Q0], T[2, Q0 + 1], T[2, Q0 + 2], T[2, Q0 + 3] = -2.0 * -qz, -2.0 * -qy, -2.0 * qx, -2.0 * w
         for i in range(3):
             T[3 + i, V0 + i] = 1.0
             T[6 + i, S0 + i] = pos_scale[b, i]

@@ -115,7 +115,8 @@ def predict(x, P, Phi, Qd):
 @njit(cache=True)
 def predict_run_covariance(Phi, P, Qd, Ft, A, C):
     """One run's ``P <- Phi P Phi^T + Qd``, symmetrised, in place (``Phi``, ``P``, ``Qd``
-    ``(n, n)``; ``Ft``, ``A``, ``C`` ``(n, n)`` scratch); the zeros of ``Phi`` skipped."""
+    ``(n, n)``; ``Ft``, ``A``, ``C`` ``(n, n)`` scratch); the zeros of the left factor skipped
+    in each product (``Phi``'s in ``Phi P``)."""
     n = P.shape[0]
     for i in range(n):
         for j in range(n):
