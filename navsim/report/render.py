@@ -2,10 +2,10 @@
 its page of that PDF rasterised (PDFium, through ``pypdfium2``), not drawn a second time.
 
 A report of :data:`SPLIT_PAGES` pages or more is drawn by two processes where the system can
-fork and has two cores: a forked child writes every other page to a PDF of its own and
-rasterises their PNGs while this process does the others; the two are joined into one document
-by PDFium, the pages in their order (each page as it was drawn, the PNGs equal to the joined
-PDF's pages). A child that fails, or gives no answer within :data:`CHILD_TIMEOUT_S`, is ended
+fork and has two cores: the pages are shared by their expected cost, a forked child writes its
+share to a PDF of its own, hands it over and rasterises their PNGs while this process does the
+others; the two PDFs are joined into one document by PDFium, the pages in their order (each
+page as it was drawn, the PNGs equal to the joined PDF's pages). A child that fails, or gives no answer within :data:`CHILD_TIMEOUT_S`, is ended
 and its pages drawn here, so a failure is reported as the sequential path reports it.
 """
 
@@ -17,6 +17,9 @@ import multiprocessing
 import os
 import threading
 from pathlib import Path
+
+from matplotlib.lines import Line2D
+from matplotlib.text import Text
 
 from navsim.experiment.executors import die_with_parent
 from navsim.foundations.outputs import OutputFolder, temporary_name, write_atomic
@@ -39,6 +42,9 @@ SPLIT_PAGES = 6
 CHILD_TIMEOUT_S = 60.0
 #: how long a child that sent its pages may take to end, s
 CHILD_EXIT_S = 10.0
+#: a page's expected drawing time per text (its glyphs laid out in the PDF by matplotlib) and per
+#: point of its lines (rasterised by PDFium), s: P0's and P4's reports, measured page by page
+TEXT_COST_S, POINT_COST_S = 1e-3, 1e-5
 
 
 def render(folder: OutputFolder, pages: list[Page], fmts, title: str, pdf: str = "report.pdf") -> list[Path]:
@@ -121,27 +127,49 @@ class _Child:
                 temporary_name(path).unlink(missing_ok=True)
 
 
+def page_cost_s(page: Page) -> float:
+    """A page's expected drawing time, s: its texts (laid out glyph by glyph into the PDF) and
+    its lines' points (rasterised by PDFium), at :data:`TEXT_COST_S` and :data:`POINT_COST_S`."""
+    fig = page.figure
+    texts = sum(1 for t in fig.findobj(Text) if t.get_visible() and t.get_text())
+    points = sum(len(line.get_xdata()) for line in fig.findobj(Line2D) if line.get_visible())
+    return texts * TEXT_COST_S + points * POINT_COST_S
+
+
+def shares(costs: list[float]) -> tuple[list[int], list[int]]:
+    """The pages' indices for this process and for the child, each in order: the costliest page
+    first to the share with less so far (both shares have a page)."""
+    totals, out = [0.0, 0.0], ([], [])
+    for i in sorted(range(len(costs)), key=lambda i: -costs[i]):
+        k = 0 if totals[0] <= totals[1] else 1
+        out[k].append(i)
+        totals[k] += costs[i]
+    return sorted(out[0]), sorted(out[1])
+
+
 def _render_split(pages: list[Page], pngs: list[Path], title: str, save) -> None:
-    """The report drawn by two processes: every other page (the odd ones: a report's heavy pages
-    stand together) by a forked child, the even ones here; the two PDFs joined in order and
-    saved (``save(data)``, None: not asked for) before the PNGs are rasterised, each process its
-    own. What the child fails to do, or does not do in time, is done here."""
-    mine, theirs = slice(0, None, 2), slice(1, None, 2)
-    child, finished = _Child(pages[theirs], pngs[theirs], title), False
+    """The report drawn by two processes, the pages shared by their expected cost
+    (:func:`shares`): a forked child draws its share, this process the other; the two PDFs
+    joined in the pages' order and saved (``save(data)``, None: not asked for) before the PNGs
+    are rasterised, each process its own. What the child fails to do, or does not do in time,
+    is done here."""
+    mine, theirs = shares([page_cost_s(p) for p in pages])
+    pick = lambda xs, idx: [xs[i] for i in idx]
+    child, finished = _Child(pick(pages, theirs), pick(pngs, theirs) if pngs else [], title), False
     try:
-        first = _pdf_bytes(pages[mine], title)
+        first = _pdf_bytes(pick(pages, mine), title)
         second = child.message(CHILD_TIMEOUT_S)
         if second is None:
             child.end(False)
-            second = _pdf_bytes(pages[theirs], title)
+            second = _pdf_bytes(pick(pages, theirs), title)
         if save is not None:
-            save(_interleaved(first, second))
-        _write_pngs(first, pngs[mine])
+            save(_joined(first, second, theirs))
+        _write_pngs(first, pick(pngs, mine) if pngs else [])
         finished = not child.ended and child.message(CHILD_TIMEOUT_S) == _DONE
     finally:
         child.end(finished)
     if not finished:
-        _write_pngs(second, pngs[theirs])
+        _write_pngs(second, pick(pngs, theirs) if pngs else [])
 
 
 #: the child's last message: its PNGs are written
@@ -165,20 +193,20 @@ def _child(send, pages: list[Page], pngs: list[Path], title: str) -> None:
         os._exit(1)
 
 
-def _interleaved(first: bytes, second: bytes) -> bytes:
-    """Two PDFs as one, their pages taken in turn (the first's, the second's, ...), with the
-    metadata of ``first`` (PDFium: the second's pages imported in one call, so their shared fonts
-    once, then each moved to its place)."""
+def _joined(first: bytes, second: bytes, places: list[int]) -> bytes:
+    """Two PDFs as one: the pages of ``second`` at the indices ``places`` (increasing), those of
+    ``first`` in order around them, with the metadata of ``first`` (PDFium: the second's pages
+    imported in one call, so their shared fonts once, then each moved to its place)."""
     import pypdfium2
     import pypdfium2.raw as pdfium_c
     with _PDFIUM:
         doc, other = pypdfium2.PdfDocument(first), pypdfium2.PdfDocument(second)
         try:
-            k, m = len(doc), len(other)
+            k = len(doc)
             doc.import_pages(other)
-            for j in range(m):
-                if not pdfium_c.FPDF_MovePages(doc.raw, (ctypes.c_int * 1)(k + j), 1, 2 * j + 1):
-                    raise RuntimeError(f"PDFium could not move page {k + j} to {2 * j + 1}")
+            for j, place in enumerate(places):      # the earlier ones in place: page k + j is next
+                if not pdfium_c.FPDF_MovePages(doc.raw, (ctypes.c_int * 1)(k + j), 1, place):
+                    raise RuntimeError(f"PDFium could not move page {k + j} to {place}")
             buf = io.BytesIO()
             doc.save(buf)
         finally:

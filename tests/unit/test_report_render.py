@@ -162,3 +162,21 @@ def test_a_child_that_fails_after_its_pdf_leaves_its_pngs_to_this_process(tmp_pa
     monkeypatch.setattr(report, "_child", pdf_then_fail)
     report.render(OutputFolder(tmp_path / "out", command="run"), many_pages(), ["pdf", "png"], "t")
     _check_split_report(tmp_path / "out", 8)
+
+
+def test_the_pages_are_shared_by_cost_and_joined_in_order():
+    """The costliest pages first to the lighter share (both non-empty), the child's pages put
+    back at their places; a page full of points costs more than one of text."""
+    assert report.shares([5.0, 1.0, 1.0, 1.0, 1.0, 1.0]) == ([0], [1, 2, 3, 4, 5])
+    assert report.shares([1.0, 3.0, 2.0, 2.0]) == ([0, 1], [2, 3])
+    pages_ = many_pages(7)
+    dense = pages_[3].figure.axes[0]
+    dense.plot(np.arange(50_000), np.sin(np.arange(50_000)))
+    costs = [report.page_cost_s(p) for p in pages_]
+    assert costs[3] > 5 * max(costs[:3] + costs[4:])
+    places = [0, 3, 4, 6]
+    rest = [i for i in range(7) if i not in places]
+    joined = report._joined(report._pdf_bytes([pages_[i] for i in rest], "t"),
+                            report._pdf_bytes([pages_[i] for i in places], "t"), places)
+    doc = pypdfium2.PdfDocument(joined)
+    assert [doc[i].get_textpage().get_text_range().strip()[-6:] for i in range(7)] == [f"page {i}" for i in range(7)]
