@@ -89,8 +89,8 @@ def _save_pdf(path, data: bytes) -> None:
 
 
 class _Child:
-    """The forked process drawing every other page (:func:`_child`): its PDF first, then a
-    word when its PNGs are written; ended, its unfinished files removed, where it fails or
+    """The forked process drawing its share of the pages (:func:`_child`): its PDF first, then
+    a word when its PNGs are written; ended, its unfinished files removed, where it fails or
     hangs."""
 
     def __init__(self, pages: list[Page], pngs: list[Path], title: str):

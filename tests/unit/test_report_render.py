@@ -109,8 +109,8 @@ def _check_split_report(out, n):
 
 @split_only
 def test_a_long_report_is_drawn_in_two_halves_joined_in_order(tmp_path, monkeypatch):
-    """Eight pages: every other one drawn by a forked child (the PNG writer called once here),
-    the PDFs joined in the pages' order, every PNG the joined PDF's page."""
+    """Eight pages of one cost: every other one drawn by a forked child (the PNG writer called
+    once here), the PDFs joined in the pages' order, every PNG the joined PDF's page."""
     writers, write = [], report._write_pngs
     monkeypatch.setattr(report, "_write_pngs", lambda data, pngs: (writers.append(os.getpid()), write(data, pngs)))
     folder = OutputFolder(tmp_path / "out", command="run")
