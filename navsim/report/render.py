@@ -5,8 +5,9 @@ A report of :data:`SPLIT_PAGES` pages or more is drawn by two processes where th
 fork and has two cores: the pages are shared by their expected cost, a forked child writes its
 share to a PDF of its own, hands it over and rasterises their PNGs while this process does the
 others; the two PDFs are joined into one document by PDFium, the pages in their order (each
-page as it was drawn, the PNGs equal to the joined PDF's pages). A child that fails, or gives no answer within :data:`CHILD_TIMEOUT_S`, is ended
-and its pages drawn here, so a failure is reported as the sequential path reports it.
+page as it was drawn, the PNGs equal to the joined PDF's pages). A child that fails, or gives
+no answer within :data:`CHILD_TIMEOUT_S`, is ended and its pages drawn here, so a failure is
+reported as the sequential path reports it.
 """
 
 from __future__ import annotations

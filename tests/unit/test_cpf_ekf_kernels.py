@@ -133,7 +133,8 @@ class NumpyCpfEkf(CpfEkf):
             nu2, trace_S = np_innovation_test(self.x, self.P, z, r)
             self._count((nu2 > self.innovation_ratio * trace_S) & valid, t, "innovation")
         self.x, self.P, y, s = np_correct_mag(self.x, self.P, z, valid, r)
-        return Innovation("mag", self.mag, t, y, s[:, :, None] * np.eye(3), np.where(valid, np.sum(y * y / s, -1), np.nan))
+        nis = np.where(valid, np.sum(y * y / s, -1), np.nan)
+        return Innovation("mag", self.mag, t, y, s[:, :, None] * np.eye(3), nis)
 
     def _linear(self, name, sensor, t, rows, z, r, valid):
         self.x, self.P, y, S_, nis = np_linear(self.x, self.P, z, rows, r, valid)
@@ -234,7 +235,8 @@ def test_the_compiled_magnetometer_updates_and_test_equal_the_numpy_form(seed):
     kernels.correct_magnetometer(got_x, got_P, z, valid, 0.25, *out)
     y, S_, nis = out
     assert np.array_equal(S_, np.diagonal(S_, axis1=1, axis2=2)[:, :, None] * np.eye(3))
-    assert np.array_equal(np.isnan(nis), ~valid) and _close(nis[valid], np.sum(y * y / np.diagonal(S_, axis1=1, axis2=2), -1)[valid], 1e-15)
+    s_ii = np.diagonal(S_, axis1=1, axis2=2)
+    assert np.array_equal(np.isnan(nis), ~valid) and _close(nis[valid], np.sum(y * y / s_ii, -1)[valid], 1e-15)
     out = [y, np.diagonal(S_, axis1=1, axis2=2)]
     assert _close(got_x, ref[0], 1e-14), np.abs(got_x - ref[0]).max()
     ok, err = _close_cov(got_P, ref[1], 1e-12)

@@ -225,5 +225,5 @@ def euler_distance2(q1, q2, out):
         out[b] = s
 
 
-__all__ = ["AZ", "GAIN_NAMES", "MB0", "ME0", "N_STATES", "Q0", "S0", "V0", "WB0", "cpf_block", "cpf_ekf_block", "cpf_heading_error",
-           "dcm_of", "euler_angles", "euler_distance2"]
+__all__ = ["AZ", "GAIN_NAMES", "MB0", "ME0", "N_STATES", "Q0", "S0", "V0", "WB0", "cpf_block", "cpf_ekf_block",
+           "cpf_heading_error", "dcm_of", "euler_angles", "euler_distance2"]

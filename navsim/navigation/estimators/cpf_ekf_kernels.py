@@ -185,7 +185,8 @@ def renormalize_run(x, P, Jq, A):
         for j in range(n):
             P[Q0 + i, j] = A[i, j]
         for j in range(4):
-            P[Q0 + i, Q0 + j] = A[i, Q0] * Jq[j, 0] + A[i, Q0 + 1] * Jq[j, 1] + A[i, Q0 + 2] * Jq[j, 2] + A[i, Q0 + 3] * Jq[j, 3]
+            P[Q0 + i, Q0 + j] = (A[i, Q0] * Jq[j, 0] + A[i, Q0 + 1] * Jq[j, 1] + A[i, Q0 + 2] * Jq[j, 2]
+                                 + A[i, Q0 + 3] * Jq[j, 3])
     for i in range(4):                     # symmetrised: the quaternion block, its columns mirrored
         for j in range(i + 1, 4):
             v = 0.5 * (P[Q0 + i, Q0 + j] + P[Q0 + j, Q0 + i])
@@ -402,5 +403,6 @@ def navigation_covariance(x, P, pos_scale, P_nav):
                 P_nav[b, i, j] = c
 
 
-__all__ = ["NOISE_NAMES", "ORDER", "correct_linear", "correct_magnetometer", "flag_diverged", "innovation_test", "magnetometer_model",
-           "navigation_covariance", "predict_covariance", "renormalize_run", "rotation_jacobian", "scalar_joseph"]
+__all__ = ["NOISE_NAMES", "ORDER", "correct_linear", "correct_magnetometer", "flag_diverged", "innovation_test",
+           "magnetometer_model", "navigation_covariance", "predict_covariance", "renormalize_run", "rotation_jacobian",
+           "scalar_joseph"]
