@@ -4,14 +4,16 @@
 innovations (:func:`innovation_test`, eq. 20), the linear Kalman filter's GNSS and baro updates
 (:func:`correct_linear`, eq. 17-19), each correction followed by the quaternion's
 renormalisation with its covariance projected onto the sphere's tangent space
-(:func:`renormalize_run`), and the navigation covariance handed to the runner
-(:func:`navigation_covariance`).
+(:func:`renormalize_run`), the divergence flags (:func:`flag_diverged`) and the navigation
+covariance handed to the runner (:func:`navigation_covariance`).
 
 The formulas are :mod:`.cpf_ekf`'s (its module docstring): the Jacobians of ``C(q) f`` written
-out entry by entry, the series discretisation and the Joseph update the ES-KF's kernels
-(:mod:`navsim.navigation.kernels`). ``tests/unit/test_cpf_ekf_kernels.py`` holds each to the
-same formula written with numpy (dense batched products) to 1e-13 of the largest entry, a whole
-flight of the filter to the numpy filter, and a batch of 3 to 3 single runs bit for bit (with
+out entry by entry; the series discretisation is the ES-KF's kernel
+(:mod:`navsim.navigation.kernels`), ``Phi P Phi^T`` taken over ``Phi``'s nonzero entries; the
+linear updates are the ES-KF's Joseph update (``joseph_run``), the magnetometer's its evaluation
+for one row (:func:`scalar_joseph`). ``tests/unit/test_cpf_ekf_kernels.py`` holds each to the
+same formula written with numpy (dense batched products) to 1e-12 (a covariance entry by entry
+relative to ``sqrt(P_ii P_jj)``), a whole flight of the filter to the numpy filter, and a batch of 3 to 3 single runs bit for bit (with
 the magnetometer; ``tests/unit/test_attitude_filters.py`` on GNSS alone). A run's arithmetic
 never depends on the other runs.
 """
