@@ -155,8 +155,8 @@ def _render_split(pages: list[Page], pngs: list[Path], title: str, save) -> None
     are rasterised, each process its own. What the child fails to do, or does not do in time,
     is done here."""
     mine, theirs = shares([page_cost_s(p) for p in pages])
-    pick = lambda xs, idx: [xs[i] for i in idx]
-    child, finished = _Child(pick(pages, theirs), pick(pngs, theirs) if pngs else [], title), False
+    pick = lambda xs, idx: [xs[i] for i in idx] if xs else []          # no PNGs asked: none
+    child, finished = _Child(pick(pages, theirs), pick(pngs, theirs), title), False
     try:
         first = _pdf_bytes(pick(pages, mine), title)
         second = child.message(CHILD_TIMEOUT_S)
@@ -165,12 +165,12 @@ def _render_split(pages: list[Page], pngs: list[Path], title: str, save) -> None
             second = _pdf_bytes(pick(pages, theirs), title)
         if save is not None:
             save(_joined(first, second, theirs))
-        _write_pngs(first, pick(pngs, mine) if pngs else [])
+        _write_pngs(first, pick(pngs, mine))
         finished = not child.ended and child.message(CHILD_TIMEOUT_S) == _DONE
     finally:
         child.end(finished)
     if not finished:
-        _write_pngs(second, pick(pngs, theirs) if pngs else [])
+        _write_pngs(second, pick(pngs, theirs))
 
 
 #: the child's last message: its PNGs are written

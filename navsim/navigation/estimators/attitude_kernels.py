@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from navsim.foundations.compiled import njit
+from navsim.navigation.kernels.linalg import quat_dcm
 
 _OPTIONS = dict(cache=True, error_model="numpy")     # a diverged run gives NaN, as numpy does
 
@@ -158,12 +159,14 @@ def cpf_heading_error(q, m_b, valid, ref, gates, on_course, t, e_mag, heading_t,
     of the reference's. An accepted sample sets ``heading_t`` to ``t``; a rejected valid one
     counts in ``rejected``; ``e_mag`` ``(B, 3)`` becomes the body-frame error about the NED
     down axis (zero where rejected), except where ``on_course`` (the GNSS course steers)."""
+    C = np.empty((3, 3))
     for b in range(q.shape[0]):
         w, x, y, z = q[b, 0], q[b, 1], q[b, 2], q[b, 3]
         m0, m1, m2 = m_b[b, 0], m_b[b, 1], m_b[b, 2]
-        n0 = (1 - 2 * (y * y + z * z)) * m0 + 2 * (x * y - w * z) * m1 + 2 * (x * z + w * y) * m2
-        n1 = 2 * (x * y + w * z) * m0 + (1 - 2 * (x * x + z * z)) * m1 + 2 * (y * z - w * x) * m2
-        n2 = 2 * (x * z - w * y) * m0 + 2 * (y * z + w * x) * m1 + (1 - 2 * (x * x + y * y)) * m2
+        quat_dcm(w, x, y, z, C)
+        n0 = C[0, 0] * m0 + C[0, 1] * m1 + C[0, 2] * m2
+        n1 = C[1, 0] * m0 + C[1, 1] * m1 + C[1, 2] * m2
+        n2 = C[2, 0] * m0 + C[2, 1] * m1 + C[2, 2] * m2
         r0, r1, r2 = ref[b, 0], ref[b, 1], ref[b, 2]
         dpsi = math.atan2(n1, n0) - math.atan2(r1, r0)
         dpsi = (dpsi + math.pi) % (2 * math.pi) - math.pi
@@ -204,10 +207,7 @@ def dcm_of(q, out):
     """``C_nb`` ``(B, 3, 3)`` of the attitudes ``q`` ``(B, 4)`` into ``out`` (as
     :func:`navsim.foundations.transform.dcm_from_quat`, the same operations)."""
     for b in range(q.shape[0]):
-        w, x, y, z = q[b, 0], q[b, 1], q[b, 2], q[b, 3]
-        out[b, 0, 0], out[b, 0, 1], out[b, 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
-        out[b, 1, 0], out[b, 1, 1], out[b, 1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
-        out[b, 2, 0], out[b, 2, 1], out[b, 2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+        quat_dcm(q[b, 0], q[b, 1], q[b, 2], q[b, 3], out[b])
 
 
 @njit(**_OPTIONS)

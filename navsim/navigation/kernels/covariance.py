@@ -101,33 +101,23 @@ def predict(x, P, Phi, Qd):
     Ft = np.empty((n, n))
     xn = np.empty(n)
     for b in range(B):
-        Fb = Phi[b]
+        Fb, Pb = Phi[b], P[b]
         for i in range(n):
             s = 0.0
             for k in range(n):
                 s += Fb[i, k] * x[b, k]
             xn[i] = s
+            for j in range(n):
+                Ft[i, j] = Fb[j, i]
         for i in range(n):             # element by element (see linalg)
             x[b, i] = xn[i]
-        predict_run_covariance(Fb, P[b], Qd[b], Ft, A, C)
-
-
-@njit(cache=True)
-def predict_run_covariance(Phi, P, Qd, Ft, A, C):
-    """One run's ``P <- Phi P Phi^T + Qd``, symmetrised, in place (``Phi``, ``P``, ``Qd``
-    ``(n, n)``; ``Ft``, ``A``, ``C`` ``(n, n)`` scratch); the zeros of the left factor skipped
-    in each product (``Phi``'s in ``Phi P``)."""
-    n = P.shape[0]
-    for i in range(n):
-        for j in range(n):
-            Ft[i, j] = Phi[j, i]
-    _matmul(Phi, P, A)
-    _matmul(A, Ft, C)
-    for i in range(n):
-        for j in range(i, n):
-            v = 0.5 * ((C[i, j] + Qd[i, j]) + (C[j, i] + Qd[j, i]))
-            P[i, j] = v
-            P[j, i] = v
+        _matmul(Fb, Pb, A)
+        _matmul(A, Ft, C)
+        for i in range(n):
+            for j in range(i, n):
+                v = 0.5 * ((C[i, j] + Qd[b, i, j]) + (C[j, i] + Qd[b, j, i]))
+                Pb[i, j] = v
+                Pb[j, i] = v
 
 
 @njit(cache=True)

@@ -1,6 +1,7 @@
 """The small dense linear algebra the Kalman kernels share, per run: a product that skips the
 zeros of its left factor (:func:`_matmul`), the symmetric part in place (:func:`_symmetrize`),
-a copy (:func:`_copy`) and a solve by Gaussian elimination with partial pivoting (:func:`_solve`).
+a copy (:func:`_copy`), a solve by Gaussian elimination with partial pivoting (:func:`_solve`)
+and the rotation matrix of a quaternion (:func:`quat_dcm`).
 
 The kernels copy arrays element by element, never by a slice (``A[:, :] = S``): a slice copy
 between arrays makes numba compile its shape-mismatch error, string formatting and all, about
@@ -79,3 +80,12 @@ def _solve(S, Y, A, X):
                 s -= A[c, k] * X[k, j]
             X[c, j] = s / d
     return True
+
+
+@njit(cache=True)
+def quat_dcm(w, x, y, z, C):
+    """``C_nb`` ``(3, 3)`` of ``q_nb = (w, x, y, z)`` into ``C``: the compiled twin of
+    :func:`navsim.foundations.transform.dcm_from_quat`, its operations in its order."""
+    C[0, 0], C[0, 1], C[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
+    C[1, 0], C[1, 1], C[1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
+    C[2, 0], C[2, 1], C[2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)

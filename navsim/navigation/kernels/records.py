@@ -10,7 +10,7 @@ import numpy as np
 
 from navsim.foundations.compiled import njit
 from navsim.navigation.kernels.earth import radii
-from navsim.navigation.kernels.linalg import _solve
+from navsim.navigation.kernels.linalg import _solve, quat_dcm
 
 
 @njit(cache=True)
@@ -29,10 +29,7 @@ def nav_errors(lat, lon, h, vel, C, truth, out):
     Ct = np.empty((3, 3))
     for b in range(B):
         t = 0 if truth.shape[0] == 1 else b
-        w, x, y, z = truth[t, 9], truth[t, 10], truth[t, 11], truth[t, 12]
-        Ct[0, 0], Ct[0, 1], Ct[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
-        Ct[1, 0], Ct[1, 1], Ct[1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
-        Ct[2, 0], Ct[2, 1], Ct[2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+        quat_dcm(truth[t, 9], truth[t, 10], truth[t, 11], truth[t, 12], Ct)
         for i in range(3):
             for j in range(3):
                 E[i, j] = C[b, i, 0] * Ct[j, 0] + C[b, i, 1] * Ct[j, 1] + C[b, i, 2] * Ct[j, 2]
