@@ -39,8 +39,10 @@ A multirotor (a ``hover`` start) flies its cascade controller (:mod:`navsim.flig
 on the solution's position, velocity and attitude and the gyros' measured rates; its return is
 a ``goto`` to the recovery point and a ``land`` there.
 
-JSBSim holds one aircraft per instance, so the physics and the scalar autopilot step each run
-in turn; sensors and estimators are batched over the runs.
+JSBSim holds one aircraft per instance, so the physics steps each run in turn; a fixed wing's
+sensing, failure checks, segments and autopilot step every run of the batch in one compiled call
+(:mod:`navsim.flight.fleet`), sensors and estimators are batched over the runs. A run that has
+ended (landed, flown its track, failed) is no longer flown.
 """
 
 from __future__ import annotations
@@ -53,12 +55,12 @@ import numpy as np
 from navsim.experiment.driver import Driver, perturbed_start
 from navsim.flight import properties as P
 from navsim.flight.airframe import MULTIROTOR
-from navsim.flight.autopilot import Sensed
 from navsim.flight.environment import steady_wind_n_mps
 from navsim.flight.multirotor import MultirotorState
 from navsim.flight.rotorcraft import Rotorcraft, RotorSegments, check_row
-from navsim.flight.segments import State
-from navsim.flight.simulator import Aircraft, Watchdog, load_limits
+from navsim.flight.fleet import (ABORT, FAILS, NOT_STARTED, STEPPED, FleetArrays, Watchdog, failure, finish_step,
+                                 fleet_arrays, fleet_step, resume, state_of)
+from navsim.flight.simulator import Aircraft, load_limits
 from navsim.flight.track import LAND_RATE_MPS, Segment
 from navsim.flight.truth import Pose, Truth, truth_from_rows
 from navsim.foundations.config import MAX_DURATION_S, Node, close_match
@@ -252,6 +254,8 @@ class _Fleet:
     #: the setpoint it flies (its last one once they are flown); empty for a fixed wing
     rotor_segments: list
     setpoints: list
+    #: a fixed wing's: the arrays its aircraft are stepped through (:mod:`navsim.flight.fleet`)
+    arrays: FleetArrays | None = None
 
 
 @dataclass(frozen=True)
@@ -312,9 +316,14 @@ def _fleet(scenario, seed: int, runs: list) -> _Fleet:
         craft = [Aircraft(fc) for _ in runs]
         watch, segments = [Watchdog(c.limits, dt) for c in craft], []
     point, goto = _recovery(cl.return_to_land, craft[0])
+    arrays = None
+    if airframe.kind != MULTIROTOR:
+        rtl = cl.return_to_land
+        arrays = fleet_arrays(craft, watch, rtl.lost_s if rtl is not None else math.inf)
+        arrays.flying[:] = rtl is not None
     return _Fleet(runs=runs, dt=dt, n_max=n_max, craft=craft, watch=watch, imu_cfg=imu_cfg,
                   imu_err=imu_err, sensors=sensors, rtl=cl.return_to_land, point=point, goto=goto,
-                  rotor_segments=segments, setpoints=[None] * len(craft))
+                  rotor_segments=segments, setpoints=[None] * len(craft), arrays=arrays)
 
 
 def _start_navigation(scenario, seed: int, fleet: _Fleet, estimators: dict, rows: np.ndarray) -> tuple:
@@ -365,42 +374,6 @@ def _record(fleet: _Fleet, tally: _Tally, rows: np.ndarray, k: int, t: float, pa
             tally.last_fix[g.valid[:, k // g.meta["step"]]] = t
 
 
-def _sense(s: State, row: np.ndarray, c0, guide, b: int, t: float) -> tuple:
-    """Fill run ``b``'s segment State from its truth ``row`` or, given ``guide``
-    (:func:`_guidance`), from the navigation; return the climb rate, roll and pitch held."""
-    s.t = t
-    s.tas = row[P.COL_TAS]
-    if guide is None:
-        s.north = (row[P.COL_LAT] - c0.lat0) * c0.k_north
-        s.east = (row[P.COL_LON] - c0.lon0) * c0.k_east
-        s.h, vn, ve = row[P.COL_H], row[P.COL_VN], row[P.COL_VE]
-        s.course, s.ground_speed = math.atan2(ve, vn), math.hypot(vn, ve)
-        return -row[P.COL_VD], row[P.COL_ROLL], row[P.COL_PITCH]
-    s.north, s.east, s.h, s.course, s.ground_speed = (guide[0][b], guide[1][b], guide[2][b],
-                                                      guide[3][b], guide[4][b])
-    return guide[5][b], guide[6][b], guide[7][b]
-
-
-def _follow(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, s: State, t: float) -> None:
-    """Run ``b``'s segments for one step: abort on a lost fix, note the end of the track or
-    the landing. Raises FlightError."""
-    c0, runner, st = fleet.craft[0], fleet.craft[b].runner, tally.status
-    reason = fleet.watch[b].check(row)
-    if reason is not None:
-        raise runner.fail(reason, s)
-    if st[b] == "flying" and fleet.rtl is not None and t - tally.last_fix[b] > fleet.rtl.lost_s:
-        st[b], tally.abort_t[b] = "aborted", t
-        runner.segments, runner.index, runner.finished = [fleet.goto], -1, False
-    if runner.index < 0:
-        runner.next(s)
-    if runner.finished:
-        return
-    runner.update(s, fleet.dt)
-    if not runner.finished:
-        return
-    _ended(tally, b, row, c0, (s.north, s.east), t)
-
-
 def _ended(tally: _Tally, b: int, row: np.ndarray, c0, est_ne: tuple, t: float) -> None:
     """Run ``b`` has flown its segments at ``t``: landed where its truth ``row`` is (the
     navigation putting it at ``est_ne``, north and east) if it was returning, else its track
@@ -414,25 +387,57 @@ def _ended(tally: _Tally, b: int, row: np.ndarray, c0, est_ne: tuple, t: float) 
         tally.status[b] = "completed"
 
 
-def _step_run(fleet: _Fleet, tally: _Tally, b: int, row: np.ndarray, s: State, guide, t: float) -> None:
-    """One step of run ``b``: segments, failure checks, autopilot and physics."""
-    climb, roll, pitch = _sense(s, row, fleet.craft[0], guide, b, t)
-    c = fleet.craft[b]
+def _step_fleet(fleet: _Fleet, tally: _Tally, nav, t: float) -> None:
+    """One step of the fixed-wing runs still flying (on the truth, or ``nav``, the navigation
+    solution): failure checks, segments and autopilot in one compiled call
+    (:func:`~navsim.flight.fleet.fleet_step`), what is rare in :func:`_resolve`; then each
+    aircraft's physics."""
+    f, dt = fleet.arrays, fleet.dt
+    if nav is not None:
+        f.nav_llh[:, 0], f.nav_llh[:, 1], f.nav_llh[:, 2] = nav.lat_rad, nav.lon_rad, nav.h_m
+        f.nav_vel[:], f.nav_C[:] = nav.vel_n_mps, nav.C_nb
+    f.on_nav[0] = nav is not None
+    f.last_fix[:] = tally.last_fix
+    if fleet_step(f, t, dt):
+        for b in np.flatnonzero(f.live & (f.code != STEPPED)).tolist():
+            _resolve(fleet, tally, b, t)
+    if tally.kept is not None and tally.status[0] != "failed" and (f.live[0] or tally.end_t[0] == t):
+        runner = fleet.craft[0].runner
+        tally.kept.append(f.rows[0].copy())
+        tally.seg_kept.append(len(fleet.craft[0].config.track.segments) if tally.status[0] in ("aborted", "landed")
+                              else runner.index - 1 if runner.finished else runner.index)
+    controls = f.controls.tolist()
+    for b in np.flatnonzero(f.live).tolist():
+        c = fleet.craft[b]
+        c.io.set_controls(*controls[b])
+        c.set_wind_at(t + dt)
+        c.io.run()
+
+
+def _resolve(fleet: _Fleet, tally: _Tally, b: int, t: float) -> None:
+    """Act on what :func:`~navsim.flight.fleet.fleet_step` stopped run ``b`` for: a failure, the
+    mission abandoned on a lost fix (the segments replaced by the way back), the segments started
+    or gone on to the next, the run's end; then finish its step."""
+    f, c0, runner, st = fleet.arrays, fleet.craft[0], fleet.craft[b].runner, tally.status
+    code, s = int(f.code[b]), state_of(f, b)
     try:
-        _follow(fleet, tally, b, row, s, t)
+        if code in FAILS:
+            raise runner.fail(failure(code, f.rows[b]), s)
+        if code == ABORT:
+            st[b], tally.abort_t[b], f.flying[b] = "aborted", t, False
+            runner.segments, runner.index, runner.finished = [fleet.goto], -1, False
+            code = NOT_STARTED
+        resume(runner, s, code, fleet.dt)
     except FlightError as exc:
-        tally.status[b], tally.fail_t[b], tally.end_t[b] = "failed", t, t
+        st[b], tally.fail_t[b], tally.end_t[b] = "failed", t, t
         tally.failed[fleet.runs[b]] = str(exc)
+        f.live[b] = f.flying[b] = False
         return
-    if tally.kept is not None and b == 0:
-        runner = c.runner
-        tally.kept.append(row.copy())
-        tally.seg_kept.append(len(c.config.track.segments) if tally.status[0] in ("aborted", "landed") else
-                              runner.index - 1 if runner.finished else runner.index)
-    c.io.set_controls(*c.ap.step(fleet.dt, Sensed(row[P.COL_TAS], s.h, climb, roll, pitch, row[P.COL_P], row[P.COL_Q],
-                                                  row[P.COL_BETA], s.course)))
-    c.set_wind_at(t + fleet.dt)
-    c.io.run()
+    if runner.finished:
+        _ended(tally, b, f.rows[b], c0, (s.north, s.east), t)
+        f.live[b] = f.flying[b] = False
+    else:
+        finish_step(f, b, fleet.dt)
 
 
 #: the landing that ends a multirotor's return home, at a track's default rate
@@ -506,11 +511,11 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
     fleet = _fleet(scenario, seed, list(runs))
     estimators = {e.label: factory.build(e) for e in scenario.estimators}   # looked up at the call
     driver = None if (on_truth or cl.fly_on == "truth") else estimators[cl.fly_on]
-    craft, c0 = fleet.craft, fleet.craft[0]
-    rows = np.array([c.io.read_row() for c in craft])
+    craft = fleet.craft
+    rows = fleet.arrays.rows if fleet.arrays is not None else np.zeros((len(craft), len(P.RAW_PROPERTIES)))
+    rows[:] = [c.io.read_row() for c in craft]
     loop, inc = _start_navigation(scenario, seed, fleet, estimators, rows)
     path_every = min(loop.every.values())
-    states = [State() for _ in craft]
     tally = _Tally.empty(len(craft), keep_truth)
     status = tally.status
     for k in range(fleet.n_max):
@@ -523,15 +528,14 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
                 if status[b] != "failed":
                     _step_rotor(fleet, tally, b, rows[b], nav, omega[b], t)
         else:
-            guide = _guidance(nav, c0) if nav is not None else None
-            for b in range(len(craft)):
-                if status[b] != "failed":
-                    _step_run(fleet, tally, b, rows[b], states[b], guide, t)
+            _step_fleet(fleet, tally, nav, t)
         if all(st in ("landed", "completed", "failed") for st in status):
             break
         if progress is not None and k % 1000 == 0:
             progress(t, cl.time_limit_s)
-        rows = np.array([c.io.read_row() if status[b] != "failed" else rows[b] for b, c in enumerate(craft)])
+        live = fleet.arrays.live if fleet.arrays is not None else [st != "failed" for st in status]
+        for b in np.flatnonzero(live).tolist():
+            rows[b] = craft[b].io.read_row()
     return _batch(scenario.flight, fleet, tally, loop.histories())
 
 

@@ -1,4 +1,4 @@
-"""Closed-loop autopilot and lateral guidance, in scalar Python for the 100 Hz loop.
+"""Closed-loop autopilot and lateral guidance, compiled for the 100 Hz loop of one aircraft or a fleet.
 
 Loops (all commands normalised, surfaces -1..1 map to +/-25 deg):
 
@@ -21,8 +21,13 @@ course 0.4 rad/s and airspeed 0.3 rad/s.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import NamedTuple
+
+import numpy as np
+
+from navsim.foundations.compiled import njit
+from navsim.foundations.pymath import py_hypot, py_pow
 
 G = 9.80665
 
@@ -60,7 +65,8 @@ class Gains:
 
 class Sensed(NamedTuple):
     """What the autopilot reads of the aircraft at a step (SI): true airspeed, height, climb
-    rate, roll and pitch, roll and pitch rates, sideslip and course over the ground."""
+    rate, roll and pitch, roll and pitch rates, sideslip and course over the ground. A fleet's
+    kernels hold it as an array of these fields in this order (:data:`SENSED_FIELDS`)."""
 
     tas: float        #: m/s
     h: float          #: m
@@ -73,8 +79,129 @@ class Sensed(NamedTuple):
     course: float     #: rad
 
 
+SENSED_FIELDS = Sensed._fields
+S_TAS, S_H, S_CLIMB, S_ROLL, S_PITCH, S_P, S_Q, S_BETA, S_COURSE = range(len(SENSED_FIELDS))
+
+#: the autopilot's state, one float each in this order (a run's row of a fleet's array):
+#: commands, the integrators, the idle flag (1.0: throttle at idle); a hold of NaN is none
+AP_FIELDS = ("speed_cmd", "alt_cmd", "climb_rate", "course_cmd", "bank_ff", "bank_cmd", "pitch_cmd",
+             "pitch_hold", "throttle_hold", "i_speed", "i_climb", "i_pitch", "i_roll", "i_beta", "idle")
+(SPEED_CMD, ALT_CMD, CLIMB_RATE, COURSE_CMD, BANK_FF, BANK_CMD, PITCH_CMD, PITCH_HOLD, THROTTLE_HOLD,
+ I_SPEED, I_CLIMB, I_PITCH, I_ROLL, I_BETA, IDLE) = range(len(AP_FIELDS))
+_HOLDS = (PITCH_HOLD, THROTTLE_HOLD)
+_AP_START = {"speed_cmd": 14.0, "alt_cmd": 100.0, "pitch_hold": math.nan, "throttle_hold": math.nan}
+
+#: the gains as the kernels read them: :class:`Gains`' fields in order, then the exponent 2.0
+#: that :func:`~navsim.foundations.pymath.py_pow` reads at run time
+_GAIN = {f.name: i for i, f in enumerate(fields(Gains))}
+(V_REF, KP_SPEED, KI_SPEED, FF_CLIMB, K_ALT, CLIMB_MAX, KP_CLIMB, KI_CLIMB, K_OVERSPEED, OVERSPEED_MARGIN,
+ PITCH_MAX, PITCH_MIN, KP_PITCH, KI_PITCH, KD_PITCH, K_COURSE, BANK_MAX, KP_ROLL, KI_ROLL, KD_ROLL,
+ KP_BETA, KI_BETA, K_PATH, CHI_INF, K_ORBIT) = (_GAIN[f.name] for f in fields(Gains))
+SQUARE = len(_GAIN)
+
+
+def gains_array(g: Gains) -> np.ndarray:
+    """``g`` as the kernels read it (see :data:`SQUARE`)."""
+    return np.array([getattr(g, f.name) for f in fields(Gains)] + [2.0])
+
+
+@njit(cache=True)
+def _clip(x: float, lo: float, hi: float) -> float:
+    return min(max(x, lo), hi)
+
+
+@njit(cache=True)
+def _vertical(g, x, s, dt: float, v: float, sched: float) -> tuple:
+    """Altitude -> climb rate -> pitch -> elevator: the elevator and the commanded climb rate."""
+    err_h = x[ALT_CMD] - s[S_H]
+    lim = x[CLIMB_RATE] if x[CLIMB_RATE] > 0.0 else g[CLIMB_MAX]
+    climb_cmd = _clip(g[K_ALT] * err_h, -lim, lim)
+    over = s[S_TAS] - x[SPEED_CMD] - g[OVERSPEED_MARGIN]
+    if x[IDLE] != 0.0 and climb_cmd < 0.0 and over > 0.0:
+        # at idle throttle nothing else slows a descent: give up sink rate for speed
+        climb_cmd = min(climb_cmd + g[K_OVERSPEED] * over, 0.0)
+    err_climb = climb_cmd - s[S_CLIMB]
+    gamma_ff = math.asin(_clip(climb_cmd / v, -0.5, 0.5))
+    if not math.isnan(x[PITCH_HOLD]):
+        pitch_cmd = x[PITCH_HOLD]
+    else:
+        pitch_cmd = gamma_ff + x[I_CLIMB] + g[KP_CLIMB] * err_climb
+        if g[PITCH_MIN] < pitch_cmd < g[PITCH_MAX]:
+            x[I_CLIMB] += g[KI_CLIMB] * err_climb * dt
+        pitch_cmd = _clip(pitch_cmd, g[PITCH_MIN], g[PITCH_MAX])
+    x[PITCH_CMD] = pitch_cmd
+    err_pitch = pitch_cmd - s[S_PITCH]
+    elev = -sched * (g[KP_PITCH] * err_pitch + x[I_PITCH] - g[KD_PITCH] * s[S_Q])
+    if -1.0 < elev < 1.0:
+        x[I_PITCH] += g[KI_PITCH] * err_pitch * dt
+    return _clip(elev, -1.0, 1.0), climb_cmd
+
+
+@njit(cache=True)
+def _throttle(g, x, s, dt: float, climb_cmd: float) -> float:
+    """Speed -> throttle (with the climb-rate feed-forward)."""
+    err_v = x[SPEED_CMD] - s[S_TAS]
+    if not math.isnan(x[THROTTLE_HOLD]):
+        return x[THROTTLE_HOLD]
+    thr = x[I_SPEED] + g[KP_SPEED] * err_v + g[FF_CLIMB] * climb_cmd
+    if 0.0 < thr < 1.0 or (thr >= 1.0 and err_v < 0) or (thr <= 0.0 and err_v > 0):
+        x[I_SPEED] += g[KI_SPEED] * err_v * dt
+    x[IDLE] = 1.0 if thr <= 0.0 else 0.0
+    return _clip(thr, 0.0, 1.0)
+
+
+@njit(cache=True)
+def _lateral(g, x, s, dt: float, sched: float) -> tuple:
+    """Course -> bank -> aileron, and sideslip -> rudder (turn coordination)."""
+    err_course = (x[COURSE_CMD] - s[S_COURSE] + math.pi) % (2.0 * math.pi) - math.pi
+    bank_cmd = _clip(x[BANK_FF] + g[K_COURSE] * err_course, -g[BANK_MAX], g[BANK_MAX])
+    x[BANK_CMD] = bank_cmd
+    err_roll = bank_cmd - s[S_ROLL]
+    ail = sched * (g[KP_ROLL] * err_roll + x[I_ROLL] - g[KD_ROLL] * s[S_P])
+    if -1.0 < ail < 1.0:
+        x[I_ROLL] += g[KI_ROLL] * err_roll * dt
+    ail = _clip(ail, -1.0, 1.0)
+    rud = -sched * (g[KP_BETA] * s[S_BETA] + x[I_BETA])
+    if -1.0 < rud < 1.0:
+        x[I_BETA] += g[KI_BETA] * s[S_BETA] * dt
+    return ail, _clip(rud, -1.0, 1.0)
+
+
+@njit(cache=True)
+def autopilot_step(g: np.ndarray, x: np.ndarray, s: np.ndarray, dt: float, out: np.ndarray) -> None:
+    """One update of ``dt`` seconds of the autopilot state ``x`` (:data:`AP_FIELDS`, in place)
+    with gains ``g`` (:func:`gains_array`) on the sensed state ``s`` (:data:`SENSED_FIELDS`):
+    ``out`` gets the (elevator, aileron, rudder, throttle) normalised commands."""
+    v = max(s[S_TAS], 5.0)
+    sched = _clip(py_pow(g[V_REF] / v, g[SQUARE:]), 0.3, 3.0)
+    out[0], climb_cmd = _vertical(g, x, s, dt, v, sched)
+    out[3] = _throttle(g, x, s, dt, climb_cmd)
+    out[1], out[2] = _lateral(g, x, s, dt, sched)
+
+
+class ArrayField:
+    """One entry of an object's float array ``x`` (a kernel's state) as a Python attribute:
+    read as a float (``kind`` "hold": NaN reads None; "flag": a bool), written as a float."""
+
+    def __init__(self, index: int, kind: str = "float"):
+        self.index, self.kind = index, kind
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self
+        v = float(obj.x[self.index])
+        if self.kind == "hold":
+            return None if math.isnan(v) else v
+        return bool(v) if self.kind == "flag" else v
+
+    def __set__(self, obj, value) -> None:
+        obj.x[self.index] = math.nan if value is None else float(value)
+
+
 class Autopilot:
-    """State of the loops (integrators) and the current commands.
+    """State of the loops (integrators) and the current commands, held in the float array
+    ``x`` (:data:`AP_FIELDS`; a fleet's kernels step many at once, each a row of one array)
+    and read and written here as attributes.
 
     The guidance modes set ``course_cmd`` and ``bank_ff``; the vertical mode sets either an
     altitude to hold (``alt_cmd``) or a climb rate (``climb_cmd``) towards ``alt_cmd``.
@@ -83,104 +210,37 @@ class Autopilot:
 
     def __init__(self, gains: Gains | None = None):
         self.g = gains or Gains()
-        self.speed_cmd = 14.0
-        self.alt_cmd = 100.0
-        self.climb_rate = 0.0          # >0: climb or descend to alt_cmd at this rate
-        self.course_cmd = 0.0
-        self.bank_ff = 0.0
-        self.bank_cmd = 0.0
-        self.pitch_cmd = 0.0
-        self.pitch_hold: float | None = None
-        self.throttle_hold: float | None = None
-        self.i_speed = 0.0
-        self.i_climb = 0.0
-        self.i_pitch = 0.0
-        self.i_roll = 0.0
-        self.i_beta = 0.0
-        self.idle = False
+        self.gains = gains_array(self.g)
+        self.x = np.array([_AP_START.get(name, 0.0) for name in AP_FIELDS])
+        self._out = np.zeros(4)
 
     def step(self, dt: float, s: "Sensed") -> tuple[float, float, float, float]:
         """One update of ``dt`` seconds on the aircraft's state ``s``; returns (elevator,
         aileron, rudder, throttle) normalised commands."""
-        v = max(s.tas, 5.0)
-        sched = min(max((self.g.v_ref_mps / v) ** 2, 0.3), 3.0)
-        elev, climb_cmd = self._vertical(dt, s, v, sched)
-        thr = self._throttle(dt, s, climb_cmd)
-        ail, rud = self._lateral(dt, s, sched)
+        autopilot_step(self.gains, self.x, np.array(s, dtype=float), dt, self._out)
+        elev, ail, rud, thr = self._out.tolist()
         return elev, ail, rud, thr
 
-    def _vertical(self, dt: float, s: "Sensed", v: float, sched: float) -> tuple[float, float]:
-        """Altitude -> climb rate -> pitch -> elevator: the elevator and the commanded climb rate."""
-        g = self.g
-        err_h = self.alt_cmd - s.h
-        if self.climb_rate > 0.0:
-            lim = self.climb_rate
-        else:
-            lim = g.climb_max_mps
-        climb_cmd = min(max(g.k_alt * err_h, -lim), lim)
-        over = s.tas - self.speed_cmd - g.overspeed_margin_mps
-        if self.idle and climb_cmd < 0.0 and over > 0.0:
-            # at idle throttle nothing else slows a descent: give up sink rate for speed
-            climb_cmd = min(climb_cmd + g.k_overspeed * over, 0.0)
-        err_climb = climb_cmd - s.climb
-        gamma_ff = math.asin(min(max(climb_cmd / v, -0.5), 0.5))
-        if self.pitch_hold is not None:
-            pitch_cmd = self.pitch_hold
-        else:
-            pitch_cmd = gamma_ff + self.i_climb + g.kp_climb * err_climb
-            if g.pitch_min_rad < pitch_cmd < g.pitch_max_rad:
-                self.i_climb += g.ki_climb * err_climb * dt
-            pitch_cmd = min(max(pitch_cmd, g.pitch_min_rad), g.pitch_max_rad)
-        self.pitch_cmd = pitch_cmd
-        err_pitch = pitch_cmd - s.pitch
-        elev = -sched * (g.kp_pitch * err_pitch + self.i_pitch - g.kd_pitch * s.q)
-        if -1.0 < elev < 1.0:
-            self.i_pitch += g.ki_pitch * err_pitch * dt
-        return min(max(elev, -1.0), 1.0), climb_cmd
 
-    def _throttle(self, dt: float, s: "Sensed", climb_cmd: float) -> float:
-        """Speed -> throttle (with the climb-rate feed-forward)."""
-        g = self.g
-        err_v = self.speed_cmd - s.tas
-        if self.throttle_hold is not None:
-            return self.throttle_hold
-        thr = self.i_speed + g.kp_speed * err_v + g.ff_climb * climb_cmd
-        if 0.0 < thr < 1.0 or (thr >= 1.0 and err_v < 0) or (thr <= 0.0 and err_v > 0):
-            self.i_speed += g.ki_speed * err_v * dt
-        self.idle = thr <= 0.0
-        return min(max(thr, 0.0), 1.0)
-
-    def _lateral(self, dt: float, s: "Sensed", sched: float) -> tuple[float, float]:
-        """Course -> bank -> aileron, and sideslip -> rudder (turn coordination)."""
-        g = self.g
-        err_course = (self.course_cmd - s.course + math.pi) % (2.0 * math.pi) - math.pi
-        bank_cmd = self.bank_ff + g.k_course * err_course
-        bank_cmd = min(max(bank_cmd, -g.bank_max_rad), g.bank_max_rad)
-        self.bank_cmd = bank_cmd
-        err_roll = bank_cmd - s.roll
-        ail = sched * (g.kp_roll * err_roll + self.i_roll - g.kd_roll * s.p)
-        if -1.0 < ail < 1.0:
-            self.i_roll += g.ki_roll * err_roll * dt
-        ail = min(max(ail, -1.0), 1.0)
-        rud = -sched * (g.kp_beta * s.beta + self.i_beta)
-        if -1.0 < rud < 1.0:
-            self.i_beta += g.ki_beta * s.beta * dt
-        return ail, min(max(rud, -1.0), 1.0)
+for _i, _name in enumerate(AP_FIELDS):
+    setattr(Autopilot, _name, ArrayField(_i, "hold" if _i in _HOLDS else "flag" if _i == IDLE else "float"))
 
 
-def line_course(g: Gains, north: float, east: float, n0: float, e0: float,
-                chi_line: float) -> tuple[float, float]:
+@njit(cache=True)
+def line_course(g: np.ndarray, north: float, east: float, n0: float, e0: float,
+                chi_line: float) -> tuple:
     """Course command and cross-track error (m, + right of the line) to follow the straight
-    line through ``(n0, e0)`` with course ``chi_line``."""
+    line through ``(n0, e0)`` with course ``chi_line`` (``g``: :func:`gains_array`)."""
     cross = -math.sin(chi_line) * (north - n0) + math.cos(chi_line) * (east - e0)
-    return chi_line - g.chi_inf_rad * (2.0 / math.pi) * math.atan(g.k_path * cross), cross
+    return chi_line - g[CHI_INF] * (2.0 / math.pi) * math.atan(g[K_PATH] * cross), cross
 
 
-def orbit_course(g: Gains, north: float, east: float, cn: float, ce: float, radius: float,
-                 direction: int) -> tuple[float, float]:
+@njit(cache=True)
+def orbit_course(g: np.ndarray, north: float, east: float, cn: float, ce: float, radius: float,
+                 direction: float) -> tuple:
     """Course command and radial error (m) to orbit ``(cn, ce)`` at ``radius``; ``direction``
-    +1 clockwise (right turns), -1 anticlockwise."""
-    d = math.hypot(north - cn, east - ce)
+    +1 clockwise (right turns), -1 anticlockwise (``g``: :func:`gains_array`)."""
+    d = py_hypot(north - cn, east - ce)
     phase = math.atan2(east - ce, north - cn)
-    chi = phase + direction * (0.5 * math.pi + math.atan(g.k_orbit * (d - radius) / radius))
+    chi = phase + direction * (0.5 * math.pi + math.atan(g[K_ORBIT] * (d - radius) / radius))
     return chi, d - radius

@@ -21,6 +21,8 @@ from navsim.flight.airframe import (ENVELOPE_FILE, MULTIROTOR, FixedWing, Multir
                                    load_airframe, model_location)
 from navsim.flight.autopilot import Autopilot, Gains, Sensed
 from navsim.flight.environment import Environment, steady_wind_n_mps
+from navsim.flight.fleet import (FAILS, Watchdog, failure, finish_step, fleet_arrays, fleet_step, resume,
+                                 state_of)
 from navsim.flight.rotorcraft import fly_rotorcraft
 from navsim.flight.segments import SegmentRunner, State
 from navsim.flight.track import Start, Track, check_segments, nominal_duration_s
@@ -30,13 +32,8 @@ from navsim.foundations.errors import FlightError
 
 SETTLE_S = 30.0          #: air start: seconds flown before the track to settle the trim
 SPINUP_S = 2.0           #: seconds the motor runs up with the airframe held
-#: how long a steady wind above the airspeed is flown before the flight fails, s
-WIND_PERSIST_S = 10.0
-STALL_PERSIST_S = 1.0    #: alpha above stall for this long is a stall
 #: the aircraft flown where none is named (a shipped folder of ``aircraft/``)
 DEFAULT_AIRCRAFT = "survey10"
-MAX_ROLL_RAD = math.radians(75.0)
-MAX_PITCH_RAD = math.radians(50.0)
 
 
 @dataclass
@@ -149,50 +146,6 @@ class Aircraft:
         self.turbulence_pending = False
 
 
-class Watchdog:
-    """The failure checks of every step, on the true state: NaN, ground or sea impact, stall
-    (angle of attack above the stall for :data:`STALL_PERSIST_S`), loss of control, a steady
-    wind above the airspeed (for :data:`WIND_PERSIST_S`: the aircraft cannot make way)."""
-
-    def __init__(self, limits: FixedWing, dt: float):
-        self.stall_alpha = math.radians(limits.stall_alpha_deg + 1.0)
-        self.stall_steps = int(round(STALL_PERSIST_S / dt))
-        self.wind_steps = int(round(WIND_PERSIST_S / dt))
-        self.over_alpha = self.over_wind = 0
-
-    def check(self, row, ground_ok: bool = False, stall_ok: bool = False) -> str | None:
-        """The reason the flight failed at this ``row``, or None. ``ground_ok``: skip the
-        impact check (on the launcher); ``stall_ok``: skip the stall check (booster phase)."""
-        isfinite = math.isfinite
-        if not (isfinite(row[P.COL_H]) and isfinite(row[P.COL_TAS]) and isfinite(row[P.COL_ROLL])):
-            return "the state became NaN (numerical failure)"
-        if row[P.COL_HAGL] < 0.5 and not ground_ok:
-            return f"ground or sea impact (height above surface {row[P.COL_HAGL]:.1f} m)"
-        if row[P.COL_ALPHA] > self.stall_alpha and not stall_ok:
-            self.over_alpha += 1
-            if self.over_alpha >= self.stall_steps:
-                return (f"stall (angle of attack {math.degrees(row[P.COL_ALPHA]):.1f} deg "
-                        f"at {row[P.COL_TAS]:.1f} m/s for {STALL_PERSIST_S:g} s)")
-        else:
-            self.over_alpha = 0
-        if abs(row[P.COL_ROLL]) > MAX_ROLL_RAD or abs(row[P.COL_PITCH]) > MAX_PITCH_RAD:
-            return (f"loss of control (roll {math.degrees(row[P.COL_ROLL]):.0f} deg, "
-                    f"pitch {math.degrees(row[P.COL_PITCH]):.0f} deg)")
-        return self._headwind(row)
-
-    def _headwind(self, row) -> str | None:
-        """The failure of a steady wind above the airspeed for :data:`WIND_PERSIST_S`, or None."""
-        wind = math.hypot(row[P.COL_WSN], row[P.COL_WSE])
-        if wind <= row[P.COL_TAS]:
-            self.over_wind = 0
-            return None
-        self.over_wind += 1
-        if self.over_wind < self.wind_steps:
-            return None
-        return (f"the steady wind ({wind:.1f} m/s) is above the airspeed ({row[P.COL_TAS]:.1f} m/s) "
-                f"for {WIND_PERSIST_S:g} s: the aircraft cannot hold its track")
-
-
 def fly(config: FlightConfig | Track, progress=None) -> Truth:
     """Fly ``config`` and return its truth, sampled at ``config.rate_hz``.
 
@@ -224,42 +177,75 @@ def fly(config: FlightConfig | Track, progress=None) -> Truth:
 def _fly_track(craft: Aircraft, rec: _Recorder, progress) -> None:
     """Step ``craft`` on the truth through the launch (if any) and its segments, recording every
     row in ``rec``, until the track is flown. Raises FlightError."""
-    io, ap, runner, dt = craft.io, craft.ap, craft.runner, craft.dt
+    io, runner, dt = craft.io, craft.runner, craft.dt
     watch = Watchdog(craft.limits, dt)
-    state = State()
     nominal = nominal_duration_s(craft.config.track)
-    launching = craft.config.track.start.type == "launch"
-    booster_steps = int(round(craft.config.track.start.booster_time_s / dt)) if launching else 0
-    k = 0
-    next_progress = 0.0
-    read_row, set_controls, run, step_ap = io.read_row, io.set_controls, io.run, ap.step
+    k = _launch(craft, watch, rec, progress, nominal)
+    fleet = fleet_arrays([craft], [watch])
+    rows, code, controls = fleet.rows, fleet.code, fleet.controls
+    next_progress = math.ceil(k * dt)
+    read_row, set_controls, run = io.read_row, io.set_controls, io.run
     while True:
         t = k * dt
-        row = read_row()
-        _sense(state, row, craft, t)
-        reason = watch.check(row, ground_ok=launching and t < 5.0, stall_ok=launching and k <= booster_steps)
-        if reason is not None:
-            raise runner.fail(reason, state)
-        if launching:
-            launching = _launch_step(craft, state, row, k, booster_steps)
-        elif _segments_step(runner, state, dt):
+        rows[0] = row = read_row()
+        if fleet_step(fleet, t, dt) and _stopped(craft, fleet, int(code[0]), t):
             rec.add(row, runner.index - 1)
             return
         rec.add(row, runner.index)
         if progress is not None and t >= next_progress:
             progress(t, nominal)
             next_progress += 1.0
-        elev, ail, rud, thr = step_ap(dt, Sensed(state.tas, state.h, -row[P.COL_VD], row[P.COL_ROLL],
-                                                 row[P.COL_PITCH], row[P.COL_P], row[P.COL_Q],
-                                                 row[P.COL_BETA], state.course))
+        elev, ail, rud, thr = controls[0].tolist()
         set_controls(elev, ail, rud, thr)
         craft.set_wind_at(t + dt)
         run()
         k += 1
 
 
+def _stopped(craft: Aircraft, fleet, code: int, t: float) -> bool:
+    """Act on the code :func:`~navsim.flight.fleet.fleet_step` left for a fleet of one: a failure
+    raised, the segments started or gone on to the next, the step finished; returns whether the
+    track is flown."""
+    s = state_of(fleet, 0)
+    if code in FAILS:
+        raise craft.runner.fail(failure(code, fleet.rows[0]), s)
+    resume(craft.runner, s, code, craft.dt)
+    if craft.runner.finished:
+        return True
+    finish_step(fleet, 0, craft.dt)
+    return False
+
+
+def _launch(craft: Aircraft, watch: Watchdog, rec: _Recorder, progress, nominal: float) -> int:
+    """Step ``craft`` on its launcher up to the step that hands it over to its track, that step
+    included (nothing where it starts in the air); returns the steps taken. Raises FlightError."""
+    if craft.config.track.start.type != "launch":
+        return 0
+    io, ap, runner, dt = craft.io, craft.ap, craft.runner, craft.dt
+    booster_steps = int(round(craft.config.track.start.booster_time_s / dt))
+    state = State()
+    k, launching = 0, True
+    while launching:
+        t = k * dt
+        row = io.read_row()
+        _sense(state, row, craft, t)
+        reason = watch.check(row, ground_ok=t < 5.0, stall_ok=k <= booster_steps)
+        if reason is not None:
+            raise runner.fail(reason, state)
+        launching = _launch_step(craft, state, row, k, booster_steps)
+        rec.add(row, runner.index)
+        if progress is not None and k % max(int(round(1.0 / dt)), 1) == 0:
+            progress(t, nominal)
+        io.set_controls(*ap.step(dt, Sensed(state.tas, state.h, -row[P.COL_VD], row[P.COL_ROLL], row[P.COL_PITCH],
+                                            row[P.COL_P], row[P.COL_Q], row[P.COL_BETA], state.course)))
+        craft.set_wind_at(t + dt)
+        io.run()
+        k += 1
+    return k
+
+
 def _sense(state: State, row, craft: Aircraft, t: float) -> None:
-    """Fill the segments' State from the true ``row`` at time ``t``."""
+    """Fill the segments' State from the true ``row`` at time ``t`` (on the launcher)."""
     state.t = t
     state.north = (row[P.COL_LAT] - craft.lat0) * craft.k_north
     state.east = (row[P.COL_LON] - craft.lon0) * craft.k_east
@@ -291,16 +277,6 @@ def _launch_step(craft: Aircraft, state: State, row, k: int, booster_steps: int)
     if state.t > 30.0:
         raise runner.fail("the launch did not reach flying speed within 30 s", state)
     return True
-
-
-def _segments_step(runner: SegmentRunner, state: State, dt: float) -> bool:
-    """One step of the segments; returns whether the track is flown."""
-    if runner.index < 0:
-        runner.next(state)
-    if runner.finished:
-        return True
-    runner.update(state, dt)
-    return runner.finished
 
 
 def _parked(config: FlightConfig) -> Truth:

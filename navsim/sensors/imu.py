@@ -507,7 +507,7 @@ class OnlineIncrements:
 
     def update(self, omega_ib_b: np.ndarray, f_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         j, dt = self.j, self.dt
-        omega_ib_b, f_b = np.asarray(omega_ib_b, float), np.asarray(f_b, float)
+        omega_ib_b, f_b = np.array(omega_ib_b, float), np.array(f_b, float)   # kept: copies
         if j == 0:
             # the Adams-Bashforth history starts filled with the first sample (as JSBSim's)
             self.om, self.f = [omega_ib_b] * 3, [f_b] * 3
