@@ -47,6 +47,7 @@ ended (landed, flown its track, failed) is no longer flown.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -67,13 +68,16 @@ from navsim.foundations.config import MAX_DURATION_S, Node, close_match
 from navsim.foundations.errors import FlightError, ScenarioError
 from navsim.foundations.transform import quat_from_euler
 from navsim.navigation.estimators import factory
+from navsim.navigation.estimators.base import navigation
 from navsim.records.history import EPOCH_ARRAYS
 from navsim.records.truth import TruthBias
 from navsim.sensors import emulate
 from navsim.sensors.registry import INERTIAL, LoopSample, get as get_kind, kinds as sensor_kinds
-from navsim.sensors.imu import OnlineIncrements, error_increments, quantize_increment
+from navsim.sensors.imu import OnlineIncrements, error_increments
+from navsim.sensors.kernels import measured_increments
 
 RETURN_LABEL = "return to land"
+_RAW_TO_SI = np.array(P.RAW_TO_SI)
 
 
 @dataclass(frozen=True)
@@ -163,20 +167,26 @@ def parse_closed_loop(node: Node, labels: list[str], sensors, track, duration_s:
 
 class _StepTruth:
     """The true state of ``B`` runs at one step, shaped as a one-sample truth record
-    (``[0]`` gives ``(B, ...)``) for :func:`navsim.experiment.driver.nav_errors`."""
+    (``[0]`` gives ``(B, ...)``) for :func:`navsim.experiment.driver.nav_errors`; the attitude
+    quaternion is computed when read (the records of an epoch), not at every step."""
 
     def __init__(self, rows: np.ndarray, batched: bool = True):
         r = rows
         one = (lambda x: x[None]) if batched else (lambda x: x)   # unbatched: ``[k]`` is run k
+        self._rows, self._one = rows, one
         self.lat_rad = one(r[:, P.COL_LAT])
         self.lon_rad = one(r[:, P.COL_LON])
         self.h_m = one(r[:, P.COL_H])
         self.vel_n_mps = one(r[:, P.COL_VN:P.COL_VD + 1])
-        self.quat_nb = one(quat_from_euler(r[:, P.COL_ROLL], r[:, P.COL_PITCH], r[:, P.COL_YAW]))
         self.euler_rad = one(r[:, [P.COL_ROLL, P.COL_PITCH, P.COL_YAW]])
         self.omega_ib_b_rps = r[:, P.COL_PI:P.COL_RI + 1]
         self.f_b_mps2 = r[:, P.COL_FX:P.COL_FZ + 1] / r[:, P.COL_MASS:P.COL_MASS + 1]
         self.wind_steady_n_mps = one(r[:, P.COL_WSN:P.COL_WSD + 1])
+
+    @functools.cached_property
+    def quat_nb(self) -> np.ndarray:
+        r = self._rows
+        return self._one(quat_from_euler(r[:, P.COL_ROLL], r[:, P.COL_PITCH], r[:, P.COL_YAW]))
 
 
 @dataclass
@@ -215,12 +225,6 @@ def _sensor_streams(scenario, seed, runs, dt, n):
     return imu_cfg, imu, others
 
 
-def _matvec(M: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``M @ v`` for stacks ``(B, 3, 3)``, ``(B, 3)`` with the same operations whatever ``B``
-    (einsum may pick another summation path for another batch size)."""
-    return M[:, :, 0] * v[:, None, 0] + M[:, :, 1] * v[:, None, 1] + M[:, :, 2] * v[:, None, 2]
-
-
 def _guidance(nav, craft0) -> tuple:
     """North, east, height, course, ground speed, climb rate, roll, pitch of a NavState, as
     lists (one value per run). The angles are taken run by run with :mod:`math`: numpy's
@@ -254,8 +258,14 @@ class _Fleet:
     #: the setpoint it flies (its last one once they are flown); empty for a fixed wing
     rotor_segments: list
     setpoints: list
+    #: the IMU's quanta, gyro and accelerometer, per step (0: none)
+    quanta: np.ndarray = None
+    #: the IMU's increments of the step (dtheta, dv), ``(B, 2, 3)``, written in place
+    measured: np.ndarray = None
     #: a fixed wing's: the arrays its aircraft are stepped through (:mod:`navsim.flight.fleet`)
     arrays: FleetArrays | None = None
+    #: each aircraft's JSBSim calls of a step: set_controls, run, read_raw
+    steppers: list = None
 
 
 @dataclass(frozen=True)
@@ -323,7 +333,10 @@ def _fleet(scenario, seed: int, runs: list) -> _Fleet:
         arrays.flying[:] = rtl is not None
     return _Fleet(runs=runs, dt=dt, n_max=n_max, craft=craft, watch=watch, imu_cfg=imu_cfg,
                   imu_err=imu_err, sensors=sensors, rtl=cl.return_to_land, point=point, goto=goto,
-                  rotor_segments=segments, setpoints=[None] * len(craft), arrays=arrays)
+                  rotor_segments=segments, setpoints=[None] * len(craft), arrays=arrays,
+                  quanta=np.array([(e.quantization or 0.0) * dt for e in (imu_cfg.spec.gyro, imu_cfg.spec.accel)]),
+                  measured=np.zeros((len(runs), 2, 3)),
+                  steppers=[(c.io.set_controls, c.io.run, c.io.read_raw) for c in craft])
 
 
 def _start_navigation(scenario, seed: int, fleet: _Fleet, estimators: dict, rows: np.ndarray) -> tuple:
@@ -344,13 +357,12 @@ def _advance(fleet: _Fleet, loop, inc, rows: np.ndarray, k: int) -> np.ndarray:
     """Step ``k`` of the sensors (the runs' truth ``rows`` plus their errors) and the estimators;
     returns the gyros' measured rates over the step, ``(B, 3)`` rad/s (what a multirotor's rate
     loop reads)."""
-    dt, err, spec = fleet.dt, fleet.imu_err, fleet.imu_cfg.spec
+    dt, err = fleet.dt, fleet.imu_err
     view = _StepTruth(rows)
-    dth, dv = inc.update(view.omega_ib_b_rps, view.f_b_mps2)
-    dth = _matvec(err["gyro_matrix"], dth) + err["gyro"][:, k]
-    dv = _matvec(err["accel_matrix"], dv) + err["accel"][:, k]
-    dth = quantize_increment(dth, spec.gyro, dt)
-    dv = quantize_increment(dv, spec.accel, dt)
+    inc.update(view.omega_ib_b_rps, view.f_b_mps2)
+    measured_increments(inc.out, err["gyro_matrix"], err["accel_matrix"], err["gyro"][:, k], err["accel"][:, k],
+                        fleet.quanta, fleet.measured)
+    dth, dv = fleet.measured[:, 0].copy(), fleet.measured[:, 1].copy()   # the filters may keep them
     sample = LoopSample(rows[:, P.COL_LAT], rows[:, P.COL_LON], rows[:, P.COL_H], rows[:, P.COL_VN:P.COL_VD + 1],
                         rows[:, P.COL_ROLL:P.COL_YAW + 1], rows[:, P.COL_PS], rows[:, P.COL_PT],
                         rows[:, P.COL_TEMP], rows[:, P.COL_ALPHA], rows[:, P.COL_BETA])
@@ -406,12 +418,16 @@ def _step_fleet(fleet: _Fleet, tally: _Tally, nav, t: float) -> None:
         tally.kept.append(f.rows[0].copy())
         tally.seg_kept.append(len(fleet.craft[0].config.track.segments) if tally.status[0] in ("aborted", "landed")
                               else runner.index - 1 if runner.finished else runner.index)
-    controls = f.controls.tolist()
-    for b in np.flatnonzero(f.live).tolist():
-        c = fleet.craft[b]
-        c.io.set_controls(*controls[b])
-        c.set_wind_at(t + dt)
-        c.io.run()
+    controls, rows, winds = f.controls.tolist(), f.rows, fleet.craft[0].config.environment.wind_changes
+    live = np.flatnonzero(f.live)
+    for b in live.tolist():                         # each aircraft's physics, and its next row
+        set_controls, run, read_raw = fleet.steppers[b]
+        set_controls(*controls[b])
+        if winds:
+            fleet.craft[b].set_wind_at(t + dt)
+        run()
+        rows[b] = read_raw()
+    rows[live] *= _RAW_TO_SI
 
 
 def _resolve(fleet: _Fleet, tally: _Tally, b: int, t: float) -> None:
@@ -522,7 +538,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
         t = k * fleet.dt
         omega = _advance(fleet, loop, inc, rows, k) if k > 0 else rows[:, P.COL_P:P.COL_R + 1]
         _record(fleet, tally, rows, k, t, path_every)
-        nav = driver.solution().nav if driver is not None else None
+        nav = navigation(driver) if driver is not None else None
         if fleet.rotor_segments:
             for b in range(len(craft)):
                 if status[b] != "failed":
@@ -533,9 +549,9 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
             break
         if progress is not None and k % 1000 == 0:
             progress(t, cl.time_limit_s)
-        live = fleet.arrays.live if fleet.arrays is not None else [st != "failed" for st in status]
-        for b in np.flatnonzero(live).tolist():
-            rows[b] = craft[b].io.read_row()
+        if fleet.arrays is None:                  # a fixed wing's rows are read as it steps
+            for b in [b for b, st in enumerate(status) if st != "failed"]:
+                rows[b] = craft[b].io.read_row()
     return _batch(scenario.flight, fleet, tally, loop.histories())
 
 

@@ -213,6 +213,11 @@ class JSBSimIO:
         """Every property of :data:`RAW_PROPERTIES`, in SI, as a list (index with ``COL_*``)."""
         return [get() * k for get, k in zip(self._get, RAW_TO_SI)]
 
+    def read_raw(self) -> list[float]:
+        """The same properties in JSBSim's own units (times :data:`RAW_TO_SI` gives
+        :meth:`read_row`, to the bit): for a fleet that scales all its rows at once."""
+        return [get() for get in self._get]
+
     def set_controls(self, elevator: float, aileron: float, rudder: float, throttle: float) -> None:
         """Normalised commands: surfaces in [-1, 1], throttle in [0, 1]."""
         self._set_elev(elevator)

@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 
+from navsim.foundations.compiled import njit
+
 
 def quat_from_euler(roll, pitch, yaw):
     """``quat_nb`` ``(..., 4)`` from roll, pitch, yaw (rad)."""
@@ -139,3 +141,24 @@ def rotation(rotvec):
     R[..., 1, 2] = cy * z - s * x
     R[..., 2, 1] = cy * z + s * x
     return R
+
+
+@njit(cache=True)
+def rodrigues(x, y, z, R):
+    """``R = exp([v x])`` of the rotation vector ``v = (x, y, z)``, the compiled twin of
+    :func:`navsim.foundations.transform.rotation` (its series below 0.05 rad, sine and cosine
+    above; NaN for a non-finite vector)."""
+    a2 = x * x + y * y + z * z
+    s = 1.0 - a2 * (1.0 / 6.0) + a2 * a2 * (1.0 / 120.0) - a2 ** 3 * (1.0 / 5040.0)
+    c = 0.5 - a2 * (1.0 / 24.0) + a2 * a2 * (1.0 / 720.0) - a2 ** 3 * (1.0 / 40320.0)
+    if not a2 < 2.5e-3:
+        a = math.sqrt(a2)
+        if math.isfinite(a):
+            s, c = math.sin(a) / a, (1.0 - math.cos(a)) / a2
+        else:
+            s = c = math.nan
+    cx, cy = c * x, c * y
+    R[0, 0], R[1, 1], R[2, 2] = 1.0 - c * (y * y + z * z), 1.0 - c * (x * x + z * z), 1.0 - c * (x * x + y * y)
+    R[0, 1], R[1, 0] = cx * y - s * z, cx * y + s * z
+    R[0, 2], R[2, 0] = cx * z + s * y, cx * z - s * y
+    R[1, 2], R[2, 1] = cy * z - s * x, cy * z + s * x

@@ -500,38 +500,19 @@ class OnlineIncrements:
 
     def __init__(self, B: int, dt: float):
         self.dt, self.j = dt, 0
-        self.om = self.f = None                    # samples j-1, j-2, j-3
-        self.R = None                              # R[j-1], R[j-2]
-        self.dth_prev = np.zeros((B, 3))
-        self.dvc_prev = np.zeros((B, 3))
+        self.om, self.f = np.zeros((B, 4, 3)), np.zeros((B, 4, 3))   # samples j, j-1, j-2, j-3
+        self.R = np.zeros((B, 2, 3, 3))                              # R[j-1], R[j-2]
+        self.prev = np.zeros((B, 2, 3))                              # the last dtheta, compensated dv
+        #: the increments of the last update: ``[:, 0]`` dtheta, ``[:, 1]`` dv ``(B, 3)`` each
+        self.out = np.zeros((B, 2, 3))
 
     def update(self, omega_ib_b: np.ndarray, f_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        j, dt = self.j, self.dt
-        omega_ib_b, f_b = np.array(omega_ib_b, float), np.array(f_b, float)   # kept: copies
-        if j == 0:
-            # the Adams-Bashforth history starts filled with the first sample (as JSBSim's)
-            self.om, self.f = [omega_ib_b] * 3, [f_b] * 3
-            eye = np.broadcast_to(np.eye(3), omega_ib_b.shape + (3,))
-            self.R = [eye, eye]
-            dth, dv_c = np.zeros_like(omega_ib_b), np.zeros_like(f_b)
-            dth_m, dv_m = dth, dv_c
-        else:
-            om, f = self.om, self.f
-            dth = (23 * om[0] - 16 * om[1] + 5 * om[2]) / 12.0 * dt
-            if j == 1:
-                dv_c = f[0] * dt
-            else:
-                R1, R2 = self.R
-                f_km1 = np.einsum("bij,bj->bi", R1, f[1])
-                f_km2 = np.einsum("bij,bj->bi", R1, np.einsum("bij,bj->bi", R2, f[2]) if j > 2 else f[2])
-                dv_c = dt * (23 * f[0] - 16 * f_km1 + 5 * f_km2) / 12.0
-            dth_m, dv_m = dth, _compensated_to_measured(dv_c, dth, self.dth_prev, self.dvc_prev)
-        self.R = [rotation(-dth), self.R[0]]
-        self.om = [omega_ib_b, self.om[0], self.om[1]]
-        self.f = [f_b, self.f[0], self.f[1]]
-        self.dth_prev, self.dvc_prev = dth, dv_c
+        """The increments ``dtheta_b``, ``dv_b`` ``(B, 3)`` over the interval ending at this
+        sample (compiled, run by run: :func:`navsim.sensors.kernels.online_increments`)."""
+        self.om[:, 0], self.f[:, 0] = omega_ib_b, f_b
+        kernels.online_increments(self.om, self.f, self.R, self.prev, self.j, self.dt, self.out)
         self.j += 1
-        return dth_m, dv_m
+        return self.out[:, 0].copy(), self.out[:, 1].copy()
 
 
 def error_increments(spec: ImuSpec, seed: int, runs, n: int, dt: float, name: str = "imu") -> dict:
@@ -567,14 +548,6 @@ def _vibrations(stream: "ImuStream", spec: ImuSpec) -> list:
             out.append(tuple(band_vibration(gens(triad), stream.t_s, v, spec.rate_hz, amp)
                              for triad, amp in (("accel", v.amplitude), ("gyro", v.gyro_amplitude))))
     return out
-
-
-def quantize_increment(incr: np.ndarray, e: AxisErrors, dt: float) -> np.ndarray:
-    """Increments rounded to the triad's ``quantization`` (rate LSB times the interval)."""
-    if not e.quantization:
-        return incr
-    q = e.quantization * dt
-    return np.round(incr / q) * q
 
 
 # --- the kind's declaration ----------------------------------------------------------------------

@@ -173,3 +173,61 @@ def test_watchdog_kernel_fails_as_the_python_one():
         assert reason == old.check(row.tolist(), ground_ok, stall_ok)
         seen.add(reason.split(" ")[0] if reason else None)
     assert {None, "the", "ground", "stall", "loss"} <= seen
+
+
+class NumpyOnlineIncrements:
+    """The numpy form of :class:`navsim.sensors.imu.OnlineIncrements` (as it was before it was
+    compiled): the reference its kernel is held to."""
+
+    def __init__(self, B, dt):
+        self.dt, self.j = dt, 0
+        self.dth_prev, self.dvc_prev = np.zeros((B, 3)), np.zeros((B, 3))
+
+    def update(self, omega, f_b):
+        from navsim.foundations.transform import cross, rotation
+        j, dt = self.j, self.dt
+        omega, f_b = np.array(omega, float), np.array(f_b, float)
+        if j == 0:
+            self.om, self.f = [omega] * 3, [f_b] * 3
+            eye = np.broadcast_to(np.eye(3), omega.shape + (3,))
+            self.R = [eye, eye]
+            dth, dv_c = np.zeros_like(omega), np.zeros_like(f_b)
+            dv_m = dv_c
+        else:
+            om, f = self.om, self.f
+            dth = (23 * om[0] - 16 * om[1] + 5 * om[2]) / 12.0 * dt
+            if j == 1:
+                dv_c = f[0] * dt
+            else:
+                R1, R2 = self.R
+                f_km1 = np.einsum("bij,bj->bi", R1, f[1])
+                f_km2 = np.einsum("bij,bj->bi", R1, np.einsum("bij,bj->bi", R2, f[2]) if j > 2 else f[2])
+                dv_c = dt * (23 * f[0] - 16 * f_km1 + 5 * f_km2) / 12.0
+            dv_m = dv_c - 0.5 * cross(dth, dv_c) - (cross(self.dth_prev, dv_c) + cross(self.dvc_prev, dth)) / 12.0
+        self.R = [rotation(-dth), self.R[0]]
+        self.om, self.f = [omega, self.om[0], self.om[1]], [f_b, self.f[0], self.f[1]]
+        self.dth_prev, self.dvc_prev = dth, dv_c
+        self.j += 1
+        return dth, dv_m
+
+
+def test_online_increments_kernel_equals_its_numpy_form_and_measures_as_numpy():
+    from navsim.sensors.imu import OnlineIncrements
+    from navsim.sensors.kernels import measured_increments
+    rng = np.random.default_rng(7)
+    B, dt = 5, 0.01
+    ref_inc, inc = NumpyOnlineIncrements(B, dt), OnlineIncrements(B, dt)
+    M = np.eye(3) + rng.normal(0, 1e-3, (2, B, 3, 3))
+    q = np.array([1e-4 * dt, 0.0])                 # a gyro quantum, an accelerometer without one
+    out = np.zeros((B, 2, 3))
+    for j in range(3000):
+        omega = rng.normal(0, 0.4, (B, 3)) * (8.0 if j % 300 == 5 else 1.0)   # some steps above 0.05 rad
+        f_b = rng.normal(0, 2, (B, 3)) + [0.0, 0.0, -9.8]
+        want, got = ref_inc.update(omega, f_b), inc.update(omega, f_b)
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+        err = rng.normal(0, 1e-5, (2, B, 3))
+        measured_increments(inc.out, M[0], M[1], err[0], err[1], q, out)
+        mv = lambda A, v: A[:, :, 0] * v[:, None, 0] + A[:, :, 1] * v[:, None, 1] + A[:, :, 2] * v[:, None, 2]
+        gyro = mv(M[0], want[0]) + err[0]
+        assert np.array_equal(out[:, 0], np.round(gyro / q[0]) * q[0])
+        assert np.array_equal(out[:, 1], mv(M[1], want[1]) + err[1])

@@ -28,7 +28,9 @@ Optional hooks: ``noise_sigma0() -> dict``, initial 1-sigma of the estimator's o
 into ``sigma0``); the classmethods ``parse(node, sensors) -> dict`` (its scenario entry checked,
 plain values: :class:`~navsim.foundations.config.Node`, ``sensors`` the scenario's sensor name ->
 kind) and ``from_params(params)`` (the object); without them the entry's keys are the
-constructor's keyword arguments.
+constructor's keyword arguments; ``navigation() -> NavState``, the current navigation state
+alone (:func:`navigation`: what a closed loop reads at every step, where ``solution()`` would
+build the whole :class:`Solution` a hundred times a second).
 
 Estimators are registered by name with :func:`register`; third-party packages add theirs
 through the ``navsim.estimators`` entry-point group (``name = "package.module:Class"``), loaded
@@ -105,6 +107,13 @@ class Estimator(Protocol):
 
 #: the methods an :class:`Estimator` class must have
 METHODS = ("initialize", "propagate", "epoch", "solution")
+
+
+def navigation(estimator) -> "NavState":
+    """``estimator``'s current navigation state: its optional ``navigation()`` hook, else its
+    ``solution().nav``."""
+    hook = getattr(estimator, "navigation", None)
+    return hook() if hook is not None else estimator.solution().nav
 
 
 def sample(sensors: dict, name: str | None, t: float, t_prev: float | None = None, tol: float = 1e-6):

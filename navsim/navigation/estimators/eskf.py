@@ -262,6 +262,10 @@ class ErrorStateKF:
         cls = type(self)
         return cls.correct is ErrorStateKF.correct and cls.measurement_noise is ErrorStateKF.measurement_noise
 
+    def navigation(self) -> NavState:
+        """The navigation state alone (the estimator contract's optional hook)."""
+        return self.sd.state
+
     def solution(self) -> Solution:
         idx = np.r_[self.layout.slice("att"), self.layout.slice("vel"), self.layout.slice("pos")]
         if np.array_equal(idx, np.arange(9)):           # the navigation blocks first: one copy
