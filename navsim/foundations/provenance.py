@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import platform
 import subprocess
 import sys
@@ -33,13 +34,19 @@ def git_revision() -> str | None:
         return None
 
 
-def provenance() -> dict:
+@functools.lru_cache(maxsize=1)
+def _versions() -> dict:
+    """navsim's, Python's and :data:`PACKAGES`' versions (read once a process: 1 ms each)."""
     versions = {"navsim": __version__, "python": platform.python_version()}
     for name in PACKAGES:
         try:
             versions[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             versions[name] = None
-    return {"versions": versions, "git_revision": git_revision(),
+    return versions
+
+
+def provenance() -> dict:
+    return {"versions": dict(_versions()), "git_revision": git_revision(),
             "utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "command": " ".join(sys.argv), "platform": platform.platform()}

@@ -34,7 +34,7 @@ import functools
 import math
 
 import numpy as np
-from scipy.special import stdtrit
+from scipy.special import gammaincinv, stdtrit
 from scipy.stats import beta, binom, chi2, norm, t as student_t
 
 #: the confidence of every interval
@@ -64,7 +64,13 @@ def positive_interval(m: float, se: float, runs: int) -> list[float]:
         return [m, m]
     nu = 2.0 * m * m / (se * se)
     a = (1 - CONFIDENCE) / 2
-    return [float(nu * m / chi2.ppf(1 - a, nu)), float(nu * m / chi2.ppf(a, nu))]
+    return [float(nu * m / chi2_ppf(1 - a, nu)), float(nu * m / chi2_ppf(a, nu))]
+
+
+def chi2_ppf(q: float, nu: float) -> float:
+    """``scipy.stats.chi2.ppf(q, nu)`` for ``0 < q < 1``, ``nu > 0``: what it computes
+    (``2 gammaincinv(nu / 2, q)``) without its argument handling (60 us a call)."""
+    return 2 * float(gammaincinv(nu / 2, q))
 
 
 def ratio_se(s: np.ndarray, n: np.ndarray) -> tuple[float, float, int]:
