@@ -77,6 +77,8 @@ from navsim.sensors.imu import OnlineIncrements, error_increments
 from navsim.sensors.kernels import measured_increments
 
 RETURN_LABEL = "return to land"
+#: the states of a run still flown (one that has landed, flown its track or failed is not)
+_FLOWN = ("flying", "aborted")
 _RAW_TO_SI = np.array(P.RAW_TO_SI)
 
 
@@ -223,20 +225,6 @@ def _sensor_streams(scenario, seed, runs, dt, n):
         if prepare is not None:
             prepare(data, static)
     return imu_cfg, imu, others
-
-
-def _guidance(nav, craft0) -> tuple:
-    """North, east, height, course, ground speed, climb rate, roll, pitch of a NavState, as
-    lists (one value per run). The angles are taken run by run with :mod:`math`: numpy's
-    vectorised transcendental functions may round differently for another batch size."""
-    vel = nav.vel_n_mps.tolist()
-    C = nav.C_nb
-    c20, c21, c22 = C[:, 2, 0].tolist(), C[:, 2, 1].tolist(), C[:, 2, 2].tolist()
-    return (((nav.lat_rad - craft0.lat0) * craft0.k_north).tolist(),
-            ((nav.lon_rad - craft0.lon0) * craft0.k_east).tolist(), nav.h_m.tolist(),
-            [math.atan2(v[1], v[0]) for v in vel], [math.hypot(v[0], v[1]) for v in vel],
-            [-v[2] for v in vel], [math.atan2(a, b) for a, b in zip(c21, c22)],
-            [-math.asin(min(max(a, -1.0), 1.0)) for a in c20])
 
 
 @dataclass(frozen=True)
@@ -541,7 +529,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
         nav = navigation(driver) if driver is not None else None
         if fleet.rotor_segments:
             for b in range(len(craft)):
-                if status[b] != "failed":
+                if status[b] in _FLOWN:
                     _step_rotor(fleet, tally, b, rows[b], nav, omega[b], t)
         else:
             _step_fleet(fleet, tally, nav, t)
@@ -550,7 +538,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
         if progress is not None and k % 1000 == 0:
             progress(t, cl.time_limit_s)
         if fleet.arrays is None:                  # a fixed wing's rows are read as it steps
-            for b in [b for b, st in enumerate(status) if st != "failed"]:
+            for b in [b for b, st in enumerate(status) if st in _FLOWN]:
                 rows[b] = craft[b].io.read_row()
     return _batch(scenario.flight, fleet, tally, loop.histories())
 

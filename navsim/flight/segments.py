@@ -56,9 +56,10 @@ SEGMENT_FIELDS = ("kind", "end", "end_value", "t0", "timeout", "line_n0", "line_
 #: the kinds' codes (climb and descend step alike)
 KINDS = {"straight": 0, "speed": 1, "climb": 2, "descend": 2, "turn": 3, "circle": 4, "goto": 5}
 STRAIGHT, SPEED, CLIMB, TURN, CIRCLE, GOTO = range(6)
-#: how a straight or a circle ends: after a time, at a time, after a distance, after laps
-ENDS = ("time_s", "until_s", "distance_m", "laps")
-END_TIME, END_UNTIL, END_DISTANCE, END_LAPS = range(len(ENDS))
+#: how a straight or a circle ends, the first of its keys in this order: after laps (a circle),
+#: after a time, at a time, after a distance (a straight)
+ENDS = ("laps", "time_s", "until_s", "distance_m")
+END_LAPS, END_TIME, END_UNTIL, END_DISTANCE = range(len(ENDS))
 #: what :func:`segment_update` returns: go on, the segment is flown, its time-out passed
 GOING, FLOWN, TIMED_OUT = range(3)
 UNSTARTED = -1.0     #: a runner's ``kind`` before its first segment

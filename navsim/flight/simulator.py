@@ -183,7 +183,7 @@ def _fly_track(craft: Aircraft, rec: _Recorder, progress) -> None:
     k = _launch(craft, watch, rec, progress, nominal)
     fleet = fleet_arrays([craft], [watch])
     rows, code, controls = fleet.rows, fleet.code, fleet.controls
-    next_progress = math.ceil(k * dt)
+    next_progress = math.ceil(round(k * dt, 9))             # the launch called it every second
     read_row, set_controls, run = io.read_row, io.set_controls, io.run
     while True:
         t = k * dt

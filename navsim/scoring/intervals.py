@@ -35,7 +35,7 @@ import math
 
 import numpy as np
 from scipy.special import gammaincinv, stdtrit
-from scipy.stats import beta, binom, chi2, norm, t as student_t
+from scipy.stats import beta, binom, norm, t as student_t
 
 #: the confidence of every interval
 CONFIDENCE = 0.95

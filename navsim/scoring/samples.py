@@ -275,7 +275,7 @@ def _row_max(x) -> np.ndarray:
 def _nanmean(a) -> np.ndarray:
     """Each row's ``np.nanmean`` (NaN for a row without a finite value), all rows at once: the
     NaN set to 0, the row summed, divided by its count of numbers."""
-    a = np.asarray(a, float)
+    a = np.ascontiguousarray(a, float)                # rows summed as numpy sums a 1-D row
     nan = np.isnan(a)
     with np.errstate(invalid="ignore", divide="ignore"):
         means = np.where(nan, 0.0, a).sum(axis=1) / (~nan).sum(axis=1)

@@ -157,7 +157,8 @@ class ErrorTerm:
 
 class LoopSample(NamedTuple):
     """The runs' true state at one step of the closed loop: what an in-loop sensor measures
-    (arrays over the runs ``B``)."""
+    (arrays over the runs ``B``: views of the loop's buffer, valid during the ``fill`` call
+    only; a sensor that keeps one copies it)."""
 
     lat_rad: np.ndarray          #: (B,) geodetic latitude
     lon_rad: np.ndarray          #: (B,)

@@ -223,3 +223,25 @@ def test_a_monte_carlo_worker_loads_neither_the_report_nor_the_scoring_and_the_a
             "print(all(getattr(navsim, n) is not None for n in navsim.__all__), 'navsim.api' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split("\n")
     assert out[0] == "[]" and out[1] == "True True", out
+
+
+def test_the_kernel_cache_is_renamed_by_a_change_its_kernels_depend_on(tmp_path):
+    """numba keys a cached kernel on its own file: a kernel freezing another module's constants
+    (the fleet's COL_* of flight.properties) would load stale after that module changed. The
+    cache folder's digest covers the kernels' modules and what they import, nothing else."""
+    import shutil
+    from pathlib import Path
+
+    from navsim.foundations.compiled import CACHE_FOLDER, kernel_digest
+    package = tmp_path / "navsim"
+    shutil.copytree(Path(__file__).resolve().parents[2] / "navsim", package,
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    before = kernel_digest(package)
+    assert CACHE_FOLDER is None or CACHE_FOLDER.name == f"kernels-{kernel_digest()}"
+    report = package / "report" / "pages.py"
+    report.write_text(report.read_text() + "\n# an edit outside the kernels' sources\n")
+    assert kernel_digest(package) == before
+    props = package / "flight" / "properties.py"             # no kernel in it; fleet.py imports it
+    assert b"njit" not in props.read_bytes()
+    props.write_text(props.read_text() + "\n# an edit the fleet's kernels depend on\n")
+    assert kernel_digest(package) != before

@@ -30,7 +30,7 @@ plain values: :class:`~navsim.foundations.config.Node`, ``sensors`` the scenario
 kind) and ``from_params(params)`` (the object); without them the entry's keys are the
 constructor's keyword arguments; ``navigation() -> NavState``, the current navigation state
 alone (:func:`navigation`: what a closed loop reads at every step, where ``solution()`` would
-build the whole :class:`Solution` a hundred times a second).
+build the whole :class:`Solution` a hundred times a second; it must be ``solution().nav``).
 
 Estimators are registered by name with :func:`register`; third-party packages add theirs
 through the ``navsim.estimators`` entry-point group (``name = "package.module:Class"``), loaded

@@ -263,7 +263,10 @@ class ErrorStateKF:
         return cls.correct is ErrorStateKF.correct and cls.measurement_noise is ErrorStateKF.measurement_noise
 
     def navigation(self) -> NavState:
-        """The navigation state alone (the estimator contract's optional hook)."""
+        """The navigation state alone (the estimator contract's optional hook); a subclass that
+        overrides :meth:`solution` gets its ``solution().nav``."""
+        if type(self).solution is not ErrorStateKF.solution:
+            return self.solution().nav
         return self.sd.state
 
     def solution(self) -> Solution:
