@@ -26,8 +26,8 @@ import numpy as np
 from navsim.flight import properties as P
 from navsim.flight.autopilot import (S_BETA, S_CLIMB, S_COURSE, S_H, S_P, S_PITCH, S_Q, S_ROLL, S_TAS,
                                      SENSED_FIELDS, autopilot_step)
-from navsim.flight.segments import (COURSE, EAST, FLOWN, GROUND_SPEED, H, KIND, NORTH, STATE_FIELDS, TAS, TIMED_OUT, T, UNSTARTED, State,
-                                    segment_update)
+from navsim.flight.segments import (COURSE, EAST, FLOWN, GROUND_SPEED, H, KIND, NORTH, STATE_FIELDS, TAS, TIMED_OUT,
+                                    UNSTARTED, State, T, segment_update)
 from navsim.foundations.compiled import njit
 from navsim.foundations.pymath import py_hypot
 
