@@ -15,6 +15,7 @@ import hashlib
 import json
 import logging
 import os
+import threading
 import uuid
 import zipfile
 from concurrent.futures import as_completed
@@ -296,11 +297,13 @@ def mag_calibrations(scenario) -> dict:
     return out
 
 
-def run_chunks(fn, chunks, make_args, workers: int, progress=None, on_part=None):
+def run_chunks(fn, chunks, make_args, workers: int, progress=None, on_part=None, after_submit=None):
     """Run ``fn(make_args(chunk, in_worker))`` for each chunk of run indices, in this process or
     a pool of ``workers``; a chunk that raises marks its runs as failed and the others complete;
     Ctrl-C keeps what finished. Returns ``(parts, failed, interrupted)``; with ``on_part``, each
-    finished part is handed to ``on_part(part)`` as it arrives instead of being kept in ``parts``."""
+    finished part is handed to ``on_part(part)`` as it arrives instead of being kept in ``parts``;
+    ``after_submit()``, in a pool, is called once every chunk is queued (the workers forked):
+    this process's own work that overlaps the chunks' may start there."""
     parts, failed, interrupted = [], {}, False
     keep = on_part or parts.append
     try:
@@ -323,6 +326,8 @@ def run_chunks(fn, chunks, make_args, workers: int, progress=None, on_part=None)
                 except BrokenProcessPool as exc:       # a lent pool whose worker died while idle
                     failed.update({r: f"{type(exc).__name__}: {exc}" for ch in chunks for r in ch
                                    if ch not in futures.values()})
+                if after_submit is not None:
+                    after_submit()
                 try:
                     for fut in as_completed(futures):
                         ch = futures.pop(fut)          # a finished future keeps its part: drop it
@@ -457,6 +462,38 @@ class LoopChunk:
     failed: dict
 
 
+class _TruthGuided:
+    """The truth-guided flight of a closed loop (one run flown on the truth, the reference of the
+    miss distances and the report's flight), flown in a thread of this process while the pool's
+    workers fly the runs (:meth:`start`, after they are forked), or here when asked for."""
+
+    def __init__(self, scenario, seed: int):
+        self.scenario, self.seed = scenario, seed
+        self.thread, self.batch, self.error = None, None, None
+
+    def fly(self) -> None:
+        try:
+            batch = fly_batch(self.scenario, self.seed, [0], on_truth=True, keep_truth=True)
+            end_records(batch, 1.0 / self.scenario.flight.rate_hz)
+            self.batch = batch
+        except BaseException as exc:                 # handed to the caller by result()
+            self.error = exc
+
+    def start(self) -> None:
+        self.thread = threading.Thread(target=self.fly, name="navsim-truth-guided", daemon=True)
+        self.thread.start()
+
+    def result(self):
+        """The flight's LoopBatch (flown here if it was not started); what it raised, raised."""
+        if self.thread is not None:
+            self.thread.join()
+        elif self.batch is None and self.error is None:
+            self.fly()
+        if self.error is not None:
+            raise self.error
+        return self.batch
+
+
 def _closed_chunk(args) -> LoopChunk:
     """Worker: one chunk of closed-loop runs (each run flies its own aircraft)."""
     scenario, seed, runs = args
@@ -489,15 +526,18 @@ def _pad_part(chunk: LoopChunk, t_full, path_t_full) -> LoopChunk:
 
 def run_closed_loop(scenario, runs: int, seed: int, workers: int, progress=None):
     """All runs of a closed-loop scenario in chunks of :data:`CLOSED_CHUNK_RUNS`, and the same
-    flight guided on the truth; returns ``(RunResult, loop, reference)``: ``loop`` the
+    flight guided on the truth (in a thread of this process while a pool's workers fly the runs:
+    :class:`_TruthGuided`); returns ``(RunResult, loop, reference)``: ``loop`` the
     :class:`LoopRuns` (per-run outcome, abort and landing times, miss distances and true paths,
     runs in order; None when no run finished), ``reference`` the
     :class:`~navsim.experiment.closed_loop.LoopBatch` of the truth-guided flight."""
-    reference = fly_batch(scenario, seed, [0], on_truth=True, keep_truth=True)
-    end_records(reference, 1.0 / scenario.flight.rate_hz)
+    side = _TruthGuided(scenario, seed)
+    if workers <= 1:
+        side.fly()                                   # first, in this process
     chunks = chunk_ranges(runs, CLOSED_CHUNK_RUNS)
     parts, failed, interrupted = run_chunks(_closed_chunk, chunks, lambda ch, remote: (scenario, seed, ch),
-                                            workers, progress)
+                                            workers, progress, after_submit=side.start)
+    reference = side.result()
     if not parts:
         return RunResult({}, np.array([], int), failed, interrupted), None, reference
     t_of = lambda c: next(iter(c.part.histories.values())).t_s

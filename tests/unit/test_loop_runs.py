@@ -5,6 +5,7 @@ import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from navsim.experiment.closed_loop import LoopBatch
 from navsim.experiment.runner import LoopRuns
@@ -47,3 +48,40 @@ def test_it_is_scored_by_attribute_and_no_finished_run_is_none():
     r = out["return_to_land"]
     assert r["landed"] == 3 and r["reached_area"] == 2 and r["abort_t_s"]["max"] == 2.0
     assert closed_loop_metrics(None, reference, config) == {"fly_on": "KF", "time_limit_s": 100.0}
+
+
+@pytest.mark.parametrize("threaded", [True, False])
+def test_the_truth_guided_flight_beside_the_runs_hands_over_its_result_or_its_error(monkeypatch, threaded):
+    """The truth-guided flight flies in a thread while the workers fly the runs: its batch, or
+    what it raised (a FlightError of the reference), reaches the caller as if flown first."""
+    import threading
+
+    from navsim.experiment import runner
+    from navsim.foundations.errors import FlightError
+    seen = []
+
+    def fake_fly_batch(scenario, seed, runs, on_truth=False, keep_truth=False):
+        seen.append((threading.current_thread().name, list(runs), on_truth, keep_truth))
+        if scenario == "bad":
+            raise FlightError("stall", time_s=3.0)
+        return "batch"
+
+    monkeypatch.setattr(runner, "fly_batch", fake_fly_batch)
+    monkeypatch.setattr(runner, "end_records", lambda batch, dt: None)
+
+    class Flight:
+        rate_hz = 100.0
+
+    class Good:
+        flight = Flight()
+
+    side = runner._TruthGuided(Good(), 3)
+    if threaded:
+        side.start()
+    assert side.result() == "batch"
+    assert seen == [("navsim-truth-guided" if threaded else threading.current_thread().name, [0], True, True)]
+    bad = runner._TruthGuided("bad", 3)
+    if threaded:
+        bad.start()
+    with pytest.raises(FlightError, match="stall"):
+        bad.result()
