@@ -205,7 +205,8 @@ class Autopilot:
 
     The guidance modes set ``course_cmd`` and ``bank_ff``; the vertical mode sets either an
     altitude to hold (``alt_cmd``) or a climb rate (``climb_cmd``) towards ``alt_cmd``.
-    ``pitch_hold`` (rad) overrides the vertical loops (launch).
+    ``pitch_hold`` (rad) overrides the vertical loops (launch). The gains ``g`` are read into
+    the kernels' array ``gains`` here, once: a change to ``g`` afterwards is not flown.
     """
 
     def __init__(self, gains: Gains | None = None):
