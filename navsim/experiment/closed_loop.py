@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -397,7 +397,6 @@ def _step_fleet(fleet: _Fleet, tally: _Tally, nav, t: float) -> None:
         f.nav_llh[:, 0], f.nav_llh[:, 1], f.nav_llh[:, 2] = nav.lat_rad, nav.lon_rad, nav.h_m
         f.nav_vel[:], f.nav_C[:] = nav.vel_n_mps, nav.C_nb
     f.on_nav[0] = nav is not None
-    f.last_fix[:] = tally.last_fix
     if fleet_step(f, t, dt):
         for b in np.flatnonzero(f.live & (f.code != STEPPED)).tolist():
             _resolve(fleet, tally, b, t)
@@ -521,6 +520,8 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
     loop, inc = _start_navigation(scenario, seed, fleet, estimators, rows)
     path_every = min(loop.every.values())
     tally = _Tally.empty(len(craft), keep_truth)
+    if fleet.arrays is not None:                 # the fleet's kernel reads the last fixes there
+        tally = replace(tally, last_fix=fleet.arrays.last_fix)
     status = tally.status
     for k in range(fleet.n_max):
         t = k * fleet.dt
@@ -533,7 +534,7 @@ def fly_batch(scenario, seed: int, runs, on_truth: bool = False, keep_truth: boo
                     _step_rotor(fleet, tally, b, rows[b], nav, omega[b], t)
         else:
             _step_fleet(fleet, tally, nav, t)
-        if all(st in ("landed", "completed", "failed") for st in status):
+        if not (fleet.arrays.live.any() if fleet.arrays is not None else any(st in _FLOWN for st in status)):
             break
         if progress is not None and k % 1000 == 0:
             progress(t, cl.time_limit_s)

@@ -221,7 +221,6 @@ class SegmentRunner:
             return
         seg = self.segments[self.index]
         self.t0 = s.t
-        self.n0, self.e0 = s.north, s.east
         if seg.speed_mps is not None:
             self._set_speed(seg.speed_mps, 0.5, s)
         getattr(self, "_begin_" + seg.type)(seg, s)

@@ -1,6 +1,7 @@
 """Strapdown IMU emulator: gyro and accelerometer triads with the errors of :class:`ImuSpec`.
-(Over 600 lines, kept whole: the error model, its block-by-block stream and the whole-record
-emulation share the triads' state and must give the same numbers bit for bit; the vibration is
+(Kept whole, over 600 lines: one concept, the IMU's error model, drawn whole, block by block or
+sample by sample in a closed loop, and its linear forms; they share the triads' state and
+helpers and must give the same numbers bit for bit; the vibration is
 :mod:`navsim.sensors.vibration`.)
 
 Outputs (``SensorData.values``), ``(B, M, 3)``, body axes:
@@ -27,10 +28,6 @@ used, and carries its state from block to block
 (:func:`navsim.sensors.kernels.bias_block`, :func:`navsim.sensors.kernels.imu_triad`). :func:`emulate_imu` is
 the stream in one block, plus the vibration (band-limited vibration is normalised over the
 whole record, so an IMU with vibration is emulated whole).
-
-One module, over 600 lines, for one concept: the IMU's error model, drawn whole or block by
-block, and its linear forms, sharing the error processes' helpers; the vibration's signals are
-:mod:`navsim.sensors.vibration`'s.
 """
 
 from __future__ import annotations

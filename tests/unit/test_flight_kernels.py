@@ -10,6 +10,7 @@ import pytest
 
 from navsim.flight import FlightConfig, load_track
 from navsim.flight import properties as P
+from navsim.flight import segments
 from navsim.flight.autopilot import AP_FIELDS, Autopilot, Sensed
 from navsim.flight.fleet import Watchdog
 from navsim.flight.segments import State
@@ -126,7 +127,7 @@ def _fly_segments(module, ap_cls, segments, steps):
 
 def test_segment_kernel_flies_every_kind_as_the_python_one():
     old, how_old = _fly_segments(ref, ref.Autopilot, TRACK, 20000)
-    new, how_new = _fly_segments(__import__("navsim.flight.segments", fromlist=["x"]), Autopilot, TRACK, 20000)
+    new, how_new = _fly_segments(segments, Autopilot, TRACK, 20000)
     assert how_new == how_old == "flown" and len(new) == len(old)
     assert set(range(len(TRACK))) <= {step[0] for step in new}        # every segment flown
     assert new == old
@@ -135,7 +136,6 @@ def test_segment_kernel_flies_every_kind_as_the_python_one():
 @pytest.mark.parametrize("segment", [Segment("straight", "x", {"time_s": 1000.0}),
                                      Segment("climb", "y", {"to_m": 900.0, "rate_mps": 0.5})])
 def test_segment_time_outs_raise_alike(segment):
-    import navsim.flight.segments as segments
     short = [segment]
     runner_old, runner_new = _runner(ref, ref.Autopilot, short), _runner(segments, Autopilot, short)
     s = State(h=100.0, tas=14.0, ground_speed=14.0, course=0.3)
