@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navsim.foundations.distributions import chi2_ppf
 from navsim.records.metrics import EULER_AXES as AXES, Nis, _Record
 from navsim.replay.run import ReplayResult
 
@@ -203,7 +204,6 @@ def replay_nis(epochs: list, settle_s: float) -> dict:
     """``measurement:sensor`` -> :class:`Nis` of one run's epochs ``(t_s, key, nis (1,), rows)``
     after ``settle_s``: the average against the 95 % band of an average of that many chi-square
     values, and the share of epochs inside one's band."""
-    from scipy.stats import chi2
     by_key: dict = {}
     for t, key, nis, dim in epochs:
         if t >= settle_s and np.isfinite(nis[0]):
@@ -211,8 +211,8 @@ def replay_nis(epochs: list, settle_s: float) -> dict:
     out = {}
     for key, (dim, v) in by_key.items():
         v = np.asarray(v)
-        lo, hi = chi2.ppf([0.025, 0.975], dim)
-        band = (chi2.ppf([0.025, 0.975], dim * v.size) / v.size).tolist()
+        lo, hi = chi2_ppf(np.array([0.025, 0.975]), dim)
+        band = (chi2_ppf(np.array([0.025, 0.975]), dim * v.size) / v.size).tolist()
         out[key] = Nis(average=float(v.mean()), band=band, dim=int(dim),
                        fraction_inside=float(np.mean((v >= lo) & (v <= hi))))
     return out

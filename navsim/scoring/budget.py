@@ -44,9 +44,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from scipy.stats import t as student_t
-
 from navsim.foundations.config import close_match
+from navsim.foundations.distributions import t_ppf
 from navsim.foundations.errors import UsageError
 from navsim.navigation.covariance import Contributions
 from navsim.records.metrics import HorizontalStats
@@ -388,7 +387,7 @@ def _half_width(g: np.ndarray) -> float:
     g = np.asarray(g, float)
     if g.size < MIN_RUNS or not np.all(np.isfinite(g)):
         return math.nan
-    return float(student_t.ppf(0.5 + CONFIDENCE / 2, g.size - 1)) * float(np.std(g, ddof=1)) / math.sqrt(g.size)
+    return float(t_ppf(0.5 + CONFIDENCE / 2, g.size - 1)) * float(np.std(g, ddof=1)) / math.sqrt(g.size)
 
 
 def _log_interval(value: float, raw: float, g: np.ndarray) -> list[float]:
@@ -443,7 +442,7 @@ def _cross_terms(all_on: EstimatorSamples, none: EstimatorSamples, alone: dict) 
         q = s_all - z[key][0] - sum(e[key][0] - z[key][0] for e in each)
         f = float(np.sum(q) / np.sum(s_all)) if np.sum(s_all) > 0 else math.nan
         g = (q - f * s_all) / np.mean(s_all) if np.mean(s_all) > 0 else np.full(len(q), math.nan)
-        half = float(student_t.ppf(0.5 + CONFIDENCE / 2, len(q) - 1)) * float(np.std(g, ddof=1)) / math.sqrt(len(q))
+        half = float(t_ppf(0.5 + CONFIDENCE / 2, len(q) - 1)) * float(np.std(g, ddof=1)) / math.sqrt(len(q))
         out[key] = [math.sqrt(max(1 - f - half, 0.0)), math.sqrt(max(1 - f + half, 0.0))]
     return out
 

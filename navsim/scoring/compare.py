@@ -38,9 +38,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.stats import t as student_t
 
 from navsim.foundations.config import close_match
+from navsim.foundations.distributions import t_ppf, t_sf
 from navsim.foundations.errors import UsageError
 from navsim.records.samples import EstimatorSamples, MetricSamples
 from navsim.records.states import POS, SIGMA_STATES
@@ -128,7 +128,7 @@ def _interval(diff: float, se: float, dof: float) -> list[float]:
     """The t interval of ``diff`` (NaN where it cannot be had)."""
     if not (math.isfinite(se) and dof >= 1):
         return [math.nan, math.nan]
-    half = float(student_t.ppf(0.5 + CONFIDENCE / 2, dof)) * se
+    half = float(t_ppf(0.5 + CONFIDENCE / 2, dof)) * se
     return [diff - half, diff + half]
 
 
@@ -272,7 +272,7 @@ def _difference(path: str, comp: str, ma: MetricSamples, mb: MetricSamples, pair
         return Difference(path, comp, va, vb, diff, [diff, diff], _verdict(path, [diff, diff]), None,
                           1.0 if diff == 0 else 0.0, min(na, nb), 0.0, 0.0)
     ci = _interval(diff, se, dof)
-    p = float(2 * student_t.sf(abs(diff) / se, dof)) if math.isfinite(se) and dof >= 1 else math.nan
+    p = float(2 * t_sf(abs(diff) / se, dof)) if math.isfinite(se) and dof >= 1 else math.nan
     return Difference(path, comp, va, vb, diff, ci, _verdict(path, ci), None, p, min(na, nb), se,
                       spread if min(na, nb) >= MIN_RUNS else math.nan)
 

@@ -34,8 +34,7 @@ import functools
 import math
 
 import numpy as np
-from scipy.special import gammaincinv, stdtrit
-from scipy.stats import beta, binom, norm, t as student_t
+from navsim.foundations.distributions import beta_ppf, binom_cdf, chi2_ppf, norm_ppf, t_ppf
 
 #: the confidence of every interval
 CONFIDENCE = 0.95
@@ -65,12 +64,6 @@ def positive_interval(m: float, se: float, runs: int) -> list[float]:
     nu = 2.0 * m * m / (se * se)
     a = (1 - CONFIDENCE) / 2
     return [float(nu * m / chi2_ppf(1 - a, nu)), float(nu * m / chi2_ppf(a, nu))]
-
-
-def chi2_ppf(q: float, nu: float) -> float:
-    """``scipy.stats.chi2.ppf(q, nu)`` for ``0 < q < 1``, ``nu > 0``: what it computes
-    (``2 gammaincinv(nu / 2, q)``) without its argument handling (60 us a call)."""
-    return 2 * float(gammaincinv(nu / 2, q))
 
 
 def ratio_se(s: np.ndarray, n: np.ndarray) -> tuple[float, float, int]:
@@ -175,7 +168,7 @@ def mean_interval(x) -> list[float]:
     x = x[np.isfinite(x)]
     if x.size < MIN_RUNS:
         return _none()
-    half = student_t.ppf(0.5 + CONFIDENCE / 2, x.size - 1) * np.std(x, ddof=1) / math.sqrt(x.size)
+    half = t_ppf(0.5 + CONFIDENCE / 2, x.size - 1) * np.std(x, ddof=1) / math.sqrt(x.size)
     return [float(x.mean() - half), float(x.mean() + half)]
 
 
@@ -193,7 +186,7 @@ def share_interval(k, n) -> list[float]:
 
 def wilson(p: float, n: float) -> list[float]:
     """Wilson's score interval of a share ``p`` of ``n`` samples."""
-    z = norm.ppf(0.5 + CONFIDENCE / 2)
+    z = norm_ppf(0.5 + CONFIDENCE / 2)
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z / (1 + z * z / n) * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
     return [float(max(centre - half, 0.0)), float(min(centre + half, 1.0))]
@@ -204,8 +197,8 @@ def binomial_interval(k: int, n: int) -> list[float]:
     if n < MIN_RUNS:
         return _none()
     a = (1 - CONFIDENCE) / 2
-    lo = 0.0 if k == 0 else float(beta.ppf(a, k, n - k + 1))
-    hi = 1.0 if k == n else float(beta.ppf(1 - a, k + 1, n - k))
+    lo = 0.0 if k == 0 else float(beta_ppf(a, k, n - k + 1))
+    hi = 1.0 if k == n else float(beta_ppf(1 - a, k + 1, n - k))
     return [lo, hi]
 
 
@@ -230,7 +223,7 @@ def _order_ranks(n: int, p: float):
     ``P(xi_p <= x_(u+1)) = F(u)`` for ``F`` the binomial(n, p) CDF; ``-1`` / ``n`` where no order
     statistic reaches that far (the interval open at that end), None at both."""
     a = (1 - CONFIDENCE) / 2
-    cdf = binom.cdf(np.arange(n + 1), n, p)
+    cdf = binom_cdf(np.arange(n + 1), n, p)
     lo = int(np.searchsorted(cdf, a, side="right")) - 1     # largest j with F(j) <= a
     hi = int(np.searchsorted(cdf, 1 - a, side="left"))      # smallest j with F(j) >= 1 - a
     if lo < 0 and hi >= n:
@@ -316,11 +309,11 @@ def student_runs(unit: float, target: float, alpha: float = 1 - CONFIDENCE, most
     """The fewest runs ``N >= 2`` whose two-sided Student half-width ``t(1 - alpha/2, N - 1) *
     unit / sqrt(N)`` is at most ``target`` (``unit``: the spread of one run); the half-width
     falls with ``N``, so a doubling then a bisection finds it. None where it takes more than
-    ``most`` or cannot be had. The quantile is scipy's ``stdtrit`` (what ``t.ppf`` computes,
-    without its argument checks: 1 µs a call instead of 80, for the 20-odd calls of a search)."""
+    ``most`` or cannot be had. The quantile is :func:`~navsim.foundations.distributions.t_ppf` (1 µs a
+    call, for the 20-odd calls of a search)."""
     if not (math.isfinite(unit) and math.isfinite(target) and unit > 0 and target > 0):
         return None
-    ok = lambda n: float(stdtrit(n - 1, 1 - alpha / 2)) * unit / math.sqrt(n) <= target
+    ok = lambda n: float(t_ppf(1 - alpha / 2, n - 1)) * unit / math.sqrt(n) <= target
     lo, hi = 1, 2
     while not ok(hi):
         lo, hi = hi, hi * 2
@@ -341,7 +334,7 @@ def runs_for_precision(runs: int, value: float, interval, precision: float) -> i
     lo, hi = interval
     if not all(math.isfinite(v) for v in (value, lo, hi)) or runs < MIN_RUNS or value == 0 or precision <= 0:
         return None
-    unit = (hi - lo) / 2 * math.sqrt(runs) / float(student_t.ppf(0.5 + CONFIDENCE / 2, runs - 1))
+    unit = (hi - lo) / 2 * math.sqrt(runs) / float(t_ppf(0.5 + CONFIDENCE / 2, runs - 1))
     return student_runs(unit, precision * abs(value))
 
 

@@ -19,8 +19,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import beta
 
+from navsim.foundations.distributions import beta_ppf
 from navsim.scoring.intervals import CONFIDENCE, binomial_interval
 
 #: the prediction range's coverage of a new single run
@@ -58,7 +58,7 @@ def coverage_interval(n: int, coverage: float = COVERAGE, confidence: float = CO
     if k < 1 or m > n:
         return math.nan, math.nan
     a = (1.0 - confidence) / 2.0
-    lo, hi = beta.ppf([a, 1.0 - a], m - k, n + 1 - (m - k))
+    lo, hi = beta_ppf(np.array([a, 1.0 - a]), m - k, n + 1 - (m - k))
     return float(lo), float(hi)
 
 

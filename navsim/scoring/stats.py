@@ -15,8 +15,8 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from scipy.stats import chi2
 
+from navsim.foundations.distributions import chi2_ppf
 from navsim.scoring.intervals import woodruff_probabilities
 
 #: the resolution of the first pass of :class:`AbsPercentiles`: bins per decade, from 1e-15 to 1e15
@@ -237,7 +237,7 @@ def last_finite(finite: np.ndarray) -> np.ndarray:
 def chi2_band(dim: int, runs: int, p: float = 0.95) -> tuple[float, float]:
     """Two-sided band of the average of ``runs`` NEES/NIS of dimension ``dim``."""
     a = (1 - p) / 2
-    lo, hi = chi2.ppf([a, 1 - a], dim * runs) / runs
+    lo, hi = chi2_ppf(np.array([a, 1 - a]), dim * runs) / runs
     return float(lo), float(hi)
 
 
@@ -303,4 +303,4 @@ def chi2_bands(dim: int, counts, p: float = 0.95) -> tuple[np.ndarray, np.ndarra
     """:func:`chi2_band` of each of ``counts`` (the runs behind each epoch's average)."""
     counts = np.asarray(counts)
     a = (1 - p) / 2
-    return chi2.ppf(a, dim * counts) / counts, chi2.ppf(1 - a, dim * counts) / counts
+    return chi2_ppf(a, dim * counts) / counts, chi2_ppf(1 - a, dim * counts) / counts

@@ -31,9 +31,9 @@ epoch, so their innovations keep showing the fault until it ends).
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import gammaincinv
 
 from navsim.foundations.config import MAX_WINDOW, Node
+from navsim.foundations.distributions import chi2_ppf
 from navsim.foundations.jsonschema import MEASUREMENT, NUM, POS, obj
 from navsim.navigation.estimators import kalman
 from navsim.navigation.estimators.base import Innovation, Solution, register, sample
@@ -173,8 +173,7 @@ class FederatedKF(ErrorStateKF):
         per_dof = np.where(has, nis_sum / np.maximum(dof, 1), 1.0)
         self.nis_avg[i] = np.where(has, self.nis_avg[i] + (per_dof - self.nis_avg[i]) / w, self.nis_avg[i])
         d = max(float(np.max(dof)), 1.0) * w
-        # chi2.ppf(p, d) as scipy.stats computes it, without importing scipy.stats (45 MB in a worker)
-        limit = 2.0 * gammaincinv(0.5 * d, self.isolation.get("p", 0.999)) / d
+        limit = chi2_ppf(self.isolation.get("p", 0.999), d) / d
         self.active[i] = self.nis_avg[i] <= limit
 
     def _fuse(self) -> None:
