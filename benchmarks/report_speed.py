@@ -1,12 +1,14 @@
 """Wall time of the report of P0's 1000-run ``navsim run`` (issue 36's target: <= 2 s): the
 result run once into a temporary folder (or ``--result`` an existing one), then
-:func:`navsim.write_report` timed, best of ``--repeat``, and the building of its pages apart
-(:func:`navsim.report_figures`: laid out, not drawn).
+:func:`navsim.write_report` timed, best of ``--repeat``, with ``report.html`` and without it
+(``report.formats: [pdf, png]``), alternated (issue 57: the page at most 1 s more, at most
+25 MB), and the building of its pages apart (:func:`navsim.report_figures`: laid out, not drawn).
 
     python benchmarks/report_speed.py [--runs 1000] [--repeat 3] [--result FOLDER]
 """
 
 import argparse
+import dataclasses
 import tempfile
 import time
 from pathlib import Path
@@ -29,11 +31,15 @@ def main() -> None:
             folder = Path(tmp) / "p0"
             navsim.run(ROOT / "scenarios" / "p0_bd_sins_ads.yaml", args.runs, workers=2, out=folder)
         result = navsim.open_result(folder)
-        walls = []
+        walls = {"with report.html": [], "without": []}
         for i in range(args.repeat):
-            t0 = time.perf_counter()
-            navsim.write_report(result, Path(tmp) / f"report{i}", force=True)
-            walls.append(time.perf_counter() - t0)
+            for how, formats in (("with report.html", ["pdf", "png", "html"]), ("without", ["pdf", "png"])):
+                result.scenario = dataclasses.replace(result.scenario, report={**result.scenario.report,
+                                                                               "formats": formats})
+                t0 = time.perf_counter()
+                navsim.write_report(result, Path(tmp) / f"report{i}{len(formats)}", force=True)
+                walls[how].append(time.perf_counter() - t0)
+        size_mb = (Path(tmp) / "report03" / "report.html").stat().st_size / 1e6
         builds = []
         for _ in range(args.repeat):
             t0 = time.perf_counter()
@@ -41,8 +47,11 @@ def main() -> None:
             builds.append(time.perf_counter() - t0)
             for p in pages:
                 pyplot().close(p.figure)
-    print(f"report of p0_bd_sins_ads, {len(result.runs)} runs: best {min(walls):.2f} s of {args.repeat} "
-          f"({', '.join(f'{w:.2f}' for w in walls)}) (target <= 2 s)")
+    for how, w in walls.items():
+        print(f"report of p0_bd_sins_ads, {len(result.runs)} runs, {how}: best {min(w):.2f} s of {args.repeat} "
+              f"({', '.join(f'{x:.2f}' for x in w)})")
+    extra = min(walls["with report.html"]) - min(walls["without"])
+    print(f"report.html: {size_mb:.1f} MB (target <= 25 MB), {extra:+.2f} s on the report's best time (target <= 1 s)")
     print(f"of which building its {len(pages)} pages (laid out, not drawn): best {min(builds):.2f} s")
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from navsim import report
 from navsim.api.arguments import load_scenario
 from navsim.api.runs import run
 from navsim.experiment.executors import lend_pool
@@ -25,7 +26,7 @@ from navsim.experiment.budget import check_method, covariance_contributions, lef
 from navsim.experiment.budget import scale_ok, scaled
 from navsim.experiment.options import RunOptions, shown
 from navsim.experiment.runner import cached_flight, scenario_hash
-from navsim.experiment.scenario import Scenario
+from navsim.experiment.scenario import REPORT_FORMATS, Scenario
 from navsim.foundations.errors import UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.provenance import provenance
@@ -263,9 +264,10 @@ def _scales(scales) -> list[tuple[str, float]]:
 
 
 
-def write_budget(result: Budget, folder: OutputFolder, metrics=None, fmts=("pdf", "png")) -> list[Path]:
+def write_budget(result: Budget, folder: OutputFolder, metrics=None, fmts=REPORT_FORMATS) -> list[Path]:
     """``budget.json``, ``budget.csv`` (one row per estimator, metric and line) and the budget's
-    pages (``budget.pdf``, a PNG each: a sorted bar chart per estimator and metric).
+    pages (``budget.pdf``, a PNG each: a sorted bar chart per estimator and metric) and
+    ``budget.html`` (the tables, sortable, and each source's share with its interval).
 
     Parameters
     ----------
@@ -293,4 +295,7 @@ def write_budget(result: Budget, folder: OutputFolder, metrics=None, fmts=("pdf"
     finally:
         for p in pages:
             pyplot().close(p.figure)
+    if "html" in fmts:                          # Bokeh imported here, on first use
+        files.append(folder.write("budget.html", lambda p: p.write_text(report.html.budget_html(result, metrics),
+                                                                         encoding="utf-8")))
     return [folder.path / "budget.json", folder.path / "budget.csv", *files]

@@ -12,10 +12,12 @@ from pathlib import Path
 
 import yaml
 
+from navsim import report
 from navsim.api.arguments import checked_path
 from navsim.api.results import Result, resolved_scenario
 from navsim.experiment.options import check_flags, shown
 from navsim.experiment.results import ResultFiles, check_comparable, pairing, read_result
+from navsim.experiment.scenario import REPORT_FORMATS
 from navsim.foundations.errors import UsageError
 from navsim.foundations.outputs import OutputFolder
 from navsim.foundations.provenance import provenance
@@ -140,9 +142,10 @@ def _estimator_pairs(ra: ResultFiles, rb: ResultFiles, one: bool, estimators) ->
                      f"(A has: {', '.join(la)}; B has: {', '.join(lb)})")
 
 
-def write_comparison(comparisons: list[Comparison], folder: OutputFolder, fmts=("pdf", "png")) -> list[Path]:
-    """``compare.json``, ``compare.csv`` and the page of each comparison (``compare.pdf``, a PNG
-    each, its runs' differences drawn).
+def write_comparison(comparisons: list[Comparison], folder: OutputFolder, fmts=REPORT_FORMATS) -> list[Path]:
+    """``compare.json``, ``compare.csv``, the page of each comparison (``compare.pdf``, a PNG
+    each, its runs' differences drawn) and ``compare.html`` (the tables, sortable, and the
+    differences with their intervals, to explore).
 
     Parameters
     ----------
@@ -150,7 +153,7 @@ def write_comparison(comparisons: list[Comparison], folder: OutputFolder, fmts=(
         What :func:`compare` returned.
     folder : navsim.foundations.outputs.OutputFolder
         The open output folder written into.
-    fmts : sequence of {"pdf", "png"}
+    fmts : sequence of {"pdf", "png", "html"}
         The page formats.
 
     Returns
@@ -171,6 +174,9 @@ def write_comparison(comparisons: list[Comparison], folder: OutputFolder, fmts=(
     finally:
         for p in pages:
             pyplot().close(p.figure)
+    if "html" in fmts:                          # Bokeh imported here, on first use
+        files.append(folder.write("compare.html", lambda p: p.write_text(report.html.compare_html(comparisons),
+                                                                          encoding="utf-8")))
     return [folder.path / "compare.json", folder.path / "compare.csv", *files]
 
 

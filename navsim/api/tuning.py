@@ -28,12 +28,13 @@ from pathlib import Path
 
 import yaml
 
+from navsim import report
 from navsim.api.arguments import checked_path, overrides_of
 from navsim.api.comparisons import compare
 from navsim.api.runs import run
 from navsim.experiment.executors import lend_pool
 from navsim.experiment.runner import cached_flight, default_chunk_runs
-from navsim.experiment.scenario import MAX_SEED, parse_changed, parse_scenario
+from navsim.experiment.scenario import MAX_SEED, REPORT_FORMATS, parse_changed, parse_scenario
 from navsim.experiment.tuning import TRUTH_PREFIX, TuneParam, default_params, entry_index, parse_param
 from navsim.foundations.config import load_yaml
 from navsim.foundations.errors import ScenarioError, UsageError
@@ -257,7 +258,7 @@ def _tune(trials: _Trials, o: TuneOptions, folder, resume: bool, progress) -> Tu
     record.wall_s = time.perf_counter() - t0
     result = TuneResult(record, trials.params, None if folder is None else folder.path)
     if folder is not None:
-        _write(folder, result, first.report.get("formats", ("pdf", "png")))
+        _write(folder, result, first.report.get("formats", REPORT_FORMATS))
     return result
 
 
@@ -547,7 +548,7 @@ def _consistency(m) -> dict:
     return {"nees": band_record(m.nees) if m.nees else None, "nis": {k: band_record(v) for k, v in (m.nis or {}).items()}}
 
 
-def _write(folder, result: TuneResult, formats=("pdf", "png")) -> None:
+def _write(folder, result: TuneResult, formats=REPORT_FORMATS) -> None:
     r = result.record
     folder.json("tune.json", r.to_dict())
     buf = io.StringIO()
@@ -569,6 +570,9 @@ def _write(folder, result: TuneResult, formats=("pdf", "png")) -> None:
         text = truth + (text if any(not p.truth for p in result.params) else "")
     folder.text("tuned.yaml", text)
     folder.record(write_tune_report(folder, result.record, result.params, formats))
+    if "html" in formats:                      # Bokeh imported here, on first use
+        folder.write("tune.html", lambda p: p.write_text(report.html.tune_html(result.record, result.params),
+                                                        encoding="utf-8"))
 
 
 __all__ = ["TuneOptions", "TuneParam", "TuneResult", "tune", "tune_log"]

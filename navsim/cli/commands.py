@@ -10,13 +10,14 @@ line) adds one with :func:`register_command` and takes it away with
 
 from __future__ import annotations
 
-from navsim.cli import budget, compare, fly, list_, new, replay, run, schema, sensors, sweep, tune, validate
+from navsim.cli import budget, compare, fly, list_, new, open_, replay, run, schema, sensors, sweep, tune, validate
 from navsim.cli.command import Command
 from navsim.foundations.registry import Registry
 
 #: the commands navsim ships, in the order they are listed
 BUILT_IN: tuple[Command, ...] = (
     run.COMMAND,
+    open_.COMMAND,
     fly.COMMAND,
     sensors.COMMAND,
     validate.COMMAND,

@@ -10,7 +10,7 @@ import math
 import sys
 from pathlib import Path
 
-from navsim import api
+from navsim import api, report
 from navsim.cli.command import Command
 from navsim.cli.options import RUNS_TYPE, SEED_TYPE, executor_options, out_option, run_options, set_option
 from navsim.cli.options import load_plugins, overrides_given, plugin_option, workers_option
@@ -66,7 +66,8 @@ def handle(args) -> int:
     folder.clear_earlier()                 # only now: a sweep that cannot start leaves the earlier one
     write_sweep_files(folder, sweep)
     write_sweep_figure(folder, sweep, f"sweep {Path(args.sweep).name}: {sweep.metric} (vectors by their norm), 95 % intervals over the runs")
-    print(f"\nwrote {folder.path}/: sweep.json (every point's metrics), sweep.csv, sweep.png")
+    folder.write("sweep.html", lambda p: p.write_text(report.html.sweep_html(sweep), encoding="utf-8"))
+    print(f"\nwrote {folder.path}/: sweep.json (every point's metrics), sweep.csv, sweep.png, sweep.html")
     for i, why in sweep.failed_points.items():
         name = _point_name(i, len(points), points[i])
         print(f"error: {name}: {why}" if i in sweep.unflown else f"error: no run of {name} succeeded: {why}",

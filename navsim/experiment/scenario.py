@@ -265,15 +265,20 @@ def _metrics(node: Node | None) -> tuple:
     return settle_s, windows
 
 
+#: the report's formats: the PDF, a PNG per page, the interactive page (report.html)
+REPORT_FORMATS = ("pdf", "png", "html")
+
+
 def _report(node: Node | None) -> dict:
-    """``report: {formats, runs_plotted}`` (formats: pdf and/or png)."""
-    report = {"formats": ["pdf", "png"]}
+    """``report: {formats, runs_plotted}`` (formats: any of :data:`REPORT_FORMATS`, all by
+    default)."""
+    report = {"formats": list(REPORT_FORMATS)}
     if node is None:
         return report
     node._seen.add("formats")
-    fmts = node.data.get("formats", ["pdf", "png"])
-    if not (isinstance(fmts, list) and fmts and all(f in ("pdf", "png") for f in fmts)):
-        raise node.error(f"is {fmts!r}", "formats", expected="a list of pdf and/or png")
+    fmts = node.data.get("formats", list(REPORT_FORMATS))
+    if not (isinstance(fmts, list) and fmts and all(f in REPORT_FORMATS for f in fmts)):
+        raise node.error(f"is {fmts!r}", "formats", expected="a list of " + ", ".join(REPORT_FORMATS))
     report["formats"] = fmts
     report["runs_plotted"] = node.get("runs_plotted", int, 5, minimum=0, maximum=MAX_RUNS)
     node.done()

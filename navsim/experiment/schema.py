@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 
-from navsim.experiment.scenario import MAX_INITIAL, MAX_SEED, MAX_WORKERS, RATE_HZ
+from navsim.experiment.scenario import MAX_INITIAL, MAX_SEED, MAX_WORKERS, RATE_HZ, REPORT_FORMATS
 from navsim.flight.environment import MAX_TURBULENCE_SEED
 from navsim.flight.track import MAX_AIRSPEED_MPS, SEGMENT_KEYS, START_CLASSES
 from navsim.foundations.config import MAX_DURATION_S, MAX_RUNS, MAX_WIND_MPS, PLAIN_NAME_PATTERN
@@ -73,7 +73,7 @@ def scenario_schema(built_in: bool = False) -> dict:
                                  {"name": {"type": "string"}, "start_s": TIME, "end_s": TIME},
                                  ["name", "start_s", "end_s"])}}),
             "reference": _reference(),
-            "report": obj({"formats": {"type": "array", "items": {"enum": ["pdf", "png"]}},
+            "report": obj({"formats": {"type": "array", "items": {"enum": list(REPORT_FORMATS)}},
                             "runs_plotted": {"type": "integer", "minimum": 0}}),
             "closed_loop": _closed_loop(),
         }, ["track"]),

@@ -115,7 +115,7 @@ def _band(ax, lo: float, hi: float, colour) -> None:
         ax.axhline(y, color=colour, lw=0.9, ls="--", alpha=0.8)
 
 
-def _panels(inp: ReportInput, filters: dict, colours) -> list:
+def series_panels(inp: ReportInput, filters: dict, colours) -> list:
     """``(ylabel, [_Series])`` per panel: the NEES of every filter together, then each filter's
     NIS per measurement (only the statistics the scorer has)."""
     nees, nis = [], []
@@ -218,7 +218,7 @@ def pages(inp: ReportInput) -> list[Page]:
     page; a panel whose curves span decades on a log scale (:func:`log_scale_if_wide`)."""
     filters = {k: h for k, h in inp.histories.items() if h.nees is not None}
     colours = pyplot().cm.tab10(np.arange(10))
-    panels = _panels(inp, filters, colours)
+    panels = series_panels(inp, filters, colours)
     settle_s = inp.scenario.settle_s
     out = []
     for start in range(0, len(panels), PANELS_PER_PAGE):

@@ -17,12 +17,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from navsim import report
+from navsim.experiment.scenario import REPORT_FORMATS
 from navsim.flight.plots import flight_figures
 from navsim.foundations.outputs import OutputFolder
 from navsim.report import attitude, biases, calibration, closed_loop, consistency, errors, height, landmarks
 from navsim.report import drift, scenario_page, wind
 from navsim.report.figures import FIGURE_IN, FOOTER_IN, Page, ReportInput, pyplot
-from navsim.report.render import render
+from navsim.report.render import ForkedWrite, render
 from navsim.report.summary import summary_figures, window_figures
 from navsim.report.tables import Table, layout
 
@@ -124,15 +126,27 @@ def report_pages(inp: ReportInput) -> list[Page]:
 
 
 def write_report(folder: OutputFolder, inp: ReportInput) -> list[Path]:
-    """Write the PNGs and ``report.pdf`` of the run ``inp`` (its scenario, flight, histories,
-    metrics, record; for a closed loop its per-run outcome and truth-guided flight; its landmark
-    sightings, shaded in green) into the output folder ``folder`` (each name recorded in its
-    manifest before it is written); returns the files written."""
-    pages = []
+    """Write the PNGs, ``report.pdf`` and ``report.html`` (those of the scenario's
+    ``report.formats``) of the run ``inp`` (its scenario, flight, histories, metrics, record; for
+    a closed loop its per-run outcome and truth-guided flight; its landmark sightings, shaded in
+    green) into the output folder ``folder`` (each name recorded in its manifest before it is
+    written); returns the files written."""
+    fmts = inp.scenario.report.get("formats", REPORT_FORMATS)
+    pages, written, page = [], [], None
+    if "html" in fmts:                        # a forked child writes it meanwhile (Bokeh imported there)
+        path = folder.path / report.html.HTML_FILE
+        folder.record([path])
+        page = ForkedWrite(lambda: report.html.write_html(path, inp), [path])
     try:
-        pages = report_pages(inp)
-        return render(folder, pages, inp.scenario.report.get("formats", ["pdf", "png"]),
-                      f"navsim report: {inp.scenario.name}")
+        if {"pdf", "png"} & set(fmts):
+            pages = report_pages(inp)
+            written = render(folder, pages, fmts, f"navsim report: {inp.scenario.name}")
+        if page is not None:
+            page.finish()
+            written.append(path)
     finally:
-        for page in pages:
-            pyplot().close(page.figure)
+        for p in pages:
+            pyplot().close(p.figure)
+        if page is not None:
+            page.end()
+    return written

@@ -70,11 +70,70 @@ def render(folder: OutputFolder, pages: list[Page], fmts, title: str, pdf: str =
 
 
 def _can_split(n_pages: int) -> bool:
-    """Whether two processes draw the report: enough pages, ``fork``, two cores, and this
-    process allowed children (a daemonic one is not)."""
+    """Whether two processes draw the report: enough pages and a child at hand (:func:`can_fork`)."""
+    return n_pages >= SPLIT_PAGES and can_fork()
+
+
+def can_fork() -> bool:
+    """Whether a forked child can share the work: ``fork``, two cores, and this process allowed
+    children (a daemonic one is not)."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return (n_pages >= SPLIT_PAGES and cores > 1 and "fork" in multiprocessing.get_all_start_methods()
-            and not multiprocessing.current_process().daemon)
+    return cores > 1 and "fork" in multiprocessing.get_all_start_methods() and not multiprocessing.current_process().daemon
+
+
+class ForkedWrite:
+    """``write()`` (which writes ``paths``, each through a temporary name) in a forked child
+    while this process goes on, where one can be had (:func:`can_fork`); :meth:`finish` waits
+    for it and, where it failed or gave no word within :data:`CHILD_TIMEOUT_S`, ends it, removes
+    what it left half written and calls ``write()`` here (its error then raised here); without
+    a child, :meth:`finish` calls ``write()``."""
+
+    def __init__(self, write, paths: list[Path]):
+        self.write, self.paths, self.process = write, paths, None
+        if can_fork():
+            ctx = multiprocessing.get_context("fork")
+            self.receive, send = ctx.Pipe(duplex=False)
+            self.process = ctx.Process(target=_write_child, args=(send, write), daemon=True)
+            self.process.start()
+            send.close()
+
+    def finish(self) -> None:
+        """The files written, by the child or, failing it, here."""
+        if not self.end():
+            self.write()
+
+    def end(self) -> bool:
+        """Wait for the child (once): whether it wrote the files; one that did not is ended and
+        its temporary files removed."""
+        process, self.process = self.process, None
+        if process is None:
+            return False
+        done = False
+        try:
+            done = self.receive.poll(CHILD_TIMEOUT_S) and self.receive.recv_bytes() == _DONE
+        except (EOFError, OSError):
+            pass
+        self.receive.close()
+        process.join(timeout=CHILD_EXIT_S if done else 0)
+        if process.is_alive():
+            process.terminate()
+            process.join()
+        if not done:
+            for path in self.paths:
+                temporary_name(path).unlink(missing_ok=True)
+        return done
+
+
+def _write_child(send, write) -> None:
+    """In the forked child of :class:`ForkedWrite`: ``write()``, then :data:`_DONE`; on any
+    failure it ends quietly (the parent writes the files and reports the failure)."""
+    try:
+        die_with_parent()
+        write()
+        send.send_bytes(_DONE)
+        send.close()
+    except BaseException:
+        os._exit(1)
 
 
 def _pdf_bytes(pages: list[Page], title: str) -> bytes:
