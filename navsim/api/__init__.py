@@ -7,7 +7,7 @@ summary table.
 >>> result = navsim.run(scenario, runs=20, workers=2)          # out=None: nothing is written
 >>> result.metrics.estimators["BD/SINS/ADS ES-KF 16"].rms.pos_m   # typed (navsim.records.metrics)
 >>> ds = result.to_xarray()                                    # run x epoch x axis, with units
->>> navsim.write_report(result, "reports/p0")                 # report.pdf, PNGs, metrics.json
+>>> navsim.write_report(result, "reports/p0")                 # report.html, .pdf, PNGs, metrics.json
 >>> again = navsim.open_result("reports/p0")                   # read-only
 
 A run written to a folder holds ``metrics.json`` (:attr:`Result.metrics`), ``run.json``

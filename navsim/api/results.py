@@ -296,7 +296,8 @@ def resolved_scenario(result: Result) -> dict:
 
 
 def write_report(result: Result, out=None, *, force: bool = False) -> list[Path]:
-    """``report.pdf`` and its PNGs for ``result``; also writes the run's ``metrics.json``,
+    """``report.html``, ``report.pdf`` and its PNGs for ``result`` (those of its scenario's
+    ``report.formats``); also writes the run's ``metrics.json``,
     ``run.json`` and ``scenario.resolved.yaml`` there when it is another folder than the run's.
 
     Parameters

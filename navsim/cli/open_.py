@@ -30,8 +30,9 @@ def page_of(target: Path) -> Path:
         if (target / name).is_file():
             return target / name
     raise UsageError(f"{target}: no interactive page in it (looked for {', '.join(PAGES)})\n  hint: a result of an "
-                     "older navsim has none; write its report again: python -c \"import navsim; "
-                     f"navsim.write_report(navsim.open_result('{target}'))\"")
+                     "older navsim, or of a scenario whose report.formats leave out html, has none: add html to "
+                     "report.formats (or take the line out) and run again, or write a run's report again: python -c "
+                     f"\"import navsim; navsim.write_report(navsim.open_result('{target}'))\"")
 
 
 def can_show() -> bool:

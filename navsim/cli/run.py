@@ -77,7 +77,7 @@ def _ending(result, runs: int, out: Path, files) -> int:
 def artifacts(out: Path, files) -> str:
     """Every file a run wrote into ``out``: the report's and the run's own."""
     pngs = [f for f in files if f.suffix == ".png"]
-    names = [f.name for f in files if f.suffix == ".pdf"] + ([f"{len(pngs)} PNGs"] if pngs else [])
+    names = [f.name for f in files if f.suffix in (".html", ".pdf")] + ([f"{len(pngs)} PNGs"] if pngs else [])
     names += [n for n in ("metrics.json", "run.json", "scenario.resolved.yaml", "samples.npz", "runs.npz") if (out / n).exists()]
     if (out / "chunks" / "index.json").exists():
         names.append(f"chunks/ (per-run data, {len(listed_runs(out / 'chunks'))} runs)")
@@ -106,6 +106,6 @@ def _print_calibration(metrics) -> None:
 COMMAND = Command(
     "run", "run a scenario's Monte Carlo and write its report", usage="SCENARIO.yaml [--runs N] [--out DIR]",
     description="Fly the track (cached), emulate the sensors and run every estimator over the Monte Carlo "
-    "runs; write report.pdf, PNGs, metrics.json, scenario.resolved.yaml and the per-run data (chunks/); print "
-    "a summary table.",
+    "runs; write report.html (navsim open), report.pdf, PNGs, metrics.json, scenario.resolved.yaml and the "
+    "per-run data (chunks/); print a summary table.",
     arguments=arguments, handler=handle, kept="the finished chunks are kept and --resume completes the run")

@@ -39,6 +39,7 @@ from bokeh.resources import INLINE
 from matplotlib.colors import to_hex
 
 from navsim.flight.plots import drawn
+from navsim.foundations.earth import local_ne
 from navsim.foundations.outputs import write_atomic
 from navsim.report import budget as budget_report, compare as compare_report
 from navsim.report.consistency import quote, series_panels, spans_decades
@@ -68,10 +69,10 @@ def report_html(inp: ReportInput) -> str:
         tabs.append(TabPanel(title="Flight", child=flight_tab(inp, time_range)))
     if inp.histories:
         tabs.append(TabPanel(title="Errors", child=errors_tab(inp, time_range)))
-        panel = consistency_tab(inp, time_range)
-        if panel is not None:
-            tabs.append(TabPanel(title="Consistency", child=panel))
-        tabs.append(TabPanel(title="Run picker", child=picker_tab(inp, time_range)))
+        for title, panel in (("Consistency", consistency_tab(inp, time_range)),
+                             ("Run picker", picker_tab(inp, time_range))):
+            if panel is not None:
+                tabs.append(TabPanel(title=title, child=panel))
     page = column(Div(text=f"<h1>navsim report: {esc(inp.scenario.name)}</h1>"), Tabs(tabs=tabs))
     return file_html(page, INLINE, title=f"navsim report: {inp.scenario.name}")
 
@@ -100,8 +101,7 @@ def summary_tab(inp: ReportInput):
 def flight_tab(inp: ReportInput, time_range):
     """The ground track (north against east, equal scales) and the truth against time."""
     tr = inp.truth
-    lat, lon = tr.lat_rad - tr.lat_rad[0], tr.lon_rad - tr.lon_rad[0]
-    north, east = lat * 6378137.0, lon * 6378137.0 * np.cos(tr.lat_rad[0])
+    north, east = local_ne(tr.lat_rad, tr.lon_rad, tr.lat_rad[0], tr.lon_rad[0])
     track = figure(title="Ground track (north against east, from the start)", width=560, height=560,
                    match_aspect=True, x_axis_label="east, m", y_axis_label="north, m",
                    tools="pan,wheel_zoom,box_zoom,reset,save")

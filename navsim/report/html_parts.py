@@ -70,7 +70,7 @@ def table(headers: list[str], rows: list[list[str]]) -> DataTable:
         data[f"k{i}"] = [k if np.isfinite(k) else -np.inf for k in keys] if numeric else cells
         width = CHAR_PX * max([len(head.replace("\n", " "))] + [len(c) for c in cells]) + 20
         total += width
-        columns.append(TableColumn(field=f"k{i}", title=head.replace("\n", " "), width=width,
+        columns.append(TableColumn(field=f"k{i}", title=esc(head.replace("\n", " ")), width=width,   # shown as HTML
                                    formatter=HTMLTemplateFormatter(template=f"<%- c{i} %>")))
     height = min(36 + 25 * max(len(rows), 1), 640)
     return DataTable(source=ColumnDataSource(data), columns=columns, width=max(total, 300), height=height,

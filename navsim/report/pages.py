@@ -148,5 +148,5 @@ def write_report(folder: OutputFolder, inp: ReportInput) -> list[Path]:
         for p in pages:
             pyplot().close(p.figure)
         if page is not None:
-            page.end()
+            page.end(abandon=True)           # after a failure here: the child ended, its file removed
     return written

@@ -36,14 +36,15 @@ AXIS_NAMES = ("north", "east", "down")
 def quantised(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(q, scale)`` of a ``(R, C, N)`` array: ``q`` 16-bit integers, ``x ≈ q * scale`` within
     half a step, ``scale`` ``(R, C)`` (single precision, as the page holds it) each run's trace's
-    largest magnitude over :data:`FULL_SCALE` (1 where all are 0), NaN as ``-32768``."""
+    largest finite magnitude over :data:`FULL_SCALE` (1 where all are 0; kept within single
+    precision's normal range), a NaN or an infinite value as ``-32768`` (a gap)."""
     x = np.asarray(x, np.float64)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)           # a trace of NaN only
-        peak = np.nan_to_num(np.nanmax(np.abs(x), axis=2, initial=0.0)) if x.size else np.zeros(x.shape[:2])
-    scale = np.where(peak > 0, peak / FULL_SCALE, 1.0).astype(np.float32)
-    q = np.clip(np.round(x / scale[..., None].astype(np.float64)), -FULL_SCALE, FULL_SCALE)
-    return np.where(np.isfinite(q), q, -FULL_SCALE - 1).astype(np.int16), scale
+    finite = np.isfinite(x)
+    peak = np.max(np.where(finite, np.abs(x), 0.0), axis=2, initial=0.0)
+    f32 = np.finfo(np.float32)
+    scale = np.where(peak > 0, np.clip(peak / FULL_SCALE, f32.tiny, f32.max), 1.0).astype(np.float32)
+    q = np.clip(np.round(np.where(finite, x, 0.0) / scale[..., None].astype(np.float64)), -FULL_SCALE, FULL_SCALE)
+    return np.where(finite, q, -FULL_SCALE - 1).astype(np.int16), scale
 
 
 def run_traces(h) -> dict:
@@ -130,7 +131,7 @@ def rankings(inp: ReportInput) -> dict:
             groups[f"{label}: diverged ({bad.size})"] = [(r, f"run {numbers[r]}: diverged · {label}") for r in bad]
     rows = len(first) if first is not None else 0
     groups["every run"] = [(r, f"run {first[r]}") for r in range(rows)]
-    return groups
+    return {g: opts for g, opts in groups.items() if opts}     # a metric no run has: no group
 
 
 
@@ -161,7 +162,7 @@ for (let e = 0; e < src.length; e++) {
   for (let k = 0; k < ev_row[e].length; k++) {
     if (ev_row[e][k] == r) {
       ex.push(ev_t[e][k]);
-      rows.estimator.push(labels[e]); rows.t.push(ev_t[e][k].toFixed(2)); rows.event.push(ev_text[e][k]);
+      rows.estimator.push(labels[e]); rows.t.push(ev_shown[e][k]); rows.event.push(ev_text[e][k]);
     }
   }
   ev_src[e].data = {x: ex};
@@ -186,11 +187,13 @@ def events_of(h) -> tuple[list, list, list]:
 
 def picker_tab(inp: ReportInput, time_range):
     """A run chosen from :func:`rankings`: its position error per axis against its own ±3σ,
-    its events as lines and in a table, the sensors' faults shaded (red)."""
+    its events as lines and in a table, the sensors' faults shaded (red); None without a run."""
+    groups = rankings(inp)
+    if not groups:
+        return None
     colours = {k: to_hex(c) for k, c in estimator_colours(inp.histories).items()}
     env = {k: e for k, h in inp.histories.items() if (e := envelopes(h, "pos")) is not None}
     hidden = set(split_free(env, (inp.scenario.settle_s, np.inf))[1])
-    groups = rankings(inp)
     row0, start = next(iter(next(iter(groups.values()))), (0, ""))
     labels, traces = list(inp.histories), [run_traces(h) for h in inp.histories.values()]
     srcs = [[ColumnDataSource(axis_data(decoded(tr, row0), j), name=f"run_errors_{i}_{j}") for j in range(3)]
@@ -229,6 +232,7 @@ def picker_tab(inp: ReportInput, time_range):
                 idx=[tr["idx"] for tr in traces], times=[tr["t"] for tr in traces],
                 values=[tr["values"] for tr in traces], scales=[tr["scales"] for tr in traces],
                 ev_row=[np.asarray(ev[0], np.int32) for ev in evs], ev_t=[np.asarray(ev[1], float) for ev in evs],
+                ev_shown=[[f"{t:.2f}" for t in ev[1]] for ev in evs],
                 ev_text=[ev[2] for ev in evs], option_texts=[t for _, t in every],
                 option_rows=np.array([r for r, _ in every], np.int32))
     select.js_on_change("value", CustomJS(args=args, code=PICK_JS))

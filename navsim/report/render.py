@@ -102,15 +102,16 @@ class ForkedWrite:
         if not self.end():
             self.write()
 
-    def end(self) -> bool:
-        """Wait for the child (once): whether it wrote the files; one that did not is ended and
-        its temporary files removed."""
+    def end(self, abandon: bool = False) -> bool:
+        """Wait for the child (once): whether it wrote the files; one that did not, or any with
+        ``abandon`` (this process failed: nothing more is written), is ended and its temporary
+        files removed."""
         process, self.process = self.process, None
         if process is None:
             return False
         done = False
         try:
-            done = self.receive.poll(CHILD_TIMEOUT_S) and self.receive.recv_bytes() == _DONE
+            done = not abandon and self.receive.poll(CHILD_TIMEOUT_S) and self.receive.recv_bytes() == _DONE
         except (EOFError, OSError):
             pass
         self.receive.close()

@@ -19,23 +19,27 @@ import pytest
 
 import navsim
 from navsim.api.results import _report_input
+from navsim.cli import main
 from navsim.scoring.budget import DEFAULT_METRICS
 from navsim.report import html, picker
 
 pytestmark = pytest.mark.browser
 
-#: JavaScript: every element, inside Bokeh's shadow roots too, whose text runs out of its box
-#: (content wider or taller than the element where its overflow is drawn)
+#: JavaScript: every element, inside Bokeh's shadow roots too, whose text runs out of its box:
+#: content wider or taller than the element where its overflow is drawn, or cut by it (a table's
+#: cell or header narrower than its text)
 OVERFLOWING_JS = """() => {
   const out = [], todo = [document.documentElement];
   while (todo.length) {
     const el = todo.pop();
     if (el.shadowRoot) todo.push(...el.shadowRoot.children);
     todo.push(...el.children);
-    const style = getComputedStyle(el);
-    if (!el.offsetParent || style.overflow !== 'visible' || !el.textContent.trim() || el.children.length) continue;
-    if (el.scrollWidth > el.clientWidth + 2 || el.scrollHeight > el.clientHeight + 2)
-      out.push(el.tagName + ': ' + el.textContent.trim().slice(0, 60));
+    if (!el.offsetParent || !el.textContent.trim() || el.children.length) continue;
+    const visible = getComputedStyle(el).overflow === 'visible';
+    const cell = /slick-cell|slick-column-name/.test(el.className);
+    if (!visible && !cell) continue;
+    if (el.scrollWidth > el.clientWidth + 2 || (visible && el.scrollHeight > el.clientHeight + 2))
+      out.push(el.tagName + ' ' + el.className + ': ' + el.textContent.trim().slice(0, 60));
   }
   return out;
 }"""
@@ -143,7 +147,8 @@ def test_the_page_opens_and_the_picker_draws_the_chosen_run(browser, p0_folder):
             assert np.max(np.abs(err - recorded)) <= 1e-4 * np.max(np.abs(recorded))
             sigma = h.sigma[row][:, 6 + j].astype(float)
             assert np.max(np.abs(plus - 3 * sigma)) <= 1e-4 * np.max(3 * sigma)
-        assert page.page.get_by_text(f"{text.split(':')[0].capitalize()}:", exact=False).count() >= 1   # "Run 3: ..."
+        info = page.page.evaluate("() => Bokeh.documents[0].get_model_by_name('run_info').text")
+        assert info.startswith(f"Run {text.split(':')[0].split()[1]}: "), info
         assert page.errors == []
     finally:
         page.close()
@@ -152,7 +157,7 @@ def test_the_page_opens_and_the_picker_draws_the_chosen_run(browser, p0_folder):
 def _hostile(result):
     """``result`` with a label of quotes and ``</script>``, a description and window name with
     tags, a run's records partly NaN and another run diverged."""
-    nasty = 'ES-KF "q" </script><script>window.pwned=1</script>'
+    nasty = 'ES-KF "q" </script><img src=x onerror="window.pwned=1">'
     rename = lambda k: nasty if k.startswith("BD") else k
     hist = {}
     for k, h in result.histories.items():
@@ -164,7 +169,7 @@ def _hostile(result):
         hist[rename(k)] = h
     metrics = dataclasses.replace(result.metrics,
                                   estimators={rename(k): v for k, v in result.metrics.estimators.items()})
-    scenario = dataclasses.replace(result.scenario, description="<script>window.pwned=2</script> & <b>bold</b>",
+    scenario = dataclasses.replace(result.scenario, description='<img src=x onerror="window.pwned=2"> & <b>bold</b>',
                                    windows=tuple(("<i>w</i>" if i == 0 else w[0], *w[1:])
                                                  for i, w in enumerate(result.scenario.windows)))
     return dataclasses.replace(result, histories=hist, metrics=metrics, scenario=scenario), nasty
@@ -177,9 +182,8 @@ def test_hostile_input_gives_a_page_that_opens_with_its_text_as_written(browser,
     page = Page(browser, path)
     try:
         page.tab("Summary")
-        shown = page.page.get_by_text("<script>window.pwned=2</script> & <b>bold</b>", exact=False)
+        shown = page.page.get_by_text('<img src=x onerror="window.pwned=2"> & <b>bold</b>', exact=False)
         assert shown.count() == 1 and shown.is_visible()                 # shown as written, not run
-        assert page.page.evaluate("() => window.pwned === undefined")
         page.tab("Run picker")
         groups = picker.rankings(_report_input(result))
         diverged = next(g for g in groups if g.startswith(nasty) and "diverged" in g)
@@ -190,7 +194,10 @@ def test_hostile_input_gives_a_page_that_opens_with_its_text_as_written(browser,
         page.pick(next(text for r, text in groups["every run"] if r == 0))
         err = _as_array(page.data("run_errors_0_0")["ys"][0])
         assert np.isnan(err).any() and np.isfinite(err).sum() > 100     # a gap, the rest drawn
-        assert page.errors == []
+        for tab in ("Summary", "Flight", "Errors", "Consistency", "Run picker"):     # every text shown
+            page.tab(tab)
+        assert page.page.evaluate("() => window.pwned === undefined")   # no handler of ours ran
+        assert page.errors == []                      # no <img> of theirs made (its src would fail to load)
     finally:
         page.close()
 
@@ -221,12 +228,14 @@ def test_the_overflow_check_finds_text_out_of_its_box(browser, tmp_path):
     path.write_text("<html><body><div style='width:40px'>a_text_far_wider_than_forty_pixels</div>"
                     "<div id='host'></div><script>const r = document.getElementById('host').attachShadow({mode:"
                     "'open'}); r.innerHTML = \"<p style='width:30px;white-space:nowrap'>inside a shadow root</p>\";"
-                    "</script></body></html>")
+                    "</script><div class='slick-cell' style='width:30px;overflow:hidden;white-space:nowrap'>"
+                    "a table cell cut short</div></body></html>")
     page = browser.new_page()
     try:
         page.goto(path.as_uri())
         found = page.evaluate(OVERFLOWING_JS)
         assert any("far_wider" in f for f in found) and any("shadow root" in f for f in found), found
+        assert any("cut short" in f for f in found), found
     finally:
         page.close()
 
@@ -247,7 +256,6 @@ def test_compare_budget_sweep_and_tune_pages_open_with_their_tables_and_plots(br
                                                                              tmp_path):
     """Each command's page: no console error, its tables hold the rows its CSV holds, its plots
     drawn (a renderer with data), no text out of its box on either tab."""
-    from navsim.cli import main
     shutil.copy(repo_root / "scenarios" / "p0_bd_sins_ads.yaml", tmp_path / "p0.yaml")
     (tmp_path / "sweep.yaml").write_text("scenario: p0.yaml\nruns: 2\ngrid:\n  montecarlo.seed: [1, 2]\n"
                                          "metric: rms.pos_m\n")

@@ -5,15 +5,19 @@ user wrote is escaped, and NaN records and diverged runs are drawn as gaps and l
 import dataclasses
 import html as html_lib
 import json
+import os
 import re
+import time
 
 import numpy as np
 import pytest
 
 import navsim
 from navsim.api.results import _report_input
+from navsim.foundations.outputs import temporary_name, write_atomic
 from navsim.records.states import POS
 from navsim.report import html, html_parts, picker
+from navsim.report.render import ForkedWrite
 
 
 @pytest.fixture(scope="module")
@@ -125,3 +129,56 @@ def test_text_a_user_wrote_is_escaped(p0):
     assert not any("<script" in b or "<b>bold" in b or "<i>x" in b for b in blocks)
     assert any(html_lib.escape("p0 <i>x</i>") in b for b in blocks)
     assert nasty in strings                                   # a legend's label: plain text
+
+
+def test_a_table_header_is_escaped_as_its_cells_are():
+    """A column title is shown by the table as HTML: a sweep parameter or tune label with a tag
+    stays text."""
+    t = html_parts.table(['<img src=x onerror="window.pwned=3">', "b"], [["1", "2"]])
+    assert t.columns[0].title == html_lib.escape('<img src=x onerror="window.pwned=3">')
+
+
+def test_quantised_traces_keep_infinite_and_tiny_values_apart():
+    """An infinite value is a gap, not a scale that zeroes the trace; a trace of tiny values
+    keeps a usable scale (0 stays 0)."""
+    q, scale = picker.quantised(np.array([[[1.0, 2.0, np.inf, -3.0, np.nan]], [[1e-45, 0.0, -1e-45, 0, 0]]]))
+    assert list(q[0, 0]) == [10922, 21845, -32768, -32767, -32768] and scale[0, 0] == np.float32(3.0 / 32767)
+    assert np.isfinite(scale).all() and scale[1, 0] > 0 and q[1, 0, 1] == 0
+
+
+def test_the_page_follows_report_formats(p0, tmp_path):
+    """``report.formats`` without html writes no page; html alone writes only it; the default
+    writes it beside the PDF."""
+    for formats, expect in ((["pdf"], {"report.pdf"}), (["html"], {"report.html"}),
+                            (["pdf", "png", "html"], {"report.pdf", "report.html"})):
+        result = dataclasses.replace(p0, scenario=dataclasses.replace(p0.scenario, report={"formats": formats}))
+        out = tmp_path / "-".join(formats)
+        files = navsim.write_report(result, out)
+        names = {f.name for f in files}
+        assert {n for n in names if n.startswith("report.")} == expect and (out / "report.html").exists() == (
+            "html" in formats)
+        assert ("png" in formats) == any(n.endswith(".png") for n in names)
+
+
+def test_a_forked_writer_whose_child_fails_writes_here_and_an_abandoned_one_leaves_nothing(tmp_path):
+    """The child's failure is invisible (the parent writes the file itself); abandoning the
+    child (the parent failed) ends it and removes its half-written file."""
+    parent, path = os.getpid(), tmp_path / "page.html"
+
+    def write():
+        if os.getpid() != parent:
+            raise RuntimeError("the child fails")
+        write_atomic(path, lambda p: p.write_text("written here"))
+    ForkedWrite(write, [path]).finish()
+    assert path.read_text() == "written here"
+
+    slow = tmp_path / "slow.html"
+
+    def write_slowly():
+        temporary_name(slow).write_text("half")
+        time.sleep(30)
+    job = ForkedWrite(write_slowly, [slow])
+    time.sleep(0.5)
+    t0 = time.perf_counter()
+    assert job.end(abandon=True) is False
+    assert time.perf_counter() - t0 < 5 and not slow.exists() and not temporary_name(slow).exists()
