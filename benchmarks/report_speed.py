@@ -92,7 +92,7 @@ def in_browser(page: Path, result) -> str:
         load_s = time.perf_counter() - t0
         tab.get_by_text("Run picker", exact=True).first.click()
         tab.locator("select").first.select_option(label=text)
-        drawn = tab.evaluate(f"() => Array.from(Bokeh.documents[0].get_model_by_name('run_errors_{index}_0')"
+        drawn = tab.evaluate(f"() => Array.from(Bokeh.documents[0].get_model_by_name('run_pos_{index}_0')"
                              ".data.ys[0], y => Number.isNaN(y) ? null : y)")
         browser.close()
     err = np.array([np.nan if v is None else v for v in drawn], float)

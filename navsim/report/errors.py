@@ -14,6 +14,9 @@ AXES = {"pos": ("position error", "m", ["north", "east", "down"]),
         "vel": ("velocity error", "m/s", ["north", "east", "down"]),
         "att": ("attitude error", "deg", ["about north (roll-like)", "about east", "about down (heading)"])}
 
+#: the history field of each quantity (the attitude's drawn in degrees)
+ERROR_FIELDS = {"pos": "pos_err_m", "vel": "vel_err_mps", "att": "att_err_rad"}
+
 #: a free-inertial envelope this many times the aided ones' gets an axis of its own
 OWN_AXIS_RATIO = 5.0
 
@@ -25,7 +28,8 @@ def envelopes(h, key: str):
     good = ~np.asarray(h.diverged, bool)
     if not good.any():
         return None
-    err = {"pos": h.pos_err_m, "vel": h.vel_err_mps, "att": np.degrees(h.att_err_rad)}[key][good]
+    err = np.asarray(getattr(h, ERROR_FIELDS[key]))[good]
+    err = np.degrees(err) if key == "att" else err
     sig = None
     if h.sigma is not None:
         s = h.sigma[..., BLOCKS[key]]

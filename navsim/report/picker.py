@@ -1,12 +1,13 @@
 """The run picker of ``report.html``: any run, the worst by a metric, or the diverged ones,
-its position error on each axis against its own ±3σ and its events, redrawn in the browser.
+its errors on each axis against its own ±3σ and its events, redrawn in the browser.
 
-Each estimator's position error and 1-sigma of every run are held in the page as 16-bit
-integers scaled per run and trace (:func:`quantised`: the trace's largest value over 32767, a
-step under 1/30 000 of the plot's height), thinned as the PDF's curves are beyond
-:data:`~navsim.flight.plots.PLOT_POINTS` epochs (:func:`run_traces`); a JavaScript callback
-(:data:`PICK_JS`) decodes the chosen run as :func:`decoded` does in Python (the browser tests
-compare the two to the bit).
+The errors held are the position's, then the attitude's and the velocity's while the page stays
+within :data:`MAX_VALUES` values (:func:`quantities`). Each estimator's errors and 1-sigmas of
+every run are held in the page as 16-bit integers scaled per run and trace (:func:`quantised`:
+the trace's largest value over 32767, a step under 1/30 000 of the plot's height), thinned as
+the PDF's curves are beyond :data:`~navsim.flight.plots.PLOT_POINTS` epochs (:func:`run_traces`);
+a JavaScript callback (:data:`PICK_JS`) decodes the chosen run as :func:`decoded` does in Python
+(the browser tests compare the two to the bit).
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ from bokeh.models import (ColumnDataSource, CustomJS, DataTable, Div, HTMLTempla
 from matplotlib.colors import to_hex
 
 from navsim.flight.plots import PLOT_POINTS, drawn
-from navsim.records.states import POS
-from navsim.report.errors import envelopes, split_free
+from navsim.records.states import BLOCKS
+from navsim.report.errors import AXES, ERROR_FIELDS, envelopes, split_free
 from navsim.report.figures import ReportInput, estimator_colours
 from navsim.report.html_parts import WIDTH, esc, hide, legend_row, shade, time_figure
 from navsim.scoring.stats import last_finite
@@ -30,7 +31,10 @@ from navsim.scoring.stats import last_finite
 WORST_RUNS = 20
 #: a 16-bit trace's full scale
 FULL_SCALE = 32767
-AXIS_NAMES = ("north", "east", "down")
+#: the most values the picker holds (errors and sigmas over runs and epochs drawn): about 2 MB
+#: of the page and 0.1 s of its writing per million (P0's 1000 runs: its position, 4.5 million;
+#: with the attitude, 19.7 MB written in 0.3 s more; P4's 40 runs: position and attitude)
+MAX_VALUES = 6_000_000
 
 
 def quantised(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -47,14 +51,36 @@ def quantised(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.where(finite, q, -FULL_SCALE - 1).astype(np.int16), scale
 
 
-def run_traces(h) -> dict:
+def errors_of(h, key: str) -> np.ndarray:
+    """An estimator's ``key`` error (``pos``, ``vel``, ``att``: m, m/s, deg) and, where it
+    has a covariance, its 1-sigma: ``(R, 3 or 6, E)``, the axes N, E, D then their sigmas."""
+    err = np.asarray(getattr(h, ERROR_FIELDS[key]))
+    out = [np.moveaxis(np.degrees(err) if key == "att" else err, 2, 1)]
+    if h.sigma is not None:
+        sig = np.asarray(h.sigma[..., BLOCKS[key]])
+        out.append(np.moveaxis(np.degrees(sig) if key == "att" else sig, 2, 1))
+    return np.concatenate(out, axis=1)
+
+
+def quantities(histories: dict) -> tuple[str, ...]:
+    """The errors the picker holds: position, then attitude and velocity while the page's
+    values stay within :data:`MAX_VALUES` (P0's 1000 runs: position alone; 600 runs or fewer:
+    and attitude)."""
+    per = lambda k: sum(errors_of(h, k)[..., :min(len(h.t_s), 2 * PLOT_POINTS)].size for h in histories.values())
+    keys, total = [], 0
+    for k in ("pos", "att", "vel"):
+        if not keys or total + per(k) <= MAX_VALUES:
+            keys.append(k)
+            total += per(k)
+    return tuple(keys)
+
+
+def run_traces(h, keys=("pos",)) -> dict:
     """One estimator's picker data: its times ``t`` ``(E,)``, per run the epochs drawn (all
     of them, ``idx`` empty, where there are at most PLOT_POINTS; else ``idx`` flat with
-    ``offsets``), the position error on N, E, D and its 1-sigma (where the filter has one)
-    quantised (:func:`quantised`) in ``values`` ``(C * total,)`` and ``scales`` ``(R * C,)``."""
-    err = np.moveaxis(np.asarray(h.pos_err_m), 2, 1)                       # (R, 3, E)
-    if h.sigma is not None:
-        err = np.concatenate([err, np.moveaxis(np.asarray(h.sigma[..., POS]), 2, 1)], axis=1)
+    ``offsets``), the errors ``keys`` (:func:`errors_of`, ``per`` channels each) quantised
+    (:func:`quantised`) in ``values`` ``(C * total,)`` and ``scales`` ``(R * C,)``."""
+    err = np.concatenate([errors_of(h, k) for k in keys], axis=1)
     R, C, E = err.shape
     q, scales = quantised(err)
     if E <= PLOT_POINTS:
@@ -66,22 +92,23 @@ def run_traces(h) -> dict:
         idx = np.concatenate(keep).astype(np.int32)
         values = np.concatenate([q[r][:, k] for r, k in enumerate(keep)], axis=1)
     return {"t": np.asarray(h.t_s, np.float32), "idx": idx, "offsets": offsets, "values": values.reshape(-1),
-            "scales": scales.reshape(-1), "channels": C}
+            "scales": scales.reshape(-1), "channels": C, "per": C // len(keys)}
 
 
-def decoded(traces: dict, r: int) -> dict:
-    """Row ``r``'s drawn trace as the page's JavaScript decodes it: ``t`` and, per axis ``j``,
-    the error ``e{j}`` and ``±3σ`` ``p{j}``/``m{j}`` (NaN without a sigma)."""
-    off, C, idx = traces["offsets"], traces["channels"], traces["idx"]
+def decoded(traces: dict, r: int, q: int = 0) -> dict:
+    """Row ``r``'s drawn trace of the ``q``-th error held as the page's JavaScript decodes it:
+    ``t`` and, per axis ``j``, the error ``e{j}`` and ``±3σ`` ``p{j}``/``m{j}`` (NaN without a
+    sigma)."""
+    off, C, per, idx = traces["offsets"], traces["channels"], traces["per"], traces["idx"]
     n0, n1, total = int(off[r]), int(off[r + 1]), int(off[-1])
     t = traces["t"][np.arange(n1 - n0)] if idx.size == 0 else traces["t"][idx[n0:n1]]
     chans = []
-    for c in range(C):
+    for c in range(q * per, (q + 1) * per):
         v = traces["values"][c * total + n0:c * total + n1].astype(np.float64)
         chans.append(np.where(v == -FULL_SCALE - 1, np.nan, v * np.float64(traces["scales"][r * C + c])))
     out = {"t": t.astype(np.float64)}
     for j in range(3):
-        sig = chans[3 + j] if C > 3 else np.full(n1 - n0, np.nan)
+        sig = chans[3 + j] if per > 3 else np.full(n1 - n0, np.nan)
         out.update({f"e{j}": chans[j], f"p{j}": 3 * sig, f"m{j}": -3 * sig})
     return out
 
@@ -153,10 +180,14 @@ for (let e = 0; e < src.length; e++) {
     }
     chans.push(v);
   }
-  for (let j = 0; j < 3; j++) {
-    const p = C > 3 ? chans[3 + j].map(x => 3 * x) : new Float64Array(n).fill(NaN);
-    const m = C > 3 ? chans[3 + j].map(x => -3 * x) : new Float64Array(n).fill(NaN);
-    src[e][j].data = {xs: [t, t, t], ys: [chans[j], p, m], w: [1.4, 1, 1], d: ['solid', 'dashed', 'dashed']};
+  const per = C / src[e].length;
+  for (let q = 0; q < src[e].length; q++) {
+    for (let j = 0; j < 3; j++) {
+      const b = q * per;
+      const p = per > 3 ? chans[b + 3 + j].map(x => 3 * x) : new Float64Array(n).fill(NaN);
+      const m = per > 3 ? chans[b + 3 + j].map(x => -3 * x) : new Float64Array(n).fill(NaN);
+      src[e][q][j].data = {xs: [t, t, t], ys: [chans[b + j], p, m], w: [1.4, 1, 1], d: ['solid', 'dashed', 'dashed']};
+    }
   }
   const ex = [];
   for (let k = 0; k < ev_row[e].length; k++) {
@@ -186,44 +217,23 @@ def events_of(h) -> tuple[list, list, list]:
 
 
 def picker_tab(inp: ReportInput, time_range):
-    """A run chosen from :func:`rankings`: its position error per axis against its own ±3σ,
-    its events as lines and in a table, the sensors' faults shaded (red); None without a run."""
+    """A run chosen from :func:`rankings`: its errors (:func:`quantities`) per axis against
+    its own ±3σ, its events as lines and in a table, the sensors' faults shaded (red); None
+    without a run."""
     groups = rankings(inp)
     if not groups:
         return None
-    colours = {k: to_hex(c) for k, c in estimator_colours(inp.histories).items()}
-    env = {k: e for k, h in inp.histories.items() if (e := envelopes(h, "pos")) is not None}
-    hidden = set(split_free(env, (inp.scenario.settle_s, np.inf))[1])
-    row0, start = next(iter(next(iter(groups.values()))), (0, ""))
-    labels, traces = list(inp.histories), [run_traces(h) for h in inp.histories.values()]
-    srcs = [[ColumnDataSource(axis_data(decoded(tr, row0), j), name=f"run_errors_{i}_{j}") for j in range(3)]
-            for i, tr in enumerate(traces)]
+    keys, labels = quantities(inp.histories), list(inp.histories)
+    traces = [run_traces(h, keys) for h in inp.histories.values()]
+    row0, start = next(iter(next(iter(groups.values()))))
+    srcs = [[[ColumnDataSource(axis_data(decoded(tr, row0, q), j), name=f"run_{k}_{i}_{j}") for j in range(3)]
+             for q, k in enumerate(keys)] for i, tr in enumerate(traces)]
     evs = [events_of(h) for h in inp.histories.values()]
     ev_srcs = [ColumnDataSource({"x": [t for r, t in zip(ev[0], ev[1]) if r == row0]}, name=f"run_events_{i}")
                for i, ev in enumerate(evs)]
-    figs = []
-    for j, axis in enumerate(AXIS_NAMES):
-        fig = time_figure(f"Position error, {axis}: the chosen run against its own ±3σ", "m", time_range)
-        items = []
-        for i, label in enumerate(labels):
-            c = colours[label]
-            lines = [fig.add_glyph(srcs[i][j], MultiLine(xs="xs", ys="ys", line_color=c, line_width="w", line_dash="d")),
-                     fig.add_glyph(ev_srcs[i], VSpan(x="x", line_color=c, line_width=2, line_dash="dotted"))]
-            hide(lines, label in hidden)
-            items.append(LegendItem(label=label, renderers=lines))
-        legend_row(fig, items)
-        shade(fig, inp, faults=True)
-        figs.append(fig)
+    figs, hidden = _figures(inp, time_range, keys, srcs, ev_srcs)
     numbers = run_numbers(inp, len(inp.histories[labels[0]].diverged)).tolist()
-    first = [(labels[i], f"{t:.2f}", x) for i, ev in enumerate(evs) for r, t, x in zip(*ev) if r == row0]
-    events = DataTable(source=ColumnDataSource({"estimator": [f[0] for f in first], "t": [f[1] for f in first],
-                                                "event": [f[2] for f in first]}, name="run_event_table"),
-                       columns=[TableColumn(field=f, title=tt, formatter=HTMLTemplateFormatter(template=f"<%- {f} %>"))
-                                for f, tt in (("estimator", "estimator"), ("t", "time, s"), ("event", "event"))],
-                       width=WIDTH, height=140, index_position=None, reorderable=False)
-    first_events = sum(ev[0].count(row0) for ev in evs)
-    info = Div(text=f"Run {numbers[row0]}: " + (f"{first_events} event(s)." if first_events else "no events."),
-               render_as_text=True, name="run_info")
+    events, info = _events(labels, evs, row0, numbers[row0])
     select = Select(title="Run", options={g: [text for _, text in opts] for g, opts in groups.items()}, value=start,
                     width=520, name="run_select")
     every = [(r, text) for opts in groups.values() for r, text in opts]
@@ -232,13 +242,54 @@ def picker_tab(inp: ReportInput, time_range):
                 idx=[tr["idx"] for tr in traces], times=[tr["t"] for tr in traces],
                 values=[tr["values"] for tr in traces], scales=[tr["scales"] for tr in traces],
                 ev_row=[np.asarray(ev[0], np.int32) for ev in evs], ev_t=[np.asarray(ev[1], float) for ev in evs],
-                ev_shown=[[f"{t:.2f}" for t in ev[1]] for ev in evs],
-                ev_text=[ev[2] for ev in evs], option_texts=[t for _, t in every],
-                option_rows=np.array([r for r, _ in every], np.int32))
+                ev_shown=[[f"{t:.2f}" for t in ev[1]] for ev in evs], ev_text=[ev[2] for ev in evs],
+                option_texts=[t for _, t in every], option_rows=np.array([r for r, _ in every], np.int32))
     select.js_on_change("value", CustomJS(args=args, code=PICK_JS))
-    text = ("Choose a run: the worst by a metric of each estimator, its diverged runs, or any run. Solid: its "
-            "position error; dashed: ± 3 × its own filter sigma; dotted lines: its events (resets, divergence); red: "
-            "sensor faults; orange: metric windows. Values drawn to 1/30 000 of each trace's largest (the full data: "
-            "chunks/)" + (f"; {', '.join(sorted(hidden))} hidden at first (its legend entry shows it)." if hidden else "."))
+    shown = ", ".join(AXES[k][0] for k in keys)
+    text = (f"Choose a run: the worst by a metric of each estimator, its diverged runs, or any run. Solid: its {shown}; "
+            "dashed: ± 3 × its own filter sigma; dotted lines: its events (resets, divergence); red: sensor faults; "
+            "orange: metric windows. Values drawn to 1/30 000 of each trace's largest (the full data: chunks/)"
+            + (f"; {', '.join(sorted(hidden))} hidden at first (its legend entry shows it)." if hidden else "."))
     note = Div(text=f"<p style='max-width:{WIDTH}px'>{esc(text)}</p>")
     return column(note, row(select, info), *figs, events)
+
+
+def _figures(inp: ReportInput, time_range, keys, srcs, ev_srcs) -> tuple[list, set]:
+    """The picker's plots, three axes per error held, each estimator's error, ±3σ and events
+    in its colour; a free-inertial estimator that would flatten the others hidden at first."""
+    colours = {k: to_hex(c) for k, c in estimator_colours(inp.histories).items()}
+    hidden = set()
+    for key in keys:
+        env = {k: e for k, h in inp.histories.items() if (e := envelopes(h, key)) is not None}
+        hidden |= set(split_free(env, (inp.scenario.settle_s, np.inf))[1])
+    figs = []
+    for q, key in enumerate(keys):
+        title, unit, names = AXES[key]
+        for j, axis in enumerate(names):
+            fig = time_figure(f"{title[0].upper() + title[1:]}, {axis}: the chosen run against its own ±3σ", unit,
+                              time_range)
+            items = []
+            for i, label in enumerate(inp.histories):
+                c = colours[label]
+                lines = [fig.add_glyph(srcs[i][q][j], MultiLine(xs="xs", ys="ys", line_color=c, line_width="w",
+                                                                line_dash="d")),
+                         fig.add_glyph(ev_srcs[i], VSpan(x="x", line_color=c, line_width=2, line_dash="dotted"))]
+                hide(lines, label in hidden)
+                items.append(LegendItem(label=label, renderers=lines))
+            legend_row(fig, items)
+            shade(fig, inp, faults=True)
+            figs.append(fig)
+    return figs, hidden
+
+
+def _events(labels: list, evs: list, row0: int, number: int):
+    """The table of the chosen run's events and the line naming the run (row ``row0`` at first)."""
+    first = [(labels[i], f"{t:.2f}", x) for i, ev in enumerate(evs) for r, t, x in zip(*ev) if r == row0]
+    table = DataTable(source=ColumnDataSource({"estimator": [f[0] for f in first], "t": [f[1] for f in first],
+                                               "event": [f[2] for f in first]}, name="run_event_table"),
+                      columns=[TableColumn(field=f, title=tt, formatter=HTMLTemplateFormatter(template=f"<%- {f} %>"))
+                               for f, tt in (("estimator", "estimator"), ("t", "time, s"), ("event", "event"))],
+                      width=WIDTH, height=140, index_position=None, reorderable=False)
+    info = Div(text=f"Run {number}: " + (f"{len(first)} event(s)." if first else "no events."), render_as_text=True,
+               name="run_info")
+    return table, info

@@ -135,9 +135,12 @@ def test_the_page_opens_and_the_picker_draws_the_chosen_run(browser, p0_folder):
         row, text = groups[name][1]                                # the second worst
         page.pick(text)
         h = result.histories["BD/SINS/ADS ES-KF 16"]
-        expected = picker.decoded(picker.run_traces(h), row)
+        keys = picker.quantities(result.histories)
+        assert keys == ("pos", "att", "vel")                       # 8 runs: every error held
+        traces = picker.run_traces(h, keys)
+        expected = picker.decoded(traces, row)
         for j in range(3):
-            drawn = page.data(f"run_errors_1_{j}")
+            drawn = page.data(f"run_pos_1_{j}")
             t, err, plus, minus = (_as_array(v) for v in (drawn["xs"][0], *drawn["ys"]))
             np.testing.assert_array_equal(t, expected["t"])
             np.testing.assert_array_equal(err, expected[f"e{j}"])           # as Python decodes it, to the bit
@@ -147,6 +150,10 @@ def test_the_page_opens_and_the_picker_draws_the_chosen_run(browser, p0_folder):
             assert np.max(np.abs(err - recorded)) <= 1e-4 * np.max(np.abs(recorded))
             sigma = h.sigma[row][:, 6 + j].astype(float)
             assert np.max(np.abs(plus - 3 * sigma)) <= 1e-4 * np.max(3 * sigma)
+            att = _as_array(page.data(f"run_att_1_{j}")["ys"][0])                # the attitude held too
+            np.testing.assert_array_equal(att, picker.decoded(traces, row, 1)[f"e{j}"])
+            recorded = np.degrees(h.att_err_rad[row, :, j].astype(float))
+            assert np.max(np.abs(att - recorded)) <= 1e-4 * np.max(np.abs(recorded))
         info = page.page.evaluate("() => Bokeh.documents[0].get_model_by_name('run_info').text")
         assert info.startswith(f"Run {text.split(':')[0].split()[1]}: "), info
         assert page.errors == []
@@ -192,7 +199,7 @@ def test_hostile_input_gives_a_page_that_opens_with_its_text_as_written(browser,
         assert events["event"] == ['diverged: NEES > 1e6 "<b>"'] * 2 and events["t"] == ["250.00"] * 2
         assert sorted(events["estimator"]) == sorted(result.histories)          # each estimator's flag
         page.pick(next(text for r, text in groups["every run"] if r == 0))
-        err = _as_array(page.data("run_errors_0_0")["ys"][0])
+        err = _as_array(page.data("run_pos_0_0")["ys"][0])
         assert np.isnan(err).any() and np.isfinite(err).sum() > 100     # a gap, the rest drawn
         for tab in ("Summary", "Flight", "Errors", "Consistency", "Run picker"):     # every text shown
             page.tab(tab)

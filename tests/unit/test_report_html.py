@@ -182,3 +182,23 @@ def test_a_forked_writer_whose_child_fails_writes_here_and_an_abandoned_one_leav
     t0 = time.perf_counter()
     assert job.end(abandon=True) is False
     assert time.perf_counter() - t0 < 5 and not slow.exists() and not temporary_name(slow).exists()
+
+
+def test_the_picker_holds_attitude_and_velocity_while_the_page_stays_small(p0, monkeypatch):
+    """Position always; attitude, then velocity, while the values held stay within
+    MAX_VALUES; each held error decodes to its record (the attitude in degrees)."""
+    h = p0.histories["BD/SINS/ADS ES-KF 16"]
+    one = h.pos_err_m.size * 2                                     # errors and sigmas of one quantity
+    sins = p0.histories["free SINS"].pos_err_m.size
+    monkeypatch.setattr(picker, "MAX_VALUES", one + sins)
+    assert picker.quantities(p0.histories) == ("pos",)
+    monkeypatch.setattr(picker, "MAX_VALUES", 2 * (one + sins))
+    assert picker.quantities(p0.histories) == ("pos", "att")
+    monkeypatch.setattr(picker, "MAX_VALUES", 3 * (one + sins))
+    keys = picker.quantities(p0.histories)
+    assert keys == ("pos", "att", "vel")
+    tr = picker.run_traces(h, keys)
+    for q, (field, scale) in enumerate((("pos_err_m", 1.0), ("att_err_rad", 180 / np.pi), ("vel_err_mps", 1.0))):
+        recorded = getattr(h, field)[2, :, 1].astype(float) * scale
+        step = tr["scales"][2 * tr["channels"] + q * tr["per"] + 1]
+        assert np.nanmax(np.abs(picker.decoded(tr, 2, q)["e1"] - recorded)) <= 0.5 * step * (1 + 1e-6)
