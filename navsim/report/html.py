@@ -167,7 +167,7 @@ def consistency_tab(inp: ReportInput, time_range):
     for ylabel, series in panels:
         log = spans_decades([v for s in series for v in (s.y, [s.lo, s.hi])])
         fig = time_figure(ylabel.replace("\n", ", "), "log scale" if log else "", time_range,
-                      y_axis_type="log" if log else "linear")
+                          y_axis_type="log" if log else "linear")
         items = []
         for s in series:
             y = np.where(np.asarray(s.y, float) > 0, s.y, np.nan) if log else s.y
@@ -193,10 +193,10 @@ def compare_html(comparisons: list) -> str:
                                 compare_report.text_rows(c)))
         rel = [d for d in c.differences if np.isfinite(d.relative) and d.a]
         if rel:
+            ends = [sorted((100 * d.ci95[0] / d.a, 100 * d.ci95[1] / d.a)) for d in rel]   # (B - A) / A, as its value
             figures.append(interval_figure(
                 f"B - A relative to A: {c.b.estimator} against {c.a.estimator}", "B - A, % of A", [d.name for d in rel],
-                [100 * d.relative for d in rel], [100 * d.ci95[0] / abs(d.a) for d in rel],
-                [100 * d.ci95[1] / abs(d.a) for d in rel],
+                [100 * d.relative for d in rel], [lo for lo, _ in ends], [hi for _, hi in ends],
                 [compare_report.COLOURS.get(d.verdict, PALETTE[0]) for d in rel]))
     return results_page("navsim compare", "B - A of each metric with its 95 % interval (runs paired where both sides "
                         "flew the same runs); the verdicts as printed on the terminal.", sections, figures)
