@@ -50,10 +50,6 @@ from navsim.report.html_parts import (PALETTE, WIDTH, Curve, curves, esc, hide, 
 from navsim.report.picker import picker_tab
 from navsim.report.summary import Section, run_details, sections, windows
 
-#: the file written beside report.pdf
-HTML_FILE = "report.html"
-
-
 def write_html(path: Path, inp: ReportInput) -> None:
     """Write the page of the run ``inp`` to ``path`` (under a temporary name, then renamed; the
     caller has recorded it in its output folder's manifest)."""

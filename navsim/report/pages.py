@@ -125,6 +125,11 @@ def report_pages(inp: ReportInput) -> list[Page]:
     return pages
 
 
+#: the interactive page written beside report.pdf (:mod:`navsim.report.html`; named here, so that
+#: naming it does not import Bokeh into this process)
+HTML_FILE = "report.html"
+
+
 def write_report(folder: OutputFolder, inp: ReportInput) -> list[Path]:
     """Write the PNGs, ``report.pdf`` and ``report.html`` (those of the scenario's
     ``report.formats``) of the run ``inp`` (its scenario, flight, histories, metrics, record; for
@@ -133,8 +138,8 @@ def write_report(folder: OutputFolder, inp: ReportInput) -> list[Path]:
     written); returns the files written."""
     fmts = inp.scenario.report.get("formats", REPORT_FORMATS)
     pages, written, page = [], [], None
-    if "html" in fmts:                        # a forked child writes it meanwhile (Bokeh imported there)
-        path = folder.path / report.html.HTML_FILE
+    if "html" in fmts:                        # a forked child writes it meanwhile (Bokeh imported there only)
+        path = folder.path / HTML_FILE
         folder.record([path])
         page = ForkedWrite(lambda: report.html.write_html(path, inp), [path])
     try:

@@ -7,6 +7,8 @@ import html as html_lib
 import json
 import os
 import re
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -202,3 +204,14 @@ def test_the_picker_holds_attitude_and_velocity_while_the_page_stays_small(p0, m
         recorded = getattr(h, field)[2, :, 1].astype(float) * scale
         step = tr["scales"][2 * tr["channels"] + q * tr["per"] + 1]
         assert np.nanmax(np.abs(picker.decoded(tr, 2, q)["e1"] - recorded)) <= 0.5 * step * (1 + 1e-6)
+
+
+def test_writing_a_report_leaves_bokeh_to_the_child_that_writes_the_page(p0, tmp_path):
+    """The process writing a report never imports Bokeh (0.3-0.5 s and its memory): the forked
+    child that writes report.html does."""
+    navsim.write_report(p0, tmp_path / "p0")
+    code = ("import sys, navsim; files = navsim.write_report(navsim.open_result(sys.argv[1])); "
+            "print(any(f.name == 'report.html' for f in files), 'bokeh' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code, str(tmp_path / "p0")], capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out == ["True", "False"], out
