@@ -49,6 +49,7 @@ from navsim.report.html_parts import (PALETTE, WIDTH, Curve, curves, esc, hide, 
                                       results_page, section_blocks, shade, time_figure)
 from navsim.report.picker import picker_tab
 from navsim.report.summary import Section, run_details, sections, windows
+from navsim.scoring.verdicts import with_interval
 
 def write_html(path: Path, inp: ReportInput) -> None:
     """Write the page of the run ``inp`` to ``path`` (under a temporary name, then renamed; the
@@ -224,8 +225,8 @@ def sweep_html(sweep) -> str:
     for n, (point, vals) in enumerate(sweep.rows):
         cells = [str(n + 1)] + [str(point.get(k)) for k in keys]
         for lb in labels:
-            iv = sweep.interval(n, lb) or [np.nan, np.nan]
-            cells.append(_with_interval(vals.get(lb), iv))
+            iv = sweep.interval(n, lb)
+            cells.append(with_interval(vals.get(lb), None if iv is None else [iv]))
         rows.append(cells)
     sections = [Section(f"{sweep.metric} at each point", "", ["point", *keys, *labels], rows)]
     figures = []
@@ -270,10 +271,3 @@ def tune_html(r, params: list) -> str:
 
 def _finite(v) -> float:
     return float(v) if v is not None and np.isfinite(v) else np.nan
-
-
-def _with_interval(v, iv) -> str:
-    if v is None or not np.isfinite(v):
-        return "-"
-    lo, hi = iv
-    return f"{v:.4g}" + (f" [{lo:.4g}, {hi:.4g}]" if np.isfinite(lo) and np.isfinite(hi) else "")

@@ -66,13 +66,10 @@ def quantities(histories: dict) -> tuple[str, ...]:
     """The errors the picker holds: position, then attitude and velocity while the page's
     values stay within :data:`MAX_VALUES` (P0's 1000 runs: position alone; 600 runs or fewer:
     and attitude)."""
-    per = lambda k: sum(errors_of(h, k)[..., :min(len(h.t_s), 2 * PLOT_POINTS)].size for h in histories.values())
-    keys, total = [], 0
-    for k in ("pos", "att", "vel"):
-        if not keys or total + per(k) <= MAX_VALUES:
-            keys.append(k)
-            total += per(k)
-    return tuple(keys)
+    # each error holds as many values: runs x (3 axes, and 3 sigmas) x epochs drawn (about)
+    one = sum(len(h.diverged) * (6 if h.sigma is not None else 3) * min(len(h.t_s), 2 * PLOT_POINTS)
+              for h in histories.values())
+    return ("pos", "att", "vel")[:max(1, min(3, MAX_VALUES // max(one, 1)))]
 
 
 def run_traces(h, keys=("pos",)) -> dict:
